@@ -1,1 +1,13 @@
+//! hilrig: a hardware-in-the-loop recorder and replay rig for validating lidar sensor models.
+//!
+//! The library holds the rig (DESIGN.md, `src/`): it knows the drivers only through their public
+//! types. The `hilrig` binary is a thin CLI over it.
 
+#![warn(missing_docs)]
+
+pub mod lidar;
+pub mod points_out;
+
+pub use hilrig_capture as capture;
+pub use hilrig_stamp as stamp;
+pub use hilrig_velodyne as velodyne;

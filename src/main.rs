@@ -1,1 +1,243 @@
-fn main() {}
+//! The `hilrig` command line.
+//!
+//! Arguments are parsed by clap and then validated once into typed settings before any work
+//! starts (ripgrep's LowArgs -> HiArgs), so a bad option fails fast with a clear message.
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand, ValueEnum};
+use hilrig::lidar::{decode_capture, CountSink, LidarOptions, LidarSummary};
+use hilrig::points_out::{CsvSink, JsonlSink};
+use hilrig::velodyne::{Calibration, Model};
+use std::fs::File;
+use std::io::{self, BufReader, BufWriter, Write};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "hilrig",
+    version,
+    about = "Hardware-in-the-loop recorder and replay rig for validating lidar sensor models"
+)]
+struct Cli {
+    /// More log output (-v info, -vv debug); RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Decode a lidar capture (pcap/pcapng) into points.
+    Decode(DecodeArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Format {
+    /// One row per point: time_s,ring,azimuth_deg,distance_m,intensity,return_type,x,y,z.
+    Csv,
+    /// One JSON object per point.
+    Jsonl,
+    /// No points: counts, packet loss, timing and position-packet state only.
+    Summary,
+}
+
+#[derive(clap::Args)]
+struct DecodeArgs {
+    /// The capture file (pcap or pcapng).
+    file: PathBuf,
+    /// Decode as this model whatever the packets' product byte says
+    /// (vlp16, puck-hires, vlp32c, hdl32e).
+    #[arg(long)]
+    model: Option<String>,
+    /// Calibration file in the ros-drivers YAML format.
+    #[arg(long)]
+    calibration: Option<PathBuf>,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "csv")]
+    format: Format,
+    /// Output file (default: standard output).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// UDP destination port of data packets.
+    #[arg(long, default_value_t = hilrig::velodyne::DATA_PORT)]
+    data_port: u16,
+    /// UDP destination port of position packets.
+    #[arg(long, default_value_t = hilrig::velodyne::POSITION_PORT)]
+    position_port: u16,
+}
+
+fn init_logging(verbose: u8) {
+    let default = match verbose {
+        0 => "warn",
+        1 => "info",
+        _ => "debug",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(io::stderr)
+        .with_target(false)
+        .init();
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_logging(cli.verbose);
+    let result = match cli.command {
+        Command::Decode(args) => run_decode(args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn run_decode(args: DecodeArgs) -> Result<ExitCode> {
+    let model = args
+        .model
+        .as_deref()
+        .map(str::parse::<Model>)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
+    let calibration = match &args.calibration {
+        Some(path) => {
+            let Some(m) = model else {
+                bail!("--calibration needs --model, so that the laser count can be checked");
+            };
+            Some(Calibration::from_file(path, m)?)
+        }
+        None => None,
+    };
+    let options = LidarOptions {
+        model,
+        calibration,
+        data_port: Some(args.data_port),
+        position_port: Some(args.position_port),
+    };
+    let file =
+        File::open(&args.file).with_context(|| format!("cannot open {}", args.file.display()))?;
+    let source = BufReader::with_capacity(1 << 20, file);
+    let out: Box<dyn Write> = match &args.output {
+        Some(p) => {
+            Box::new(File::create(p).with_context(|| format!("cannot create {}", p.display()))?)
+        }
+        None => Box::new(io::stdout().lock()),
+    };
+    let out = BufWriter::with_capacity(1 << 20, out);
+    let summary = match args.format {
+        Format::Csv => {
+            let mut sink = CsvSink::new(out)?;
+            let s = decode_capture(source, &options, &mut sink);
+            sink.finish()?;
+            s
+        }
+        Format::Jsonl => {
+            let mut sink = JsonlSink::new(out);
+            let s = decode_capture(source, &options, &mut sink);
+            sink.finish()?;
+            s
+        }
+        Format::Summary => {
+            let mut sink = CountSink::default();
+            decode_capture(source, &options, &mut sink)
+        }
+    }
+    .with_context(|| format!("decoding {}", args.file.display()))?;
+    report(&args, &summary);
+    if summary.data_packets == 0 {
+        eprintln!(
+            "error: {}: no Velodyne data packets (1206-byte UDP payloads to port {}) found",
+            args.file.display(),
+            args.data_port
+        );
+        return Ok(ExitCode::from(2));
+    }
+    Ok(if summary.capture_error.is_some() {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
+fn report(args: &DecodeArgs, s: &LidarSummary) {
+    let path = args.file.display();
+    if let Some(m) = &s.model_mismatch {
+        tracing::warn!("{path}: {m}");
+        eprintln!("warning: {path}: {m}");
+    }
+    if let (Some(forced), Some(product)) = (s.model, s.product) {
+        if Model::from_product(product) != Some(forced) {
+            eprintln!(
+                "note: packets carry product byte {:#04x}; decoded as {forced} as requested",
+                product.0
+            );
+        }
+    }
+    for p in &s.first_problems {
+        eprintln!("error: {path}: packet at byte {}: {}", p.offset, p.error);
+    }
+    if let Some(e) = &s.capture_error {
+        eprintln!("error: {path}: {e}");
+    }
+    let mut lines = vec![
+        format!("model: {}", s.model.map(|m| m.name()).unwrap_or("none")),
+        format!("data packets: {}", s.data_packets),
+        format!("points: {}", s.points),
+        format!("position packets: {}", s.position_packets),
+        format!(
+            "lost packets: {} (sensor time jumps: {})",
+            s.lost_packets, s.time_jumps
+        ),
+        format!(
+            "hour of timestamps from: {}",
+            match s.hour_source {
+                Some(hilrig::velodyne::clock::HourSource::Rmc) => "position packet RMC",
+                Some(hilrig::velodyne::clock::HourSource::Host) => "capture time",
+                None => "unknown (times are seconds past the hour)",
+            }
+        ),
+    ];
+    if let Some(pps) = s.pps {
+        lines.push(format!("PPS: {pps:?}"));
+    }
+    if let Some(rmc) = s.last_rmc {
+        lines.push(format!(
+            "last RMC: {} UTC, {}",
+            rmc.time,
+            if rmc.valid { "valid" } else { "not valid" }
+        ));
+    }
+    if !s.rejected.is_empty() {
+        let r: Vec<String> = s
+            .rejected
+            .iter()
+            .map(|(k, v)| format!("{k}: {v}"))
+            .collect();
+        lines.push(format!("rejected packets: {}", r.join(", ")));
+    }
+    if s.other_udp + s.non_udp > 0 || s.capture.skipped_total() > 0 {
+        let mut r: Vec<String> = s
+            .capture
+            .skipped
+            .iter()
+            .map(|(k, v)| format!("{k}: {v}"))
+            .collect();
+        if s.other_udp > 0 {
+            r.push(format!("other UDP: {}", s.other_udp));
+        }
+        if s.non_udp > 0 {
+            r.push(format!("CAN/serial records: {}", s.non_udp));
+        }
+        lines.push(format!("skipped records: {}", r.join(", ")));
+    }
+    let mut err = io::stderr().lock();
+    for l in lines {
+        let _ = writeln!(err, "{path}: {l}");
+    }
+}

@@ -152,7 +152,11 @@ impl CanFrame {
         let extended = raw & EFF_FLAG != 0;
         let error = raw & ERR_FLAG != 0;
         let rtr = raw & RTR_FLAG != 0;
-        let id = if extended || error { raw & EFF_MASK } else { raw & SFF_MASK };
+        let id = if extended || error {
+            raw & EFF_MASK
+        } else {
+            raw & SFF_MASK
+        };
         let fd = flags & FD_FDF != 0 || len > 8;
         if fd && !FD_LENGTHS.contains(&usize::from(len)) || len > 64 {
             return Err(SkipReason::BadCanFrame);
@@ -215,7 +219,9 @@ mod tests {
 
     #[test]
     fn fd_length_must_be_a_dlc_length() {
-        let mut b = CanFrame::new_fd(0x101, false, &[0; 12], true).unwrap().encode_socketcan();
+        let mut b = CanFrame::new_fd(0x101, false, &[0; 12], true)
+            .unwrap()
+            .encode_socketcan();
         b[4] = 13;
         assert_eq!(CanFrame::decode_socketcan(&b), Err(SkipReason::BadCanFrame));
     }

@@ -176,7 +176,13 @@ impl<R: Read + Send + 'static> Demux<R> {
                 let outcome = if (rec.data.len() as u64) < u64::from(rec.orig_len) {
                     Outcome::Skip(SkipReason::CutBySnapLength)
                 } else {
-                    classify(rec.link, rec.data, rec.time, &mut self.reassembler, &mut self.buf)
+                    classify(
+                        rec.link,
+                        rec.data,
+                        rec.time,
+                        &mut self.reassembler,
+                        &mut self.buf,
+                    )
                 };
                 (rec.offset, rec.interface, rec.time, outcome)
             };
@@ -252,7 +258,10 @@ fn classify(
                         Ok(u) => {
                             buf.clear();
                             buf.extend_from_slice(u.payload);
-                            Outcome::Udp { src: u.src, dst: u.dst }
+                            Outcome::Udp {
+                                src: u.src,
+                                dst: u.dst,
+                            }
                         }
                         Err(r) => Outcome::Skip(r),
                     },
@@ -262,7 +271,10 @@ fn classify(
                 Ok(u) => {
                     buf.clear();
                     buf.extend_from_slice(u.payload);
-                    Outcome::Udp { src: u.src, dst: u.dst }
+                    Outcome::Udp {
+                        src: u.src,
+                        dst: u.dst,
+                    }
                 }
                 Err(r) => Outcome::Skip(r),
             }

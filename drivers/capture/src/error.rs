@@ -57,7 +57,9 @@ pub enum CaptureError {
         limit: usize,
     },
     /// A packet names an interface that no interface description block declared.
-    #[error("packet at byte {offset} refers to interface {interface}, but only {declared} are declared")]
+    #[error(
+        "packet at byte {offset} refers to interface {interface}, but only {declared} are declared"
+    )]
     UnknownInterface {
         /// Byte offset of the packet block.
         offset: u64,

@@ -81,7 +81,11 @@ pub struct UdpDatagram<'a> {
 }
 
 /// Parses a UDP header inside a (complete, reassembled) IPv4 payload.
-pub fn parse_udp(src: Ipv4Addr, dst: Ipv4Addr, bytes: &[u8]) -> Result<UdpDatagram<'_>, SkipReason> {
+pub fn parse_udp(
+    src: Ipv4Addr,
+    dst: Ipv4Addr,
+    bytes: &[u8],
+) -> Result<UdpDatagram<'_>, SkipReason> {
     if bytes.len() < 8 {
         return Err(SkipReason::TruncatedUdp);
     }
@@ -163,7 +167,9 @@ impl Reassembler {
         if !pkt.more_fragments {
             entry.total_len = Some(pkt.fragment_offset + pkt.payload.len());
         }
-        entry.parts.insert(pkt.fragment_offset, pkt.payload.to_vec());
+        entry
+            .parts
+            .insert(pkt.fragment_offset, pkt.payload.to_vec());
         let total = entry.total_len?;
         // Complete when the parts tile [0, total) without gaps.
         let mut covered = 0;
@@ -235,7 +241,9 @@ mod tests {
             p
         };
         assert_eq!(r.push(&parse_ipv4(&f2).unwrap(), UtcNanos(0)), None);
-        let done = r.push(&parse_ipv4(&f1).unwrap(), UtcNanos(0)).expect("complete");
+        let done = r
+            .push(&parse_ipv4(&f1).unwrap(), UtcNanos(0))
+            .expect("complete");
         assert_eq!(done.payload, data);
         assert_eq!(r.pending_fragments(), 0);
     }

@@ -82,7 +82,10 @@ pub fn ipv4_payload(link: LinkType, frame: &[u8]) -> Result<&[u8], SkipReason> {
 
 fn ethertype_payload(mut ethertype: u16, mut rest: &[u8]) -> Result<&[u8], SkipReason> {
     // Peel any stack of VLAN tags (each: 2 bytes TCI, 2 bytes inner ethertype).
-    while matches!(ethertype, ETHERTYPE_VLAN | ETHERTYPE_QINQ | ETHERTYPE_QINQ_OLD) {
+    while matches!(
+        ethertype,
+        ETHERTYPE_VLAN | ETHERTYPE_QINQ | ETHERTYPE_QINQ_OLD
+    ) {
         if rest.len() < 4 {
             return Err(SkipReason::TruncatedLinkHeader);
         }
@@ -115,7 +118,10 @@ mod tests {
         inner.extend_from_slice(&ETHERTYPE_IPV4.to_be_bytes());
         inner.extend_from_slice(&[0x45, 1, 2, 3]);
         let frame = eth(ETHERTYPE_QINQ, &inner);
-        assert_eq!(ipv4_payload(LinkType::ETHERNET, &frame), Ok(&[0x45, 1, 2, 3][..]));
+        assert_eq!(
+            ipv4_payload(LinkType::ETHERNET, &frame),
+            Ok(&[0x45, 1, 2, 3][..])
+        );
     }
 
     #[test]

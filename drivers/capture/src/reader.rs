@@ -292,7 +292,10 @@ fn handle_block(
         PcapBlockOwned::NG(Block::InterfaceDescription(idb)) => {
             let ts_per_sec = idb.ts_resolution().ok_or_else(|| CaptureError::Malformed {
                 offset,
-                what: format!("interface timestamp resolution code {} is out of range", idb.if_tsresol),
+                what: format!(
+                    "interface timestamp resolution code {} is out of range",
+                    idb.if_tsresol
+                ),
             })?;
             let name = idb.if_name().and_then(|r| r.ok()).map(str::to_owned);
             interfaces.push(Interface {
@@ -304,11 +307,14 @@ fn handle_block(
             Ok(Step::Other)
         }
         PcapBlockOwned::NG(Block::EnhancedPacket(epb)) => {
-            let iface = interfaces.get(epb.if_id as usize).ok_or(CaptureError::UnknownInterface {
-                offset,
-                interface: epb.if_id,
-                declared: interfaces.len(),
-            })?;
+            let iface =
+                interfaces
+                    .get(epb.if_id as usize)
+                    .ok_or(CaptureError::UnknownInterface {
+                        offset,
+                        interface: epb.if_id,
+                        declared: interfaces.len(),
+                    })?;
             let units = (u64::from(epb.ts_high) << 32) | u64::from(epb.ts_low);
             let time = units_to_utc(units, iface.ts_per_sec, iface.ts_offset_secs);
             let caplen = (epb.caplen as usize).min(epb.data.len());
@@ -368,8 +374,14 @@ mod tests {
 
     #[test]
     fn units_convert_exactly_at_nanosecond_and_binary_resolution() {
-        assert_eq!(units_to_utc(1_500_000_001, 1_000_000_000, 0), UtcNanos(1_500_000_001));
-        assert_eq!(units_to_utc(3 * 1024 + 512, 1024, 10), UtcNanos(13_500_000_000));
+        assert_eq!(
+            units_to_utc(1_500_000_001, 1_000_000_000, 0),
+            UtcNanos(1_500_000_001)
+        );
+        assert_eq!(
+            units_to_utc(3 * 1024 + 512, 1024, 10),
+            UtcNanos(13_500_000_000)
+        );
     }
 
     #[test]
@@ -377,12 +389,17 @@ mod tests {
         let err = CaptureReader::new(std::io::Cursor::new(b"GIF89a....".to_vec()))
             .err()
             .expect("must fail");
-        assert!(err.to_string().contains("not a pcap or pcapng file"), "{err}");
+        assert!(
+            err.to_string().contains("not a pcap or pcapng file"),
+            "{err}"
+        );
     }
 
     #[test]
     fn empty_input_is_not_a_capture() {
-        let err = CaptureReader::new(std::io::Cursor::new(Vec::new())).err().expect("must fail");
+        let err = CaptureReader::new(std::io::Cursor::new(Vec::new()))
+            .err()
+            .expect("must fail");
         assert!(matches!(err, CaptureError::NotACapture { .. }));
     }
 }

@@ -78,16 +78,23 @@ impl<W: Write> PcapngWriter<W> {
             ));
         }
         let units = u64::try_from(time.0).map_err(|_| {
-            io::Error::new(io::ErrorKind::InvalidInput, "pcapng cannot store times before 1970")
+            io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "pcapng cannot store times before 1970",
+            )
         })?;
         self.block.clear();
         self.block.extend_from_slice(&interface.to_le_bytes());
-        self.block.extend_from_slice(&((units >> 32) as u32).to_le_bytes());
+        self.block
+            .extend_from_slice(&((units >> 32) as u32).to_le_bytes());
         self.block.extend_from_slice(&(units as u32).to_le_bytes());
-        self.block.extend_from_slice(&(data.len() as u32).to_le_bytes());
-        self.block.extend_from_slice(&(data.len() as u32).to_le_bytes());
+        self.block
+            .extend_from_slice(&(data.len() as u32).to_le_bytes());
+        self.block
+            .extend_from_slice(&(data.len() as u32).to_le_bytes());
         self.block.extend_from_slice(data);
-        self.block.extend(std::iter::repeat_n(0u8, pad4(data.len())));
+        self.block
+            .extend(std::iter::repeat_n(0u8, pad4(data.len())));
         write_block(&mut self.out, EPB_TYPE, &self.block)
     }
 
@@ -120,10 +127,18 @@ impl<W: Write> PcapWriter<W> {
         let magic: u32 = if nanos { 0xa1b2_3c4d } else { 0xa1b2_c3d4 };
         let mut h = Vec::with_capacity(24);
         let put32 = |h: &mut Vec<u8>, v: u32| {
-            h.extend_from_slice(&if big_endian { v.to_be_bytes() } else { v.to_le_bytes() })
+            h.extend_from_slice(&if big_endian {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            })
         };
         let put16 = |h: &mut Vec<u8>, v: u16| {
-            h.extend_from_slice(&if big_endian { v.to_be_bytes() } else { v.to_le_bytes() })
+            h.extend_from_slice(&if big_endian {
+                v.to_be_bytes()
+            } else {
+                v.to_le_bytes()
+            })
         };
         put32(&mut h, magic);
         put16(&mut h, 2);
@@ -177,7 +192,13 @@ fn ipv4_checksum(header: &[u8]) -> u16 {
 }
 
 /// Builds IPv4 packets (one, or fragments when the payload exceeds `mtu`) carrying a UDP datagram.
-pub fn udp_ipv4_packets(src: SocketAddrV4, dst: SocketAddrV4, payload: &[u8], id: u16, mtu: usize) -> Vec<Vec<u8>> {
+pub fn udp_ipv4_packets(
+    src: SocketAddrV4,
+    dst: SocketAddrV4,
+    payload: &[u8],
+    id: u16,
+    mtu: usize,
+) -> Vec<Vec<u8>> {
     let mut udp = Vec::with_capacity(8 + payload.len());
     udp.extend_from_slice(&src.port().to_be_bytes());
     udp.extend_from_slice(&dst.port().to_be_bytes());
@@ -188,7 +209,11 @@ pub fn udp_ipv4_packets(src: SocketAddrV4, dst: SocketAddrV4, payload: &[u8], id
     let mut out = Vec::new();
     let mut offset = 0;
     while offset < udp.len() || out.is_empty() {
-        let end = if udp.len() - offset <= mtu - 20 { udp.len() } else { offset + max_frag };
+        let end = if udp.len() - offset <= mtu - 20 {
+            udp.len()
+        } else {
+            offset + max_frag
+        };
         let more = end < udp.len();
         let mut p = Vec::with_capacity(20 + end - offset);
         p.push(0x45);
@@ -260,17 +285,25 @@ mod tests {
         let can = w.add_interface(LinkType::CAN_SOCKETCAN, "can0").unwrap();
         let ser = w.add_interface(LinkType::USER0, "/dev/ttyUSB0").unwrap();
         let t0 = UtcNanos(1_700_000_000_123_456_789);
-        w.write_packet(eth, t0, &udp_ethernet_frame(addr(2368), addr(2368), &[7; 1206]))
-            .unwrap();
+        w.write_packet(
+            eth,
+            t0,
+            &udp_ethernet_frame(addr(2368), addr(2368), &[7; 1206]),
+        )
+        .unwrap();
         let frame = crate::can::CanFrame::new(0x101, false, &[1, 2, 3, 4]).unwrap();
-        w.write_packet(can, UtcNanos(t0.0 + 1), &frame.encode_socketcan()).unwrap();
-        w.write_packet(ser, UtcNanos(t0.0 + 2), b"$GPGGA,...*00\r\n").unwrap();
+        w.write_packet(can, UtcNanos(t0.0 + 1), &frame.encode_socketcan())
+            .unwrap();
+        w.write_packet(ser, UtcNanos(t0.0 + 2), b"$GPGGA,...*00\r\n")
+            .unwrap();
         let bytes = w.finish().unwrap();
 
         let mut d = Demux::new(CaptureReader::new(Cursor::new(bytes)).unwrap());
         let a = d.next_item().unwrap().unwrap();
         assert_eq!(a.time, t0);
-        assert!(matches!(a.packet, Packet::Udp { dst, payload, .. } if dst.port() == 2368 && payload.len() == 1206));
+        assert!(
+            matches!(a.packet, Packet::Udp { dst, payload, .. } if dst.port() == 2368 && payload.len() == 1206)
+        );
         let b = d.next_item().unwrap().unwrap();
         assert_eq!(b.packet, Packet::Can(frame));
         let c = d.next_item().unwrap().unwrap();
@@ -286,11 +319,16 @@ mod tests {
             for nanos in [false, true] {
                 let mut w = PcapWriter::new(Vec::new(), LinkType::ETHERNET, big, nanos).unwrap();
                 let t = UtcNanos(1_355_263_594_293_504_123);
-                w.write_packet(t, &udp_ethernet_frame(addr(1), addr(8308), &[1; 512])).unwrap();
+                w.write_packet(t, &udp_ethernet_frame(addr(1), addr(8308), &[1; 512]))
+                    .unwrap();
                 let bytes = w.finish().unwrap();
                 let mut d = Demux::new(CaptureReader::new(Cursor::new(bytes)).unwrap());
                 let item = d.next_item().unwrap().unwrap();
-                let expected = if nanos { t } else { UtcNanos(t.0 / 1000 * 1000) };
+                let expected = if nanos {
+                    t
+                } else {
+                    UtcNanos(t.0 / 1000 * 1000)
+                };
                 assert_eq!(item.time, expected, "big={big} nanos={nanos}");
                 assert!(matches!(item.packet, Packet::Udp { payload, .. } if payload.len() == 512));
             }
@@ -306,11 +344,19 @@ mod tests {
         assert_eq!(frags.len(), 3);
         frags.reverse();
         for (i, f) in frags.iter().enumerate() {
-            w.write_packet(eth, UtcNanos(i as i64 + 1), &ethernet_frame(f, Some(7))).unwrap();
+            w.write_packet(eth, UtcNanos(i as i64 + 1), &ethernet_frame(f, Some(7)))
+                .unwrap();
         }
         let mut d = Demux::new(CaptureReader::new(Cursor::new(w.finish().unwrap())).unwrap());
         let item = d.next_item().unwrap().unwrap();
-        assert_eq!(item.packet, Packet::Udp { src: addr(5), dst: addr(2368), payload: &payload });
+        assert_eq!(
+            item.packet,
+            Packet::Udp {
+                src: addr(5),
+                dst: addr(2368),
+                payload: &payload
+            }
+        );
         assert!(d.next_item().is_none());
         assert_eq!(d.stats().fragments, 2);
         assert_eq!(d.stats().fragments_dropped, 0);

@@ -32,7 +32,10 @@ impl UtcNanos {
 
     /// From whole seconds and a nanosecond fraction (as capture files store them).
     pub fn from_secs_nanos(secs: i64, nanos: u32) -> Self {
-        UtcNanos(secs.saturating_mul(NANOS_PER_SEC).saturating_add(i64::from(nanos)))
+        UtcNanos(
+            secs.saturating_mul(NANOS_PER_SEC)
+                .saturating_add(i64::from(nanos)),
+        )
     }
 
     /// Seconds since the epoch as a float; for output only (loses precision below ~0.2 µs).
@@ -70,7 +73,9 @@ impl fmt::Display for UtcNanos {
 }
 
 /// A signed span of time in nanoseconds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Default, Serialize, Deserialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Default, Serialize, Deserialize,
+)]
 #[serde(transparent)]
 pub struct Nanos(pub i64);
 

@@ -1,0 +1,50 @@
+//! Helpers shared by the integration tests: where the real data and reference tools are, and a
+//! sink that keeps decoded points.
+#![allow(dead_code)]
+
+use hilrig::lidar::{decode_capture, LidarOptions, LidarSummary, PointSink, PointTime};
+use hilrig::velodyne::Point;
+use std::path::PathBuf;
+
+/// The real-data folder (../shared/data) from `HILRIG_REAL_DATA`.
+pub fn real_data() -> PathBuf {
+    let dir = std::env::var("HILRIG_REAL_DATA")
+        .expect("HILRIG_REAL_DATA was set when the tests were built but is unset now; run .ci/run");
+    PathBuf::from(dir)
+}
+
+/// The Python of the reference venv from `HILRIG_PYTHON`.
+pub fn python() -> PathBuf {
+    PathBuf::from(
+        std::env::var("HILRIG_PYTHON").expect("HILRIG_PYTHON unset at run time; run .ci/run"),
+    )
+}
+
+/// The built `hilrig` binary.
+pub fn hilrig_bin() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_hilrig"))
+}
+
+/// Keeps every point with its packet time.
+#[derive(Default)]
+pub struct Collect {
+    pub points: Vec<(PointTime, Point)>,
+}
+
+impl PointSink for Collect {
+    fn packet(&mut self, t: PointTime, points: &[Point]) -> std::io::Result<()> {
+        self.points.extend(points.iter().map(|p| (t, *p)));
+        Ok(())
+    }
+}
+
+/// Decodes a capture file with the library.
+pub fn decode_file(
+    path: &std::path::Path,
+    options: &LidarOptions,
+) -> (LidarSummary, Vec<(PointTime, Point)>) {
+    let f = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut sink = Collect::default();
+    let summary = decode_capture(std::io::BufReader::new(f), options, &mut sink).expect("decode");
+    (summary, sink.points)
+}
