@@ -190,6 +190,16 @@ pub fn decode_capture<R: Read + Send + 'static>(
             payload.len() == DATA_PACKET_SIZE && options.data_port.is_none_or(|p| p == dst_port);
         let is_position = payload.len() == POSITION_PACKET_SIZE
             && options.position_port.is_none_or(|p| p == dst_port);
+        let on_data_port = options.data_port == Some(dst_port);
+        let on_position_port = options.position_port == Some(dst_port);
+        if !is_data && !is_position && (on_data_port || on_position_port) {
+            // Something of the wrong size arrived on a lidar port: a real problem, not traffic
+            // that merely shares the network.
+            let expected = if on_data_port { DATA_PACKET_SIZE } else { POSITION_PACKET_SIZE };
+            let got = payload.len();
+            note_problem(&mut summary, item.offset, DecodeError::WrongSize { expected, got });
+            continue;
+        }
         if is_position {
             summary.position_packets += 1;
             match PositionPacket::decode(payload) {
