@@ -195,9 +195,17 @@ pub fn decode_capture<R: Read + Send + 'static>(
         if !is_data && !is_position && (on_data_port || on_position_port) {
             // Something of the wrong size arrived on a lidar port: a real problem, not traffic
             // that merely shares the network.
-            let expected = if on_data_port { DATA_PACKET_SIZE } else { POSITION_PACKET_SIZE };
+            let expected = if on_data_port {
+                DATA_PACKET_SIZE
+            } else {
+                POSITION_PACKET_SIZE
+            };
             let got = payload.len();
-            note_problem(&mut summary, item.offset, DecodeError::WrongSize { expected, got });
+            note_problem(
+                &mut summary,
+                item.offset,
+                DecodeError::WrongSize { expected, got },
+            );
             continue;
         }
         if is_position {

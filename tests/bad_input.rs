@@ -18,8 +18,16 @@ fn fixture() -> PathBuf {
 }
 
 fn run(args: &[&str]) -> (Option<i32>, String, String) {
-    let out = Command::new(hilrig_bin()).arg("decode").args(args).output().unwrap();
-    (out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+    let out = Command::new(hilrig_bin())
+        .arg("decode")
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }
 
 fn rows(csv: &str) -> usize {
@@ -36,11 +44,25 @@ fn truncated_capture_keeps_every_point_before_the_cut_and_names_the_offset() {
     std::fs::write(&cut, &full[..cut_at]).unwrap();
     let (code, csv, stderr) = run(&[cut.to_str().unwrap()]);
     assert_eq!(code, Some(1), "{stderr}");
-    assert!(stderr.contains("the capture is truncated: the record at byte"), "{stderr}");
-    assert!(stderr.contains("every record before it was read"), "{stderr}");
+    assert!(
+        stderr.contains("the capture is truncated: the record at byte"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("every record before it was read"),
+        "{stderr}"
+    );
     // Every point of every complete record before the cut is there, identical.
-    assert!(rows(&csv) > rows(&all_csv) / 3, "{} of {}", rows(&csv), rows(&all_csv));
-    assert!(all_csv.starts_with(&csv), "points before the cut must be identical");
+    assert!(
+        rows(&csv) > rows(&all_csv) / 3,
+        "{} of {}",
+        rows(&csv),
+        rows(&all_csv)
+    );
+    assert!(
+        all_csv.starts_with(&csv),
+        "points before the cut must be identical"
+    );
 }
 
 fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
@@ -60,13 +82,22 @@ fn wrong_kind_of_file_is_named() {
         let p = write(dir.path(), name, bytes);
         let (code, stdout, stderr) = run(&[p.to_str().unwrap()]);
         assert_eq!(code, Some(2), "{name}: {stderr}");
-        assert!(stderr.contains("not a pcap or pcapng file"), "{name}: {stderr}");
-        assert!(stderr.contains(name), "{name}: the error names the file: {stderr}");
+        assert!(
+            stderr.contains("not a pcap or pcapng file"),
+            "{name}: {stderr}"
+        );
+        assert!(
+            stderr.contains(name),
+            "{name}: the error names the file: {stderr}"
+        );
         assert!(stdout.is_empty() || stdout.lines().count() <= 1);
     }
     let (code, _, stderr) = run(&["/nonexistent/drive.pcap"]);
     assert_eq!(code, Some(2));
-    assert!(stderr.contains("cannot open /nonexistent/drive.pcap"), "{stderr}");
+    assert!(
+        stderr.contains("cannot open /nonexistent/drive.pcap"),
+        "{stderr}"
+    );
 }
 
 /// A capture with one good packet and one of every kind of trouble, then another good packet.
@@ -93,7 +124,10 @@ fn troubled_capture() -> (Vec<u8>, usize) {
     };
     put(&mut w, &udp_ethernet_frame(ep(2368), ep(2368), &data[0]));
     // Wrong payload size on the data port.
-    put(&mut w, &udp_ethernet_frame(ep(2368), ep(2368), &data[1][..1000]));
+    put(
+        &mut w,
+        &udp_ethernet_frame(ep(2368), ep(2368), &data[1][..1000]),
+    );
     // Bad block flag in block 3.
     let mut bad = data[1].clone();
     bad[300] = 0x00;
@@ -127,16 +161,30 @@ fn packet_problems_are_counted_with_offsets_and_good_packets_still_decode() {
     let (code, csv, stderr) = run(&[p.to_str().unwrap(), "--model", "vlp16"]);
     assert_eq!(code, Some(0), "{stderr}");
     assert!(stderr.contains("data packets: 3"), "{stderr}");
-    assert!(stderr.contains("wrong payload size: expected 1206 bytes, got 1000"), "{stderr}");
-    assert!(stderr.contains("block 3 at byte 300 has flag 0xee00"), "{stderr}");
-    assert!(stderr.contains("block 7 azimuth at byte 702 is 40000"), "{stderr}");
+    assert!(
+        stderr.contains("wrong payload size: expected 1206 bytes, got 1000"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("block 3 at byte 300 has flag 0xee00"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("block 7 azimuth at byte 702 is 40000"),
+        "{stderr}"
+    );
     assert!(stderr.contains("packet at byte "), "{stderr}");
     assert!(stderr.contains("not IPv4: 1"), "{stderr}");
     assert!(stderr.contains("IPv4 protocol 6, not UDP: 1"), "{stderr}");
     assert!(stderr.contains("truncated IPv4 packet: 1"), "{stderr}");
     let summary = {
         let mut sink = CountSink::default();
-        decode_capture(std::io::Cursor::new(bytes), &LidarOptions::default(), &mut sink).unwrap()
+        decode_capture(
+            std::io::Cursor::new(bytes),
+            &LidarOptions::default(),
+            &mut sink,
+        )
+        .unwrap()
     };
     assert_eq!(summary.data_packets, good_packets as u64);
     assert_eq!(summary.rejected.values().sum::<u64>(), 3);

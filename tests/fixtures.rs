@@ -11,7 +11,10 @@ mod common;
 use hilrig::capture::writer::udp_ethernet_frame;
 use hilrig::capture::{LinkType, PcapngWriter, UtcNanos};
 use hilrig::velodyne::decode::firing_offset_us;
-use hilrig::velodyne::{Channel, DataPacket, Decoder, Model, PacketEncoder, PositionPacket, PpsStatus, ReturnMode, Sequence};
+use hilrig::velodyne::{
+    Channel, DataPacket, Decoder, Model, PacketEncoder, PositionPacket, PpsStatus, ReturnMode,
+    Sequence,
+};
 use std::net::{Ipv4Addr, SocketAddrV4};
 use std::path::PathBuf;
 
@@ -36,7 +39,9 @@ fn room_range(omega: f64, az_deg: f64) -> Option<f64> {
 }
 
 fn fixture_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures")
+        .join(name)
 }
 
 /// Makes the room capture for a model and return mode, `packets` data packets long.
@@ -63,7 +68,12 @@ fn generate(model: Model, mode: ReturnMode, packets: usize) -> Vec<u8> {
             let nmea = rmc_sentence(secs);
             let toh = (t.nanos_past_hour() / 1000) as u32;
             let pos = PositionPacket::new(toh, PpsStatus::Locked, &nmea);
-            w.write_packet(eth, t, &udp_ethernet_frame(sensor(8308), host(8308), &pos.encode())).unwrap();
+            w.write_packet(
+                eth,
+                t,
+                &udp_ethernet_frame(sensor(8308), host(8308), &pos.encode()),
+            )
+            .unwrap();
             next_position_us += 1e6;
         }
         let az_centi = ((t_us * 1e-6 * SPIN_HZ * 36_000.0).round() as u64 % 36_000) as u16;
@@ -78,14 +88,23 @@ fn generate(model: Model, mode: ReturnMode, packets: usize) -> Vec<u8> {
             match room_range(l.vertical_rad, az_beam) {
                 Some(d) => {
                     let raw = (d / res).round() as u16;
-                    strongest.push(Channel { distance: raw, reflectivity: refl });
+                    strongest.push(Channel {
+                        distance: raw,
+                        reflectivity: refl,
+                    });
                     // Dual: a weak early echo (dust) at 1.5 m on every fourth laser.
                     let early = (laser % 4 == 0).then(|| (1.5 / res).round() as u16);
-                    last.push(Channel { distance: raw, reflectivity: refl });
+                    last.push(Channel {
+                        distance: raw,
+                        reflectivity: refl,
+                    });
                     if let Some(e) = early {
                         // Strongest is the wall, last is the wall too: report the early echo as
                         // the second strongest, as the manuals describe.
-                        *strongest.last_mut().unwrap() = Channel { distance: e, reflectivity: 3 };
+                        *strongest.last_mut().unwrap() = Channel {
+                            distance: e,
+                            reflectivity: 3,
+                        };
                     }
                 }
                 None => {
@@ -96,7 +115,11 @@ fn generate(model: Model, mode: ReturnMode, packets: usize) -> Vec<u8> {
         }
         let seq = Sequence {
             azimuth: az_centi,
-            strongest: if mode == ReturnMode::Dual { strongest } else { last.clone() },
+            strongest: if mode == ReturnMode::Dual {
+                strongest
+            } else {
+                last.clone()
+            },
             last: (mode == ReturnMode::Dual).then_some(last),
         };
         let toh = (t.nanos_past_hour() / 1000) as u32;
@@ -104,8 +127,14 @@ fn generate(model: Model, mode: ReturnMode, packets: usize) -> Vec<u8> {
             // The packet leaves the sensor after its last firing; stamp it then.
             let n_seq = enc.sequences_per_packet() as f64;
             let first_us = (seq_index as f64 + 1.0 - n_seq) * seq_us;
-            let host_t = UtcNanos(START + ((first_us + n_seq * seq_us) * 1000.0).round() as i64 + 150_000);
-            w.write_packet(eth, host_t, &udp_ethernet_frame(sensor(2368), host(2368), &pkt.encode())).unwrap();
+            let host_t =
+                UtcNanos(START + ((first_us + n_seq * seq_us) * 1000.0).round() as i64 + 150_000);
+            w.write_packet(
+                eth,
+                host_t,
+                &udp_ethernet_frame(sensor(2368), host(2368), &pkt.encode()),
+            )
+            .unwrap();
             written += 1;
         }
         seq_index += 1;
@@ -146,8 +175,18 @@ fn civil_from_days(z: i64) -> (i64, u32, u32) {
 }
 
 const FIXTURES: [(&str, Model, ReturnMode, usize); 2] = [
-    ("vlp16_room.pcapng", Model::Vlp16, ReturnMode::Strongest, 160),
-    ("vlp32c_dual_room.pcapng", Model::Vlp32c, ReturnMode::Dual, 320),
+    (
+        "vlp16_room.pcapng",
+        Model::Vlp16,
+        ReturnMode::Strongest,
+        160,
+    ),
+    (
+        "vlp32c_dual_room.pcapng",
+        Model::Vlp32c,
+        ReturnMode::Dual,
+        320,
+    ),
 ];
 
 #[test]
@@ -158,8 +197,12 @@ fn fixtures_are_reproducible() {
         if std::env::var_os("HILRIG_BLESS").is_some() {
             std::fs::write(&path, &bytes).unwrap();
         }
-        let committed = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e} (run with HILRIG_BLESS=1)", path.display()));
-        assert!(committed == bytes, "{name} differs from what the generator makes now");
+        let committed = std::fs::read(&path)
+            .unwrap_or_else(|e| panic!("{}: {e} (run with HILRIG_BLESS=1)", path.display()));
+        assert!(
+            committed == bytes,
+            "{name} differs from what the generator makes now"
+        );
     }
 }
 
@@ -171,32 +214,53 @@ fn fixture_points_match_the_analytic_room_and_packets_re_encode() {
         assert_eq!(summary.model, Some(model));
         assert_eq!(summary.data_packets, packets as u64);
         assert_eq!(summary.lost_packets, 0, "{name}");
-        assert_eq!(summary.hour_source, Some(hilrig::velodyne::clock::HourSource::Rmc));
+        assert_eq!(
+            summary.hour_source,
+            Some(hilrig::velodyne::clock::HourSource::Rmc)
+        );
         assert_eq!(summary.pps, Some(PpsStatus::Locked));
         let res = model.distance_resolution_m();
         let cal = hilrig::velodyne::Calibration::builtin(model);
         let mut checked = 0;
         for (_, p) in &points {
             let l = &cal.lasers[usize::from(p.laser.0)];
-            if p.return_type == hilrig::velodyne::ReturnType::Strongest && mode == ReturnMode::Dual {
-                assert!((f64::from(p.distance_m) - 1.5).abs() <= res, "{name}: early echo");
+            if p.return_type == hilrig::velodyne::ReturnType::Strongest && mode == ReturnMode::Dual
+            {
+                assert!(
+                    (f64::from(p.distance_m) - 1.5).abs() <= res,
+                    "{name}: early echo"
+                );
                 continue;
             }
-            let az_beam = (f64::from(p.azimuth_deg) - l.rot_correction_rad.to_degrees()).rem_euclid(360.0);
+            let az_beam =
+                (f64::from(p.azimuth_deg) - l.rot_correction_rad.to_degrees()).rem_euclid(360.0);
             // Away from the floor/wall edge and the doorway's sides the range is analytic.
             if (89.0..101.0).contains(&az_beam) {
                 continue;
             }
             let expected = room_range(l.vertical_rad, az_beam).expect("a return");
-            assert!((f64::from(p.distance_m) - expected).abs() <= res / 2.0 + 1e-6, "{name}: {p:?} vs {expected}");
+            assert!(
+                (f64::from(p.distance_m) - expected).abs() <= res / 2.0 + 1e-6,
+                "{name}: {p:?} vs {expected}"
+            );
             // The geometry closes: the point lies on the floor or on the wall.
-            let (x, y, z) = (f64::from(p.x), f64::from(p.y), f64::from(p.z) - l.z_offset_m);
+            let (x, y, z) = (
+                f64::from(p.x),
+                f64::from(p.y),
+                f64::from(p.z) - l.z_offset_m,
+            );
             let on_floor = (z + HEIGHT).abs() < 0.01;
             let on_wall = ((x * x + y * y).sqrt() - RADIUS).abs() < 0.01;
-            assert!(on_floor || on_wall, "{name}: ({x}, {y}, {z}) is on neither floor nor wall");
+            assert!(
+                on_floor || on_wall,
+                "{name}: ({x}, {y}, {z}) is on neither floor nor wall"
+            );
             checked += 1;
         }
-        assert!(checked > packets * 100, "{name}: only {checked} points checked");
+        assert!(
+            checked > packets * 100,
+            "{name}: only {checked} points checked"
+        );
         // Every data and position packet re-encodes to its bytes.
         let f = std::fs::File::open(&path).unwrap();
         let mut d = hilrig::capture::Demux::new(hilrig::capture::CaptureReader::new(f).unwrap());
@@ -206,7 +270,10 @@ fn fixture_points_match_the_analytic_room_and_packets_re_encode() {
                 if payload.len() == 1206 {
                     assert_eq!(&DataPacket::decode(payload).unwrap().encode()[..], payload);
                 } else {
-                    assert_eq!(&PositionPacket::decode(payload).unwrap().encode()[..], payload);
+                    assert_eq!(
+                        &PositionPacket::decode(payload).unwrap().encode()[..],
+                        payload
+                    );
                 }
                 n += 1;
             }

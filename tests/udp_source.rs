@@ -23,7 +23,10 @@ fn payloads(path: &Path) -> Vec<(u16, Vec<u8>)> {
 }
 
 fn now_ns() -> i64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).unwrap().as_nanos() as i64
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap()
+        .as_nanos() as i64
 }
 
 async fn send_and_receive(path: &Path) {
@@ -32,9 +35,20 @@ async fn send_and_receive(path: &Path) {
     let mut source = LidarSource::bind(lo, Some(lo), None, DEFAULT_RECV_BUFFER).unwrap();
     let data_addr = source.data_socket().local_addr().unwrap();
     let pos_addr = source.position_socket().unwrap().local_addr().unwrap();
-    println!("receive buffer granted: {} bytes", source.data_socket().recv_buffer());
-    let expected_data: Vec<Vec<u8>> = packets.iter().filter(|(p, _)| *p == 2368).map(|(_, b)| b.clone()).collect();
-    let expected_pos: Vec<Vec<u8>> = packets.iter().filter(|(p, _)| *p == 8308).map(|(_, b)| b.clone()).collect();
+    println!(
+        "receive buffer granted: {} bytes",
+        source.data_socket().recv_buffer()
+    );
+    let expected_data: Vec<Vec<u8>> = packets
+        .iter()
+        .filter(|(p, _)| *p == 2368)
+        .map(|(_, b)| b.clone())
+        .collect();
+    let expected_pos: Vec<Vec<u8>> = packets
+        .iter()
+        .filter(|(p, _)| *p == 8308)
+        .map(|(_, b)| b.clone())
+        .collect();
     let total = packets.len();
     let t0 = now_ns();
     let sender = std::thread::spawn(move || {
@@ -52,10 +66,16 @@ async fn send_and_receive(path: &Path) {
     let (mut data, mut pos) = (Vec::new(), Vec::new());
     let mut last_host = 0;
     for _ in 0..total {
-        let item = tokio::time::timeout(Duration::from_secs(10), source.next()).await.expect("a packet within 10 s").unwrap();
+        let item = tokio::time::timeout(Duration::from_secs(10), source.next())
+            .await
+            .expect("a packet within 10 s")
+            .unwrap();
         match item {
             LidarItem::Data(s) => {
-                assert!(s.host.0 >= t0 && s.host.0 <= now_ns(), "host stamp inside the test's wall-clock window");
+                assert!(
+                    s.host.0 >= t0 && s.host.0 <= now_ns(),
+                    "host stamp inside the test's wall-clock window"
+                );
                 assert!(s.host.0 >= last_host, "data stamps in order");
                 last_host = s.host.0;
                 data.push(s.value.encode().to_vec());
@@ -69,21 +89,40 @@ async fn send_and_receive(path: &Path) {
     }
     sender.join().unwrap();
     assert_eq!(data.len(), expected_data.len());
-    assert!(data == expected_data, "data packets byte-identical and in order");
-    assert!(pos == expected_pos, "position packets byte-identical and in order");
+    assert!(
+        data == expected_data,
+        "data packets byte-identical and in order"
+    );
+    assert!(
+        pos == expected_pos,
+        "position packets byte-identical and in order"
+    );
     let stats = &source.data_socket().stats;
     assert_eq!(stats.truncated, 0);
-    assert_eq!(stats.without_kernel_stamp, 0, "every datagram has a kernel receive stamp");
-    println!("{}: {} data + {} position packets received, lost {} (sensor gaps)", path.display(), data.len(), pos.len(), source.stats.lost);
+    assert_eq!(
+        stats.without_kernel_stamp, 0,
+        "every datagram has a kernel receive stamp"
+    );
+    println!(
+        "{}: {} data + {} position packets received, lost {} (sensor gaps)",
+        path.display(),
+        data.len(),
+        pos.len(),
+        source.stats.lost
+    );
 }
 
 #[tokio::test]
 async fn fixture_over_loopback() {
-    send_and_receive(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/vlp16_room.pcapng")).await;
+    send_and_receive(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/vlp16_room.pcapng"))
+        .await;
 }
 
 #[tokio::test]
-#[cfg_attr(not(hilrig_real_data), ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run")]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
 async fn real_monterey_capture_over_loopback() {
     send_and_receive(&common::real_data().join("velodyne/hdl32e_monterey.pcap")).await;
 }

@@ -39,7 +39,9 @@ fn veloview_frames(path: &std::path::Path) -> Vec<Vec<(Point, f64)>> {
         if port != 2368 {
             continue;
         }
-        let Ok(pkt) = DataPacket::decode(&payload) else { continue };
+        let Ok(pkt) = DataPacket::decode(&payload) else {
+            continue;
+        };
         let points = decoder.decode(&pkt).unwrap();
         for (b, block) in pkt.blocks.iter().enumerate() {
             let az = block.azimuth % 36_000;
@@ -48,19 +50,25 @@ fn veloview_frames(path: &std::path::Path) -> Vec<Vec<(Point, f64)>> {
             }
             last_az = Some(az);
             let block_deg = f64::from(az) / 100.0;
-            frames
-                .last_mut()
-                .unwrap()
-                .extend(points.iter().filter(|p| usize::from(p.block) == b).map(|p| (*p, block_deg)));
+            frames.last_mut().unwrap().extend(
+                points
+                    .iter()
+                    .filter(|p| usize::from(p.block) == b)
+                    .map(|p| (*p, block_deg)),
+            );
         }
     }
     frames
 }
 
 #[test]
-#[cfg_attr(not(hilrig_real_data), ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run")]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
 fn veloview_frame_and_point_counts_on_monterey() {
-    let expected_text = std::fs::read_to_string(capture("hdl32e_monterey.veloview-expected.txt")).unwrap();
+    let expected_text =
+        std::fs::read_to_string(capture("hdl32e_monterey.veloview-expected.txt")).unwrap();
     let mut frame_count = None;
     let mut counts = Vec::new();
     let mut values = Vec::new();
@@ -74,7 +82,11 @@ fn veloview_frame_and_point_counts_on_monterey() {
             ["point_values", i, x, y, z, intensity, laser] => values.push((
                 current.unwrap(),
                 i.parse::<usize>().unwrap(),
-                [x.parse::<f64>().unwrap(), y.parse().unwrap(), z.parse().unwrap()],
+                [
+                    x.parse::<f64>().unwrap(),
+                    y.parse().unwrap(),
+                    z.parse().unwrap(),
+                ],
                 intensity.parse::<u8>().unwrap(),
                 laser.parse::<u8>().unwrap(),
             )),
@@ -85,7 +97,10 @@ fn veloview_frame_and_point_counts_on_monterey() {
     println!("frames: {} (VeloView {:?})", frames.len(), frame_count);
     assert_eq!(Some(frames.len()), frame_count);
     for (frame, count) in counts {
-        println!("frame {frame}: {} points (VeloView {count})", frames[frame].len());
+        println!(
+            "frame {frame}: {} points (VeloView {count})",
+            frames[frame].len()
+        );
         assert_eq!(frames[frame].len(), count, "frame {frame}");
     }
     // VeloView's frame has x to the right and y forward: (x_vv, y_vv) = (-y, x) in hilrig's
@@ -101,13 +116,19 @@ fn veloview_frame_and_point_counts_on_monterey() {
         let (p, block_deg) = frames[frame][i];
         let back = (block_deg - f64::from(p.azimuth_deg)).to_radians();
         let (x, y) = (f64::from(p.x), f64::from(p.y));
-        let (xr, yr) = (x * back.cos() + y * back.sin(), -x * back.sin() + y * back.cos());
+        let (xr, yr) = (
+            x * back.cos() + y * back.sin(),
+            -x * back.sin() + y * back.cos(),
+        );
         let at_block = [-yr, xr, f64::from(p.z)];
         let interp = [-y, x, f64::from(p.z)];
         println!("frame {frame} point {i}: hilrig {interp:?}, at block azimuth {at_block:?}, VeloView {xyz:?}");
         assert_eq!(p.intensity, intensity);
         for k in 0..3 {
-            assert!((at_block[k] - xyz[k]).abs() < 0.01, "frame {frame} point {i} axis {k}");
+            assert!(
+                (at_block[k] - xyz[k]).abs() < 0.01,
+                "frame {frame} point {i} axis {k}"
+            );
         }
         // The lead over the block azimuth is the firing's time into the block times a spin rate
         // between 5 and 20 Hz (1.8 to 7.2 degrees per millisecond); this capture spins at ~11.8 Hz.
@@ -115,13 +136,19 @@ fn veloview_frame_and_point_counts_on_monterey() {
         let firing_us = f64::from(p.time_offset_ns % 46_080) / 1000.0;
         if firing_us > 1.0 {
             let rate = lead / firing_us * 1000.0;
-            assert!((1.8..7.2).contains(&rate), "azimuth lead {lead}° for a firing {firing_us} µs into the block");
+            assert!(
+                (1.8..7.2).contains(&rate),
+                "azimuth lead {lead}° for a firing {firing_us} µs into the block"
+            );
         }
     }
 }
 
 #[test]
-#[cfg_attr(not(hilrig_real_data), ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run")]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
 fn monterey_position_packets_give_pps_rmc_and_absolute_time() {
     use hilrig::velodyne::clock::{resolve_toh, HourSource};
     use hilrig::velodyne::{PositionPacket, PpsStatus};
@@ -135,14 +162,26 @@ fn monterey_position_packets_give_pps_rmc_and_absolute_time() {
         positions += 1;
         let pos = PositionPacket::decode(&payload).expect("512-byte position packet");
         // The HDL-32E does not use byte 202 for PPS; the decoder must not invent a state.
-        assert_eq!(PpsStatus::from_byte(pos.pps_byte, false), PpsStatus::NotReported);
-        let rmc = pos.rmc().expect("an RMC sentence").expect("valid checksum and fields");
+        assert_eq!(
+            PpsStatus::from_byte(pos.pps_byte, false),
+            PpsStatus::NotReported
+        );
+        let rmc = pos
+            .rmc()
+            .expect("an RMC sentence")
+            .expect("valid checksum and fields");
         assert!(rmc.valid);
-        assert!((rmc.lat_deg.unwrap() - 37.1305).abs() < 1e-3 && (rmc.lon_deg.unwrap() + 121.6548).abs() < 1e-3);
+        assert!(
+            (rmc.lat_deg.unwrap() - 37.1305).abs() < 1e-3
+                && (rmc.lon_deg.unwrap() + 121.6548).abs() < 1e-3
+        );
         // The packet's own time, hour from the RMC, is within two seconds after the RMC's second.
         let sent = resolve_toh(pos.timestamp_us, rmc.time);
         let lag = (sent.0 - rmc.time.0) as f64 * 1e-9;
-        assert!((0.0..2.0).contains(&lag), "position packet {lag} s after its RMC");
+        assert!(
+            (0.0..2.0).contains(&lag),
+            "position packet {lag} s after its RMC"
+        );
         // And the logger's clock agreed with GPS to a few seconds.
         assert!(((host.0 - sent.0) as f64 * 1e-9).abs() < 5.0);
         rmc_times.push(rmc.time);
@@ -154,8 +193,13 @@ fn monterey_position_packets_give_pps_rmc_and_absolute_time() {
     let first = *rmc_times.iter().min().unwrap();
     let last = *rmc_times.iter().max().unwrap();
     for (t, p) in &points {
-        let PointTime::Utc(t) = hilrig::lidar::point_time(*t, p) else { panic!("hour not resolved") };
-        assert!(t >= first && t.0 <= last.0 + 2_000_000_000, "point at {t} outside the RMC span {first}..{last}");
+        let PointTime::Utc(t) = hilrig::lidar::point_time(*t, p) else {
+            panic!("hour not resolved")
+        };
+        assert!(
+            t >= first && t.0 <= last.0 + 2_000_000_000,
+            "point at {t} outside the RMC span {first}..{last}"
+        );
     }
     println!("{} points between {first} and {last} (RMC)", points.len());
 }
@@ -164,19 +208,29 @@ fn monterey_position_packets_give_pps_rmc_and_absolute_time() {
 fn rewrite_product(src: &std::path::Path, dst: &std::path::Path, product: u8) {
     use hilrig::capture::writer::{udp_ethernet_frame, PcapWriter};
     use hilrig::capture::LinkType;
-    let mut w = PcapWriter::new(std::fs::File::create(dst).unwrap(), LinkType::ETHERNET, false, false).unwrap();
+    let mut w = PcapWriter::new(
+        std::fs::File::create(dst).unwrap(),
+        LinkType::ETHERNET,
+        false,
+        false,
+    )
+    .unwrap();
     let ep = |port| std::net::SocketAddrV4::new(std::net::Ipv4Addr::new(192, 168, 1, 201), port);
     for (t, port, mut payload) in udp_payloads(src) {
         if payload.len() == hilrig::velodyne::DATA_PACKET_SIZE {
             payload[1205] = product;
         }
-        w.write_packet(t, &udp_ethernet_frame(ep(port), ep(port), &payload)).unwrap();
+        w.write_packet(t, &udp_ethernet_frame(ep(port), ep(port), &payload))
+            .unwrap();
     }
     w.finish().unwrap();
 }
 
 #[test]
-#[cfg_attr(not(hilrig_real_data), ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run")]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
 fn vlp16_with_the_hdl32e_product_byte_decodes_when_forced_and_warns_otherwise() {
     let dir = tempfile::tempdir().unwrap();
     let original = capture("vlp16_single.pcap");
@@ -184,8 +238,16 @@ fn vlp16_with_the_hdl32e_product_byte_decodes_when_forced_and_warns_otherwise() 
     rewrite_product(&original, &rewritten, 0x21);
 
     let run = |args: &[&str]| {
-        let out = std::process::Command::new(hilrig_bin()).arg("decode").args(args).output().unwrap();
-        (out.status.code(), String::from_utf8(out.stdout).unwrap(), String::from_utf8(out.stderr).unwrap())
+        let out = std::process::Command::new(hilrig_bin())
+            .arg("decode")
+            .args(args)
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8(out.stdout).unwrap(),
+            String::from_utf8(out.stderr).unwrap(),
+        )
     };
     let orig = original.to_str().unwrap();
     let rew = rewritten.to_str().unwrap();
@@ -193,22 +255,39 @@ fn vlp16_with_the_hdl32e_product_byte_decodes_when_forced_and_warns_otherwise() 
     assert_eq!(code, Some(0));
     let (code, forced, stderr) = run(&[rew, "--model", "vlp16"]);
     assert_eq!(code, Some(0), "{stderr}");
-    assert_eq!(forced, reference, "forced vlp16 must give the original points");
+    assert_eq!(
+        forced, reference,
+        "forced vlp16 must give the original points"
+    );
     assert!(!stderr.contains("does not look like"), "{stderr}");
-    assert!(stderr.contains("product byte 0x21; decoded as vlp16 as requested"), "{stderr}");
+    assert!(
+        stderr.contains("product byte 0x21; decoded as vlp16 as requested"),
+        "{stderr}"
+    );
 
     let (code, _, stderr) = run(&[rew, "--format", "summary"]);
     assert_eq!(code, Some(0));
-    assert!(stderr.contains("the geometry does not look like a hdl32e"), "{stderr}");
+    assert!(
+        stderr.contains("the geometry does not look like a hdl32e"),
+        "{stderr}"
+    );
     assert!(stderr.contains("--model vlp16"), "{stderr}");
     println!("{stderr}");
 }
 
 #[test]
-#[cfg_attr(not(hilrig_real_data), ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run")]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
 fn every_real_packet_re_encodes_byte_identically() {
     let mut total = 0;
-    for name in ["hdl32e_monterey.pcap", "vlp16_single.pcap", "vlp16_dual.pcap", "vlp32c.pcap"] {
+    for name in [
+        "hdl32e_monterey.pcap",
+        "vlp16_single.pcap",
+        "vlp16_dual.pcap",
+        "vlp32c.pcap",
+    ] {
         for (_, _, payload) in udp_payloads(&capture(name)) {
             match payload.len() {
                 hilrig::velodyne::DATA_PACKET_SIZE => {

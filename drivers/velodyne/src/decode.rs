@@ -249,8 +249,11 @@ impl Decoder {
         let laser = self.laser_of_channel[ch];
         let cal = &self.calibration.lasers[usize::from(laser)];
         let d = f64::from(raw) * self.calibration.distance_resolution_m + cal.distance_correction_m;
-        let a = (az * 0.01).to_radians() - cal.rot_correction_rad;
+        // f32 trigonometry: the angle is below 2π, so f32 keeps it to ~4e-7 rad (0.04 mm at
+        // 100 m), far below the 2 mm range quantum, at about half the cost of f64.
+        let a = ((az * 0.01).to_radians() - cal.rot_correction_rad) as f32;
         let (sin_a, cos_a) = a.sin_cos();
+        let (sin_a, cos_a) = (f64::from(sin_a), f64::from(cos_a));
         let xy = d * cal.cos_vert - cal.vertical_offset_m * cal.sin_vert;
         let ho = cal.horizontal_offset_m;
         Point {
