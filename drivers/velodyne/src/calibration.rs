@@ -215,7 +215,7 @@ impl Calibration {
                 l.rot_correction_rad,
                 l.vertical_rad,
                 // A pure z shift has no exact ros-drivers equivalent; vo cos ω = dz keeps z exact
-                // and moves the horizontal distance by dz tan ω (sub-millimetre for the manuals' values).
+                // and moves the horizontal distance by dz tan ω (up to 3 mm for the VLP-16).
                 l.vertical_offset_m + l.z_offset_m / l.cos_vert,
                 l.horizontal_offset_m,
                 l.distance_correction_m
