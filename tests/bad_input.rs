@@ -11,23 +11,13 @@ use hilrig::lidar::{decode_capture, CountSink, LidarOptions};
 use proptest::prelude::*;
 use std::net::{Ipv4Addr, SocketAddrV4};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 fn fixture() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/vlp16_room.pcapng")
+    common::fixture("vlp16_room.pcapng")
 }
 
 fn run(args: &[&str]) -> (Option<i32>, String, String) {
-    let out = Command::new(hilrig_bin())
-        .arg("decode")
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    hilrig_decode(args)
 }
 
 fn rows(csv: &str) -> usize {

@@ -2,25 +2,14 @@
 
 mod common;
 
-use common::hilrig_bin;
 use std::path::PathBuf;
-use std::process::Command;
 
 fn fixture() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("fixtures/vlp16_room.pcapng")
+    common::fixture("vlp16_room.pcapng")
 }
 
 fn decode(args: &[&str]) -> (Option<i32>, String, String) {
-    let out = Command::new(hilrig_bin())
-        .arg("decode")
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code(),
-        String::from_utf8(out.stdout).unwrap(),
-        String::from_utf8(out.stderr).unwrap(),
-    )
+    common::hilrig_decode(args)
 }
 
 fn parse(csv: &str) -> Vec<Vec<f64>> {

@@ -237,18 +237,7 @@ fn vlp16_with_the_hdl32e_product_byte_decodes_when_forced_and_warns_otherwise() 
     let rewritten = dir.path().join("vlp16_as_0x21.pcap");
     rewrite_product(&original, &rewritten, 0x21);
 
-    let run = |args: &[&str]| {
-        let out = std::process::Command::new(hilrig_bin())
-            .arg("decode")
-            .args(args)
-            .output()
-            .unwrap();
-        (
-            out.status.code(),
-            String::from_utf8(out.stdout).unwrap(),
-            String::from_utf8(out.stderr).unwrap(),
-        )
-    };
+    let run = hilrig_decode;
     let orig = original.to_str().unwrap();
     let rew = rewritten.to_str().unwrap();
     let (code, reference, _) = run(&[orig]);

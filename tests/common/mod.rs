@@ -48,3 +48,24 @@ pub fn decode_file(
     let summary = decode_capture(std::io::BufReader::new(f), options, &mut sink).expect("decode");
     (summary, sink.points)
 }
+
+/// A fixture made by this project (fixtures/).
+pub fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures")
+        .join(name)
+}
+
+/// Runs `hilrig decode ARGS`: exit code, stdout, stderr.
+pub fn hilrig_decode(args: &[&str]) -> (Option<i32>, String, String) {
+    let out = std::process::Command::new(hilrig_bin())
+        .arg("decode")
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}

@@ -13,7 +13,7 @@
 use crate::calibration::Calibration;
 use crate::error::DecodeError;
 use crate::model::Model;
-use crate::packet::{DataPacket, ReturnMode, BLOCKS, CHANNELS};
+use crate::packet::{Channel, DataPacket, ReturnMode, BLOCKS, CHANNELS};
 
 /// A laser's id in firing order (what the calibration is indexed by).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -153,52 +153,25 @@ impl Decoder {
             0.0
         };
         out.reserve(CHANNELS * BLOCKS);
+        let mut emit = |block: usize, column: usize, ch: usize, c: Channel, rt: ReturnType| {
+            out.push(self.point(pkt, block, column, ch, rate, c, rt));
+        };
         if dual {
             for col in 0..columns {
-                let lb = &pkt.blocks[2 * col];
-                let sb = &pkt.blocks[2 * col + 1];
+                let (lb, sb) = (&pkt.blocks[2 * col], &pkt.blocks[2 * col + 1]);
                 for ch in 0..CHANNELS {
-                    let l = lb.channels[ch];
-                    let s = sb.channels[ch];
-                    if l.distance == 0 && s.distance == 0 {
+                    let (l, s) = (lb.channels[ch], sb.channels[ch]);
+                    if l.distance == s.distance {
+                        if s.distance > 0 {
+                            emit(2 * col + 1, col, ch, s, ReturnType::Both);
+                        }
                         continue;
                     }
-                    if l.distance == s.distance {
-                        out.push(self.point(
-                            pkt,
-                            2 * col + 1,
-                            col,
-                            ch,
-                            rate,
-                            s.distance,
-                            s.reflectivity,
-                            ReturnType::Both,
-                        ));
-                    } else {
-                        if l.distance > 0 {
-                            out.push(self.point(
-                                pkt,
-                                2 * col,
-                                col,
-                                ch,
-                                rate,
-                                l.distance,
-                                l.reflectivity,
-                                ReturnType::Last,
-                            ));
-                        }
-                        if s.distance > 0 {
-                            out.push(self.point(
-                                pkt,
-                                2 * col + 1,
-                                col,
-                                ch,
-                                rate,
-                                s.distance,
-                                s.reflectivity,
-                                ReturnType::Strongest,
-                            ));
-                        }
+                    if l.distance > 0 {
+                        emit(2 * col, col, ch, l, ReturnType::Last);
+                    }
+                    if s.distance > 0 {
+                        emit(2 * col + 1, col, ch, s, ReturnType::Strongest);
                     }
                 }
             }
@@ -209,11 +182,10 @@ impl Decoder {
                 ReturnType::Strongest
             };
             for (b, block) in pkt.blocks.iter().enumerate() {
-                for (ch, c) in block.channels.iter().enumerate() {
-                    if c.distance == 0 {
-                        continue;
+                for (ch, &c) in block.channels.iter().enumerate() {
+                    if c.distance > 0 {
+                        emit(b, b, ch, c, rt);
                     }
-                    out.push(self.point(pkt, b, b, ch, rate, c.distance, c.reflectivity, rt));
                 }
             }
         }
@@ -236,8 +208,7 @@ impl Decoder {
         column: usize,
         ch: usize,
         rate: f64,
-        raw: u16,
-        reflectivity: u8,
+        channel: Channel,
         return_type: ReturnType,
     ) -> Point {
         let t = self.offsets_us[column][ch];
@@ -248,6 +219,7 @@ impl Decoder {
         }
         let laser = self.laser_of_channel[ch];
         let cal = &self.calibration.lasers[usize::from(laser)];
+        let (raw, reflectivity) = (channel.distance, channel.reflectivity);
         let d = f64::from(raw) * self.calibration.distance_resolution_m + cal.distance_correction_m;
         // f32 trigonometry: the angle is below 2π, so f32 keeps it to ~4e-7 rad (0.04 mm at
         // 100 m), far below the 2 mm range quantum, at about half the cost of f64.

@@ -109,7 +109,8 @@ impl PacketEncoder {
             Some(last) => vec![last, &seq.strongest],
             None => vec![&seq.strongest],
         };
-        if halves == 1 {
+        if halves == 1 || !self.pending_second_half {
+            // A new block per return set; 16-laser models fill its second half next time.
             for set in sets {
                 let mut channels = [Channel::default(); CHANNELS];
                 channels[..n].copy_from_slice(set);
@@ -119,17 +120,7 @@ impl PacketEncoder {
                     channels,
                 });
             }
-        } else if !self.pending_second_half {
-            for set in sets {
-                let mut channels = [Channel::default(); CHANNELS];
-                channels[..n].copy_from_slice(set);
-                self.blocks.push(Block {
-                    flag: FLAG_UPPER,
-                    azimuth: seq.azimuth,
-                    channels,
-                });
-            }
-            self.pending_second_half = true;
+            self.pending_second_half = halves == 2;
         } else {
             // Second sequence of the block(s) just pushed: fill channels 16..32.
             let k = sets.len();
