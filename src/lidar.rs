@@ -311,7 +311,9 @@ fn note_problem(summary: &mut LidarSummary, offset: u64, error: DecodeError) {
 /// Absolute time of a point: packet time plus its firing offset.
 pub fn point_time(packet: PointTime, p: &Point) -> PointTime {
     match packet {
-        PointTime::Utc(t) => PointTime::Utc(UtcNanos(t.0 + i64::from(p.time_offset_ns))),
+        PointTime::Utc(t) => {
+            PointTime::Utc(UtcNanos(t.0.saturating_add(i64::from(p.time_offset_ns))))
+        }
         PointTime::PastHour(ns) => PointTime::PastHour(ns + i64::from(p.time_offset_ns)),
     }
 }

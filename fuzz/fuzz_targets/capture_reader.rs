@@ -1,21 +1,18 @@
-//! Any bytes as a pcap/pcapng file: the reader and demultiplexer must end with packets, counted
-//! skips or an error, never a panic or unbounded memory.
+//! Any bytes as a capture file, through the whole `hilrig decode` pipeline: capture reader,
+//! demultiplexer, Velodyne packet decoding, hour resolution and point geometry. It must end with
+//! points, counted skips or an error, never a panic (built with debug assertions: no overflow).
 #![no_main]
-use hilrig_capture::{CaptureReader, Demux};
+use hilrig::lidar::{decode_capture, CountSink, LidarOptions};
+use hilrig::velodyne::Model;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let Ok(reader) = CaptureReader::new(std::io::Cursor::new(data.to_vec())) else {
-        return;
-    };
-    let mut demux = Demux::new(reader);
-    let mut n = 0usize;
-    while let Some(item) = demux.next_item() {
-        if item.is_err() {
-            break;
-        }
-        n += 1;
-        assert!(n <= data.len(), "more packets than bytes");
+    // The first byte picks the model so that unknown product bytes still reach the decoder.
+    let model = data.first().map(|b| Model::ALL[usize::from(*b) % Model::ALL.len()]);
+    let options = LidarOptions { model, ..LidarOptions::default() };
+    let mut sink = CountSink::default();
+    if let Ok(summary) = decode_capture(std::io::Cursor::new(data.to_vec()), &options, &mut sink) {
+        assert_eq!(summary.points, sink.points);
+        assert!(summary.data_packets as usize <= data.len() / 1206 + 1);
     }
-    let _ = demux.stats();
 });

@@ -48,7 +48,7 @@ impl UtcNanos {
 
     /// The start of the UTC hour that contains this instant.
     pub fn hour_floor(self) -> UtcNanos {
-        UtcNanos(self.0.div_euclid(NANOS_PER_HOUR) * NANOS_PER_HOUR)
+        UtcNanos(self.0.saturating_sub(self.0.rem_euclid(NANOS_PER_HOUR)))
     }
 
     /// Nanoseconds past the start of the UTC hour.
@@ -90,24 +90,26 @@ impl Nanos {
     }
 }
 
+// Arithmetic saturates: stamps come from files and sensors, and a corrupt one must not panic
+// (debug) or wrap into a plausible-looking time (release).
 impl Add<Nanos> for UtcNanos {
     type Output = UtcNanos;
     fn add(self, rhs: Nanos) -> UtcNanos {
-        UtcNanos(self.0 + rhs.0)
+        UtcNanos(self.0.saturating_add(rhs.0))
     }
 }
 
 impl Sub<Nanos> for UtcNanos {
     type Output = UtcNanos;
     fn sub(self, rhs: Nanos) -> UtcNanos {
-        UtcNanos(self.0 - rhs.0)
+        UtcNanos(self.0.saturating_sub(rhs.0))
     }
 }
 
 impl Sub<UtcNanos> for UtcNanos {
     type Output = Nanos;
     fn sub(self, rhs: UtcNanos) -> Nanos {
-        Nanos(self.0 - rhs.0)
+        Nanos(self.0.saturating_sub(rhs.0))
     }
 }
 
@@ -156,6 +158,13 @@ mod tests {
         let t = UtcNanos(-1);
         assert_eq!(t.hour_floor(), UtcNanos(-NANOS_PER_HOUR));
         assert_eq!(t.nanos_past_hour(), NANOS_PER_HOUR - 1);
+    }
+
+    #[test]
+    fn extremes_saturate_instead_of_overflowing() {
+        assert_eq!(UtcNanos(i64::MIN).hour_floor(), UtcNanos(i64::MIN));
+        assert_eq!(UtcNanos(i64::MAX) + Nanos(1), UtcNanos(i64::MAX));
+        assert_eq!(UtcNanos(i64::MIN) - UtcNanos(1), Nanos(i64::MIN));
     }
 
     #[test]

@@ -23,14 +23,19 @@ pub enum HourSource {
 
 /// The instant `toh_us` past some hour that is nearest to `reference`.
 pub fn resolve_toh(toh_us: u32, reference: UtcNanos) -> UtcNanos {
+    // Saturating: a corrupt capture may carry a reference near the ends of the i64 range.
     let past = i64::from(toh_us) * 1_000;
     let hour = reference.hour_floor().0;
-    let candidates = [hour - NANOS_PER_HOUR, hour, hour + NANOS_PER_HOUR];
+    let candidates = [
+        hour.saturating_sub(NANOS_PER_HOUR),
+        hour,
+        hour.saturating_add(NANOS_PER_HOUR),
+    ];
     let best = candidates
         .iter()
-        .map(|h| h + past)
-        .min_by_key(|t| (t - reference.0).abs())
-        .unwrap_or(hour + past);
+        .map(|h| h.saturating_add(past))
+        .min_by_key(|t| t.abs_diff(reference.0))
+        .unwrap_or(hour.saturating_add(past));
     UtcNanos(best)
 }
 
@@ -72,7 +77,7 @@ impl HourResolver {
         if let Some((sensor_at, host_at)) = self.rmc {
             // Carry the RMC-based sensor time forward by host time elapsed: good to seconds,
             // which is all the hour choice needs.
-            let reference = UtcNanos(sensor_at.0 + (host.0 - host_at.0));
+            let reference = UtcNanos(sensor_at.0.saturating_add(host.0.saturating_sub(host_at.0)));
             return Some((resolve_toh(toh_us, reference), HourSource::Rmc));
         }
         if host >= PLAUSIBLE_HOST {
@@ -99,6 +104,16 @@ mod tests {
         // Sensor just before the hour, host just after.
         let host = UtcNanos(h.0 + 3_000_000);
         assert_eq!(resolve_toh(3_599_999_000, host), UtcNanos(h.0 - 1_000_000));
+    }
+
+    #[test]
+    fn extreme_references_do_not_overflow() {
+        for r in [i64::MIN, i64::MIN + 1, -1, i64::MAX - 1, i64::MAX] {
+            let _ = resolve_toh(3_599_999_999, UtcNanos(r));
+            let mut h = HourResolver::default();
+            h.rmc = Some((UtcNanos(r), UtcNanos(-r.saturating_add(1))));
+            let _ = h.resolve(0, UtcNanos(r));
+        }
     }
 
     proptest! {
