@@ -9,5 +9,6 @@ pub mod lidar;
 pub mod points_out;
 
 pub use hilrig_capture as capture;
+pub use hilrig_gnss as gnss;
 pub use hilrig_stamp as stamp;
 pub use hilrig_velodyne as velodyne;

@@ -110,8 +110,10 @@ mod tests {
     fn extreme_references_do_not_overflow() {
         for r in [i64::MIN, i64::MIN + 1, -1, i64::MAX - 1, i64::MAX] {
             let _ = resolve_toh(3_599_999_999, UtcNanos(r));
-            let mut h = HourResolver::default();
-            h.rmc = Some((UtcNanos(r), UtcNanos(-r.saturating_add(1))));
+            let h = HourResolver {
+                rmc: Some((UtcNanos(r), UtcNanos(-r.saturating_add(1)))),
+                ..HourResolver::default()
+            };
             let _ = h.resolve(0, UtcNanos(r));
         }
     }

@@ -1,0 +1,408 @@
+//! Epoch assembly: the sentences and messages of one fix time become one [`Fix`].
+//!
+//! NMEA and UBX are assembled separately (a receiver that sends both reports each fix twice, and
+//! the two differ in resolution: UBX NAV-HPPOSLLH carries 1e-9 degrees, GGA usually 1e-7 of a
+//! minute); a [`Fix`] says which protocol it came from.
+//!
+//! NMEA: an epoch is the run of sentences with the same UTC time of day; GGA gives position,
+//! quality, correction age; RMC and ZDA the date; GST the sigmas; HDT, VTG, RMC heading and speed.
+//! Sentences without a time (HDT, VTG) join the epoch in progress. The date, once seen, carries
+//! over to later epochs (rolling over at midnight), so GGA-only epochs still get a UTC time.
+//!
+//! UBX: an epoch is the messages with the same GPS time of week; NAV-PVT gives the fix, a
+//! following NAV-HPPOSLLH of the same epoch refines position and accuracy.
+
+use crate::nmea::{self, Sentence};
+use crate::ubx::{CarrierSolution, Ubx};
+use hilrig_stamp::civil::utc_from_civil;
+use hilrig_stamp::UtcNanos;
+
+const DAY_NS: i64 = 86_400 * 1_000_000_000;
+
+/// RTK state of a fix.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum RtkState {
+    /// Carrier-phase ambiguities fixed.
+    Fixed,
+    /// Carrier-phase float solution.
+    Float,
+    /// No carrier-phase solution.
+    None,
+}
+
+impl RtkState {
+    /// Lower-case name, as in hilrig's JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            RtkState::Fixed => "fixed",
+            RtkState::Float => "float",
+            RtkState::None => "none",
+        }
+    }
+}
+
+/// Which protocol a fix came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum FixSource {
+    /// NMEA sentences.
+    Nmea,
+    /// UBX messages.
+    Ubx,
+}
+
+/// One navigation epoch.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fix {
+    /// Protocol.
+    pub source: FixSource,
+    /// UTC of the fix, when the date is known.
+    pub time: Option<UtcNanos>,
+    /// Nanoseconds of the UTC day (NMEA) even when the date is not known yet.
+    pub time_of_day: Option<i64>,
+    /// Latitude, degrees.
+    pub lat: Option<f64>,
+    /// Longitude, degrees.
+    pub lon: Option<f64>,
+    /// Altitude above mean sea level, metres.
+    pub alt_msl: Option<f64>,
+    /// Height above the ellipsoid, metres.
+    pub alt_ellipsoid: Option<f64>,
+    /// GGA fix quality code 0-9 (derived for UBX: 4 fixed, 5 float, 2 differential, 1 GNSS,
+    /// 6 dead reckoning, 0 none).
+    pub quality: u8,
+    /// RTK state.
+    pub rtk: RtkState,
+    /// 1-sigma latitude error, metres.
+    pub sigma_lat_m: Option<f64>,
+    /// 1-sigma longitude error, metres.
+    pub sigma_lon_m: Option<f64>,
+    /// 1-sigma altitude error, metres.
+    pub sigma_alt_m: Option<f64>,
+    /// Age of differential corrections, seconds.
+    pub correction_age_s: Option<f64>,
+    /// Reference station id.
+    pub station_id: Option<u16>,
+    /// Satellites used.
+    pub satellites: Option<u8>,
+    /// Speed over ground, m/s.
+    pub speed_mps: Option<f64>,
+    /// Heading (true heading when the receiver reports one, else course over ground), degrees.
+    pub heading_deg: Option<f64>,
+}
+
+impl Fix {
+    fn empty(source: FixSource) -> Fix {
+        Fix {
+            source,
+            time: None,
+            time_of_day: None,
+            lat: None,
+            lon: None,
+            alt_msl: None,
+            alt_ellipsoid: None,
+            quality: 0,
+            rtk: RtkState::None,
+            sigma_lat_m: None,
+            sigma_lon_m: None,
+            sigma_alt_m: None,
+            correction_age_s: None,
+            station_id: None,
+            satellites: None,
+            speed_mps: None,
+            heading_deg: None,
+        }
+    }
+}
+
+const KNOT_MPS: f64 = 1852.0 / 3600.0;
+
+/// Assembles NMEA sentences into fixes.
+#[derive(Debug, Default)]
+pub struct NmeaEpochs {
+    current: Option<Fix>,
+    has_true_heading: bool,
+    /// Last known date and the time of day it was seen at.
+    date: Option<((i64, u32, u32), i64)>,
+}
+
+fn rtk_from_quality(q: u8) -> RtkState {
+    match q {
+        4 => RtkState::Fixed,
+        5 => RtkState::Float,
+        _ => RtkState::None,
+    }
+}
+
+impl NmeaEpochs {
+    /// Takes one decoded sentence; returns the previous epoch when this one starts a new one.
+    pub fn push(&mut self, s: &Sentence) -> Option<Fix> {
+        let tod = match s {
+            Sentence::Gga(g) => g.time_of_day,
+            Sentence::Rmc(r) => r.time_of_day,
+            Sentence::Gst(g) => g.time_of_day,
+            Sentence::Zda(z) => z.time_of_day,
+            Sentence::Gns(g) => g.time_of_day,
+            Sentence::Gbs(g) => g.time_of_day,
+            Sentence::Hdt(_) | Sentence::Vtg(_) | Sentence::Other { .. } => None,
+        };
+        let mut done = None;
+        if let Some(t) = tod {
+            if self
+                .current
+                .as_ref()
+                .is_some_and(|c| c.time_of_day != Some(t))
+            {
+                done = self.take();
+            }
+            if self.current.is_none() {
+                let mut f = Fix::empty(FixSource::Nmea);
+                f.time_of_day = Some(t);
+                self.current = Some(f);
+                self.has_true_heading = false;
+            }
+        }
+        let Some(f) = self.current.as_mut() else {
+            return done;
+        };
+        match s {
+            Sentence::Gga(g) => {
+                f.lat = g.lat.or(f.lat);
+                f.lon = g.lon.or(f.lon);
+                f.alt_msl = g.alt_msl;
+                f.alt_ellipsoid = match (g.alt_msl, g.geoid_sep) {
+                    (Some(a), Some(n)) => Some(a + n),
+                    _ => None,
+                };
+                f.quality = g.quality;
+                f.rtk = rtk_from_quality(g.quality);
+                f.correction_age_s = g.correction_age_s;
+                f.station_id = g.station_id;
+                f.satellites = g.satellites;
+            }
+            Sentence::Gns(g) => {
+                f.lat = f.lat.or(g.lat);
+                f.lon = f.lon.or(g.lon);
+                f.alt_msl = f.alt_msl.or(g.alt_msl);
+                f.correction_age_s = f.correction_age_s.or(g.correction_age_s);
+                f.station_id = f.station_id.or(g.station_id);
+                f.satellites = f.satellites.or(g.satellites);
+            }
+            Sentence::Rmc(r) => {
+                if let Some(d) = r.date {
+                    self.date = Some((d, r.time_of_day.unwrap_or(0)));
+                }
+                f.lat = f.lat.or(r.lat);
+                f.lon = f.lon.or(r.lon);
+                f.speed_mps = r.speed_knots.map(|k| k * KNOT_MPS).or(f.speed_mps);
+                if !self.has_true_heading {
+                    f.heading_deg = r.course_deg.or(f.heading_deg);
+                }
+                if f.quality == 0 && r.valid {
+                    // RMC alone: the FAA mode tells the RTK state.
+                    f.rtk = match r.mode {
+                        Some('R') => RtkState::Fixed,
+                        Some('F') => RtkState::Float,
+                        _ => f.rtk,
+                    };
+                }
+            }
+            Sentence::Zda(z) => {
+                if let Some(d) = z.date {
+                    self.date = Some((d, z.time_of_day.unwrap_or(0)));
+                }
+            }
+            Sentence::Gst(g) => {
+                f.sigma_lat_m = g.sigma_lat_m;
+                f.sigma_lon_m = g.sigma_lon_m;
+                f.sigma_alt_m = g.sigma_alt_m;
+            }
+            Sentence::Hdt(h) => {
+                if h.heading_deg.is_some() {
+                    f.heading_deg = h.heading_deg;
+                    self.has_true_heading = true;
+                }
+            }
+            Sentence::Vtg(v) => {
+                f.speed_mps = v.speed_kmh.map(|k| k / 3.6).or(f.speed_mps);
+                if !self.has_true_heading {
+                    f.heading_deg = v.course_deg.or(f.heading_deg);
+                }
+            }
+            Sentence::Gbs(_) | Sentence::Other { .. } => {}
+        }
+        done
+    }
+
+    /// Ends the stream: the epoch in progress.
+    pub fn finish(&mut self) -> Option<Fix> {
+        self.take()
+    }
+
+    fn take(&mut self) -> Option<Fix> {
+        let mut f = self.current.take()?;
+        if let (Some(tod), Some(((y, m, d), seen_tod))) = (f.time_of_day, self.date) {
+            // A time of day well before the one the date was seen at is the next day.
+            let mut t = utc_from_civil(y, m, d, tod);
+            if seen_tod - tod > DAY_NS / 2 {
+                t = UtcNanos(t.0 + DAY_NS);
+            }
+            f.time = Some(t);
+        }
+        Some(f)
+    }
+}
+
+/// Assembles UBX messages into fixes.
+#[derive(Debug, Default)]
+pub struct UbxEpochs {
+    current: Option<(u32, Fix)>,
+}
+
+impl UbxEpochs {
+    /// Takes one decoded message; returns the previous epoch when this one starts a new one.
+    pub fn push(&mut self, m: &Ubx) -> Option<Fix> {
+        match m {
+            Ubx::NavPvt(p) => {
+                let done = self.current.take().map(|(_, f)| f);
+                let mut f = Fix::empty(FixSource::Ubx);
+                // The navigation epoch is on the receiver's millisecond grid (iTOW); the UTC
+                // fields plus `nano` land a few hundred microseconds off it by the receiver clock
+                // bias. The epoch's time is the grid point, as gpsd reports it.
+                f.time = p
+                    .utc
+                    .map(|t| UtcNanos((t.0 + 500_000).div_euclid(1_000_000) * 1_000_000));
+                f.lat = Some(p.lat_deg);
+                f.lon = Some(p.lon_deg);
+                f.alt_msl = Some(p.h_msl_m);
+                f.alt_ellipsoid = Some(p.height_m);
+                f.rtk = match p.carrier {
+                    CarrierSolution::Fixed => RtkState::Fixed,
+                    CarrierSolution::Float => RtkState::Float,
+                    CarrierSolution::None => RtkState::None,
+                };
+                f.quality = match (p.carrier, p.fix_ok, p.fix_type, p.diff_soln) {
+                    (CarrierSolution::Fixed, ..) => 4,
+                    (CarrierSolution::Float, ..) => 5,
+                    (_, false, ..) => 0,
+                    (_, true, 1, _) => 6,
+                    (_, true, _, true) => 2,
+                    (_, true, 2..=4, false) => 1,
+                    _ => 0,
+                };
+                if f.quality == 0 {
+                    f.lat = None;
+                    f.lon = None;
+                }
+                // UBX reports one horizontal accuracy; it stands for both axes.
+                f.sigma_lat_m = Some(p.h_acc_m);
+                f.sigma_lon_m = Some(p.h_acc_m);
+                f.sigma_alt_m = Some(p.v_acc_m);
+                f.correction_age_s = p.correction_age_s;
+                f.satellites = Some(p.num_sv);
+                f.speed_mps = Some(p.ground_speed_mps);
+                f.heading_deg = p.head_vehicle_deg.or(Some(p.head_motion_deg));
+                self.current = Some((p.itow_ms, f));
+                done
+            }
+            Ubx::NavHpposllh(h) => {
+                if let Some((itow, f)) = self.current.as_mut() {
+                    if *itow == h.itow_ms && !h.invalid && f.lat.is_some() {
+                        f.lat = Some(h.lat_deg);
+                        f.lon = Some(h.lon_deg);
+                        f.alt_msl = Some(h.h_msl_m);
+                        f.alt_ellipsoid = Some(h.height_m);
+                        f.sigma_lat_m = Some(h.h_acc_m);
+                        f.sigma_lon_m = Some(h.h_acc_m);
+                        f.sigma_alt_m = Some(h.v_acc_m);
+                    }
+                }
+                None
+            }
+            Ubx::NavRelposned(r) => {
+                if let Some((itow, f)) = self.current.as_mut() {
+                    if *itow == r.itow_ms {
+                        f.station_id = Some(r.station_id);
+                    }
+                }
+                None
+            }
+            Ubx::Other { .. } => None,
+        }
+    }
+
+    /// Ends the stream: the epoch in progress.
+    pub fn finish(&mut self) -> Option<Fix> {
+        self.current.take().map(|(_, f)| f)
+    }
+}
+
+/// Counters of a GNSS stream decode.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct DecodeStats {
+    /// NMEA sentences that framed but did not decode (bad fields).
+    pub nmea_errors: u64,
+    /// UBX frames that framed but did not decode.
+    pub ubx_errors: u64,
+}
+
+/// The whole sans-IO pipeline: bytes in, fixes out (framer + decoders + both assemblers).
+#[derive(Debug, Default)]
+pub struct GnssStream {
+    /// The framer.
+    pub framer: crate::framer::Framer,
+    nmea: NmeaEpochs,
+    ubx: UbxEpochs,
+    /// Decode error counters.
+    pub stats: DecodeStats,
+}
+
+impl GnssStream {
+    /// A stream over a gpsd-style log (comment lines skipped).
+    pub fn for_gpsd_log() -> GnssStream {
+        GnssStream {
+            framer: crate::framer::Framer::for_gpsd_log(),
+            ..GnssStream::default()
+        }
+    }
+
+    /// Feeds bytes and appends finished fixes to `out`.
+    pub fn push(&mut self, bytes: &[u8], out: &mut Vec<Fix>) {
+        self.framer.push(bytes);
+        self.drain(out);
+    }
+
+    /// Ends the stream and appends the remaining fixes.
+    pub fn finish(&mut self, out: &mut Vec<Fix>) {
+        self.framer.finish();
+        self.drain(out);
+        out.extend(self.nmea.finish());
+        out.extend(self.ubx.finish());
+    }
+
+    fn drain(&mut self, out: &mut Vec<Fix>) {
+        use crate::framer::{Frame, Item};
+        while let Some(item) = self.framer.next_frame() {
+            match item {
+                Item::Frame {
+                    frame: Frame::Nmea(s),
+                    ..
+                } => match nmea::parse(&s) {
+                    Ok(sentence) => out.extend(self.nmea.push(&sentence)),
+                    Err(_) => self.stats.nmea_errors += 1,
+                },
+                Item::Frame {
+                    frame: Frame::Ubx { class, id, payload },
+                    ..
+                } => match crate::ubx::decode(class, id, &payload) {
+                    Ok(m) => out.extend(self.ubx.push(&m)),
+                    Err(_) => self.stats.ubx_errors += 1,
+                },
+                Item::Frame {
+                    frame: Frame::Rtcm3 { .. },
+                    ..
+                }
+                | Item::Rejected { .. } => {}
+            }
+        }
+    }
+}

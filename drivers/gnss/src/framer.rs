@@ -1,0 +1,604 @@
+//! Framing a mixed serial byte stream: NMEA 0183 sentences, UBX frames and RTCM3 frames, with
+//! whatever garbage sits between them.
+//!
+//! Sans-IO, in the manner of tokio-util's `Decoder`: bytes go in through [`Framer::push`],
+//! frames come out of [`Framer::next_frame`]. A corrupt frame is an item ([`Item::Rejected`]),
+//! not an error that ends the stream, and resynchronisation advances by one byte only, so a
+//! corrupted sentence never takes a valid neighbour with it, even one that starts inside it.
+//!
+//! Every candidate is validated by its own checksum (NMEA XOR, UBX Fletcher-8, RTCM3 CRC-24Q)
+//! before it is accepted. Memory is bounded: a candidate can be at most [`MAX_FRAME`] bytes.
+
+use std::collections::VecDeque;
+
+/// Largest frame kept while waiting for its end (UBX frames of the F9 series stay below 8 KiB;
+/// RTCM3 frames are at most 1029 bytes).
+pub const MAX_FRAME: usize = 8 * 1024;
+/// Longest NMEA sentence accepted (the standard says 82 characters; proprietary ones run longer).
+pub const MAX_NMEA: usize = 256;
+
+/// A complete, checksum-verified frame.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Frame {
+    /// An NMEA sentence from `$` (or `!`) up to and including the checksum (no line end).
+    Nmea(String),
+    /// A UBX frame: class, id and payload.
+    Ubx {
+        /// Message class.
+        class: u8,
+        /// Message id.
+        id: u8,
+        /// Payload bytes.
+        payload: Vec<u8>,
+    },
+    /// An RTCM3 frame (passed over: only its message number is kept).
+    Rtcm3 {
+        /// Message number (first 12 bits of the payload), 0 when the payload is empty.
+        message: u16,
+        /// Payload length.
+        len: usize,
+    },
+}
+
+/// Why a candidate frame was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum RejectReason {
+    /// An NMEA sentence whose checksum does not match.
+    NmeaChecksum,
+    /// An NMEA sentence with non-printable bytes, no `*hh`, or too long.
+    NmeaMalformed,
+    /// A UBX frame whose checksum does not match.
+    UbxChecksum,
+    /// An RTCM3 frame whose CRC does not match.
+    Rtcm3Crc,
+}
+
+/// What the framer yields.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Item {
+    /// A valid frame, with the stream offset of its first byte.
+    Frame {
+        /// Stream offset of the first byte.
+        offset: u64,
+        /// The frame.
+        frame: Frame,
+    },
+    /// A candidate that failed validation (its first byte is skipped and scanning goes on).
+    Rejected {
+        /// Stream offset of the candidate.
+        offset: u64,
+        /// Why.
+        reason: RejectReason,
+    },
+}
+
+/// Counters.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct FramerStats {
+    /// Bytes pushed.
+    pub bytes: u64,
+    /// NMEA sentences accepted.
+    pub nmea: u64,
+    /// UBX frames accepted.
+    pub ubx: u64,
+    /// RTCM3 frames accepted.
+    pub rtcm3: u64,
+    /// Candidates rejected.
+    pub rejected: u64,
+    /// Bytes that belonged to no frame (garbage, rejected candidates' first bytes, comments).
+    pub skipped_bytes: u64,
+    /// gpsd log comment lines skipped.
+    pub comment_lines: u64,
+}
+
+/// The framer.
+#[derive(Debug)]
+pub struct Framer {
+    buf: VecDeque<u8>,
+    /// Stream offset of `buf[0]`.
+    offset: u64,
+    at_line_start: bool,
+    gpsd_comments: bool,
+    finished: bool,
+    /// Counters.
+    pub stats: FramerStats,
+}
+
+impl Default for Framer {
+    fn default() -> Self {
+        Framer::new()
+    }
+}
+
+enum Scan {
+    Item(Item, usize),
+    Skip(usize),
+    NeedMore,
+}
+
+impl Framer {
+    /// A framer for a raw serial stream.
+    pub fn new() -> Framer {
+        Framer {
+            buf: VecDeque::with_capacity(4096),
+            offset: 0,
+            at_line_start: true,
+            gpsd_comments: false,
+            finished: false,
+            stats: FramerStats::default(),
+        }
+    }
+
+    /// A framer that also skips gpsd log comment lines (`#` at the start of a line, outside any
+    /// frame), for reading gpsd regression logs.
+    pub fn for_gpsd_log() -> Framer {
+        Framer {
+            gpsd_comments: true,
+            ..Framer::new()
+        }
+    }
+
+    /// Adds bytes from the stream.
+    pub fn push(&mut self, bytes: &[u8]) {
+        self.stats.bytes += bytes.len() as u64;
+        self.buf.extend(bytes);
+    }
+
+    /// Marks the end of the stream: an incomplete tail is then dropped (counted as skipped).
+    pub fn finish(&mut self) {
+        self.finished = true;
+    }
+
+    /// Stream offset of the next unread byte.
+    pub fn position(&self) -> u64 {
+        self.offset
+    }
+
+    /// The next item, or `None` when more bytes are needed (or the stream is finished).
+    pub fn next_frame(&mut self) -> Option<Item> {
+        loop {
+            if self.buf.is_empty() {
+                return None;
+            }
+            self.buf.make_contiguous();
+            let scan = {
+                let (data, _) = self.buf.as_slices();
+                scan(data, self.offset, self.at_line_start && self.gpsd_comments)
+            };
+            match scan {
+                Scan::Item(item, len) => {
+                    match &item {
+                        Item::Frame {
+                            frame: Frame::Nmea(_),
+                            ..
+                        } => self.stats.nmea += 1,
+                        Item::Frame {
+                            frame: Frame::Ubx { .. },
+                            ..
+                        } => self.stats.ubx += 1,
+                        Item::Frame {
+                            frame: Frame::Rtcm3 { .. },
+                            ..
+                        } => self.stats.rtcm3 += 1,
+                        Item::Rejected { .. } => {
+                            self.stats.rejected += 1;
+                            self.stats.skipped_bytes += len as u64;
+                        }
+                    }
+                    self.consume(len);
+                    return Some(item);
+                }
+                Scan::Skip(n) => {
+                    if self.at_line_start && self.gpsd_comments && self.buf.front() == Some(&b'#') {
+                        self.stats.comment_lines += 1;
+                    }
+                    self.stats.skipped_bytes += n as u64;
+                    self.consume(n);
+                }
+                Scan::NeedMore => {
+                    if !self.finished {
+                        return None;
+                    }
+                    // At the end a candidate can no longer complete: drop its first byte only,
+                    // since a corrupted length may have made it swallow valid frames behind it.
+                    self.stats.skipped_bytes += 1;
+                    self.consume(1);
+                }
+            }
+        }
+    }
+
+    fn consume(&mut self, n: usize) {
+        let n = n.min(self.buf.len());
+        let last = if n > 0 {
+            self.buf.get(n - 1).copied()
+        } else {
+            None
+        };
+        self.buf.drain(..n);
+        self.offset += n as u64;
+        if let Some(b) = last {
+            self.at_line_start = b == b'\n';
+        }
+    }
+}
+
+fn scan(data: &[u8], offset: u64, comment_possible: bool) -> Scan {
+    if comment_possible && data[0] == b'#' {
+        return match data.iter().position(|&b| b == b'\n') {
+            Some(i) => Scan::Skip(i + 1),
+            None if data.len() > MAX_NMEA => Scan::Skip(data.len()),
+            None => Scan::NeedMore,
+        };
+    }
+    match data[0] {
+        b'$' | b'!' => scan_nmea(data, offset),
+        0xB5 => scan_ubx(data, offset),
+        0xD3 => scan_rtcm3(data, offset),
+        _ => {
+            // Skip to the next possible start byte, or through a line end (so that gpsd comment
+            // lines are recognised at the start of the next line).
+            let stop = data[1..]
+                .iter()
+                .position(|&b| matches!(b, b'$' | b'!' | 0xB5 | 0xD3 | b'\n'));
+            match stop {
+                Some(i) if data[i + 1] == b'\n' => Scan::Skip(i + 2),
+                Some(i) => Scan::Skip(i + 1),
+                None => Scan::Skip(data.len()),
+            }
+        }
+    }
+}
+
+fn reject(offset: u64, reason: RejectReason) -> Scan {
+    Scan::Item(Item::Rejected { offset, reason }, 1)
+}
+
+fn scan_nmea(data: &[u8], offset: u64) -> Scan {
+    // The sentence ends at the first CR or LF; any byte that cannot be in a sentence ends the
+    // candidate early (so that a frame starting inside it is not swallowed).
+    let limit = data.len().min(MAX_NMEA);
+    let mut end = None;
+    for (i, &b) in data.iter().enumerate().take(limit).skip(1) {
+        if b == b'\r' || b == b'\n' {
+            end = Some(i);
+            break;
+        }
+        if !(0x20..0x7f).contains(&b) || b == b'$' {
+            return reject(offset, RejectReason::NmeaMalformed);
+        }
+    }
+    let Some(end) = end else {
+        if data.len() >= MAX_NMEA {
+            return reject(offset, RejectReason::NmeaMalformed);
+        }
+        return Scan::NeedMore;
+    };
+    let s = &data[..end];
+    let Some(star) = s.iter().rposition(|&b| b == b'*') else {
+        return reject(offset, RejectReason::NmeaMalformed);
+    };
+    if star + 3 != s.len() {
+        return reject(offset, RejectReason::NmeaMalformed);
+    }
+    let hex = |b: u8| (b as char).to_digit(16);
+    let (Some(h), Some(l)) = (hex(s[star + 1]), hex(s[star + 2])) else {
+        return reject(offset, RejectReason::NmeaMalformed);
+    };
+    let expected = (h * 16 + l) as u8;
+    let computed = s[1..star].iter().fold(0u8, |a, b| a ^ b);
+    if expected != computed {
+        return reject(offset, RejectReason::NmeaChecksum);
+    }
+    // Consume the line end too (CR, LF or CRLF).
+    let mut len = end + 1;
+    if data[end] == b'\r' && data.get(end + 1) == Some(&b'\n') {
+        len += 1;
+    }
+    // Safe: every byte was checked to be printable ASCII.
+    let text = String::from_utf8_lossy(s).into_owned();
+    Scan::Item(
+        Item::Frame {
+            offset,
+            frame: Frame::Nmea(text),
+        },
+        len,
+    )
+}
+
+/// UBX checksum (8-bit Fletcher over class, id, length and payload).
+pub fn ubx_checksum(bytes: &[u8]) -> (u8, u8) {
+    let (mut a, mut b) = (0u8, 0u8);
+    for &x in bytes {
+        a = a.wrapping_add(x);
+        b = b.wrapping_add(a);
+    }
+    (a, b)
+}
+
+fn scan_ubx(data: &[u8], offset: u64) -> Scan {
+    if data.len() < 2 {
+        return Scan::NeedMore;
+    }
+    if data[1] != 0x62 {
+        return Scan::Skip(1);
+    }
+    if data.len() < 6 {
+        return Scan::NeedMore;
+    }
+    let len = usize::from(u16::from_le_bytes([data[4], data[5]]));
+    let total = 8 + len;
+    if total > MAX_FRAME {
+        return reject(offset, RejectReason::UbxChecksum);
+    }
+    if data.len() < total {
+        return Scan::NeedMore;
+    }
+    let (a, b) = ubx_checksum(&data[2..6 + len]);
+    if data[6 + len] != a || data[7 + len] != b {
+        return reject(offset, RejectReason::UbxChecksum);
+    }
+    Scan::Item(
+        Item::Frame {
+            offset,
+            frame: Frame::Ubx {
+                class: data[2],
+                id: data[3],
+                payload: data[6..6 + len].to_vec(),
+            },
+        },
+        total,
+    )
+}
+
+/// CRC-24Q (RTCM 10403), as used by RTCM3 frames.
+pub fn crc24q(bytes: &[u8]) -> u32 {
+    let mut crc: u32 = 0;
+    for &b in bytes {
+        crc ^= u32::from(b) << 16;
+        for _ in 0..8 {
+            crc <<= 1;
+            if crc & 0x100_0000 != 0 {
+                crc ^= 0x186_4CFB;
+            }
+        }
+    }
+    crc & 0xFF_FFFF
+}
+
+fn scan_rtcm3(data: &[u8], offset: u64) -> Scan {
+    if data.len() < 3 {
+        return Scan::NeedMore;
+    }
+    if data[1] & 0xFC != 0 {
+        return Scan::Skip(1);
+    }
+    let len = (usize::from(data[1] & 0x03) << 8) | usize::from(data[2]);
+    let total = 3 + len + 3;
+    if data.len() < total {
+        return Scan::NeedMore;
+    }
+    let crc = crc24q(&data[..3 + len]);
+    let got = (u32::from(data[3 + len]) << 16)
+        | (u32::from(data[4 + len]) << 8)
+        | u32::from(data[5 + len]);
+    if crc != got {
+        return reject(offset, RejectReason::Rtcm3Crc);
+    }
+    let message = if len >= 2 {
+        (u16::from(data[3]) << 4) | (u16::from(data[4]) >> 4)
+    } else {
+        0
+    };
+    Scan::Item(
+        Item::Frame {
+            offset,
+            frame: Frame::Rtcm3 { message, len },
+        },
+        total,
+    )
+}
+
+/// Builds a UBX frame (for tests, synthesis and replay).
+pub fn ubx_frame(class: u8, id: u8, payload: &[u8]) -> Vec<u8> {
+    let mut f = vec![0xB5, 0x62, class, id];
+    f.extend_from_slice(&(payload.len() as u16).to_le_bytes());
+    f.extend_from_slice(payload);
+    let (a, b) = ubx_checksum(&f[2..]);
+    f.push(a);
+    f.push(b);
+    f
+}
+
+/// Builds an RTCM3 frame around a payload.
+pub fn rtcm3_frame(payload: &[u8]) -> Vec<u8> {
+    let mut f = vec![
+        0xD3,
+        ((payload.len() >> 8) & 0x03) as u8,
+        payload.len() as u8,
+    ];
+    f.extend_from_slice(payload);
+    let crc = crc24q(&f);
+    f.extend_from_slice(&[(crc >> 16) as u8, (crc >> 8) as u8, crc as u8]);
+    f
+}
+
+/// Builds an NMEA sentence with checksum and CRLF from its body (without `$` and `*hh`).
+pub fn nmea_sentence(body: &str) -> String {
+    let cs = body.bytes().fold(0u8, |a, b| a ^ b);
+    format!("${body}*{cs:02X}\r\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn frames(bytes: &[u8]) -> (Vec<Frame>, Vec<RejectReason>) {
+        let mut f = Framer::new();
+        f.push(bytes);
+        f.finish();
+        let (mut ok, mut bad) = (Vec::new(), Vec::new());
+        while let Some(item) = f.next_frame() {
+            match item {
+                Item::Frame { frame, .. } => ok.push(frame),
+                Item::Rejected { reason, .. } => bad.push(reason),
+            }
+        }
+        (ok, bad)
+    }
+
+    #[test]
+    fn crc24q_known_value() {
+        // RTCM 1005 frame from the RTCM standard's example, CRC 0x39F6E6... computed checks:
+        assert_eq!(crc24q(b""), 0);
+        let f = rtcm3_frame(&[0x3E, 0xD0, 0x00, 0x03]);
+        assert_eq!(
+            crc24q(&f[..f.len() - 3]),
+            u32::from_be_bytes([0, f[f.len() - 3], f[f.len() - 2], f[f.len() - 1]])
+        );
+    }
+
+    #[test]
+    fn mixed_stream_with_garbage() {
+        let mut s = b"xx\xff".to_vec();
+        s.extend(nmea_sentence("GPGGA,1,2,3").bytes());
+        s.extend(ubx_frame(1, 7, &[1, 2, 3]));
+        s.extend(rtcm3_frame(&[0x3E, 0xD0, 1, 2]));
+        s.extend(b"$GPRMC,bad*7F\r\n"); // true checksum is 00
+        s.extend(nmea_sentence("GNZDA,4").bytes());
+        let (ok, bad) = frames(&s);
+        assert_eq!(ok.len(), 4, "{ok:?}");
+        assert_eq!(
+            ok[0],
+            Frame::Nmea("$GPGGA,1,2,3*4F".replace(
+                "4F",
+                &format!("{:02X}", b"GPGGA,1,2,3".iter().fold(0, |a, b| a ^ b))
+            ))
+        );
+        assert_eq!(
+            ok[1],
+            Frame::Ubx {
+                class: 1,
+                id: 7,
+                payload: vec![1, 2, 3]
+            }
+        );
+        assert_eq!(
+            ok[2],
+            Frame::Rtcm3 {
+                message: 1005,
+                len: 4
+            }
+        );
+        assert_eq!(bad, vec![RejectReason::NmeaChecksum]);
+    }
+
+    #[test]
+    fn a_sentence_cut_by_another_is_rejected_and_the_other_kept() {
+        let mut s = b"$GPGGA,12345".to_vec(); // cut off mid-sentence
+        s.extend(nmea_sentence("GPRMC,ok").bytes());
+        let (ok, bad) = frames(&s);
+        assert_eq!(ok.len(), 1);
+        assert_eq!(bad, vec![RejectReason::NmeaMalformed]);
+    }
+
+    #[test]
+    fn gpsd_comment_lines_are_skipped() {
+        let mut f = Framer::for_gpsd_log();
+        f.push(b"# Name: test $GPGGA,x*00\n# more\n");
+        f.push(nmea_sentence("GPGGA,1").as_bytes());
+        let mut n = 0;
+        while let Some(i) = f.next_frame() {
+            assert!(matches!(i, Item::Frame { .. }));
+            n += 1;
+        }
+        assert_eq!(n, 1);
+        assert_eq!(f.stats.comment_lines, 2);
+    }
+
+    fn stream_of(frames: &[Vec<u8>]) -> Vec<u8> {
+        frames.concat()
+    }
+
+    fn arb_frame() -> impl Strategy<Value = Vec<u8>> {
+        prop_oneof![
+            "[A-Z]{5}(,[0-9A-Z.]{0,8}){0,12}".prop_map(|b| nmea_sentence(&b).into_bytes()),
+            (
+                any::<u8>(),
+                any::<u8>(),
+                proptest::collection::vec(any::<u8>(), 0..120)
+            )
+                .prop_map(|(c, i, p)| ubx_frame(c, i, &p)),
+            proptest::collection::vec(any::<u8>(), 2..200).prop_map(|p| rtcm3_frame(&p)),
+        ]
+    }
+
+    proptest! {
+        /// Corruption (flips, insertions, deletions) loses only the frames it touches.
+        #[test]
+        fn corruption_loses_only_touched_frames(
+            frames_in in proptest::collection::vec(arb_frame(), 1..30),
+            edits in proptest::collection::vec((any::<proptest::sample::Index>(), 0u8..3, any::<u8>()), 0..6),
+            chunk in 1usize..100,
+        ) {
+            let stream = stream_of(&frames_in);
+            // Frame spans in the original stream.
+            let mut spans = Vec::new();
+            let mut at = 0;
+            for f in &frames_in {
+                spans.push((at, at + f.len()));
+                at += f.len();
+            }
+            let mut touched = vec![false; frames_in.len()];
+            let mut bytes = stream.clone();
+            // Apply edits from the back so earlier positions stay valid.
+            let mut positions: Vec<(usize, u8, u8)> = edits.iter().map(|(i, k, v)| (i.index(stream.len()), *k, *v)).collect();
+            positions.sort_by_key(|p| std::cmp::Reverse(p.0));
+            for (pos, kind, v) in positions {
+                for (k, (s, e)) in spans.iter().enumerate() {
+                    // An insertion at a frame's start touches the boundary, not the frame.
+                    if pos >= *s && pos < *e && !(kind == 1 && pos == *s) {
+                        touched[k] = true;
+                    }
+                }
+                match kind {
+                    0 => bytes[pos] ^= v | 1,
+                    1 => bytes.insert(pos, v),
+                    _ => { bytes.remove(pos); }
+                }
+            }
+            let mut f = Framer::new();
+            for c in bytes.chunks(chunk) {
+                f.push(c);
+            }
+            f.finish();
+            let mut got = Vec::new();
+            while let Some(item) = f.next_frame() {
+                if let Item::Frame { frame, .. } = item {
+                    got.push(frame);
+                }
+            }
+            let (expected, _) = frames(&stream);
+            // Every untouched frame is recovered, in order.
+            let mut it = got.iter();
+            for (k, e) in expected.iter().enumerate() {
+                if !touched[k] {
+                    prop_assert!(it.any(|g| g == e), "untouched frame {k} lost: {e:?}");
+                }
+            }
+        }
+
+        #[test]
+        fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..2000), chunk in 1usize..64) {
+            let mut f = Framer::for_gpsd_log();
+            for c in bytes.chunks(chunk) {
+                f.push(c);
+                while f.next_frame().is_some() {}
+            }
+            f.finish();
+            while f.next_frame().is_some() {}
+            prop_assert_eq!(f.position(), bytes.len() as u64);
+        }
+    }
+}

@@ -1,0 +1,17 @@
+//! RTK GNSS driver: framing a mixed serial stream (NMEA 0183, UBX, RTCM3), decoding the sentences
+//! and messages a reference trajectory needs, and assembling them into fixes.
+//!
+//! Sans-IO throughout: [`framer::Framer`] takes bytes and yields frames, the decoders are pure
+//! functions of one frame, [`epoch::GnssStream`] chains them. The serial-port shell lives with the
+//! recorder.
+
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod epoch;
+pub mod framer;
+pub mod nmea;
+pub mod ubx;
+
+pub use epoch::{Fix, FixSource, GnssStream, RtkState};
+pub use framer::{Frame, Framer, Item, RejectReason};

@@ -1,0 +1,358 @@
+//! u-blox UBX navigation messages: NAV-PVT, NAV-HPPOSLLH, NAV-RELPOSNED.
+//!
+//! Decoded here from the payloads the framer delivers. The `ublox` crate was not used for the
+//! stream: its mixed-protocol parser (`consume_ubx_rtcm_nmea`, 0.10) lost frames on the real
+//! ZED-F9R log in shared/data/gnss, and hilrig's framer already yields checksum-verified
+//! payloads, so three fixed-layout messages are simpler to decode directly (offsets from the u-blox
+//! F9 interface description) than to adapt.
+
+use hilrig_stamp::civil::utc_from_civil;
+use hilrig_stamp::UtcNanos;
+
+/// UBX class NAV.
+pub const CLASS_NAV: u8 = 0x01;
+/// NAV-PVT id.
+pub const ID_PVT: u8 = 0x07;
+/// NAV-HPPOSLLH id.
+pub const ID_HPPOSLLH: u8 = 0x14;
+/// NAV-RELPOSNED id.
+pub const ID_RELPOSNED: u8 = 0x3C;
+
+/// A UBX payload that does not fit its message layout.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum UbxError {
+    /// Wrong payload length.
+    #[error("UBX {name} payload has {got} bytes, expected {expected}")]
+    Length {
+        /// Message name.
+        name: &'static str,
+        /// Expected length.
+        expected: usize,
+        /// Actual length.
+        got: usize,
+    },
+    /// A message version this decoder does not know.
+    #[error("UBX {name} version {version} is not supported")]
+    Version {
+        /// Message name.
+        name: &'static str,
+        /// Version byte.
+        version: u8,
+    },
+}
+
+/// Carrier-phase solution state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum CarrierSolution {
+    /// No carrier-phase range solution.
+    None,
+    /// RTK float.
+    Float,
+    /// RTK fixed.
+    Fixed,
+}
+
+fn u16le(b: &[u8], o: usize) -> u16 {
+    u16::from_le_bytes([b[o], b[o + 1]])
+}
+fn u32le(b: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]])
+}
+fn i32le(b: &[u8], o: usize) -> i32 {
+    u32le(b, o) as i32
+}
+
+/// NAV-PVT: the receiver's navigation solution.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NavPvt {
+    /// GPS time of week of the epoch, ms.
+    pub itow_ms: u32,
+    /// UTC of the epoch, when date and time are valid.
+    pub utc: Option<UtcNanos>,
+    /// Time accuracy estimate, ns.
+    pub t_acc_ns: u32,
+    /// Fix type: 0 none, 1 dead reckoning, 2 2D, 3 3D, 4 GNSS + DR, 5 time only.
+    pub fix_type: u8,
+    /// gnssFixOK flag.
+    pub fix_ok: bool,
+    /// Differential corrections applied.
+    pub diff_soln: bool,
+    /// Carrier-phase solution.
+    pub carrier: CarrierSolution,
+    /// Satellites used.
+    pub num_sv: u8,
+    /// Longitude, degrees.
+    pub lon_deg: f64,
+    /// Latitude, degrees.
+    pub lat_deg: f64,
+    /// Height above ellipsoid, metres.
+    pub height_m: f64,
+    /// Height above mean sea level, metres.
+    pub h_msl_m: f64,
+    /// Horizontal accuracy estimate, metres.
+    pub h_acc_m: f64,
+    /// Vertical accuracy estimate, metres.
+    pub v_acc_m: f64,
+    /// Ground speed, m/s.
+    pub ground_speed_mps: f64,
+    /// Heading of motion, degrees.
+    pub head_motion_deg: f64,
+    /// Vehicle heading, degrees, when the receiver marks it valid.
+    pub head_vehicle_deg: Option<f64>,
+    /// Age of the last correction, upper bound of the receiver's bucket, seconds.
+    pub correction_age_s: Option<f64>,
+}
+
+/// Upper bounds of NAV-PVT's lastCorrectionAge buckets (index 1..=12), seconds.
+const CORRECTION_AGE_BUCKETS: [f64; 12] = [
+    1.0,
+    2.0,
+    5.0,
+    10.0,
+    15.0,
+    20.0,
+    30.0,
+    45.0,
+    60.0,
+    90.0,
+    120.0,
+    f64::INFINITY,
+];
+
+impl NavPvt {
+    /// Decodes a 92-byte NAV-PVT payload.
+    pub fn decode(p: &[u8]) -> Result<NavPvt, UbxError> {
+        if p.len() != 92 {
+            return Err(UbxError::Length {
+                name: "NAV-PVT",
+                expected: 92,
+                got: p.len(),
+            });
+        }
+        let valid = p[11];
+        let utc = (valid & 0x03 == 0x03
+            && (1..=12).contains(&p[6])
+            && (1..=31).contains(&p[7])
+            && p[8] < 24
+            && p[9] < 60
+            && p[10] < 61)
+            .then(|| {
+                let nano = i64::from(i32le(p, 16));
+                let tod = ((i64::from(p[8]) * 60 + i64::from(p[9])) * 60 + i64::from(p[10]))
+                    * 1_000_000_000
+                    + nano;
+                utc_from_civil(
+                    i64::from(u16le(p, 4)),
+                    u32::from(p[6]),
+                    u32::from(p[7]),
+                    tod,
+                )
+            });
+        let flags = p[21];
+        let carrier = match (flags >> 6) & 0x03 {
+            1 => CarrierSolution::Float,
+            2 => CarrierSolution::Fixed,
+            _ => CarrierSolution::None,
+        };
+        let flags3 = u16le(p, 78);
+        let age_idx = usize::from((flags3 >> 1) & 0x0F);
+        Ok(NavPvt {
+            itow_ms: u32le(p, 0),
+            utc,
+            t_acc_ns: u32le(p, 12),
+            fix_type: p[20],
+            fix_ok: flags & 0x01 != 0,
+            diff_soln: flags & 0x02 != 0,
+            carrier,
+            num_sv: p[23],
+            lon_deg: f64::from(i32le(p, 24)) * 1e-7,
+            lat_deg: f64::from(i32le(p, 28)) * 1e-7,
+            height_m: f64::from(i32le(p, 32)) * 1e-3,
+            h_msl_m: f64::from(i32le(p, 36)) * 1e-3,
+            h_acc_m: f64::from(u32le(p, 40)) * 1e-3,
+            v_acc_m: f64::from(u32le(p, 44)) * 1e-3,
+            ground_speed_mps: f64::from(i32le(p, 60)) * 1e-3,
+            head_motion_deg: f64::from(i32le(p, 64)) * 1e-5,
+            head_vehicle_deg: (flags & 0x20 != 0).then(|| f64::from(i32le(p, 84)) * 1e-5),
+            correction_age_s: (1..=12)
+                .contains(&age_idx)
+                .then(|| CORRECTION_AGE_BUCKETS[age_idx - 1]),
+        })
+    }
+}
+
+/// NAV-HPPOSLLH: high-precision geodetic position.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NavHpposllh {
+    /// GPS time of week, ms.
+    pub itow_ms: u32,
+    /// The receiver flags the position invalid.
+    pub invalid: bool,
+    /// Longitude, degrees (with the 1e-9 degree high-precision part).
+    pub lon_deg: f64,
+    /// Latitude, degrees.
+    pub lat_deg: f64,
+    /// Height above ellipsoid, metres (0.1 mm resolution).
+    pub height_m: f64,
+    /// Height above mean sea level, metres.
+    pub h_msl_m: f64,
+    /// Horizontal accuracy, metres.
+    pub h_acc_m: f64,
+    /// Vertical accuracy, metres.
+    pub v_acc_m: f64,
+}
+
+impl NavHpposllh {
+    /// Decodes a 36-byte NAV-HPPOSLLH payload (version 0).
+    pub fn decode(p: &[u8]) -> Result<NavHpposllh, UbxError> {
+        if p.len() != 36 {
+            return Err(UbxError::Length {
+                name: "NAV-HPPOSLLH",
+                expected: 36,
+                got: p.len(),
+            });
+        }
+        if p[0] != 0 {
+            return Err(UbxError::Version {
+                name: "NAV-HPPOSLLH",
+                version: p[0],
+            });
+        }
+        let hp = |o: usize| f64::from(p[o] as i8);
+        Ok(NavHpposllh {
+            itow_ms: u32le(p, 4),
+            invalid: p[3] & 0x01 != 0,
+            lon_deg: f64::from(i32le(p, 8)) * 1e-7 + hp(24) * 1e-9,
+            lat_deg: f64::from(i32le(p, 12)) * 1e-7 + hp(25) * 1e-9,
+            height_m: f64::from(i32le(p, 16)) * 1e-3 + hp(26) * 1e-4,
+            h_msl_m: f64::from(i32le(p, 20)) * 1e-3 + hp(27) * 1e-4,
+            h_acc_m: f64::from(u32le(p, 28)) * 1e-4,
+            v_acc_m: f64::from(u32le(p, 32)) * 1e-4,
+        })
+    }
+}
+
+/// NAV-RELPOSNED: position of the rover relative to the reference station (or moving base).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NavRelposned {
+    /// GPS time of week, ms.
+    pub itow_ms: u32,
+    /// Reference station id.
+    pub station_id: u16,
+    /// North, east, down, metres.
+    pub rel_ned_m: [f64; 3],
+    /// Accuracy of north, east, down, metres.
+    pub acc_ned_m: [f64; 3],
+    /// Heading of the relative position vector, degrees, when valid.
+    pub heading_deg: Option<f64>,
+    /// Carrier-phase solution.
+    pub carrier: CarrierSolution,
+    /// The relative position is valid.
+    pub valid: bool,
+}
+
+impl NavRelposned {
+    /// Decodes a 64-byte NAV-RELPOSNED payload (version 1, F9 series).
+    pub fn decode(p: &[u8]) -> Result<NavRelposned, UbxError> {
+        if p.len() != 64 {
+            return Err(UbxError::Length {
+                name: "NAV-RELPOSNED",
+                expected: 64,
+                got: p.len(),
+            });
+        }
+        if p[0] != 1 {
+            return Err(UbxError::Version {
+                name: "NAV-RELPOSNED",
+                version: p[0],
+            });
+        }
+        let flags = u32le(p, 60);
+        let rel =
+            |o: usize, hp: usize| f64::from(i32le(p, o)) * 1e-2 + f64::from(p[hp] as i8) * 1e-4;
+        Ok(NavRelposned {
+            itow_ms: u32le(p, 4),
+            station_id: u16le(p, 2),
+            rel_ned_m: [rel(8, 32), rel(12, 33), rel(16, 34)],
+            acc_ned_m: [
+                f64::from(u32le(p, 36)) * 1e-4,
+                f64::from(u32le(p, 40)) * 1e-4,
+                f64::from(u32le(p, 44)) * 1e-4,
+            ],
+            heading_deg: (flags & 0x100 != 0).then(|| f64::from(i32le(p, 24)) * 1e-5),
+            carrier: match (flags >> 3) & 0x03 {
+                1 => CarrierSolution::Float,
+                2 => CarrierSolution::Fixed,
+                _ => CarrierSolution::None,
+            },
+            valid: flags & 0x04 != 0,
+        })
+    }
+}
+
+/// A decoded UBX message.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Ubx {
+    /// NAV-PVT.
+    NavPvt(NavPvt),
+    /// NAV-HPPOSLLH.
+    NavHpposllh(NavHpposllh),
+    /// NAV-RELPOSNED.
+    NavRelposned(NavRelposned),
+    /// Any other class/id (valid frame, not decoded).
+    Other {
+        /// Class.
+        class: u8,
+        /// Id.
+        id: u8,
+    },
+}
+
+/// Decodes a UBX payload by class and id.
+pub fn decode(class: u8, id: u8, payload: &[u8]) -> Result<Ubx, UbxError> {
+    Ok(match (class, id) {
+        (CLASS_NAV, ID_PVT) => Ubx::NavPvt(NavPvt::decode(payload)?),
+        (CLASS_NAV, ID_HPPOSLLH) => Ubx::NavHpposllh(NavHpposllh::decode(payload)?),
+        (CLASS_NAV, ID_RELPOSNED) => Ubx::NavRelposned(NavRelposned::decode(payload)?),
+        _ => Ubx::Other { class, id },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn pvt_fields() {
+        let mut p = [0u8; 92];
+        p[4..6].copy_from_slice(&2025u16.to_le_bytes());
+        p[6] = 4;
+        p[7] = 11;
+        p[8] = 23;
+        p[9] = 14;
+        p[10] = 9;
+        p[11] = 0x07;
+        p[20] = 3;
+        p[21] = 0x01 | 0x02 | (1 << 6);
+        p[28..32].copy_from_slice(&450_657_718i32.to_le_bytes());
+        p[40..44].copy_from_slice(&14u32.to_le_bytes());
+        let v = NavPvt::decode(&p).unwrap();
+        assert_eq!(v.carrier, CarrierSolution::Float);
+        assert!((v.lat_deg - 45.0657718).abs() < 1e-12);
+        assert_eq!(
+            hilrig_stamp::civil::iso8601_millis(v.utc.unwrap()),
+            "2025-04-11T23:14:09.000Z"
+        );
+        assert!((v.h_acc_m - 0.014).abs() < 1e-12);
+        assert!(NavPvt::decode(&p[..91]).is_err());
+    }
+
+    proptest! {
+        #[test]
+        fn arbitrary_payloads_never_panic(class in any::<u8>(), id in any::<u8>(), p in proptest::collection::vec(any::<u8>(), 0..100)) {
+            let _ = decode(class, id, &p);
+            let _ = decode(CLASS_NAV, ID_PVT, &p);
+        }
+    }
+}
