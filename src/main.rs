@@ -206,10 +206,12 @@ fn report(args: &DecodeArgs, s: &LidarSummary) {
     if let Some(pps) = s.pps {
         lines.push(format!("PPS: {pps:?}"));
     }
-    if let Some(rmc) = s.last_rmc {
+    if let Some(rmc) = &s.last_rmc {
         lines.push(format!(
             "last RMC: {} UTC, {}",
-            rmc.time,
+            rmc.utc()
+                .map(|t| t.to_string())
+                .unwrap_or_else(|| "(no date)".into()),
             if rmc.valid { "valid" } else { "not valid" }
         ));
     }

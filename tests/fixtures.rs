@@ -146,8 +146,7 @@ fn generate(model: Model, mode: ReturnMode, packets: usize) -> Vec<u8> {
 fn rmc_sentence(secs: i64) -> String {
     let days = secs.div_euclid(86_400);
     let tod = secs.rem_euclid(86_400);
-    // Civil date from days (inverse of days_from_civil), enough for the fixture's date.
-    let (y, m, d) = civil_from_days(days);
+    let (y, m, d) = hilrig::stamp::civil::civil_from_days(days);
     let body = format!(
         "GPRMC,{:02}{:02}{:02},A,4807.0380,N,01131.0000,E,000.0,000.0,{:02}{:02}{:02},,,A",
         tod / 3600,
@@ -157,21 +156,7 @@ fn rmc_sentence(secs: i64) -> String {
         m,
         y % 100
     );
-    let cs = body.bytes().fold(0u8, |a, b| a ^ b);
-    format!("${body}*{cs:02X}\r\n")
-}
-
-fn civil_from_days(z: i64) -> (i64, u32, u32) {
-    let z = z + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let y = yoe + era * 400;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    (if m <= 2 { y + 1 } else { y }, m, d)
+    hilrig::gnss::framer::nmea_sentence(&body)
 }
 
 const FIXTURES: [(&str, Model, ReturnMode, usize); 2] = [

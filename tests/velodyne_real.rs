@@ -172,19 +172,19 @@ fn monterey_position_packets_give_pps_rmc_and_absolute_time() {
             .expect("valid checksum and fields");
         assert!(rmc.valid);
         assert!(
-            (rmc.lat_deg.unwrap() - 37.1305).abs() < 1e-3
-                && (rmc.lon_deg.unwrap() + 121.6548).abs() < 1e-3
+            (rmc.lat.unwrap() - 37.1305).abs() < 1e-3 && (rmc.lon.unwrap() + 121.6548).abs() < 1e-3
         );
         // The packet's own time, hour from the RMC, is within two seconds after the RMC's second.
-        let sent = resolve_toh(pos.timestamp_us, rmc.time);
-        let lag = (sent.0 - rmc.time.0) as f64 * 1e-9;
+        let rmc_time = rmc.utc().expect("RMC with date");
+        let sent = resolve_toh(pos.timestamp_us, rmc_time);
+        let lag = (sent.0 - rmc_time.0) as f64 * 1e-9;
         assert!(
             (0.0..2.0).contains(&lag),
             "position packet {lag} s after its RMC"
         );
         // And the logger's clock agreed with GPS to a few seconds.
         assert!(((host.0 - sent.0) as f64 * 1e-9).abs() < 5.0);
-        rmc_times.push(rmc.time);
+        rmc_times.push(rmc_time);
     }
     assert_eq!(positions, 299);
     let (summary, points) = decode_file(&path, &LidarOptions::default());

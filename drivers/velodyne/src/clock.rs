@@ -55,10 +55,10 @@ impl HourResolver {
     pub fn handle_position(&mut self, pkt: &PositionPacket, host: UtcNanos) -> Option<Rmc> {
         match pkt.rmc() {
             Some(Ok(rmc)) => {
-                if rmc.valid {
+                if let (true, Some(utc)) = (rmc.valid, rmc.utc()) {
                     // The RMC refers to the last PPS; the position packet's own timestamp is
                     // the sensor time it was sent at, so resolve that against the RMC time.
-                    let sent = resolve_toh(pkt.timestamp_us, rmc.time);
+                    let sent = resolve_toh(pkt.timestamp_us, utc);
                     self.rmc = Some((sent, host));
                 }
                 Some(rmc)
