@@ -29,7 +29,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Decode a lidar capture (pcap/pcapng) into points.
+    /// Decode a capture or log: lidar points (pcap/pcapng) or GNSS fixes (serial logs, gpsd logs,
+    /// serial interfaces of pcapng captures).
     Decode(DecodeArgs),
 }
 
@@ -37,16 +38,28 @@ enum Command {
 enum Format {
     /// One row per point: time_s,ring,azimuth_deg,distance_m,intensity,return_type,x,y,z.
     Csv,
-    /// One JSON object per point.
+    /// One JSON object per point (lidar) or per fix (gnss).
     Jsonl,
     /// No points: counts, packet loss, timing and position-packet state only.
     Summary,
 }
 
+#[derive(Clone, Copy, ValueEnum, PartialEq, Eq)]
+enum Kind {
+    /// Velodyne lidar packets in a pcap/pcapng capture.
+    Lidar,
+    /// An RTK GNSS serial stream (NMEA, UBX, RTCM3): a raw or gpsd log, or a capture's serial
+    /// interfaces.
+    Gnss,
+}
+
 #[derive(clap::Args)]
 struct DecodeArgs {
-    /// The capture file (pcap or pcapng).
+    /// The capture or log file.
     file: PathBuf,
+    /// What the file holds.
+    #[arg(long, value_enum, default_value = "lidar")]
+    kind: Kind,
     /// Decode as this model whatever the packets' product byte says
     /// (vlp16, puck-hires, vlp32c, hdl32e).
     #[arg(long)]
@@ -91,6 +104,15 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(code) => code,
+        // A closed pipe (`hilrig decode ... | head`) is the reader's choice, not an error.
+        Err(e)
+            if e.chain().any(|c| {
+                c.downcast_ref::<io::Error>()
+                    .is_some_and(|io| io.kind() == io::ErrorKind::BrokenPipe)
+            }) =>
+        {
+            ExitCode::SUCCESS
+        }
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::from(2)
@@ -99,6 +121,9 @@ fn main() -> ExitCode {
 }
 
 fn run_decode(args: DecodeArgs) -> Result<ExitCode> {
+    if args.kind == Kind::Gnss {
+        return run_decode_gnss(&args);
+    }
     let model = args
         .model
         .as_deref()
@@ -242,4 +267,51 @@ fn report(args: &DecodeArgs, s: &LidarSummary) {
     for l in lines {
         let _ = writeln!(err, "{path}: {l}");
     }
+}
+
+fn run_decode_gnss(args: &DecodeArgs) -> Result<ExitCode> {
+    if matches!(args.format, Format::Csv) {
+        bail!("--kind gnss writes --format jsonl or --format summary");
+    }
+    if args.model.is_some() || args.calibration.is_some() {
+        bail!("--model and --calibration are lidar options; they do not apply to --kind gnss");
+    }
+    let file =
+        File::open(&args.file).with_context(|| format!("cannot open {}", args.file.display()))?;
+    let out: Box<dyn Write> = match &args.output {
+        Some(p) => {
+            Box::new(File::create(p).with_context(|| format!("cannot create {}", p.display()))?)
+        }
+        None => Box::new(io::stdout().lock()),
+    };
+    let mut out = BufWriter::new(out);
+    let write = matches!(args.format, Format::Jsonl);
+    let summary = hilrig::gnss_log::decode_gnss(BufReader::new(file), &mut |fix| {
+        if write {
+            writeln!(out, "{}", hilrig::gnss_log::fix_json(fix))?;
+        }
+        Ok(())
+    })
+    .with_context(|| format!("decoding {}", args.file.display()))?;
+    out.flush()?;
+    let path = args.file.display();
+    eprintln!(
+        "{path}: fixes: {}, NMEA sentences: {}, UBX frames: {}, RTCM3 frames: {}, rejected frames: {}, undecodable frames: {}, bytes outside frames: {} of {}",
+        summary.fixes, summary.nmea, summary.ubx, summary.rtcm3, summary.rejected, summary.decode_errors, summary.skipped_bytes, summary.bytes
+    );
+    if !summary.interfaces.is_empty() {
+        eprintln!(
+            "{path}: serial interfaces: {}",
+            summary.interfaces.join(", ")
+        );
+    }
+    if let Some(e) = &summary.capture_error {
+        eprintln!("error: {path}: {e}");
+        return Ok(ExitCode::from(1));
+    }
+    if summary.fixes == 0 {
+        eprintln!("error: {path}: no GNSS fix found (no NMEA position sentence or UBX NAV-PVT)");
+        return Ok(ExitCode::from(2));
+    }
+    Ok(ExitCode::SUCCESS)
 }

@@ -2,8 +2,8 @@
 //! and messages a reference trajectory needs, and assembling them into fixes.
 //!
 //! Sans-IO throughout: [`framer::Framer`] takes bytes and yields frames, the decoders are pure
-//! functions of one frame, [`epoch::GnssStream`] chains them. The serial-port shell lives with the
-//! recorder.
+//! functions of one frame, [`epoch::GnssStream`] chains them. The serial port shell
+//! (`serial`, feature `tokio`) only moves bytes and stamps them.
 
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -11,6 +11,8 @@
 pub mod epoch;
 pub mod framer;
 pub mod nmea;
+#[cfg(feature = "tokio")]
+pub mod serial;
 pub mod ubx;
 
 pub use epoch::{Fix, FixSource, GnssStream, RtkState};

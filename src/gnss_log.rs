@@ -1,0 +1,160 @@
+//! GNSS logs to fixes: raw serial byte logs (gpsd regression logs included) and the serial
+//! interfaces of pcap/pcapng captures, through the GNSS driver. Used by `hilrig decode --kind gnss`.
+
+use hilrig_capture::demux::{Demux, Packet};
+use hilrig_capture::{CaptureError, CaptureReader};
+use hilrig_gnss::{Fix, GnssStream};
+use hilrig_stamp::civil::iso8601_millis;
+use std::collections::BTreeMap;
+use std::io::Read;
+
+/// Counters of a GNSS log decode.
+#[derive(Clone, Debug, Default)]
+pub struct GnssSummary {
+    /// Bytes of serial stream read.
+    pub bytes: u64,
+    /// Fixes produced.
+    pub fixes: u64,
+    /// NMEA sentences framed.
+    pub nmea: u64,
+    /// UBX frames framed.
+    pub ubx: u64,
+    /// RTCM3 frames passed over.
+    pub rtcm3: u64,
+    /// Frames rejected by checksum or form.
+    pub rejected: u64,
+    /// Bytes outside any frame.
+    pub skipped_bytes: u64,
+    /// Frames that did not decode (bad fields).
+    pub decode_errors: u64,
+    /// Serial interfaces read (captures), by name.
+    pub interfaces: Vec<String>,
+    /// The capture error that ended reading early, if any.
+    pub capture_error: Option<String>,
+}
+
+fn add(summary: &mut GnssSummary, s: &GnssStream) {
+    let f = &s.framer.stats;
+    summary.bytes += f.bytes;
+    summary.nmea += f.nmea;
+    summary.ubx += f.ubx;
+    summary.rtcm3 += f.rtcm3;
+    summary.rejected += f.rejected;
+    summary.skipped_bytes += f.skipped_bytes;
+    summary.decode_errors += s.stats.nmea_errors + s.stats.ubx_errors;
+}
+
+/// Decodes a GNSS log; every fix goes to `sink` in stream order.
+pub fn decode_gnss<R: Read + Send + 'static>(
+    mut source: R,
+    sink: &mut dyn FnMut(&Fix) -> std::io::Result<()>,
+) -> Result<GnssSummary, CaptureError> {
+    let mut head = [0u8; 4];
+    let mut got = 0;
+    while got < 4 {
+        let n = source
+            .read(&mut head[got..])
+            .map_err(|e| CaptureError::Io {
+                offset: got as u64,
+                source: e,
+            })?;
+        if n == 0 {
+            break;
+        }
+        got += n;
+    }
+    let is_capture = matches!(
+        head,
+        [0x0a, 0x0d, 0x0d, 0x0a]
+            | [0xd4, 0xc3, 0xb2, 0xa1]
+            | [0xa1, 0xb2, 0xc3, 0xd4]
+            | [0x4d, 0x3c, 0xb2, 0xa1]
+            | [0xa1, 0xb2, 0x3c, 0x4d]
+    );
+    let source = std::io::Cursor::new(head[..got].to_vec()).chain(source);
+    let mut summary = GnssSummary::default();
+    let mut fixes = Vec::new();
+    let io = |e: std::io::Error| CaptureError::Io {
+        offset: 0,
+        source: e,
+    };
+    if !is_capture {
+        let mut stream = GnssStream::for_gpsd_log();
+        let mut reader = source;
+        let mut buf = vec![0u8; 64 * 1024];
+        loop {
+            let n = reader.read(&mut buf).map_err(io)?;
+            if n == 0 {
+                break;
+            }
+            stream.push(&buf[..n], &mut fixes);
+            for f in fixes.drain(..) {
+                summary.fixes += 1;
+                sink(&f).map_err(io)?;
+            }
+        }
+        stream.finish(&mut fixes);
+        for f in fixes.drain(..) {
+            summary.fixes += 1;
+            sink(&f).map_err(io)?;
+        }
+        add(&mut summary, &stream);
+        return Ok(summary);
+    }
+    let mut demux = Demux::new(CaptureReader::new(source)?);
+    let mut streams: BTreeMap<u32, GnssStream> = BTreeMap::new();
+    loop {
+        let item = match demux.next_item() {
+            None => break,
+            Some(Err(e)) => {
+                summary.capture_error = Some(e.to_string());
+                break;
+            }
+            Some(Ok(i)) => i,
+        };
+        if let Packet::Serial(bytes) = item.packet {
+            streams
+                .entry(item.interface)
+                .or_default()
+                .push(bytes, &mut fixes);
+            for f in fixes.drain(..) {
+                summary.fixes += 1;
+                sink(&f).map_err(io)?;
+            }
+        }
+    }
+    for (iface, stream) in &mut streams {
+        stream.finish(&mut fixes);
+        for f in fixes.drain(..) {
+            summary.fixes += 1;
+            sink(&f).map_err(io)?;
+        }
+        add(&mut summary, stream);
+        let name = demux
+            .interfaces()
+            .get(*iface as usize)
+            .and_then(|i| i.name.clone())
+            .unwrap_or_else(|| format!("interface {iface}"));
+        summary.interfaces.push(name);
+    }
+    Ok(summary)
+}
+
+/// One fix as hilrig's JSON object (the keys `hilrig decode --kind gnss --format jsonl` writes).
+pub fn fix_json(f: &Fix) -> serde_json::Value {
+    serde_json::json!({
+        "time": f.time.map(iso8601_millis),
+        "source": match f.source { hilrig_gnss::FixSource::Nmea => "nmea", hilrig_gnss::FixSource::Ubx => "ubx" },
+        "lat": f.lat,
+        "lon": f.lon,
+        "alt_msl": f.alt_msl,
+        "quality": f.quality,
+        "rtk": f.rtk.name(),
+        "sigma_lat_m": f.sigma_lat_m,
+        "sigma_lon_m": f.sigma_lon_m,
+        "sigma_alt_m": f.sigma_alt_m,
+        "correction_age_s": f.correction_age_s,
+        "speed_mps": f.speed_mps,
+        "heading_deg": f.heading_deg,
+    })
+}
