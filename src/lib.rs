@@ -9,6 +9,7 @@ pub mod gnss_log;
 pub mod lidar;
 pub mod points_out;
 
+pub use hilrig_can as can;
 pub use hilrig_capture as capture;
 pub use hilrig_gnss as gnss;
 pub use hilrig_stamp as stamp;
