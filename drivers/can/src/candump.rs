@@ -41,31 +41,48 @@ fn hex_bytes(s: &str) -> Option<Vec<u8>> {
     if b.len() % 2 != 0 {
         return None;
     }
-    b.chunks(2).map(|p| Some(hex_digit(p[0])? << 4 | hex_digit(p[1])?)).collect()
+    b.chunks(2)
+        .map(|p| Some(hex_digit(p[0])? << 4 | hex_digit(p[1])?))
+        .collect()
 }
 
 /// Parses one line; `Ok(None)` for comments and blank lines.
 pub fn parse_line(text: &str, line: usize) -> Result<Option<LogFrame>, CandumpError> {
-    let err = |what| CandumpError { line, what, text: text.chars().take(80).collect() };
+    let err = |what| CandumpError {
+        line,
+        what,
+        text: text.chars().take(80).collect(),
+    };
     let t = text.trim_end_matches(['\r', '\n']);
     if t.trim().is_empty() || t.starts_with('#') {
         return Ok(None);
     }
-    let rest = t.strip_prefix('(').ok_or_else(|| err("no '(' before the timestamp"))?;
-    let (stamp, rest) = rest.split_once(')').ok_or_else(|| err("no ')' after the timestamp"))?;
-    let (secs, frac) = stamp.split_once('.').ok_or_else(|| err("timestamp has no '.'"))?;
+    let rest = t
+        .strip_prefix('(')
+        .ok_or_else(|| err("no '(' before the timestamp"))?;
+    let (stamp, rest) = rest
+        .split_once(')')
+        .ok_or_else(|| err("no ')' after the timestamp"))?;
+    let (secs, frac) = stamp
+        .split_once('.')
+        .ok_or_else(|| err("timestamp has no '.'"))?;
     if frac.is_empty() || frac.len() > 9 || !frac.bytes().all(|b| b.is_ascii_digit()) {
         return Err(err("timestamp fraction is not 1-9 digits"));
     }
-    let secs: i64 = secs.parse().map_err(|_| err("timestamp seconds are not a number"))?;
-    let nanos = frac.parse::<u32>().map_err(|_| err("bad fraction"))? * 10u32.pow(9 - frac.len() as u32);
+    let secs: i64 = secs
+        .parse()
+        .map_err(|_| err("timestamp seconds are not a number"))?;
+    let nanos =
+        frac.parse::<u32>().map_err(|_| err("bad fraction"))? * 10u32.pow(9 - frac.len() as u32);
     let mut parts = rest.split_whitespace();
     let interface = parts.next().ok_or_else(|| err("no interface"))?.to_owned();
     let frame_text = parts.next().ok_or_else(|| err("no frame"))?;
     if parts.next().is_some() {
         return Err(err("text after the frame"));
     }
-    let (id_text, payload) = frame_text.split_once('#').ok_or_else(|| err("no '#' in the frame"))?;
+    let (id_text, payload) = frame_text
+        .split_once('#')
+        .ok_or_else(|| err("no '#' in the frame"))?;
     let raw_id = u32::from_str_radix(id_text, 16).map_err(|_| err("identifier is not hex"))?;
     // candump writes extended ids as 8 digits without the EFF flag, error frames as 8 digits
     // with CAN_ERR_FLAG (0x20000000).
@@ -82,29 +99,41 @@ pub fn parse_line(text: &str, line: usize) -> Result<Option<LogFrame>, CandumpEr
         return Err(err("standard identifier above 0x7FF"));
     }
     let frame = if let Some(fd) = payload.strip_prefix('#') {
-        let flags = fd.bytes().next().and_then(hex_digit).ok_or_else(|| err("CAN FD flags digit missing"))?;
+        let flags = fd
+            .bytes()
+            .next()
+            .and_then(hex_digit)
+            .ok_or_else(|| err("CAN FD flags digit missing"))?;
         let data = hex_bytes(&fd[1..]).ok_or_else(|| err("CAN FD data is not hex pairs"))?;
-        let mut f = CanFrame::new_fd(id, extended, &data, flags & 1 != 0).ok_or_else(|| err("CAN FD length is not a DLC length"))?;
+        let mut f = CanFrame::new_fd(id, extended, &data, flags & 1 != 0)
+            .ok_or_else(|| err("CAN FD length is not a DLC length"))?;
         f.esi = flags & 2 != 0;
         f
     } else if let Some(r) = payload.strip_prefix('R') {
         let dlc = match r.as_bytes() {
             [] => 0,
-            [d] => hex_digit(*d).filter(|d| *d <= 8).ok_or_else(|| err("remote frame length must be 0-8"))?,
+            [d] => hex_digit(*d)
+                .filter(|d| *d <= 8)
+                .ok_or_else(|| err("remote frame length must be 0-8"))?,
             _ => return Err(err("remote frame takes at most one length digit")),
         };
         CanFrame::new_remote(id, extended, dlc).ok_or_else(|| err("bad remote frame"))?
     } else {
         let data = hex_bytes(payload).ok_or_else(|| err("data is not hex pairs"))?;
         // Error frames carry error class bits in a 29-bit field but are not extended frames.
-        let mut f = CanFrame::new(id, extended || error, &data).ok_or_else(|| err("more than 8 data bytes"))?;
+        let mut f = CanFrame::new(id, extended || error, &data)
+            .ok_or_else(|| err("more than 8 data bytes"))?;
         if error {
             f.extended = false;
             f.error = true;
         }
         f
     };
-    Ok(Some(LogFrame { time: UtcNanos::from_secs_nanos(secs, nanos), interface, frame }))
+    Ok(Some(LogFrame {
+        time: UtcNanos::from_secs_nanos(secs, nanos),
+        interface,
+        frame,
+    }))
 }
 
 /// Formats one frame as can-utils does.
@@ -121,7 +150,11 @@ pub fn format_line(f: &LogFrame) -> String {
     let mut s = format!("({secs:010}.{:06}) {} {id}#", nanos / 1000, f.interface);
     if fr.fd {
         s.push('#');
-        s.push(char::from_digit(u32::from(u8::from(fr.brs) | (u8::from(fr.esi) << 1)), 16).unwrap_or('0').to_ascii_uppercase());
+        s.push(
+            char::from_digit(u32::from(u8::from(fr.brs) | (u8::from(fr.esi) << 1)), 16)
+                .unwrap_or('0')
+                .to_ascii_uppercase(),
+        );
     } else if fr.rtr {
         s.push('R');
         if fr.len() > 0 {
@@ -172,7 +205,11 @@ mod tests {
     fn errors_say_line_and_what() {
         let e = parse_log("(1.0) can0 123#00\n(2.0) can0 1234#00\n").unwrap_err();
         assert_eq!(e.line, 2);
-        assert!(e.to_string().contains("identifier must have 3 or 8 hex digits"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("identifier must have 3 or 8 hex digits"),
+            "{e}"
+        );
         assert!(parse_line("(1.0) can0 800#00", 1).is_err());
         assert!(parse_line("(1.0) can0 123#0", 1).is_err());
         assert!(parse_line("# comment", 1).unwrap().is_none());

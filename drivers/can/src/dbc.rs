@@ -1,7 +1,9 @@
 //! A DBC file compiled for fast decoding and encoding.
 
 use crate::codec::{extract, fits, insert, sign_extend, Order};
-use can_dbc::{ByteOrder, MultiplexIndicator, SignalExtendedValueType, ValueDescription, ValueType};
+use can_dbc::{
+    ByteOrder, MultiplexIndicator, SignalExtendedValueType, ValueDescription, ValueType,
+};
 use hilrig_capture::CanFrame;
 use std::collections::{BTreeMap, HashMap};
 
@@ -137,7 +139,10 @@ impl Database {
 
     /// Reads a DBC file.
     pub fn from_file(path: &std::path::Path) -> Result<Database, DbcError> {
-        let bytes = std::fs::read(path).map_err(|e| DbcError::Io { path: path.display().to_string(), source: e })?;
+        let bytes = std::fs::read(path).map_err(|e| DbcError::Io {
+            path: path.display().to_string(),
+            source: e,
+        })?;
         // DBC files are often Windows-1252; every byte below 0x80 is ASCII, which is all that
         // identifiers use, so a lossy conversion only touches comments and value texts.
         let text = String::from_utf8_lossy(&bytes);
@@ -160,10 +165,19 @@ impl Database {
             let mut signals = Vec::with_capacity(m.signals.len());
             let names: Vec<&str> = m.signals.iter().map(|s| s.name.as_str()).collect();
             let simple_mux = m.signals.iter().position(|s| {
-                matches!(s.multiplexer_indicator, MultiplexIndicator::Multiplexor | MultiplexIndicator::MultiplexorAndMultiplexedSignal(_))
+                matches!(
+                    s.multiplexer_indicator,
+                    MultiplexIndicator::Multiplexor
+                        | MultiplexIndicator::MultiplexorAndMultiplexedSignal(_)
+                )
             });
             for s in &m.signals {
-                let err = |what: String| DbcError::Signal { message: m.name.clone(), id, signal: s.name.clone(), what };
+                let err = |what: String| DbcError::Signal {
+                    message: m.name.clone(),
+                    id,
+                    signal: s.name.clone(),
+                    what,
+                };
                 let repr = match dbc.extended_value_type_for_signal(m.id, &s.name) {
                     Some(SignalExtendedValueType::IEEEfloat32Bit) => Repr::Float32,
                     Some(SignalExtendedValueType::IEEEdouble64bit) => Repr::Float64,
@@ -174,30 +188,53 @@ impl Database {
                 };
                 let (start, bits) = (s.start_bit as u32, s.size as u32);
                 if !fits(order(&s.byte_order), start, bits, size.max(8)) {
-                    return Err(err(format!("{bits} bits from bit {start} do not fit {size} bytes")));
+                    return Err(err(format!(
+                        "{bits} bits from bit {start} do not fit {size} bytes"
+                    )));
                 }
                 let presence = match s.multiplexer_indicator {
-                    MultiplexIndicator::MultiplexedSignal(v) | MultiplexIndicator::MultiplexorAndMultiplexedSignal(v) => {
+                    MultiplexIndicator::MultiplexedSignal(v)
+                    | MultiplexIndicator::MultiplexorAndMultiplexedSignal(v) => {
                         // Extended multiplexing (SG_MUL_VAL_) overrides the simple m<v> rule.
-                        match dbc.extended_multiplex.iter().find(|e| e.message_id == m.id && e.signal_name == s.name) {
+                        match dbc
+                            .extended_multiplex
+                            .iter()
+                            .find(|e| e.message_id == m.id && e.signal_name == s.name)
+                        {
                             Some(e) => {
                                 let mux = names
                                     .iter()
                                     .position(|n| *n == e.multiplexor_signal_name)
-                                    .ok_or_else(|| err(format!("multiplexor {} is not in the message", e.multiplexor_signal_name)))?;
+                                    .ok_or_else(|| {
+                                        err(format!(
+                                            "multiplexor {} is not in the message",
+                                            e.multiplexor_signal_name
+                                        ))
+                                    })?;
                                 let ranges = dbc
                                     .extended_multiplex
                                     .iter()
                                     .filter(|x| x.message_id == m.id && x.signal_name == s.name)
-                                    .flat_map(|x| x.mappings.iter().map(|r| (r.min_value, r.max_value)))
+                                    .flat_map(|x| {
+                                        x.mappings.iter().map(|r| (r.min_value, r.max_value))
+                                    })
                                     .collect();
-                                Presence::When { multiplexor: mux, ranges }
+                                Presence::When {
+                                    multiplexor: mux,
+                                    ranges,
+                                }
                             }
                             None => {
                                 let mux = simple_mux
                                     .filter(|&i| m.signals[i].name != s.name)
-                                    .ok_or_else(|| err("multiplexed, but the message has no multiplexor".into()))?;
-                                Presence::When { multiplexor: mux, ranges: vec![(v, v)] }
+                                    .ok_or_else(|| {
+                                        err("multiplexed, but the message has no multiplexor"
+                                            .into())
+                                    })?;
+                                Presence::When {
+                                    multiplexor: mux,
+                                    ranges: vec![(v, v)],
+                                }
                             }
                         }
                     }
@@ -207,9 +244,16 @@ impl Database {
                     .value_descriptions
                     .iter()
                     .find_map(|vd| match vd {
-                        ValueDescription::Signal { message_id, name, value_descriptions } if *message_id == m.id && *name == s.name => {
-                            Some(value_descriptions.iter().map(|v| (v.id, v.description.clone())).collect())
-                        }
+                        ValueDescription::Signal {
+                            message_id,
+                            name,
+                            value_descriptions,
+                        } if *message_id == m.id && *name == s.name => Some(
+                            value_descriptions
+                                .iter()
+                                .map(|v| (v.id, v.description.clone()))
+                                .collect(),
+                        ),
                         _ => None,
                     })
                     .unwrap_or_default();
@@ -225,7 +269,8 @@ impl Database {
                     presence,
                     is_multiplexor: matches!(
                         s.multiplexer_indicator,
-                        MultiplexIndicator::Multiplexor | MultiplexIndicator::MultiplexorAndMultiplexedSignal(_)
+                        MultiplexIndicator::Multiplexor
+                            | MultiplexIndicator::MultiplexorAndMultiplexedSignal(_)
                     ),
                     values,
                 });
@@ -237,7 +282,13 @@ impl Database {
                 }
             }
             db.by_id.insert((id, extended), db.messages.len());
-            db.messages.push(MessageDef { name: m.name.clone(), id, extended, size, signals });
+            db.messages.push(MessageDef {
+                name: m.name.clone(),
+                id,
+                extended,
+                size,
+                signals,
+            });
         }
         Ok(db)
     }
@@ -280,10 +331,16 @@ impl MessageDef {
     fn present(&self, data: &[u8], s: &SignalDef) -> bool {
         match &s.presence {
             Presence::Always => true,
-            Presence::When { multiplexor, ranges } => {
-                let Some(mux) = self.raw(data, *multiplexor) else { return false };
+            Presence::When {
+                multiplexor,
+                ranges,
+            } => {
+                let Some(mux) = self.raw(data, *multiplexor) else {
+                    return false;
+                };
                 // A multiplexor that is itself multiplexed must be present too.
-                self.present(data, &self.signals[*multiplexor]) && ranges.iter().any(|&(lo, hi)| mux >= lo && mux <= hi)
+                self.present(data, &self.signals[*multiplexor])
+                    && ranges.iter().any(|&(lo, hi)| mux >= lo && mux <= hi)
             }
         }
     }
@@ -294,7 +351,9 @@ impl MessageDef {
             if !self.present(data, s) {
                 continue;
             }
-            let Some(raw) = self.raw(data, i) else { continue };
+            let Some(raw) = self.raw(data, i) else {
+                continue;
+            };
             out.push((i, s.physical(raw)));
         }
     }
@@ -335,8 +394,16 @@ impl SignalDef {
     /// Raw value for a physical value (rounded to the nearest step, saturated to the signal's
     /// range), in the low `size` bits.
     pub fn raw_from_physical(&self, v: f64) -> u64 {
-        let scaled = if self.factor != 0.0 { (v - self.offset) / self.factor } else { 0.0 };
-        let mask = if self.size >= 64 { u64::MAX } else { (1u64 << self.size) - 1 };
+        let scaled = if self.factor != 0.0 {
+            (v - self.offset) / self.factor
+        } else {
+            0.0
+        };
+        let mask = if self.size >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << self.size) - 1
+        };
         match self.repr {
             Repr::Float32 => u64::from((scaled as f32).to_bits()),
             Repr::Float64 => scaled.to_bits(),
@@ -345,7 +412,11 @@ impl SignalDef {
                 scaled.round().clamp(0.0, max) as u64
             }
             Repr::Signed => {
-                let half = if self.size >= 64 { i64::MAX as f64 } else { ((1u64 << (self.size - 1)) - 1) as f64 };
+                let half = if self.size >= 64 {
+                    i64::MAX as f64
+                } else {
+                    ((1u64 << (self.size - 1)) - 1) as f64
+                };
                 let r = scaled.round().clamp(-half - 1.0, half) as i64;
                 (r as u64) & mask
             }
@@ -376,15 +447,25 @@ VAL_ 257 YawRate_Sign 0 "left" 1 "right" ;
     fn decode_encode_intel_motorola_and_mux() {
         let db = Database::from_dbc_text(DBC).unwrap();
         let m = db.message(257, false).unwrap();
-        assert_eq!(m.signals[1].values.get(&1).map(String::as_str), Some("right"));
+        assert_eq!(
+            m.signals[1].values.get(&1).map(String::as_str),
+            Some("right")
+        );
         let data = m.encode(&[(0, 12.34), (1, 1.0), (2, -20.5)]);
         let f = CanFrame::new(257, false, &data).unwrap();
         let d = db.decode(&f).unwrap();
         assert_eq!(d.values, vec![(0, 12.34), (1, 1.0), (2, -20.5)]);
-        let mux = db.message(0x76_6556 & 0x1fff_ffff, true).or_else(|| db.messages().iter().find(|m| m.name == "Mux")).unwrap();
+        let mux = db
+            .message(0x76_6556 & 0x1fff_ffff, true)
+            .or_else(|| db.messages().iter().find(|m| m.name == "Mux"))
+            .unwrap();
         let data = mux.encode(&[(0, 2.0), (1, 5.0), (2, -3.0)]);
         let f = CanFrame::new(mux.id, mux.extended, &data).unwrap();
         let d = db.decode(&f).unwrap();
-        assert_eq!(d.values, vec![(0, 2.0), (2, -3.0)], "only the selected signal");
+        assert_eq!(
+            d.values,
+            vec![(0, 2.0), (2, -3.0)],
+            "only the selected signal"
+        );
     }
 }
