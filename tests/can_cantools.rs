@@ -35,7 +35,7 @@ fn random_values_frame(m: &MessageDef, rng: &mut Rng) -> Vec<u8> {
             (1u64 << s.size) - 1
         };
         let mut raw = rng.next() & mask;
-        if s.is_multiplexor && rng.next() % 2 == 0 {
+        if s.is_multiplexor && rng.next().is_multiple_of(2) {
             // Pick a value some multiplexed signal wants.
             let wanted: Vec<u64> = m
                 .signals
@@ -56,7 +56,7 @@ fn random_values_frame(m: &MessageDef, rng: &mut Rng) -> Vec<u8> {
             s.repr,
             hilrig::can::dbc::Repr::Float32 | hilrig::can::dbc::Repr::Float64
         ) {
-            raw = (rng.next() % 1000) as u64; // finite values only
+            raw = rng.next() % 1000; // finite values only
         }
         values.push((i, s.physical(raw)));
     }

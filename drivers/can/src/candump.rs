@@ -38,7 +38,7 @@ fn hex_digit(b: u8) -> Option<u8> {
 
 fn hex_bytes(s: &str) -> Option<Vec<u8>> {
     let b = s.as_bytes();
-    if b.len() % 2 != 0 {
+    if !b.len().is_multiple_of(2) {
         return None;
     }
     b.chunks(2)
@@ -157,7 +157,7 @@ pub fn format_line(f: &LogFrame) -> String {
         );
     } else if fr.rtr {
         s.push('R');
-        if fr.len() > 0 {
+        if !fr.is_empty() {
             s.push_str(&format!("{:X}", fr.len()));
         }
         return s;

@@ -48,7 +48,7 @@ pub fn extract(data: &[u8], order: Order, start: u32, size: u32) -> u64 {
             for _ in 0..size {
                 let bit = (data[(b / 8) as usize] >> (b % 8)) & 1;
                 v = (v << 1) | u64::from(bit);
-                b = if b % 8 == 0 { b + 15 } else { b - 1 };
+                b = if b.is_multiple_of(8) { b + 15 } else { b - 1 };
             }
             v
         }
@@ -72,7 +72,7 @@ pub fn insert(data: &mut [u8], order: Order, start: u32, size: u32, value: u64) 
                 let bit = ((value >> i) & 1) as u8;
                 let byte = &mut data[(b / 8) as usize];
                 *byte = (*byte & !(1 << (b % 8))) | (bit << (b % 8));
-                b = if b % 8 == 0 { b + 15 } else { b - 1 };
+                b = if b.is_multiple_of(8) { b + 15 } else { b - 1 };
             }
         }
     }
