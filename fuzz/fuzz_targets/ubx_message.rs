@@ -1,0 +1,15 @@
+//! Any payload as every decoded UBX message: decoded or rejected by length/version, never a
+//! panic.
+#![no_main]
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    if data.len() < 2 {
+        return;
+    }
+    let payload = &data[2..];
+    let _ = hilrig_gnss::ubx::decode(data[0], data[1], payload);
+    for id in [0x07, 0x14, 0x3C] {
+        let _ = hilrig_gnss::ubx::decode(0x01, id, payload);
+    }
+});
