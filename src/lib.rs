@@ -5,6 +5,7 @@
 
 #![warn(missing_docs)]
 
+pub mod can_log;
 pub mod gnss_log;
 pub mod lidar;
 pub mod points_out;

@@ -51,6 +51,8 @@ enum Kind {
     /// An RTK GNSS serial stream (NMEA, UBX, RTCM3): a raw or gpsd log, or a capture's serial
     /// interfaces.
     Gnss,
+    /// CAN frames (a candump log, or a capture's SocketCAN interfaces), decoded with --dbc.
+    Can,
 }
 
 #[derive(clap::Args)]
@@ -64,9 +66,12 @@ struct DecodeArgs {
     /// (vlp16, puck-hires, vlp32c, hdl32e).
     #[arg(long)]
     model: Option<String>,
-    /// Calibration file in the ros-drivers YAML format.
+    /// Calibration file in the ros-drivers YAML format (lidar).
     #[arg(long)]
     calibration: Option<PathBuf>,
+    /// DBC file for --kind can.
+    #[arg(long)]
+    dbc: Option<PathBuf>,
     /// Output format.
     #[arg(long, value_enum, default_value = "csv")]
     format: Format,
@@ -121,8 +126,13 @@ fn main() -> ExitCode {
 }
 
 fn run_decode(args: DecodeArgs) -> Result<ExitCode> {
-    if args.kind == Kind::Gnss {
-        return run_decode_gnss(&args);
+    match args.kind {
+        Kind::Gnss => return run_decode_gnss(&args),
+        Kind::Can => return run_decode_can(&args),
+        Kind::Lidar => {}
+    }
+    if args.dbc.is_some() {
+        bail!("--dbc applies to --kind can");
     }
     let model = args
         .model
@@ -311,6 +321,48 @@ fn run_decode_gnss(args: &DecodeArgs) -> Result<ExitCode> {
     }
     if summary.fixes == 0 {
         eprintln!("error: {path}: no GNSS fix found (no NMEA position sentence or UBX NAV-PVT)");
+        return Ok(ExitCode::from(2));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_decode_can(args: &DecodeArgs) -> Result<ExitCode> {
+    if matches!(args.format, Format::Csv) {
+        bail!("--kind can writes --format jsonl or --format summary");
+    }
+    let Some(dbc) = &args.dbc else {
+        bail!("--kind can needs --dbc FILE to decode frames");
+    };
+    let db = hilrig::can::Database::from_file(dbc)?;
+    let file =
+        File::open(&args.file).with_context(|| format!("cannot open {}", args.file.display()))?;
+    let out: Box<dyn Write> = match &args.output {
+        Some(p) => {
+            Box::new(File::create(p).with_context(|| format!("cannot create {}", p.display()))?)
+        }
+        None => Box::new(io::stdout().lock()),
+    };
+    let mut out = BufWriter::new(out);
+    let write = matches!(args.format, Format::Jsonl);
+    let summary = hilrig::can_log::decode_can(BufReader::new(file), &db, &mut |t, f, d| {
+        if write {
+            writeln!(out, "{}", hilrig::can_log::frame_json(t, f, d))?;
+        }
+        Ok(())
+    })
+    .with_context(|| format!("decoding {}", args.file.display()))?;
+    out.flush()?;
+    let path = args.file.display();
+    eprintln!(
+        "{path}: frames: {}, decoded: {}, ids not in the DBC: {}, remote/error frames: {}",
+        summary.frames, summary.decoded, summary.unknown_id, summary.remote_or_error
+    );
+    if let Some(e) = &summary.error {
+        eprintln!("error: {path}: {e}");
+        return Ok(ExitCode::from(1));
+    }
+    if summary.frames == 0 {
+        eprintln!("error: {path}: no CAN frames found");
         return Ok(ExitCode::from(2));
     }
     Ok(ExitCode::SUCCESS)

@@ -116,3 +116,107 @@ fn jsonl_carries_the_same_points_as_csv() {
         assert_eq!(o["x"].as_f64().unwrap(), r[6]);
     }
 }
+
+#[test]
+fn gnss_jsonl_has_the_documented_keys_and_values() {
+    use hilrig::gnss::framer::nmea_sentence;
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("rx.log");
+    let mut s = String::from("# a gpsd-style comment\n");
+    s += &nmea_sentence(
+        "GNGGA,120000.00,4807.0380000,N,01131.0000000,E,4,12,0.8,545.40,M,46.90,M,1.2,0042",
+    );
+    s += &nmea_sentence("GNRMC,120000.00,A,4807.0380000,N,01131.0000000,E,10.0,90.0,211126,,,R");
+    s += &nmea_sentence("GNGST,120000.00,0.5,0.02,0.01,0.0,0.011,0.012,0.025");
+    s += &nmea_sentence(
+        "GNGGA,120000.10,4807.0390000,N,01131.0000000,E,5,12,0.8,545.41,M,46.90,M,1.3,0042",
+    );
+    std::fs::write(&log, s).unwrap();
+    let (code, out, stderr) =
+        decode(&[log.to_str().unwrap(), "--kind", "gnss", "--format", "jsonl"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let fixes: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(fixes.len(), 2);
+    let f = &fixes[0];
+    let mut keys: Vec<&str> = f.as_object().unwrap().keys().map(String::as_str).collect();
+    keys.sort();
+    assert_eq!(
+        keys,
+        [
+            "alt_msl",
+            "correction_age_s",
+            "heading_deg",
+            "lat",
+            "lon",
+            "quality",
+            "rtk",
+            "sigma_alt_m",
+            "sigma_lat_m",
+            "sigma_lon_m",
+            "source",
+            "speed_mps",
+            "time"
+        ]
+    );
+    assert_eq!(f["time"], "2026-11-21T12:00:00.000Z");
+    assert!((f["lat"].as_f64().unwrap() - (48.0 + 7.038 / 60.0)).abs() < 1e-12);
+    assert_eq!(f["quality"], 4);
+    assert_eq!(f["rtk"], "fixed");
+    assert_eq!(f["sigma_alt_m"], 0.025);
+    assert_eq!(f["correction_age_s"], 1.2);
+    assert!((f["speed_mps"].as_f64().unwrap() - 10.0 * 1852.0 / 3600.0).abs() < 1e-12);
+    assert_eq!(f["heading_deg"], 90.0);
+    // The second epoch has no RMC of its own: the date carries over; no GST: sigmas null.
+    assert_eq!(fixes[1]["time"], "2026-11-21T12:00:00.100Z");
+    assert_eq!(fixes[1]["rtk"], "float");
+    assert!(fixes[1]["sigma_lat_m"].is_null());
+}
+
+#[test]
+fn can_jsonl_decodes_with_the_dbc_and_shows_only_active_multiplexed_signals() {
+    let dir = tempfile::tempdir().unwrap();
+    let dbc = dir.path().join("ego.dbc");
+    std::fs::write(
+        &dbc,
+        "VERSION \"\"\n\nBO_ 291 Ego: 8 X\n SG_ Speed : 0|16@1+ (0.01,0) [0|655.35] \"m/s\" X\n SG_ YawRate : 23|16@0- (0.001,0) [-32|32] \"rad/s\" X\n SG_ Page M : 32|8@1+ (1,0) [0|255] \"\" X\n SG_ Steer m1 : 40|16@1- (0.1,0) [-3276.8|3276.7] \"deg\" X\n SG_ Wheel m2 : 40|16@1+ (0.01,0) [0|655.35] \"m/s\" X\n",
+    )
+    .unwrap();
+    let log = dir.path().join("can.log");
+    // Speed 12.34 m/s (1234 = 0x04D2, Intel), yaw rate -0.5 rad/s (-500 = 0xFE0C, Motorola from bit
+    // 23: bytes 2-3), page 1: steering -12.3 deg (-123 = 0xFF85, Intel).
+    std::fs::write(
+        &log,
+        "(1700000000.000100) can0 123#D204FE0C0185FF00\n(1700000000.000200) can0 456#00\n",
+    )
+    .unwrap();
+    let (code, out, stderr) = decode(&[
+        log.to_str().unwrap(),
+        "--kind",
+        "can",
+        "--dbc",
+        dbc.to_str().unwrap(),
+        "--format",
+        "jsonl",
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("frames: 2, decoded: 1, ids not in the DBC: 1"),
+        "{stderr}"
+    );
+    let v: serde_json::Value = serde_json::from_str(out.lines().next().unwrap()).unwrap();
+    assert_eq!(v["id"], 0x123);
+    assert_eq!(v["name"], "Ego");
+    assert!((v["time"].as_f64().unwrap() - 1_700_000_000.0001).abs() < 1e-6);
+    let s = v["signals"].as_object().unwrap();
+    assert_eq!(s.len(), 4, "{s:?}");
+    assert!((s["Speed"].as_f64().unwrap() - 12.34).abs() < 1e-9);
+    assert!((s["YawRate"].as_f64().unwrap() + 0.5).abs() < 1e-9);
+    assert!((s["Steer"].as_f64().unwrap() + 12.3).abs() < 1e-9);
+    assert!(!s.contains_key("Wheel"));
+    let (code, _, stderr) = decode(&[log.to_str().unwrap(), "--kind", "can", "--format", "jsonl"]);
+    assert_eq!(code, Some(2));
+    assert!(stderr.contains("--kind can needs --dbc"), "{stderr}");
+}
