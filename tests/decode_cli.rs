@@ -209,7 +209,7 @@ fn can_jsonl_decodes_with_the_dbc_and_shows_only_active_multiplexed_signals() {
     let v: serde_json::Value = serde_json::from_str(out.lines().next().unwrap()).unwrap();
     assert_eq!(v["id"], 0x123);
     assert_eq!(v["name"], "Ego");
-    assert!((v["time"].as_f64().unwrap() - 1_700_000_000.0001).abs() < 1e-6);
+    assert!((v["time"].as_f64().unwrap() - 1_700_000_000.000_1).abs() < 1e-6);
     let s = v["signals"].as_object().unwrap();
     assert_eq!(s.len(), 4, "{s:?}");
     assert!((s["Speed"].as_f64().unwrap() - 12.34).abs() < 1e-9);
