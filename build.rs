@@ -4,6 +4,8 @@
 //! are found through `HILRIG_REAL_DATA`; the reference decoders run in a Python venv found through
 //! `HILRIG_PYTHON`. Both are set by `.ci/run`. Where one is missing, the tests that need it are
 //! compiled as ignored with a reason, so `cargo test` reports them as not run instead of passed.
+//! The same holds for SocketCAN tests, which need a `vcan0` interface (a kernel module that is
+//! not available everywhere).
 
 use std::env;
 use std::path::Path;
@@ -11,6 +13,12 @@ use std::path::Path;
 fn main() {
     println!("cargo::rustc-check-cfg=cfg(hilrig_real_data)");
     println!("cargo::rustc-check-cfg=cfg(hilrig_python)");
+    println!("cargo::rustc-check-cfg=cfg(hilrig_vcan)");
+    println!("cargo:rerun-if-changed=/sys/class/net");
+    // A virtual CAN interface for SocketCAN tests (.ci/run tries to create vcan0).
+    if Path::new("/sys/class/net/vcan0").exists() {
+        println!("cargo:rustc-cfg=hilrig_vcan");
+    }
     println!("cargo:rerun-if-env-changed=HILRIG_REAL_DATA");
     println!("cargo:rerun-if-env-changed=HILRIG_PYTHON");
     if let Ok(dir) = env::var("HILRIG_REAL_DATA") {

@@ -13,6 +13,8 @@
 pub mod candump;
 pub mod codec;
 pub mod dbc;
+#[cfg(feature = "tokio")]
+pub mod socketcan_source;
 
 pub use dbc::{Database, DbcError, Decoded, MessageDef, SignalDef};
 pub use hilrig_capture::CanFrame;
