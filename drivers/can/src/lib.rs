@@ -13,6 +13,7 @@
 pub mod candump;
 pub mod codec;
 pub mod dbc;
+pub mod ego;
 #[cfg(feature = "tokio")]
 pub mod socketcan_source;
 
