@@ -196,3 +196,44 @@ fn f9r_mixed_stream_loses_nothing() {
     }
     assert!(pvt_expected >= 30 && nmea_expected > 600);
 }
+
+/// The GNSS stream stored on a serial interface (LINKTYPE_USER0) of a pcapng capture, in odd
+/// chunks next to lidar traffic, decodes to the same fixes as the raw log.
+#[test]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
+fn serial_interface_of_a_pcapng_capture_gives_the_same_fixes() {
+    use hilrig::capture::{LinkType, PcapngWriter, UtcNanos};
+    let log = std::fs::read(common::real_data().join("gnss/ublox-zed-f9r.log")).unwrap();
+    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
+    let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
+    let ser = w.add_interface(LinkType::USER0, "/dev/ttyACM0").unwrap();
+    let mut t = 1_700_000_000_000_000_000i64;
+    for (i, c) in log.chunks(97).enumerate() {
+        t += 1_000_000;
+        w.write_packet(ser, UtcNanos(t), c).unwrap();
+        if i % 10 == 0 {
+            w.write_packet(
+                eth,
+                UtcNanos(t),
+                &hilrig::capture::writer::udp_ethernet_frame(
+                    std::net::SocketAddrV4::new(std::net::Ipv4Addr::LOCALHOST, 1),
+                    std::net::SocketAddrV4::new(std::net::Ipv4Addr::LOCALHOST, 2368),
+                    &[0; 100],
+                ),
+            )
+            .unwrap();
+        }
+    }
+    let capture = w.finish().unwrap();
+    let mut from_capture = Vec::new();
+    let summary = hilrig::gnss_log::decode_gnss(std::io::Cursor::new(capture), &mut |f| {
+        from_capture.push(f.clone());
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(summary.interfaces, vec!["/dev/ttyACM0".to_string()]);
+    assert_eq!(from_capture, decode(&log, 4096));
+}

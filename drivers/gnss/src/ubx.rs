@@ -348,6 +348,42 @@ mod tests {
         assert!(NavPvt::decode(&p[..91]).is_err());
     }
 
+    #[test]
+    fn relposned_fields() {
+        let mut p = [0u8; 64];
+        p[0] = 1;
+        p[2..4].copy_from_slice(&42u16.to_le_bytes());
+        p[8..12].copy_from_slice(&123i32.to_le_bytes()); // 1.23 m north
+        p[32] = (-5i8) as u8; // -0.5 mm high-precision part
+        p[24..28].copy_from_slice(&9_000_000i32.to_le_bytes()); // 90 degrees
+        p[36..40].copy_from_slice(&140u32.to_le_bytes()); // 14 mm
+        p[60..64].copy_from_slice(&(0x04u32 | (2 << 3) | 0x100).to_le_bytes());
+        let r = NavRelposned::decode(&p).unwrap();
+        assert_eq!(r.station_id, 42);
+        assert!((r.rel_ned_m[0] - 1.2295).abs() < 1e-12);
+        assert!((r.acc_ned_m[0] - 0.014).abs() < 1e-12);
+        assert!((r.heading_deg.unwrap() - 90.0).abs() < 1e-9);
+        assert_eq!(r.carrier, CarrierSolution::Fixed);
+        assert!(r.valid);
+        p[0] = 0;
+        assert_eq!(
+            NavRelposned::decode(&p),
+            Err(UbxError::Version {
+                name: "NAV-RELPOSNED",
+                version: 0
+            })
+        );
+    }
+
+    #[test]
+    fn hpposllh_adds_the_high_precision_part() {
+        let mut p = [0u8; 36];
+        p[12..16].copy_from_slice(&(-458_775_252i32).to_le_bytes());
+        p[25] = (-9i8) as u8;
+        let h = NavHpposllh::decode(&p).unwrap();
+        assert!((h.lat_deg - (-45.877_525_2 - 9e-9)).abs() < 1e-12);
+    }
+
     proptest! {
         #[test]
         fn arbitrary_payloads_never_panic(class in any::<u8>(), id in any::<u8>(), p in proptest::collection::vec(any::<u8>(), 0..100)) {
