@@ -444,6 +444,24 @@ VAL_ 257 YawRate_Sign 0 "left" 1 "right" ;
 "#;
 
     #[test]
+    fn ieee_float_signals_and_fd_payloads() {
+        let dbc = "VERSION \"\"\n\nBO_ 2147484160 Fd: 16 X\n SG_ F32 : 0|32@1- (1,0) [0|0] \"\" X\n SG_ F64 : 64|64@1- (2,1) [0|0] \"\" X\n\nSIG_VALTYPE_ 2147484160 F32 : 1;\nSIG_VALTYPE_ 2147484160 F64 : 2;\n";
+        let db = Database::from_dbc_text(dbc).unwrap();
+        let m = db.message(0x200, true).unwrap();
+        assert_eq!(m.signals[0].repr, Repr::Float32);
+        assert_eq!(m.signals[1].repr, Repr::Float64);
+        let data = m.encode(&[(0, -1.5), (1, 7.25)]);
+        assert_eq!(&data[..4], &(-1.5f32).to_bits().to_le_bytes());
+        assert_eq!(
+            &data[8..16],
+            &3.125f64.to_bits().to_le_bytes(),
+            "(7.25 - 1) / 2"
+        );
+        let f = CanFrame::new_fd(0x200, true, &data, true).unwrap();
+        assert_eq!(db.decode(&f).unwrap().values, vec![(0, -1.5), (1, 7.25)]);
+    }
+
+    #[test]
     fn decode_encode_intel_motorola_and_mux() {
         let db = Database::from_dbc_text(DBC).unwrap();
         let m = db.message(257, false).unwrap();
