@@ -37,28 +37,11 @@ pub enum CanLogError {
 /// Decodes every frame of a candump log or capture; `sink` gets (time, frame, decoded values)
 /// for each frame the DBC knows.
 pub fn decode_can<R: Read + Send + 'static>(
-    mut source: R,
+    source: R,
     db: &Database,
     sink: &mut dyn FnMut(UtcNanos, &CanFrame, &hilrig_can::Decoded<'_>) -> std::io::Result<()>,
 ) -> Result<CanSummary, CanLogError> {
-    let mut head = [0u8; 4];
-    let mut got = 0;
-    while got < 4 {
-        let n = source.read(&mut head[got..])?;
-        if n == 0 {
-            break;
-        }
-        got += n;
-    }
-    let is_capture = matches!(
-        head,
-        [0x0a, 0x0d, 0x0d, 0x0a]
-            | [0xd4, 0xc3, 0xb2, 0xa1]
-            | [0xa1, 0xb2, 0xc3, 0xd4]
-            | [0x4d, 0x3c, 0xb2, 0xa1]
-            | [0xa1, 0xb2, 0x3c, 0x4d]
-    );
-    let source = std::io::Cursor::new(head[..got].to_vec()).chain(source);
+    let (is_capture, source) = hilrig_capture::reader::sniff(source)?;
     let mut summary = CanSummary::default();
     let mut handle = |t: UtcNanos, f: &CanFrame, summary: &mut CanSummary| -> std::io::Result<()> {
         summary.frames += 1;

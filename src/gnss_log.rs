@@ -46,32 +46,14 @@ fn add(summary: &mut GnssSummary, s: &GnssStream) {
 
 /// Decodes a GNSS log; every fix goes to `sink` in stream order.
 pub fn decode_gnss<R: Read + Send + 'static>(
-    mut source: R,
+    source: R,
     sink: &mut dyn FnMut(&Fix) -> std::io::Result<()>,
 ) -> Result<GnssSummary, CaptureError> {
-    let mut head = [0u8; 4];
-    let mut got = 0;
-    while got < 4 {
-        let n = source
-            .read(&mut head[got..])
-            .map_err(|e| CaptureError::Io {
-                offset: got as u64,
-                source: e,
-            })?;
-        if n == 0 {
-            break;
-        }
-        got += n;
-    }
-    let is_capture = matches!(
-        head,
-        [0x0a, 0x0d, 0x0d, 0x0a]
-            | [0xd4, 0xc3, 0xb2, 0xa1]
-            | [0xa1, 0xb2, 0xc3, 0xd4]
-            | [0x4d, 0x3c, 0xb2, 0xa1]
-            | [0xa1, 0xb2, 0x3c, 0x4d]
-    );
-    let source = std::io::Cursor::new(head[..got].to_vec()).chain(source);
+    let (is_capture, source) =
+        hilrig_capture::reader::sniff(source).map_err(|e| CaptureError::Io {
+            offset: 0,
+            source: e,
+        })?;
     let mut summary = GnssSummary::default();
     let mut fixes = Vec::new();
     let io = |e: std::io::Error| CaptureError::Io {

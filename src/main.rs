@@ -158,12 +158,7 @@ fn run_decode(args: DecodeArgs) -> Result<ExitCode> {
     let file =
         File::open(&args.file).with_context(|| format!("cannot open {}", args.file.display()))?;
     let source = BufReader::with_capacity(1 << 20, file);
-    let out: Box<dyn Write> = match &args.output {
-        Some(p) => {
-            Box::new(File::create(p).with_context(|| format!("cannot create {}", p.display()))?)
-        }
-        None => Box::new(io::stdout().lock()),
-    };
+    let out = open_output(args.output.as_deref())?;
     let out = BufWriter::with_capacity(1 << 20, out);
     let summary = match args.format {
         Format::Csv => {
@@ -288,12 +283,7 @@ fn run_decode_gnss(args: &DecodeArgs) -> Result<ExitCode> {
     }
     let file =
         File::open(&args.file).with_context(|| format!("cannot open {}", args.file.display()))?;
-    let out: Box<dyn Write> = match &args.output {
-        Some(p) => {
-            Box::new(File::create(p).with_context(|| format!("cannot create {}", p.display()))?)
-        }
-        None => Box::new(io::stdout().lock()),
-    };
+    let out = open_output(args.output.as_deref())?;
     let mut out = BufWriter::new(out);
     let write = matches!(args.format, Format::Jsonl);
     let summary = hilrig::gnss_log::decode_gnss(BufReader::new(file), &mut |fix| {
@@ -336,12 +326,7 @@ fn run_decode_can(args: &DecodeArgs) -> Result<ExitCode> {
     let db = hilrig::can::Database::from_file(dbc)?;
     let file =
         File::open(&args.file).with_context(|| format!("cannot open {}", args.file.display()))?;
-    let out: Box<dyn Write> = match &args.output {
-        Some(p) => {
-            Box::new(File::create(p).with_context(|| format!("cannot create {}", p.display()))?)
-        }
-        None => Box::new(io::stdout().lock()),
-    };
+    let out = open_output(args.output.as_deref())?;
     let mut out = BufWriter::new(out);
     let write = matches!(args.format, Format::Jsonl);
     let summary = hilrig::can_log::decode_can(BufReader::new(file), &db, &mut |t, f, d| {
@@ -366,4 +351,14 @@ fn run_decode_can(args: &DecodeArgs) -> Result<ExitCode> {
         return Ok(ExitCode::from(2));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The output file, or standard output.
+fn open_output(path: Option<&std::path::Path>) -> Result<Box<dyn Write>> {
+    Ok(match path {
+        Some(p) => {
+            Box::new(File::create(p).with_context(|| format!("cannot create {}", p.display()))?)
+        }
+        None => Box::new(io::stdout().lock()),
+    })
 }

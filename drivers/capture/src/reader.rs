@@ -84,38 +84,25 @@ enum Step {
 
 impl<R: Read + Send + 'static> CaptureReader<R> {
     /// Opens a capture from any byte source; detects pcap or pcapng from the first bytes.
-    pub fn new(mut source: R) -> Result<Self, CaptureError> {
+    pub fn new(source: R) -> Result<Self, CaptureError> {
         // Peek at the start ourselves so that "wrong kind of file" gets a precise message.
         // pcap-parser probes the header from a single `read`, so hand it the whole header
         // (the pcapng section header with its options) in that first read.
-        let mut head = vec![0u8; 4096];
-        let mut got = 0;
-        while got < head.len() {
-            let n = source
-                .read(&mut head[got..])
-                .map_err(|e| CaptureError::Io {
-                    offset: got as u64,
-                    source: e,
-                })?;
-            if n == 0 {
-                break;
-            }
-            got += n;
+        let (is_capture, chained) = sniff(source).map_err(|e| CaptureError::Io {
+            offset: 0,
+            source: e,
+        })?;
+        let head = chained.get_ref().0.get_ref();
+        if !is_capture {
+            return Err(CaptureError::NotACapture {
+                magic: head.iter().take(4).copied().collect(),
+            });
         }
-        head.truncate(got);
-        let format = match head.get(..4).unwrap_or(&head[..]) {
-            [0x0a, 0x0d, 0x0d, 0x0a] => Format::Pcapng,
-            [0xd4, 0xc3, 0xb2, 0xa1]
-            | [0xa1, 0xb2, 0xc3, 0xd4]
-            | [0x4d, 0x3c, 0xb2, 0xa1]
-            | [0xa1, 0xb2, 0x3c, 0x4d] => Format::Pcap,
-            _ => {
-                return Err(CaptureError::NotACapture {
-                    magic: head.iter().take(4).copied().collect(),
-                })
-            }
+        let format = if head.starts_with(&[0x0a, 0x0d, 0x0d, 0x0a]) {
+            Format::Pcapng
+        } else {
+            Format::Pcap
         };
-        let chained = std::io::Cursor::new(head).chain(source);
         let inner = pcap_parser::create_reader(INITIAL_BUFFER, chained).map_err(|e| match e {
             PcapError::Incomplete(_) | PcapError::Eof | PcapError::UnexpectedEof => {
                 CaptureError::Truncated { offset: 0 }
@@ -397,6 +384,42 @@ fn units_to_utc(units: u64, per_sec: u64, offset_secs: i64) -> UtcNanos {
     let frac = units % per_sec;
     let nanos = (u128::from(frac) * 1_000_000_000 / u128::from(per_sec)) as u32;
     UtcNanos::from_secs_nanos((secs as i64).saturating_add(offset_secs), nanos)
+}
+
+/// Whether the first bytes of a file are a pcap or pcapng magic.
+pub fn is_capture_magic(head: &[u8]) -> bool {
+    matches!(
+        head.get(..4),
+        Some(
+            [0x0a, 0x0d, 0x0d, 0x0a]
+                | [0xd4, 0xc3, 0xb2, 0xa1]
+                | [0xa1, 0xb2, 0xc3, 0xd4]
+                | [0x4d, 0x3c, 0xb2, 0xa1]
+                | [0xa1, 0xb2, 0x3c, 0x4d]
+        )
+    )
+}
+
+/// A source whose first bytes were read ahead and are given back first.
+pub type Sniffed<R> = std::io::Chain<std::io::Cursor<Vec<u8>>, R>;
+
+/// Reads the first bytes of a source to tell a capture from other logs, and gives back a reader
+/// that still yields every byte.
+pub fn sniff<R: Read>(mut source: R) -> std::io::Result<(bool, Sniffed<R>)> {
+    let mut head = vec![0u8; 4096];
+    let mut got = 0;
+    while got < head.len() {
+        let n = source.read(&mut head[got..])?;
+        if n == 0 {
+            break;
+        }
+        got += n;
+    }
+    head.truncate(got);
+    Ok((
+        is_capture_magic(&head),
+        std::io::Cursor::new(head).chain(source),
+    ))
 }
 
 /// Opens a capture file by path.

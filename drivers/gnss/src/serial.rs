@@ -55,13 +55,6 @@ pub struct SerialSource {
 const MIN_BACKOFF: Duration = Duration::from_millis(50);
 const MAX_BACKOFF: Duration = Duration::from_secs(2);
 
-fn now() -> UtcNanos {
-    let d = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default();
-    UtcNanos(d.as_nanos() as i64)
-}
-
 impl SerialSource {
     /// Opens `path` at `baud`. Fails when the port cannot be opened the first time (a wrong path
     /// in the rig file should stop the recorder at start, not be retried forever).
@@ -123,7 +116,7 @@ impl SerialSource {
             match port.read(&mut self.buf).await {
                 Ok(0) => self.disconnect("end of file".into()),
                 Ok(n) => {
-                    let host = now();
+                    let host = UtcNanos::now();
                     self.stats.bytes += n as u64;
                     self.stats.chunks += 1;
                     return Chunk {

@@ -52,6 +52,36 @@ pub enum CarrierSolution {
     Fixed,
 }
 
+fn check(
+    name: &'static str,
+    p: &[u8],
+    expected: usize,
+    version: Option<u8>,
+) -> Result<(), UbxError> {
+    if p.len() != expected {
+        return Err(UbxError::Length {
+            name,
+            expected,
+            got: p.len(),
+        });
+    }
+    match version {
+        Some(v) if p[0] != v => Err(UbxError::Version {
+            name,
+            version: p[0],
+        }),
+        _ => Ok(()),
+    }
+}
+
+fn carrier(bits: u32) -> CarrierSolution {
+    match bits & 0x03 {
+        1 => CarrierSolution::Float,
+        2 => CarrierSolution::Fixed,
+        _ => CarrierSolution::None,
+    }
+}
+
 fn u16le(b: &[u8], o: usize) -> u16 {
     u16::from_le_bytes([b[o], b[o + 1]])
 }
@@ -122,13 +152,7 @@ const CORRECTION_AGE_BUCKETS: [f64; 12] = [
 impl NavPvt {
     /// Decodes a 92-byte NAV-PVT payload.
     pub fn decode(p: &[u8]) -> Result<NavPvt, UbxError> {
-        if p.len() != 92 {
-            return Err(UbxError::Length {
-                name: "NAV-PVT",
-                expected: 92,
-                got: p.len(),
-            });
-        }
+        check("NAV-PVT", p, 92, None)?;
         let valid = p[11];
         let utc = (valid & 0x03 == 0x03
             && (1..=12).contains(&p[6])
@@ -149,11 +173,7 @@ impl NavPvt {
                 )
             });
         let flags = p[21];
-        let carrier = match (flags >> 6) & 0x03 {
-            1 => CarrierSolution::Float,
-            2 => CarrierSolution::Fixed,
-            _ => CarrierSolution::None,
-        };
+        let carrier = carrier(u32::from(flags >> 6));
         let flags3 = u16le(p, 78);
         let age_idx = usize::from((flags3 >> 1) & 0x0F);
         Ok(NavPvt {
@@ -205,19 +225,7 @@ pub struct NavHpposllh {
 impl NavHpposllh {
     /// Decodes a 36-byte NAV-HPPOSLLH payload (version 0).
     pub fn decode(p: &[u8]) -> Result<NavHpposllh, UbxError> {
-        if p.len() != 36 {
-            return Err(UbxError::Length {
-                name: "NAV-HPPOSLLH",
-                expected: 36,
-                got: p.len(),
-            });
-        }
-        if p[0] != 0 {
-            return Err(UbxError::Version {
-                name: "NAV-HPPOSLLH",
-                version: p[0],
-            });
-        }
+        check("NAV-HPPOSLLH", p, 36, Some(0))?;
         let hp = |o: usize| f64::from(p[o] as i8);
         Ok(NavHpposllh {
             itow_ms: u32le(p, 4),
@@ -254,19 +262,7 @@ pub struct NavRelposned {
 impl NavRelposned {
     /// Decodes a 64-byte NAV-RELPOSNED payload (version 1, F9 series).
     pub fn decode(p: &[u8]) -> Result<NavRelposned, UbxError> {
-        if p.len() != 64 {
-            return Err(UbxError::Length {
-                name: "NAV-RELPOSNED",
-                expected: 64,
-                got: p.len(),
-            });
-        }
-        if p[0] != 1 {
-            return Err(UbxError::Version {
-                name: "NAV-RELPOSNED",
-                version: p[0],
-            });
-        }
+        check("NAV-RELPOSNED", p, 64, Some(1))?;
         let flags = u32le(p, 60);
         let rel =
             |o: usize, hp: usize| f64::from(i32le(p, o)) * 1e-2 + f64::from(p[hp] as i8) * 1e-4;
@@ -280,11 +276,7 @@ impl NavRelposned {
                 f64::from(u32le(p, 44)) * 1e-4,
             ],
             heading_deg: (flags & 0x100 != 0).then(|| f64::from(i32le(p, 24)) * 1e-5),
-            carrier: match (flags >> 3) & 0x03 {
-                1 => CarrierSolution::Float,
-                2 => CarrierSolution::Fixed,
-                _ => CarrierSolution::None,
-            },
+            carrier: carrier(flags >> 3),
             valid: flags & 0x04 != 0,
         })
     }

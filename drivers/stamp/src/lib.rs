@@ -32,6 +32,15 @@ impl UtcNanos {
     /// The Unix epoch.
     pub const EPOCH: UtcNanos = UtcNanos(0);
 
+    /// The system clock, for I/O shells that stamp what they receive (cores never read the
+    /// clock: time is passed in).
+    pub fn now() -> Self {
+        let d = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap_or_default();
+        UtcNanos(i64::try_from(d.as_nanos()).unwrap_or(i64::MAX))
+    }
+
     /// From whole seconds and a nanosecond fraction (as capture files store them).
     pub fn from_secs_nanos(secs: i64, nanos: u32) -> Self {
         UtcNanos(

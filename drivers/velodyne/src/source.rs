@@ -57,13 +57,6 @@ pub struct UdpSource {
     pub stats: UdpStats,
 }
 
-fn now() -> UtcNanos {
-    let d = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap_or_default();
-    UtcNanos(d.as_nanos() as i64)
-}
-
 impl UdpSource {
     /// Binds to `addr` with a receive buffer of `recv_buffer` bytes (best effort: the kernel may
     /// grant less; see [`UdpSource::recv_buffer`]). Must be called inside a tokio runtime.
@@ -131,7 +124,7 @@ impl UdpSource {
                 });
                 Ok(Datagram {
                     len: msg.bytes,
-                    host: stamp.unwrap_or_else(now),
+                    host: stamp.unwrap_or_else(UtcNanos::now),
                     kernel_stamp: stamp.is_some(),
                     from,
                 })
