@@ -220,3 +220,38 @@ fn can_jsonl_decodes_with_the_dbc_and_shows_only_active_multiplexed_signals() {
     assert_eq!(code, Some(2));
     assert!(stderr.contains("--kind can needs --dbc"), "{stderr}");
 }
+
+#[test]
+fn can_frames_on_a_socketcan_interface_of_a_pcapng_decode_too() {
+    use hilrig::capture::{LinkType, PcapngWriter, UtcNanos};
+    let dir = tempfile::tempdir().unwrap();
+    let dbc = dir.path().join("ego.dbc");
+    std::fs::write(&dbc, "VERSION \"\"\n\nBO_ 2566844672 Ext: 8 X\n SG_ Speed : 0|16@1+ (0.01,0) [0|655.35] \"m/s\" X\n").unwrap();
+    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
+    let can = w.add_interface(LinkType::CAN_SOCKETCAN, "can0").unwrap();
+    let frame =
+        hilrig::can::CanFrame::new(0x18FE_F100, true, &[0xD2, 0x04, 0, 0, 0, 0, 0, 0]).unwrap();
+    w.write_packet(
+        can,
+        UtcNanos(1_700_000_000_500_000_000),
+        &frame.encode_socketcan(),
+    )
+    .unwrap();
+    let cap = dir.path().join("drive.pcapng");
+    std::fs::write(&cap, w.finish().unwrap()).unwrap();
+    let (code, out, stderr) = decode(&[
+        cap.to_str().unwrap(),
+        "--kind",
+        "can",
+        "--dbc",
+        dbc.to_str().unwrap(),
+        "--format",
+        "jsonl",
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(v["name"], "Ext");
+    assert_eq!(v["id"], 0x18FE_F100);
+    assert_eq!(v["time"], 1_700_000_000.5);
+    assert!((v["signals"]["Speed"].as_f64().unwrap() - 12.34).abs() < 1e-9);
+}
