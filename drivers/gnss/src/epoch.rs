@@ -243,8 +243,8 @@ impl NmeaEpochs {
         if let (Some(tod), Some(((y, m, d), seen_tod))) = (f.time_of_day, self.date) {
             // A time of day well before the one the date was seen at is the next day.
             let mut t = utc_from_civil(y, m, d, tod);
-            if seen_tod - tod > DAY_NS / 2 {
-                t = UtcNanos(t.0 + DAY_NS);
+            if seen_tod.saturating_sub(tod) > DAY_NS / 2 {
+                t = UtcNanos(t.0.saturating_add(DAY_NS));
             }
             f.time = Some(t);
         }
@@ -268,9 +268,9 @@ impl UbxEpochs {
                 // The navigation epoch is on the receiver's millisecond grid (iTOW); the UTC
                 // fields plus `nano` land a few hundred microseconds off it by the receiver clock
                 // bias. The epoch's time is the grid point, as gpsd reports it.
-                f.time = p
-                    .utc
-                    .map(|t| UtcNanos((t.0 + 500_000).div_euclid(1_000_000) * 1_000_000));
+                f.time = p.utc.map(|t| {
+                    UtcNanos(t.0.saturating_add(500_000).div_euclid(1_000_000) * 1_000_000)
+                });
                 f.lat = Some(p.lat_deg);
                 f.lon = Some(p.lon_deg);
                 f.alt_msl = Some(p.h_msl_m);
@@ -404,5 +404,34 @@ impl GnssStream {
                 | Item::Rejected { .. } => {}
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::framer::ubx_frame;
+
+    /// Found by cargo-fuzz: a NAV-PVT dated in the year 65535 overflowed the rounding to the
+    /// millisecond grid.
+    #[test]
+    fn pvt_at_the_end_of_time_does_not_overflow() {
+        let mut p = [0u8; 92];
+        p[4..6].copy_from_slice(&u16::MAX.to_le_bytes());
+        p[6] = 12;
+        p[7] = 31;
+        p[8] = 23;
+        p[9] = 59;
+        p[10] = 59;
+        p[11] = 0x03;
+        p[16..20].copy_from_slice(&999_999_999i32.to_le_bytes());
+        p[20] = 3;
+        p[21] = 1;
+        let mut s = GnssStream::default();
+        let mut out = Vec::new();
+        s.push(&ubx_frame(1, 7, &p), &mut out);
+        s.finish(&mut out);
+        assert_eq!(out.len(), 1);
+        assert!(out[0].time.is_some());
     }
 }
