@@ -6,6 +6,7 @@
 #![warn(missing_docs)]
 
 pub mod can_log;
+pub mod clock;
 pub mod gnss_log;
 pub mod lidar;
 pub mod points_out;
