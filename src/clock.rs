@@ -136,7 +136,7 @@ impl ClockEstimator {
         if self.stride == 0 {
             self.stride = 1;
         }
-        if self.n % self.stride == 0 {
+        if self.n.is_multiple_of(self.stride) {
             self.kept.push((x, y));
             if self.kept.len() >= MAX_KEPT {
                 // Keep every other pair and sample half as often from now on.

@@ -5,6 +5,7 @@
 
 #![warn(missing_docs)]
 
+pub mod bag;
 pub mod can_log;
 pub mod clock;
 pub mod gnss_log;

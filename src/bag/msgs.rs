@@ -1,0 +1,236 @@
+//! The ROS 2 message types of the MCAP contract (DESIGN.md), with their `ros2msg` schema text as
+//! MCAP stores it (the type's definition, then each dependency after a line of `=` and
+//! `MSG: pkg/Type`), and CDR encoders.
+//!
+//! Definitions are the standard ones of the ROS 2 packages named, so Foxglove and `ros2 bag`
+//! read the files without conversion; `hilrig_msgs/RawPacket` is hilrig's own for byte payloads
+//! without a standard message (Velodyne position packets, UBX frames).
+
+use super::cdr::CdrWriter;
+use hilrig_stamp::UtcNanos;
+
+const SEP: &str =
+    "================================================================================\n";
+
+const TIME: &str = "int32 sec\nuint32 nanosec\n";
+const HEADER: &str = "builtin_interfaces/Time stamp\nstring frame_id\n";
+
+fn with_deps(top: &str, deps: &[(&str, &str)]) -> String {
+    let mut s = top.to_owned();
+    for (name, def) in deps {
+        s.push_str(SEP);
+        s.push_str(&format!("MSG: {name}\n"));
+        s.push_str(def);
+    }
+    s
+}
+
+/// A message type: its name and schema text.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MessageType {
+    /// `pkg/msg/Type`.
+    pub name: &'static str,
+    /// `ros2msg` schema text with dependencies.
+    pub schema: String,
+}
+
+/// `velodyne_msgs/msg/VelodyneScan`.
+pub fn velodyne_scan_type() -> MessageType {
+    MessageType {
+        name: "velodyne_msgs/msg/VelodyneScan",
+        schema: with_deps(
+            "std_msgs/Header header\nvelodyne_msgs/VelodynePacket[] packets\n",
+            &[
+                ("std_msgs/Header", HEADER),
+                ("builtin_interfaces/Time", TIME),
+                (
+                    "velodyne_msgs/VelodynePacket",
+                    "builtin_interfaces/Time stamp\nuint8[1206] data\n",
+                ),
+            ],
+        ),
+    }
+}
+
+/// `hilrig_msgs/msg/RawPacket`.
+pub fn raw_packet_type() -> MessageType {
+    MessageType {
+        name: "hilrig_msgs/msg/RawPacket",
+        schema: with_deps(
+            "# A payload with no standard message: Velodyne position packets, UBX frames.\nstd_msgs/Header header\nuint8[] data\n",
+            &[("std_msgs/Header", HEADER), ("builtin_interfaces/Time", TIME)],
+        ),
+    }
+}
+
+/// `nmea_msgs/msg/Sentence`.
+pub fn nmea_sentence_type() -> MessageType {
+    MessageType {
+        name: "nmea_msgs/msg/Sentence",
+        schema: with_deps(
+            "std_msgs/Header header\nstring sentence\n",
+            &[
+                ("std_msgs/Header", HEADER),
+                ("builtin_interfaces/Time", TIME),
+            ],
+        ),
+    }
+}
+
+/// `sensor_msgs/msg/NavSatFix`.
+pub fn nav_sat_fix_type() -> MessageType {
+    MessageType {
+        name: "sensor_msgs/msg/NavSatFix",
+        schema: with_deps(
+            "uint8 COVARIANCE_TYPE_UNKNOWN=0\nuint8 COVARIANCE_TYPE_APPROXIMATED=1\nuint8 COVARIANCE_TYPE_DIAGONAL_KNOWN=2\nuint8 COVARIANCE_TYPE_KNOWN=3\nstd_msgs/Header header\nsensor_msgs/NavSatStatus status\nfloat64 latitude\nfloat64 longitude\nfloat64 altitude\nfloat64[9] position_covariance\nuint8 position_covariance_type\n",
+            &[
+                ("std_msgs/Header", HEADER),
+                ("builtin_interfaces/Time", TIME),
+                (
+                    "sensor_msgs/NavSatStatus",
+                    "int8 STATUS_NO_FIX=-1\nint8 STATUS_FIX=0\nint8 STATUS_SBAS_FIX=1\nint8 STATUS_GBAS_FIX=2\nint8 status\nuint16 SERVICE_GPS=1\nuint16 SERVICE_GLONASS=2\nuint16 SERVICE_COMPASS=4\nuint16 SERVICE_GALILEO=8\nuint16 service\n",
+                ),
+            ],
+        ),
+    }
+}
+
+/// `can_msgs/msg/Frame`.
+pub fn can_frame_type() -> MessageType {
+    MessageType {
+        name: "can_msgs/msg/Frame",
+        schema: with_deps(
+            "std_msgs/Header header\nuint32 id\nbool is_rtr\nbool is_extended\nbool is_error\nuint8 dlc\nuint8[8] data\n",
+            &[("std_msgs/Header", HEADER), ("builtin_interfaces/Time", TIME)],
+        ),
+    }
+}
+
+/// `geometry_msgs/msg/TwistStamped`.
+pub fn twist_stamped_type() -> MessageType {
+    MessageType {
+        name: "geometry_msgs/msg/TwistStamped",
+        schema: with_deps(
+            "std_msgs/Header header\ngeometry_msgs/Twist twist\n",
+            &[
+                ("std_msgs/Header", HEADER),
+                ("builtin_interfaces/Time", TIME),
+                (
+                    "geometry_msgs/Twist",
+                    "geometry_msgs/Vector3 linear\ngeometry_msgs/Vector3 angular\n",
+                ),
+                ("geometry_msgs/Vector3", "float64 x\nfloat64 y\nfloat64 z\n"),
+            ],
+        ),
+    }
+}
+
+fn time(w: &mut CdrWriter, t: UtcNanos) {
+    let (s, n) = t.secs_nanos();
+    w.i32(s.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32)
+        .u32(n);
+}
+
+fn header(w: &mut CdrWriter, t: UtcNanos, frame_id: &str) {
+    time(w, t);
+    w.string(frame_id);
+}
+
+/// A VelodyneScan: the packets of one rotation with their host stamps.
+pub fn velodyne_scan(
+    stamp: UtcNanos,
+    frame_id: &str,
+    packets: &[(UtcNanos, &[u8; 1206])],
+) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(64 + packets.len() * 1216);
+    header(&mut w, stamp, frame_id);
+    w.sequence_len(packets.len());
+    for (t, data) in packets {
+        time(&mut w, *t);
+        w.fixed_bytes(&data[..]);
+    }
+    w.finish()
+}
+
+/// A RawPacket.
+pub fn raw_packet(stamp: UtcNanos, frame_id: &str, data: &[u8]) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(32 + data.len());
+    header(&mut w, stamp, frame_id);
+    w.bytes(data);
+    w.finish()
+}
+
+/// An NMEA sentence.
+pub fn nmea_sentence(stamp: UtcNanos, frame_id: &str, sentence: &str) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(32 + sentence.len());
+    header(&mut w, stamp, frame_id);
+    w.string(sentence);
+    w.finish()
+}
+
+/// The fields of a NavSatFix.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NavSatFix {
+    /// -1 no fix, 0 fix, 1 SBAS, 2 GBAS (RTK and DGPS).
+    pub status: i8,
+    /// Bit mask of constellations (1 GPS).
+    pub service: u16,
+    /// Degrees.
+    pub latitude: f64,
+    /// Degrees.
+    pub longitude: f64,
+    /// Metres above the WGS84 ellipsoid.
+    pub altitude: f64,
+    /// ENU covariance, row-major, m².
+    pub covariance: [f64; 9],
+    /// 0 unknown, 1 approximated, 2 diagonal known, 3 known.
+    pub covariance_type: u8,
+}
+
+/// A NavSatFix.
+pub fn nav_sat_fix(stamp: UtcNanos, frame_id: &str, f: &NavSatFix) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(160);
+    header(&mut w, stamp, frame_id);
+    w.i8(f.status)
+        .u16(f.service)
+        .f64(f.latitude)
+        .f64(f.longitude)
+        .f64(f.altitude);
+    for c in f.covariance {
+        w.f64(c);
+    }
+    w.u8(f.covariance_type);
+    w.finish()
+}
+
+/// A can_msgs/Frame (classic CAN: FD payloads do not fit its 8 data bytes and are recorded as
+/// RawPacket by the recorder).
+pub fn can_frame(stamp: UtcNanos, frame_id: &str, f: &hilrig_capture::CanFrame) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(64);
+    header(&mut w, stamp, frame_id);
+    let mut data = [0u8; 8];
+    let d = f.data();
+    data[..d.len().min(8)].copy_from_slice(&d[..d.len().min(8)]);
+    w.u32(f.id)
+        .bool(f.rtr)
+        .bool(f.extended)
+        .bool(f.error)
+        .u8(f.len().min(8) as u8)
+        .fixed_bytes(&data);
+    w.finish()
+}
+
+/// A TwistStamped: linear x (forward speed, m/s) and angular z (yaw rate, rad/s).
+pub fn twist_stamped(
+    stamp: UtcNanos,
+    frame_id: &str,
+    linear: [f64; 3],
+    angular: [f64; 3],
+) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(96);
+    header(&mut w, stamp, frame_id);
+    for v in linear.iter().chain(&angular) {
+        w.f64(*v);
+    }
+    w.finish()
+}
