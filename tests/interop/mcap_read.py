@@ -1,0 +1,90 @@
+"""Read an MCAP with the PyPI `mcap` package (CRC validation on) and decode every message's CDR
+with `rosbags`, using the ros2msg schema stored in the file. Prints one JSON document:
+{"profile", "library", "channels": {topic: {"type", "encoding", "count"}}, "metadata": {...},
+ "attachments": [...], "messages": {topic: [decoded, ...]}} (messages only for --decode topics).
+
+usage: mcap_read.py FILE [--decode TOPIC ...] [--limit N]
+"""
+import json
+import sys
+from collections import defaultdict
+
+from mcap.reader import make_reader
+from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+
+SEP = "=" * 80 + "\n"
+
+
+def register(store, name, schema):
+    """Register a type and its dependencies from an MCAP ros2msg schema."""
+    parts = schema.split(SEP)
+    types = {}
+    types.update(get_types_from_msg(parts[0], name))
+    for p in parts[1:]:
+        head, _, body = p.partition("\n")
+        dep = head.replace("MSG: ", "").strip()
+        pkg, typ = dep.split("/")
+        types.update(get_types_from_msg(body, f"{pkg}/msg/{typ}"))
+    store.register(types)
+
+
+def plain(v):
+    if hasattr(v, "__dataclass_fields__") or hasattr(v, "__msgtype__"):
+        return {k: plain(getattr(v, k)) for k in v.__dataclass_fields__ if k != "__msgtype__"}
+    if hasattr(v, "tolist"):
+        return v.tolist()
+    if isinstance(v, (list, tuple)):
+        return [plain(x) for x in v]
+    return v
+
+
+def main():
+    path = sys.argv[1]
+    decode = set()
+    limit = 1_000_000
+    args = sys.argv[2:]
+    while args:
+        a = args.pop(0)
+        if a == "--decode":
+            decode.add(args.pop(0))
+        elif a == "--limit":
+            limit = int(args.pop(0))
+    store = get_typestore(Stores.EMPTY)
+    registered = set()
+    out = {"channels": {}, "metadata": {}, "attachments": [], "messages": defaultdict(list)}
+    with open(path, "rb") as f:
+        reader = make_reader(f, validate_crcs=True)
+        header = reader.get_header()
+        out["profile"] = header.profile
+        out["library"] = header.library
+        summary = reader.get_summary()
+        out["chunks"] = [
+            {"start": c.message_start_time, "end": c.message_end_time, "compression": c.compression}
+            for c in (summary.chunk_indexes if summary else [])
+        ]
+        counts = defaultdict(int)
+        for schema, channel, message in reader.iter_messages():
+            counts[channel.topic] += 1
+            out["channels"][channel.topic] = {"type": schema.name, "schema_encoding": schema.encoding, "encoding": channel.message_encoding}
+            if channel.topic in decode and len(out["messages"][channel.topic]) < limit:
+                if schema.name not in registered:
+                    register(store, schema.name, schema.data.decode())
+                    registered.add(schema.name)
+                msg = store.deserialize_cdr(message.data, schema.name)
+                d = plain(msg)
+                d["_log_time"] = message.log_time
+                d["_publish_time"] = message.publish_time
+                out["messages"][channel.topic].append(d)
+        for topic, n in counts.items():
+            out["channels"][topic]["count"] = n
+        f.seek(0)
+        reader = make_reader(f, validate_crcs=True)
+        for m in reader.iter_metadata():
+            out["metadata"][m.name] = dict(m.metadata)
+        for a in reader.iter_attachments():
+            out["attachments"].append({"name": a.name, "media_type": a.media_type, "size": len(a.data)})
+    json.dump(out, sys.stdout)
+
+
+if __name__ == "__main__":
+    main()
