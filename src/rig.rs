@@ -1,0 +1,254 @@
+//! Rig files (`rigs/*.toml`): what is mounted where, how to reach it, and how to record.
+//!
+//! Every table rejects unknown keys, so a typo in a field name is an error at start, not a
+//! silently ignored setting on the test vehicle. Paths (DBC, calibration, output directory) are
+//! relative to the rig file's folder.
+
+use hilrig_can::ego::EgoMapping;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// A rig.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Rig {
+    /// Rig name, written into every recording's metadata.
+    pub name: String,
+    /// The lidar, if mounted.
+    pub lidar: Option<LidarConfig>,
+    /// The RTK GNSS receiver, if mounted.
+    pub gnss: Option<GnssConfig>,
+    /// The vehicle CAN bus, if connected.
+    pub can: Option<CanConfig>,
+    /// Recording settings.
+    #[serde(default)]
+    pub recording: RecordingConfig,
+    /// Folder of the rig file (set when loaded; paths resolve against it).
+    #[serde(skip)]
+    pub base: PathBuf,
+}
+
+/// A rigid mounting: position of the sensor origin in the vehicle frame (ISO 8855: x forward,
+/// y left, z up, origin at the rear axle centre on the ground) and its orientation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Mounting {
+    /// Forward, metres.
+    pub x: f64,
+    /// Left, metres.
+    pub y: f64,
+    /// Up, metres.
+    pub z: f64,
+    /// Roll, degrees (about x).
+    #[serde(default)]
+    pub roll_deg: f64,
+    /// Pitch, degrees (about y).
+    #[serde(default)]
+    pub pitch_deg: f64,
+    /// Yaw, degrees (about z).
+    #[serde(default)]
+    pub yaw_deg: f64,
+}
+
+/// The lidar.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LidarConfig {
+    /// Model (vlp16, puck-hires, vlp32c, hdl32e); checked against the packets' product byte.
+    pub model: String,
+    /// Address to bind for live recording.
+    #[serde(default = "default_bind")]
+    pub bind: String,
+    /// UDP port of data packets.
+    #[serde(default = "default_data_port")]
+    pub data_port: u16,
+    /// UDP port of position packets.
+    #[serde(default = "default_position_port")]
+    pub position_port: u16,
+    /// Calibration file (ros-drivers YAML), optional.
+    pub calibration: Option<PathBuf>,
+    /// Azimuth where one rotation (one VelodyneScan message) ends, degrees.
+    #[serde(default)]
+    pub cut_azimuth_deg: f64,
+    /// TF frame of the sensor.
+    #[serde(default = "default_lidar_frame")]
+    pub frame_id: String,
+    /// Where the sensor is mounted.
+    #[serde(default)]
+    pub mounting: Mounting,
+}
+
+/// The GNSS receiver.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GnssConfig {
+    /// Serial port (prefer a stable /dev/serial/by-id/ name).
+    pub port: String,
+    /// Baud rate.
+    #[serde(default = "default_baud")]
+    pub baud: u32,
+    /// TF frame of the antenna.
+    #[serde(default = "default_gnss_frame")]
+    pub frame_id: String,
+    /// Antenna phase centre in the vehicle frame (the lever arm).
+    #[serde(default)]
+    pub antenna: Mounting,
+}
+
+/// The CAN bus.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CanConfig {
+    /// SocketCAN interface.
+    pub interface: String,
+    /// DBC file.
+    pub dbc: PathBuf,
+    /// Which DBC signals give ego motion.
+    #[serde(default)]
+    pub ego: EgoMapping,
+}
+
+/// Recording settings.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordingConfig {
+    /// Output folder for live recordings.
+    #[serde(default = "default_output_dir")]
+    pub output_dir: PathBuf,
+    /// Chunk compression: zstd, lz4 or none.
+    #[serde(default = "default_compression")]
+    pub compression: crate::bag::Compression,
+    /// zstd level.
+    #[serde(default = "default_level")]
+    pub compression_level: u32,
+    /// Chunk size in MiB (a chunk is also closed after one second).
+    #[serde(default = "default_chunk_mib")]
+    pub chunk_size_mib: u64,
+}
+
+impl Default for RecordingConfig {
+    fn default() -> Self {
+        RecordingConfig {
+            output_dir: default_output_dir(),
+            compression: default_compression(),
+            compression_level: default_level(),
+            chunk_size_mib: default_chunk_mib(),
+        }
+    }
+}
+
+fn default_bind() -> String {
+    "0.0.0.0".into()
+}
+fn default_data_port() -> u16 {
+    hilrig_velodyne::DATA_PORT
+}
+fn default_position_port() -> u16 {
+    hilrig_velodyne::POSITION_PORT
+}
+fn default_lidar_frame() -> String {
+    "velodyne".into()
+}
+fn default_gnss_frame() -> String {
+    "gnss".into()
+}
+fn default_baud() -> u32 {
+    115_200
+}
+fn default_output_dir() -> PathBuf {
+    PathBuf::from("recordings")
+}
+fn default_compression() -> crate::bag::Compression {
+    crate::bag::Compression::Zstd
+}
+fn default_level() -> u32 {
+    1
+}
+fn default_chunk_mib() -> u64 {
+    4
+}
+
+/// A rig file that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum RigError {
+    /// Reading failed.
+    #[error("cannot read rig file {path}: {source}")]
+    Io {
+        /// Path.
+        path: String,
+        /// Cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Not valid TOML or not the rig schema (unknown keys included).
+    #[error("rig file {path}: {message}")]
+    Parse {
+        /// Path.
+        path: String,
+        /// What is wrong, with line and column.
+        message: String,
+    },
+}
+
+impl Rig {
+    /// Loads and checks a rig file.
+    pub fn load(path: &Path) -> Result<Rig, RigError> {
+        let text = std::fs::read_to_string(path).map_err(|e| RigError::Io {
+            path: path.display().to_string(),
+            source: e,
+        })?;
+        let mut rig: Rig = toml::from_str(&text).map_err(|e| RigError::Parse {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        rig.base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        if let Some(l) = &rig.lidar {
+            l.model
+                .parse::<hilrig_velodyne::Model>()
+                .map_err(|e| RigError::Parse {
+                    path: path.display().to_string(),
+                    message: format!("lidar.model: {e}"),
+                })?;
+        }
+        Ok(rig)
+    }
+
+    /// A path from the rig file, resolved against its folder.
+    pub fn resolve(&self, p: &Path) -> PathBuf {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.base.join(p)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_demo_rig_loads_and_typos_are_rejected() {
+        let rig = Rig::load(Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/rigs/demo.toml"
+        )))
+        .unwrap();
+        assert_eq!(rig.lidar.as_ref().unwrap().model, "vlp16");
+        assert!(rig.can.as_ref().unwrap().ego.yaw_rate.is_some());
+        let dir = tempfile::tempdir().unwrap();
+        let bad = dir.path().join("bad.toml");
+        std::fs::write(
+            &bad,
+            "name = \"x\"\n[lidar]\nmodel = \"vlp16\"\ndata_prot = 2368\n",
+        )
+        .unwrap();
+        let e = Rig::load(&bad).unwrap_err().to_string();
+        assert!(e.contains("unknown field `data_prot`"), "{e}");
+        std::fs::write(&bad, "name = \"x\"\n[lidar]\nmodel = \"hdl64\"\n").unwrap();
+        assert!(Rig::load(&bad)
+            .unwrap_err()
+            .to_string()
+            .contains("lidar.model"));
+    }
+}
