@@ -11,6 +11,7 @@ pub mod clock;
 pub mod gnss_log;
 pub mod lidar;
 pub mod points_out;
+pub mod record;
 pub mod rig;
 
 pub use hilrig_can as can;

@@ -32,6 +32,22 @@ enum Command {
     /// Decode a capture or log: lidar points (pcap/pcapng) or GNSS fixes (serial logs, gpsd logs,
     /// serial interfaces of pcapng captures).
     Decode(DecodeArgs),
+    /// Record captures (pcap/pcapng with lidar UDP, SocketCAN and serial interfaces) into one
+    /// time-synchronised MCAP (ROS 2 profile).
+    Record(RecordArgs),
+}
+
+#[derive(clap::Args)]
+struct RecordArgs {
+    /// The rig file.
+    #[arg(long)]
+    rig: PathBuf,
+    /// Capture files to record from.
+    #[arg(long, required = true, num_args = 1..)]
+    from: Vec<PathBuf>,
+    /// Output MCAP file (written as OUT.active until finished).
+    #[arg(short, long)]
+    output: PathBuf,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -106,6 +122,7 @@ fn main() -> ExitCode {
     init_logging(cli.verbose);
     let result = match cli.command {
         Command::Decode(args) => run_decode(args),
+        Command::Record(args) => run_record(args),
     };
     match result {
         Ok(code) => code,
@@ -360,5 +377,35 @@ fn open_output(path: Option<&std::path::Path>) -> Result<Box<dyn Write>> {
             Box::new(File::create(p).with_context(|| format!("cannot create {}", p.display()))?)
         }
         None => Box::new(io::stdout().lock()),
+    })
+}
+
+fn run_record(args: RecordArgs) -> Result<ExitCode> {
+    let rig = hilrig::rig::Rig::load(&args.rig)?;
+    let text = std::fs::read_to_string(&args.rig)
+        .with_context(|| format!("cannot read {}", args.rig.display()))?;
+    let summary = hilrig::record::record_from(&rig, &text, &args.from, &args.output)?;
+    let out = args.output.display();
+    for (topic, n) in &summary.counts {
+        eprintln!("{out}: {topic}: {n} messages");
+    }
+    for (name, m, r, pairs) in &summary.clocks {
+        eprintln!(
+            "{out}: clock {name}: offset {:.3} ms, drift {:.2} ppm, residual p50 {:.0} us, p95 {:.0} us, max {:.0} us ({pairs} pairs)",
+            m.offset_ns * 1e-6,
+            m.drift * 1e6,
+            r[0] * 1e-3,
+            r[1] * 1e-3,
+            r[2] * 1e-3
+        );
+    }
+    eprintln!("{out}: lidar packets lost: {}", summary.lidar_lost);
+    for e in &summary.input_errors {
+        eprintln!("error: {e} (everything before it was recorded)");
+    }
+    Ok(if summary.input_errors.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
     })
 }

@@ -1,0 +1,607 @@
+//! `hilrig record --from`: captures into one time-synchronised MCAP, through the same decoders
+//! the vehicle recorder uses.
+//!
+//! Two passes over the inputs. The first estimates a clock model per source that has its own
+//! clock (lidar: microseconds past the hour, hour from the position packets' RMC or the capture
+//! time; GNSS: the fix's UTC) from its (sensor, host) pairs. The second writes every message
+//! with `log_time` = the sensor time mapped onto the host time base by that model (so transport
+//! jitter is gone and sources line up), or the host time where a source has no clock (CAN,
+//! raw byte streams), and `publish_time` = the host receive time. The models and their residuals
+//! go into the file's metadata for `check`.
+
+use crate::bag::msgs::{self, NavSatFix};
+use crate::bag::{BagError, BagOptions, BagWriter};
+use crate::clock::{ClockEstimator, ClockModel};
+use crate::rig::Rig;
+use hilrig_can::ego::{EgoSample, EgoTracker, Quantity};
+use hilrig_can::Database;
+use hilrig_capture::demux::{Demux, Packet};
+use hilrig_capture::{CaptureError, CaptureReader};
+use hilrig_gnss::epoch::{Fix, NmeaEpochs, UbxEpochs};
+use hilrig_gnss::framer::{Frame, Framer, Item};
+use hilrig_stamp::UtcNanos;
+use hilrig_velodyne::clock::HourResolver;
+use hilrig_velodyne::{
+    DataPacket, Decoder, Model, PositionPacket, RotationAssembler, DATA_PACKET_SIZE,
+    POSITION_PACKET_SIZE,
+};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Topics of the MCAP contract.
+pub mod topics {
+    /// VelodyneScan per rotation.
+    pub const VELODYNE_PACKETS: &str = "/velodyne_packets";
+    /// Position packets.
+    pub const VELODYNE_POSITION: &str = "/velodyne_position";
+    /// NMEA sentences.
+    pub const GNSS_NMEA: &str = "/gnss/nmea";
+    /// UBX frames.
+    pub const GNSS_UBX: &str = "/gnss/ubx";
+    /// Fixes.
+    pub const GNSS_FIX: &str = "/gnss/fix";
+    /// CAN frames.
+    pub const CAN_FRAMES: &str = "/can/frames";
+    /// Ego speed and yaw rate.
+    pub const EGO_TWIST: &str = "/ego/twist";
+}
+
+/// Why recording from captures failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// An input could not be read.
+    #[error("{path}: {source}")]
+    Input {
+        /// The input.
+        path: String,
+        /// Cause.
+        #[source]
+        source: CaptureError,
+    },
+    /// An input is of a kind `--from` does not read yet.
+    #[error("{path}: {what}")]
+    Unsupported {
+        /// The input.
+        path: String,
+        /// What.
+        what: String,
+    },
+    /// Writing the MCAP failed; what was written before is in the `.active` file.
+    #[error(transparent)]
+    Bag(#[from] BagError),
+    /// A rig part (DBC, calibration, ego mapping) is unusable.
+    #[error("rig: {0}")]
+    Rig(String),
+}
+
+/// What a `--from` recording did.
+#[derive(Clone, Debug, Default)]
+pub struct RecordSummary {
+    /// Messages per topic.
+    pub counts: BTreeMap<String, u64>,
+    /// Clock models per source (name, model, residual p50/p95/max in ns, pairs).
+    pub clocks: Vec<(String, ClockModel, [f64; 3], u64)>,
+    /// Lidar packets lost (sensor timestamp gaps).
+    pub lidar_lost: u64,
+    /// Inputs that ended early (truncated), with the error.
+    pub input_errors: Vec<String>,
+}
+
+struct Context<'a> {
+    rig: &'a Rig,
+    decoder: Option<Decoder>,
+    db: Option<Database>,
+    ego: Option<EgoTracker>,
+}
+
+/// Per-pass state of the sources.
+struct Sources {
+    hours: HourResolver,
+    lidar_clock: ClockEstimator,
+    gnss_clock: ClockEstimator,
+    framers: BTreeMap<u32, SerialState>,
+}
+
+/// A serial interface's framer and epoch assemblers, with the receive time of the last frame:
+/// an epoch is complete when the next one starts, but it was *received* with its own last
+/// sentence, and that is its host time.
+#[derive(Default)]
+struct SerialState {
+    framer: Framer,
+    nmea: NmeaEpochs,
+    ubx: UbxEpochs,
+    last_host: Option<UtcNanos>,
+}
+
+impl Sources {
+    fn new() -> Sources {
+        Sources {
+            hours: HourResolver::default(),
+            lidar_clock: ClockEstimator::new(),
+            gnss_clock: ClockEstimator::new(),
+            framers: BTreeMap::new(),
+        }
+    }
+}
+
+/// The writing side of pass 2.
+struct Output<'a> {
+    bag: BagWriter,
+    lidar: Option<ClockModel>,
+    gnss: Option<ClockModel>,
+    rotation: Option<RotationAssembler>,
+    frame_lidar: String,
+    frame_gnss: String,
+    last_speed: Option<f64>,
+    last_yaw: Option<f64>,
+    rig: &'a Rig,
+}
+
+fn sync(model: Option<ClockModel>, sensor: UtcNanos) -> UtcNanos {
+    model.map_or(sensor, |m| m.to_host(sensor))
+}
+
+fn nav_sat_fix(f: &Fix) -> Option<NavSatFix> {
+    let (lat, lon) = (f.lat?, f.lon?);
+    let status = match f.quality {
+        0 => -1,
+        2 | 9 => 1,
+        4 | 5 => 2,
+        _ => 0,
+    };
+    let (covariance, covariance_type) = match (f.sigma_lon_m, f.sigma_lat_m, f.sigma_alt_m) {
+        (Some(e), Some(n), Some(u)) => ([e * e, 0.0, 0.0, 0.0, n * n, 0.0, 0.0, 0.0, u * u], 2),
+        _ => ([0.0; 9], 0),
+    };
+    Some(NavSatFix {
+        status,
+        service: 1,
+        latitude: lat,
+        longitude: lon,
+        // NavSatFix wants height above the ellipsoid; MSL only when the geoid separation is unknown.
+        altitude: f.alt_ellipsoid.or(f.alt_msl).unwrap_or(f64::NAN),
+        covariance,
+        covariance_type,
+    })
+}
+
+impl Context<'_> {
+    /// One capture input through both passes' logic; `out` is `None` in pass 1.
+    fn run_capture(
+        &self,
+        path: &Path,
+        src: &mut Sources,
+        mut out: Option<&mut Output<'_>>,
+        summary: &mut RecordSummary,
+    ) -> Result<(), RecordError> {
+        let file = std::fs::File::open(path).map_err(|e| RecordError::Input {
+            path: path.display().to_string(),
+            source: CaptureError::Io {
+                offset: 0,
+                source: e,
+            },
+        })?;
+        let reader =
+            CaptureReader::new(std::io::BufReader::with_capacity(1 << 20, file)).map_err(|e| {
+                RecordError::Input {
+                    path: path.display().to_string(),
+                    source: e,
+                }
+            })?;
+        let mut demux = Demux::new(reader);
+        let lidar = self.rig.lidar.as_ref();
+        loop {
+            let item = match demux.next_item() {
+                None => break,
+                Some(Err(e)) => {
+                    if out.is_some() {
+                        summary
+                            .input_errors
+                            .push(format!("{}: {e}", path.display()));
+                    }
+                    break;
+                }
+                Some(Ok(i)) => i,
+            };
+            let host = item.time;
+            match item.packet {
+                Packet::Udp { dst, payload, .. } => {
+                    let Some(l) = lidar else { continue };
+                    if dst.port() == l.position_port && payload.len() == POSITION_PACKET_SIZE {
+                        if let Ok(p) = PositionPacket::decode(payload) {
+                            src.hours.handle_position(&p, host);
+                            if let Some(o) = out.as_deref_mut() {
+                                o.bag.write(
+                                    topics::VELODYNE_POSITION,
+                                    &msgs::raw_packet_type(),
+                                    host,
+                                    host,
+                                    &msgs::raw_packet(host, &o.frame_lidar, payload),
+                                )?;
+                            }
+                        }
+                    } else if dst.port() == l.data_port && payload.len() == DATA_PACKET_SIZE {
+                        let Ok(p) = DataPacket::decode(payload) else {
+                            continue;
+                        };
+                        let Some((sensor, _)) = src.hours.resolve(p.timestamp_us, host) else {
+                            continue;
+                        };
+                        match out.as_deref_mut() {
+                            None => src.lidar_clock.handle(sensor, host),
+                            Some(o) => {
+                                let t = sync(o.lidar, sensor);
+                                if let Some(rot) = o.rotation.as_mut() {
+                                    if let Some(done) = rot.push(hilrig_stamp::Stamped {
+                                        host,
+                                        sensor: Some(t),
+                                        value: p,
+                                    }) {
+                                        write_scan(o, &done.packets)?;
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                Packet::Serial(bytes) => {
+                    let entry = src.framers.entry(item.interface).or_default();
+                    entry.framer.push(bytes);
+                    let mut fixes = Vec::new();
+                    while let Some(it) = entry.framer.next_frame() {
+                        let Item::Frame { frame, .. } = it else {
+                            continue;
+                        };
+                        // A fix completed by this frame was received with the previous one.
+                        let epoch_host = entry.last_host.unwrap_or(host);
+                        entry.last_host = Some(host);
+                        match frame {
+                            Frame::Nmea(s) => {
+                                if let Some(o) = out.as_deref_mut() {
+                                    o.bag.write(
+                                        topics::GNSS_NMEA,
+                                        &msgs::nmea_sentence_type(),
+                                        host,
+                                        host,
+                                        &msgs::nmea_sentence(host, &o.frame_gnss, &s),
+                                    )?;
+                                }
+                                if let Ok(sentence) = hilrig_gnss::nmea::parse(&s) {
+                                    fixes.extend(
+                                        entry.nmea.push(&sentence).map(|f| (f, epoch_host)),
+                                    );
+                                }
+                            }
+                            Frame::Ubx { class, id, payload } => {
+                                if let Some(o) = out.as_deref_mut() {
+                                    let raw = hilrig_gnss::framer::ubx_frame(class, id, &payload);
+                                    o.bag.write(
+                                        topics::GNSS_UBX,
+                                        &msgs::raw_packet_type(),
+                                        host,
+                                        host,
+                                        &msgs::raw_packet(host, &o.frame_gnss, &raw),
+                                    )?;
+                                }
+                                if let Ok(m) = hilrig_gnss::ubx::decode(class, id, &payload) {
+                                    fixes.extend(entry.ubx.push(&m).map(|f| (f, epoch_host)));
+                                }
+                            }
+                            Frame::Rtcm3 { .. } => {}
+                        }
+                    }
+                    for (f, h) in fixes {
+                        self.fix(src, out.as_deref_mut(), &f, h)?;
+                    }
+                }
+                Packet::Can(frame) => {
+                    if let Some(o) = out.as_deref_mut() {
+                        self.can(o, &frame, host)?;
+                    }
+                }
+            }
+        }
+        // Epochs still open at the end of the input, received with the interface's last frame.
+        let open: Vec<(Fix, UtcNanos)> = src
+            .framers
+            .values_mut()
+            .filter_map(|s| s.last_host.map(|h| (s, h)))
+            .flat_map(|(s, h)| {
+                s.nmea
+                    .finish()
+                    .into_iter()
+                    .chain(s.ubx.finish())
+                    .map(move |f| (f, h))
+            })
+            .collect();
+        for (f, h) in open {
+            self.fix(src, out.as_deref_mut(), &f, h)?;
+        }
+        Ok(())
+    }
+
+    fn fix(
+        &self,
+        src: &mut Sources,
+        out: Option<&mut Output<'_>>,
+        f: &Fix,
+        host: UtcNanos,
+    ) -> Result<(), RecordError> {
+        let Some(t) = f.time else { return Ok(()) };
+        match out {
+            None => src.gnss_clock.handle(t, host),
+            Some(o) => {
+                if let Some(nav) = nav_sat_fix(f) {
+                    let log = sync(o.gnss, t);
+                    o.bag.write(
+                        topics::GNSS_FIX,
+                        &msgs::nav_sat_fix_type(),
+                        log,
+                        host,
+                        &msgs::nav_sat_fix(t, &o.frame_gnss, &nav),
+                    )?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn can(
+        &self,
+        o: &mut Output<'_>,
+        frame: &hilrig_capture::CanFrame,
+        host: UtcNanos,
+    ) -> Result<(), RecordError> {
+        let iface = o
+            .rig
+            .can
+            .as_ref()
+            .map_or("can0", |c| c.interface.as_str())
+            .to_owned();
+        if frame.fd {
+            o.bag.write(
+                topics::CAN_FRAMES,
+                &msgs::raw_packet_type(),
+                host,
+                host,
+                &msgs::raw_packet(host, &iface, &frame.encode_socketcan()),
+            )?;
+        } else {
+            o.bag.write(
+                topics::CAN_FRAMES,
+                &msgs::can_frame_type(),
+                host,
+                host,
+                &msgs::can_frame(host, &iface, frame),
+            )?;
+        }
+        let (Some(db), Some(ego)) = (&self.db, &self.ego) else {
+            return Ok(());
+        };
+        let Some(d) = db.decode(frame) else {
+            return Ok(());
+        };
+        let mut samples: Vec<EgoSample> = Vec::new();
+        ego.handle(host, &d, &mut samples);
+        let mut changed = false;
+        for s in &samples {
+            match s.quantity {
+                Quantity::Speed => {
+                    o.last_speed = Some(s.value);
+                    changed = true;
+                }
+                Quantity::YawRate => {
+                    o.last_yaw = Some(s.value);
+                    changed = true;
+                }
+                _ => {}
+            }
+        }
+        if changed {
+            if let (Some(v), Some(w)) = (o.last_speed, o.last_yaw) {
+                o.bag.write(
+                    topics::EGO_TWIST,
+                    &msgs::twist_stamped_type(),
+                    host,
+                    host,
+                    &msgs::twist_stamped(host, "base_link", [v, 0.0, 0.0], [0.0, 0.0, w]),
+                )?;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn write_scan(
+    o: &mut Output<'_>,
+    packets: &[hilrig_stamp::Stamped<DataPacket>],
+) -> Result<(), RecordError> {
+    let Some(first) = packets.first() else {
+        return Ok(());
+    };
+    let encoded: Vec<[u8; 1206]> = packets.iter().map(|p| p.value.encode()).collect();
+    let list: Vec<(UtcNanos, &[u8; 1206])> = packets
+        .iter()
+        .zip(&encoded)
+        .map(|(p, e)| (p.sensor.unwrap_or(p.host), e))
+        .collect();
+    let stamp = first.sensor.unwrap_or(first.host);
+    let publish = packets.last().map_or(first.host, |p| p.host);
+    let cdr = msgs::velodyne_scan(stamp, &o.frame_lidar, &list);
+    o.bag.write(
+        topics::VELODYNE_PACKETS,
+        &msgs::velodyne_scan_type(),
+        stamp,
+        publish,
+        &cdr,
+    )?;
+    Ok(())
+}
+
+/// Records captures into one MCAP at `output` (written as `output.active`, renamed at the end).
+pub fn record_from(
+    rig: &Rig,
+    rig_text: &str,
+    inputs: &[PathBuf],
+    output: &Path,
+) -> Result<RecordSummary, RecordError> {
+    for p in inputs {
+        let f = std::fs::File::open(p).map_err(|e| RecordError::Input {
+            path: p.display().to_string(),
+            source: CaptureError::Io {
+                offset: 0,
+                source: e,
+            },
+        })?;
+        let (is_capture, _) = hilrig_capture::reader::sniff(f).map_err(|e| RecordError::Input {
+            path: p.display().to_string(),
+            source: CaptureError::Io {
+                offset: 0,
+                source: e,
+            },
+        })?;
+        if !is_capture {
+            return Err(RecordError::Unsupported {
+                path: p.display().to_string(),
+                what: "not a pcap/pcapng capture; record --from reads captures (lidar UDP, SocketCAN and serial interfaces) for now".into(),
+            });
+        }
+    }
+    let model = match &rig.lidar {
+        Some(l) => Some(l.model.parse::<Model>().map_err(RecordError::Rig)?),
+        None => None,
+    };
+    let calibration = match (&rig.lidar, model) {
+        (Some(l), Some(m)) => match &l.calibration {
+            Some(c) => Some(
+                hilrig_velodyne::Calibration::from_file(&rig.resolve(c), m)
+                    .map_err(|e| RecordError::Rig(e.to_string()))?,
+            ),
+            None => None,
+        },
+        _ => None,
+    };
+    let (db, ego, dbc_bytes) = match &rig.can {
+        Some(c) => {
+            let path = rig.resolve(&c.dbc);
+            let db = Database::from_file(&path).map_err(|e| RecordError::Rig(e.to_string()))?;
+            let ego = EgoTracker::new(&c.ego, &db).map_err(|e| RecordError::Rig(e.to_string()))?;
+            let bytes = std::fs::read(&path).unwrap_or_default();
+            (Some(db), Some(ego), Some((path, bytes)))
+        }
+        None => (None, None, None),
+    };
+    let ctx = Context {
+        rig,
+        decoder: model.map(|m| match &calibration {
+            Some(c) => Decoder::with_calibration(m, c.clone()),
+            None => Decoder::new(m),
+        }),
+        db,
+        ego,
+    };
+    let mut summary = RecordSummary::default();
+
+    // Pass 1: clock models.
+    let mut src = Sources::new();
+    for p in inputs {
+        ctx.run_capture(p, &mut src, None, &mut summary)?;
+    }
+    let lidar_model = src.lidar_clock.model();
+    let gnss_model = src.gnss_clock.model();
+    for (name, est) in [("lidar", &src.lidar_clock), ("gnss", &src.gnss_clock)] {
+        if let Some(m) = est.model() {
+            let r = est.residuals();
+            summary.clocks.push((
+                name.to_owned(),
+                m,
+                [r.p50_ns, r.p95_ns, r.max_ns],
+                est.pairs(),
+            ));
+        }
+    }
+
+    // Pass 2: write.
+    let rec = &rig.recording;
+    let options = BagOptions {
+        compression: rec.compression,
+        level: rec.compression_level,
+        chunk_size: rec.chunk_size_mib * 1024 * 1024,
+    };
+    let bag = BagWriter::create(output, &options)?;
+    let period = ctx
+        .decoder
+        .as_ref()
+        .map(|d| d.packet_period_us(hilrig_velodyne::ReturnMode::Strongest));
+    let mut out =
+        Output {
+            bag,
+            lidar: lidar_model,
+            gnss: gnss_model,
+            rotation: rig.lidar.as_ref().zip(period).map(|(l, p)| {
+                RotationAssembler::new((l.cut_azimuth_deg * 100.0).round() as u16, p)
+            }),
+            frame_lidar: rig
+                .lidar
+                .as_ref()
+                .map_or("velodyne".into(), |l| l.frame_id.clone()),
+            frame_gnss: rig
+                .gnss
+                .as_ref()
+                .map_or("gnss".into(), |g| g.frame_id.clone()),
+            last_speed: None,
+            last_yaw: None,
+            rig,
+        };
+    let start = UtcNanos::EPOCH;
+    out.bag
+        .attach("rig.toml", "application/toml", rig_text.as_bytes(), start)?;
+    if let Some((path, bytes)) = &dbc_bytes {
+        let name = path
+            .file_name()
+            .map_or("can.dbc".into(), |n| n.to_string_lossy().into_owned());
+        out.bag.attach(&name, "text/plain", bytes, start)?;
+    }
+    let mut src = Sources::new();
+    for p in inputs {
+        ctx.run_capture(p, &mut src, Some(&mut out), &mut summary)?;
+    }
+    if let Some(mut rot) = out.rotation.take() {
+        if let Some(done) = rot.finish() {
+            write_scan(&mut out, &done.packets)?;
+        }
+        summary.lidar_lost = rot.loss().lost;
+    }
+    let mut meta = BTreeMap::new();
+    meta.insert("rig".to_owned(), rig.name.clone());
+    meta.insert(
+        "hilrig_version".to_owned(),
+        env!("CARGO_PKG_VERSION").to_owned(),
+    );
+    meta.insert(
+        "inputs".to_owned(),
+        inputs
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(";"),
+    );
+    meta.insert(
+        "lidar_lost_packets".to_owned(),
+        summary.lidar_lost.to_string(),
+    );
+    out.bag.metadata("hilrig", meta)?;
+    for (name, m, r, pairs) in &summary.clocks {
+        let mut meta = BTreeMap::new();
+        meta.insert("reference_sensor_ns".to_owned(), m.reference.0.to_string());
+        meta.insert("offset_ns".to_owned(), format!("{:.0}", m.offset_ns));
+        meta.insert("drift_ppm".to_owned(), format!("{:.3}", m.drift * 1e6));
+        meta.insert("residual_p50_ns".to_owned(), format!("{:.0}", r[0]));
+        meta.insert("residual_p95_ns".to_owned(), format!("{:.0}", r[1]));
+        meta.insert("residual_max_ns".to_owned(), format!("{:.0}", r[2]));
+        meta.insert("pairs".to_owned(), pairs.to_string());
+        out.bag.metadata(&format!("clock_sync/{name}"), meta)?;
+    }
+    summary.counts = out.bag.finish()?;
+    Ok(summary)
+}
