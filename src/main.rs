@@ -35,6 +35,18 @@ enum Command {
     /// Record captures (pcap/pcapng with lidar UDP, SocketCAN and serial interfaces) into one
     /// time-synchronised MCAP (ROS 2 profile).
     Record(RecordArgs),
+    /// Salvage an MCAP that was cut off (power loss, kill -9, full disk): every complete record
+    /// before the cut goes into a new, valid file.
+    Recover(RecoverArgs),
+}
+
+#[derive(clap::Args)]
+struct RecoverArgs {
+    /// The cut-off file (e.g. drive.mcap.active).
+    file: PathBuf,
+    /// Output file (default: the input name without `.active`, or with `.recovered.mcap`).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -123,6 +135,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Decode(args) => run_decode(args),
         Command::Record(args) => run_record(args),
+        Command::Recover(args) => run_recover(args),
     };
     match result {
         Ok(code) => code,
@@ -408,4 +421,38 @@ fn run_record(args: RecordArgs) -> Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+fn run_recover(args: RecoverArgs) -> Result<ExitCode> {
+    let output = match &args.output {
+        Some(o) => o.clone(),
+        None => {
+            let name = args.file.to_string_lossy();
+            match name.strip_suffix(".active") {
+                Some(stem) if !std::path::Path::new(stem).exists() => PathBuf::from(stem),
+                _ => PathBuf::from(format!(
+                    "{}.recovered.mcap",
+                    name.trim_end_matches(".active")
+                )),
+            }
+        }
+    };
+    if output == args.file {
+        bail!("the output would overwrite the input; give -o");
+    }
+    let r =
+        hilrig::bag::recover::recover(&args.file, &output, &hilrig::bag::BagOptions::default())?;
+    let out = output.display();
+    for (topic, n) in &r.counts {
+        eprintln!("{out}: {topic}: {n} messages");
+    }
+    match &r.stopped_by {
+        Some(why) => eprintln!(
+            "{}: cut off; reading stopped at: {why}",
+            args.file.display()
+        ),
+        None => eprintln!("{}: the file was complete", args.file.display()),
+    }
+    eprintln!("{out}: {} messages recovered", r.messages);
+    Ok(ExitCode::SUCCESS)
 }

@@ -562,16 +562,7 @@ pub fn record_from(
             .map_or("can.dbc".into(), |n| n.to_string_lossy().into_owned());
         out.bag.attach(&name, "text/plain", bytes, start)?;
     }
-    let mut src = Sources::new();
-    for p in inputs {
-        ctx.run_capture(p, &mut src, Some(&mut out), &mut summary)?;
-    }
-    if let Some(mut rot) = out.rotation.take() {
-        if let Some(done) = rot.finish() {
-            write_scan(&mut out, &done.packets)?;
-        }
-        summary.lidar_lost = rot.loss().lost;
-    }
+    // Metadata first: a recording cut off later still says what it is and how it was synced.
     let mut meta = BTreeMap::new();
     meta.insert("rig".to_owned(), rig.name.clone());
     meta.insert(
@@ -586,10 +577,6 @@ pub fn record_from(
             .collect::<Vec<_>>()
             .join(";"),
     );
-    meta.insert(
-        "lidar_lost_packets".to_owned(),
-        summary.lidar_lost.to_string(),
-    );
     out.bag.metadata("hilrig", meta)?;
     for (name, m, r, pairs) in &summary.clocks {
         let mut meta = BTreeMap::new();
@@ -602,6 +589,23 @@ pub fn record_from(
         meta.insert("pairs".to_owned(), pairs.to_string());
         out.bag.metadata(&format!("clock_sync/{name}"), meta)?;
     }
+    let mut src = Sources::new();
+    for p in inputs {
+        ctx.run_capture(p, &mut src, Some(&mut out), &mut summary)?;
+    }
+    if let Some(mut rot) = out.rotation.take() {
+        if let Some(done) = rot.finish() {
+            write_scan(&mut out, &done.packets)?;
+        }
+        summary.lidar_lost = rot.loss().lost;
+    }
+    let mut meta = BTreeMap::new();
+    meta.insert(
+        "lidar_lost_packets".to_owned(),
+        summary.lidar_lost.to_string(),
+    );
+    meta.insert("input_errors".to_owned(), summary.input_errors.join("; "));
+    out.bag.metadata("hilrig/end", meta)?;
     summary.counts = out.bag.finish()?;
     Ok(summary)
 }

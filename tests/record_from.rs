@@ -264,3 +264,78 @@ fn generated_drive_records_with_synchronised_clocks() {
     assert!((tw["twist"]["linear"]["x"].as_f64().unwrap() - 5.0).abs() < 1e-9);
     assert!((tw["twist"]["angular"]["z"].as_f64().unwrap() + 0.1).abs() < 1e-9);
 }
+
+#[test]
+#[cfg_attr(
+    not(hilrig_python),
+    ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
+)]
+fn a_recording_cut_off_mid_chunk_is_recovered_losing_at_most_a_second_and_a_half() {
+    let truth = generate(6);
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("drive.pcapng");
+    std::fs::write(&input, &truth.capture).unwrap();
+    let full = dir.path().join("full.mcap");
+    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml");
+    let st = std::process::Command::new(common::hilrig_bin())
+        .args(["record", "--rig", rig, "--from"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&full)
+        .output()
+        .unwrap();
+    assert!(st.status.success());
+    let read = |p: &std::path::Path| -> serde_json::Value {
+        let o = std::process::Command::new(common::python())
+            .arg(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/tests/interop/mcap_read.py"
+            ))
+            .arg(p)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let whole = read(&full);
+    let bytes = std::fs::read(&full).unwrap();
+    for fraction in [0.3, 0.55, 0.8] {
+        let cut_at = (bytes.len() as f64 * fraction) as usize;
+        let cut = dir.path().join(format!("cut{fraction}.mcap.active"));
+        std::fs::write(&cut, &bytes[..cut_at]).unwrap();
+        let rec = dir.path().join(format!("rec{fraction}.mcap"));
+        let st = std::process::Command::new(common::hilrig_bin())
+            .arg("recover")
+            .arg(&cut)
+            .arg("-o")
+            .arg(&rec)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&st.stderr);
+        assert!(st.status.success(), "{stderr}");
+        assert!(stderr.contains("cut off"), "{stderr}");
+        let got = read(&rec);
+        // The newest data that had reached the disk: the end time of the last chunk that starts
+        // before the cut.
+        let reached = whole["chunks"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|c| c["offset"].as_u64().unwrap() < cut_at as u64)
+            .map(|c| c["end"].as_u64().unwrap())
+            .max()
+            .unwrap();
+        let last = got["last_log_time"].as_u64().unwrap();
+        let lost_s = (reached - last) as f64 * 1e-9;
+        println!(
+            "cut at {:.0} %: recovered up to {lost_s:.3} s before the newest data written",
+            fraction * 100.0
+        );
+        assert!(lost_s <= 1.5, "lost {lost_s} s");
+        assert_eq!(
+            got["metadata"]["hilrig"]["rig"], "demo-vlp16",
+            "metadata written first survives"
+        );
+        assert_eq!(got["profile"], "ros2");
+    }
+}

@@ -4,6 +4,7 @@
 
 pub mod cdr;
 pub mod msgs;
+pub mod recover;
 pub mod writer;
 
 pub use writer::{BagError, BagOptions, BagWriter, Compression};

@@ -59,12 +59,15 @@ def main():
         out["library"] = header.library
         summary = reader.get_summary()
         out["chunks"] = [
-            {"start": c.message_start_time, "end": c.message_end_time, "compression": c.compression}
+            {"start": c.message_start_time, "end": c.message_end_time, "compression": c.compression,
+             "offset": c.chunk_start_offset, "length": c.chunk_length}
             for c in (summary.chunk_indexes if summary else [])
         ]
         counts = defaultdict(int)
         for schema, channel, message in reader.iter_messages():
             counts[channel.topic] += 1
+            out.setdefault("last_log_time", 0)
+            out["last_log_time"] = max(out["last_log_time"], message.log_time)
             out["channels"][channel.topic] = {"type": schema.name, "schema_encoding": schema.encoding, "encoding": channel.message_encoding}
             if channel.topic in decode and len(out["messages"][channel.topic]) < limit:
                 if schema.name not in registered:
