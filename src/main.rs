@@ -38,6 +38,14 @@ enum Command {
     /// Salvage an MCAP that was cut off (power loss, kill -9, full disk): every complete record
     /// before the cut goes into a new, valid file.
     Recover(RecoverArgs),
+    /// Summarise an MCAP: channels, types, counts, rates, time span, clock synchronisation.
+    Info(InfoArgs),
+}
+
+#[derive(clap::Args)]
+struct InfoArgs {
+    /// The MCAP file.
+    file: PathBuf,
 }
 
 #[derive(clap::Args)]
@@ -136,6 +144,7 @@ fn main() -> ExitCode {
         Command::Decode(args) => run_decode(args),
         Command::Record(args) => run_record(args),
         Command::Recover(args) => run_recover(args),
+        Command::Info(args) => run_info(args),
     };
     match result {
         Ok(code) => code,
@@ -454,5 +463,44 @@ fn run_recover(args: RecoverArgs) -> Result<ExitCode> {
         None => eprintln!("{}: the file was complete", args.file.display()),
     }
     eprintln!("{out}: {} messages recovered", r.messages);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_info(args: InfoArgs) -> Result<ExitCode> {
+    let i = hilrig::bag::info::info(&args.file)?;
+    let mut out = io::stdout().lock();
+    writeln!(out, "file: {}", args.file.display())?;
+    writeln!(out, "profile: {}", i.profile)?;
+    let secs = i.span.map(|(a, b)| (b - a) as f64 * 1e-9);
+    match i.span {
+        Some((a, b)) => writeln!(
+            out,
+            "time: {} .. {} ({:.3} s)",
+            hilrig::stamp::civil::iso8601_millis(hilrig::stamp::UtcNanos(a as i64)),
+            hilrig::stamp::civil::iso8601_millis(hilrig::stamp::UtcNanos(b as i64)),
+            secs.unwrap_or(0.0)
+        )?,
+        None => writeln!(out, "time: (no messages)")?,
+    }
+    writeln!(out, "chunks: {}", i.chunks)?;
+    writeln!(out, "channels:")?;
+    for c in &i.channels {
+        let rate = secs
+            .filter(|s| *s > 0.0)
+            .map(|s| format!("{:9.2} Hz", c.count as f64 / s))
+            .unwrap_or_default();
+        writeln!(
+            out,
+            "  {:24} {:36} {:>9} msgs {rate}",
+            c.topic, c.message_type, c.count
+        )?;
+    }
+    for (name, m) in &i.metadata {
+        let kv: Vec<String> = m.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        writeln!(out, "metadata {name}: {}", kv.join(", "))?;
+    }
+    for (name, ty, size) in &i.attachments {
+        writeln!(out, "attachment {name} ({ty}, {size} bytes)")?;
+    }
     Ok(ExitCode::SUCCESS)
 }

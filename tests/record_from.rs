@@ -339,3 +339,53 @@ fn a_recording_cut_off_mid_chunk_is_recovered_losing_at_most_a_second_and_a_half
         assert_eq!(got["profile"], "ros2");
     }
 }
+
+#[test]
+fn info_summarises_a_recording_and_points_cut_off_files_to_recover() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("room.mcap");
+    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml");
+    let fixture = common::fixture("vlp16_room.pcapng");
+    let st = std::process::Command::new(common::hilrig_bin())
+        .args(["record", "--rig", rig, "--from"])
+        .arg(&fixture)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let info = std::process::Command::new(common::hilrig_bin())
+        .arg("info")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(info.status.success());
+    assert!(text.contains("profile: ros2"), "{text}");
+    // 160 packets of 0.21 s at 10 Hz: three VelodyneScan messages (a partial, a full, a partial).
+    assert!(
+        text.lines().any(|l| l.contains("/velodyne_packets")
+            && l.contains("velodyne_msgs/msg/VelodyneScan")
+            && l.contains(" 3 msgs")),
+        "{text}"
+    );
+    assert!(
+        text.contains("metadata clock_sync/lidar:") && text.contains("pairs=160"),
+        "{text}"
+    );
+    assert!(text.contains("attachment rig.toml"), "{text}");
+    let bytes = std::fs::read(&out).unwrap();
+    let cut = dir.path().join("room.mcap.active");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let info = std::process::Command::new(common::hilrig_bin())
+        .arg("info")
+        .arg(&cut)
+        .output()
+        .unwrap();
+    assert_eq!(info.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&info.stderr).contains("run `hilrig recover"));
+}
