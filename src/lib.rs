@@ -12,6 +12,7 @@ pub mod gnss_log;
 pub mod lidar;
 pub mod points_out;
 pub mod record;
+pub mod record_live;
 pub mod rig;
 
 pub use hilrig_can as can;

@@ -32,8 +32,8 @@ enum Command {
     /// Decode a capture or log: lidar points (pcap/pcapng) or GNSS fixes (serial logs, gpsd logs,
     /// serial interfaces of pcapng captures).
     Decode(DecodeArgs),
-    /// Record captures (pcap/pcapng with lidar UDP, SocketCAN and serial interfaces) into one
-    /// time-synchronised MCAP (ROS 2 profile).
+    /// Record the rig's sensors live (or, with --from, captures: pcap/pcapng with lidar UDP,
+    /// SocketCAN and serial interfaces) into one time-synchronised MCAP (ROS 2 profile).
     Record(RecordArgs),
     /// Salvage an MCAP that was cut off (power loss, kill -9, full disk): every complete record
     /// before the cut goes into a new, valid file.
@@ -62,12 +62,13 @@ struct RecordArgs {
     /// The rig file.
     #[arg(long)]
     rig: PathBuf,
-    /// Capture files to record from.
-    #[arg(long, required = true, num_args = 1..)]
+    /// Capture files to record from instead of the live sensors.
+    #[arg(long, num_args = 1..)]
     from: Vec<PathBuf>,
-    /// Output MCAP file (written as OUT.active until finished).
+    /// Output MCAP file (written as OUT.active until finished); live recordings default to
+    /// the rig's output_dir/RIG-YYYYMMDDTHHMMSSZ.mcap.
     #[arg(short, long)]
-    output: PathBuf,
+    output: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -406,8 +407,14 @@ fn run_record(args: RecordArgs) -> Result<ExitCode> {
     let rig = hilrig::rig::Rig::load(&args.rig)?;
     let text = std::fs::read_to_string(&args.rig)
         .with_context(|| format!("cannot read {}", args.rig.display()))?;
-    let summary = hilrig::record::record_from(&rig, &text, &args.from, &args.output)?;
-    let out = args.output.display();
+    if args.from.is_empty() {
+        return run_record_live(&rig, &text, args.output);
+    }
+    let Some(output) = args.output else {
+        bail!("record --from needs -o OUT.mcap");
+    };
+    let summary = hilrig::record::record_from(&rig, &text, &args.from, &output)?;
+    let out = output.display();
     for (topic, n) in &summary.counts {
         eprintln!("{out}: {topic}: {n} messages");
     }
@@ -503,4 +510,50 @@ fn run_info(args: InfoArgs) -> Result<ExitCode> {
         writeln!(out, "attachment {name} ({ty}, {size} bytes)")?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+fn run_record_live(
+    rig: &hilrig::rig::Rig,
+    text: &str,
+    output: Option<PathBuf>,
+) -> Result<ExitCode> {
+    let output = match output {
+        Some(o) => o,
+        None => {
+            let dir = rig.resolve(&rig.recording.output_dir);
+            std::fs::create_dir_all(&dir)
+                .with_context(|| format!("cannot create {}", dir.display()))?;
+            let now = hilrig::stamp::civil::iso8601_millis(hilrig::stamp::UtcNanos::now());
+            let stamp: String = now[..19]
+                .chars()
+                .filter(|c| c.is_ascii_digit() || *c == 'T')
+                .collect();
+            dir.join(format!("{}-{stamp}Z.mcap", rig.name))
+        }
+    };
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
+    let summary = rt.block_on(async {
+        let stop = async {
+            let mut term =
+                tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+                    .expect("SIGTERM handler");
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => {}
+                _ = term.recv() => {}
+            }
+        };
+        eprintln!("recording to {} (Ctrl-C to finish)", output.display());
+        hilrig::record_live::record_live(rig, text, &output, stop).await
+    })?;
+    for (topic, n) in &summary.counts {
+        eprintln!("{}: {topic}: {n} messages", output.display());
+    }
+    let dropped: u64 = summary.health.values().map(|v| v[2]).sum();
+    Ok(if dropped == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
 }

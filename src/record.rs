@@ -141,7 +141,8 @@ fn sync(model: Option<ClockModel>, sensor: UtcNanos) -> UtcNanos {
     model.map_or(sensor, |m| m.to_host(sensor))
 }
 
-fn nav_sat_fix(f: &Fix) -> Option<NavSatFix> {
+/// The NavSatFix of a fix (covariance from the sigmas; altitude above the ellipsoid).
+pub fn nav_sat_fix(f: &Fix) -> Option<NavSatFix> {
     let (lat, lon) = (f.lat?, f.lon?);
     let status = match f.quality {
         0 => -1,

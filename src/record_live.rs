@@ -1,0 +1,533 @@
+//! `hilrig record --rig R`: the recorder on the vehicle.
+//!
+//! Every source runs as its own tokio task on the drivers' I/O shells (UDP with kernel stamps,
+//! the reconnecting serial port, SocketCAN) and turns what it receives into encoded messages.
+//! Messages go to one writer thread through a bounded queue; a source never blocks on the queue
+//! (a full queue drops the message and counts it), so a slow disk cannot stall the sockets and
+//! their kernel buffers. The writer closes a chunk at least every second and keeps the file as
+//! `NAME.mcap.active` until a clean finish (SIGINT/SIGTERM), so a power cut loses at most the
+//! last chunk and `hilrig recover` salvages the rest. Per-source health (rate, drops, decode
+//! errors, reconnects) is printed every few seconds and at the end.
+
+use crate::bag::msgs::{self, MessageType};
+use crate::bag::{BagError, BagOptions, BagWriter};
+use crate::clock::ClockEstimator;
+use crate::rig::Rig;
+use hilrig_gnss::epoch::{NmeaEpochs, UbxEpochs};
+use hilrig_gnss::framer::{Frame, Framer, Item};
+use hilrig_stamp::{Stamped, UtcNanos};
+use hilrig_velodyne::clock::HourResolver;
+use hilrig_velodyne::source::{LidarItem, LidarSource, DEFAULT_RECV_BUFFER};
+use hilrig_velodyne::{Model, RotationAssembler};
+use std::collections::BTreeMap;
+use std::net::SocketAddr;
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// Messages waiting for the writer (about 2 s of a VLP-32C plus everything else).
+const QUEUE: usize = 8192;
+
+/// One message for the writer.
+struct Event {
+    topic: &'static str,
+    ty: &'static MessageType,
+    log_time: UtcNanos,
+    publish_time: UtcNanos,
+    cdr: Vec<u8>,
+}
+
+/// Counters of one source, shared with the health printer.
+#[derive(Default, Debug)]
+pub struct Health {
+    /// Items received.
+    pub received: AtomicU64,
+    /// Messages queued for writing.
+    pub queued: AtomicU64,
+    /// Messages dropped because the writer queue was full.
+    pub dropped: AtomicU64,
+    /// Items that did not decode.
+    pub decode_errors: AtomicU64,
+    /// Packets lost before reaching us (lidar timestamp gaps).
+    pub lost: AtomicU64,
+    /// Reconnects (serial).
+    pub reconnects: AtomicU64,
+}
+
+fn types() -> &'static BTreeMap<&'static str, MessageType> {
+    static T: std::sync::OnceLock<BTreeMap<&'static str, MessageType>> = std::sync::OnceLock::new();
+    T.get_or_init(|| {
+        let mut m = BTreeMap::new();
+        m.insert("scan", msgs::velodyne_scan_type());
+        m.insert("raw", msgs::raw_packet_type());
+        m.insert("nmea", msgs::nmea_sentence_type());
+        m.insert("fix", msgs::nav_sat_fix_type());
+        m.insert("can", msgs::can_frame_type());
+        m
+    })
+}
+
+fn send(tx: &SyncSender<Event>, h: &Health, e: Event) {
+    match tx.try_send(e) {
+        Ok(()) => {
+            h.queued.fetch_add(1, Ordering::Relaxed);
+        }
+        Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
+            h.dropped.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// What a live recording did.
+#[derive(Debug, Default)]
+pub struct LiveSummary {
+    /// Messages per topic in the file.
+    pub counts: BTreeMap<String, u64>,
+    /// Health per source at the end.
+    pub health: BTreeMap<String, [u64; 6]>,
+}
+
+/// Why the recorder stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum LiveError {
+    /// A source could not be opened at start.
+    #[error("{source_name}: {error}")]
+    Source {
+        /// Which source.
+        source_name: &'static str,
+        /// The error.
+        error: String,
+    },
+    /// Writing failed (disk full, unwritable). Everything written before is in the `.active` file.
+    #[error("{0} (everything recorded before is in the .active file: run `hilrig recover` on it)")]
+    Bag(#[from] BagError),
+}
+
+/// Runs the recorder until `stop` resolves; then finishes the file.
+pub async fn record_live(
+    rig: &Rig,
+    rig_text: &str,
+    output: &Path,
+    stop: impl std::future::Future<Output = ()>,
+) -> Result<LiveSummary, LiveError> {
+    let rec = &rig.recording;
+    let options = BagOptions {
+        compression: rec.compression,
+        level: rec.compression_level,
+        chunk_size: rec.chunk_size_mib * 1024 * 1024,
+    };
+    let mut bag = BagWriter::create(output, &options)?;
+    let mut meta = BTreeMap::new();
+    meta.insert("rig".to_owned(), rig.name.clone());
+    meta.insert(
+        "hilrig_version".to_owned(),
+        env!("CARGO_PKG_VERSION").to_owned(),
+    );
+    meta.insert("mode".to_owned(), "live".to_owned());
+    bag.metadata("hilrig", meta)?;
+    bag.attach(
+        "rig.toml",
+        "application/toml",
+        rig_text.as_bytes(),
+        UtcNanos::now(),
+    )?;
+
+    let (tx, rx) = sync_channel::<Event>(QUEUE);
+    // Sources finish their pending state (the last partial rotation, the open GNSS epoch) when
+    // this flips, instead of being aborted mid-message.
+    let (shutdown_tx, shutdown) = tokio::sync::watch::channel(false);
+    let clocks: Arc<Mutex<BTreeMap<&'static str, ClockEstimator>>> = Arc::default();
+    let mut health: BTreeMap<&'static str, Arc<Health>> = BTreeMap::new();
+    let mut tasks = Vec::new();
+
+    // Open every source before writing anything: a wrong port stops the recorder at start.
+    if let Some(l) = &rig.lidar {
+        let model: Model = l.model.parse().map_err(|e: String| LiveError::Source {
+            source_name: "lidar",
+            error: e,
+        })?;
+        let ip: std::net::IpAddr = l.bind.parse().map_err(|e| LiveError::Source {
+            source_name: "lidar",
+            error: format!("bind address {}: {e}", l.bind),
+        })?;
+        let source = LidarSource::bind(
+            SocketAddr::new(ip, l.data_port),
+            Some(SocketAddr::new(ip, l.position_port)),
+            Some(model),
+            DEFAULT_RECV_BUFFER,
+        )
+        .map_err(|e| LiveError::Source {
+            source_name: "lidar",
+            error: e.to_string(),
+        })?;
+        let h = Arc::new(Health::default());
+        health.insert("lidar", h.clone());
+        let period = hilrig_velodyne::Decoder::new(model)
+            .packet_period_us(hilrig_velodyne::ReturnMode::Strongest);
+        let cut = (l.cut_azimuth_deg * 100.0).round() as u16;
+        tasks.push(tokio::spawn(lidar_task(
+            source,
+            l.frame_id.clone(),
+            cut,
+            period,
+            tx.clone(),
+            h,
+            clocks.clone(),
+            shutdown.clone(),
+        )));
+    }
+    if let Some(g) = &rig.gnss {
+        let source = hilrig_gnss::serial::SerialSource::open(&g.port, g.baud).map_err(|e| {
+            LiveError::Source {
+                source_name: "gnss",
+                error: e.to_string(),
+            }
+        })?;
+        let h = Arc::new(Health::default());
+        health.insert("gnss", h.clone());
+        tasks.push(tokio::spawn(gnss_task(
+            source,
+            g.frame_id.clone(),
+            tx.clone(),
+            h,
+            clocks.clone(),
+            shutdown.clone(),
+        )));
+    }
+    if let Some(c) = &rig.can {
+        let source =
+            hilrig_can::socketcan_source::SocketCanSource::open(&c.interface).map_err(|e| {
+                LiveError::Source {
+                    source_name: "can",
+                    error: e.to_string(),
+                }
+            })?;
+        let h = Arc::new(Health::default());
+        health.insert("can", h.clone());
+        tasks.push(tokio::spawn(can_task(
+            source,
+            tx.clone(),
+            h,
+            shutdown.clone(),
+        )));
+    }
+    drop(tx);
+
+    // The writer: a plain thread, so file I/O never blocks the runtime.
+    let writer = std::thread::spawn(move || -> Result<BagWriter, BagError> {
+        while let Ok(e) = rx.recv() {
+            bag.write(e.topic, e.ty, e.log_time, e.publish_time, &e.cdr)?;
+        }
+        Ok(bag)
+    });
+
+    let printer = {
+        let health = health.clone();
+        tokio::spawn(async move {
+            let mut tick = tokio::time::interval(Duration::from_secs(5));
+            tick.tick().await;
+            loop {
+                tick.tick().await;
+                print_health(&health);
+            }
+        })
+    };
+    stop.await;
+    let _ = shutdown_tx.send(true);
+    for t in tasks {
+        // Bounded: a source stuck in a syscall is abandoned after two seconds.
+        let _ = tokio::time::timeout(Duration::from_secs(2), t).await;
+    }
+    printer.abort();
+    let mut bag = writer.join().map_err(|_| BagError::Io {
+        path: output.display().to_string(),
+        source: std::io::Error::other("writer thread panicked"),
+    })??;
+    let clocks = clocks.lock().map(|c| c.clone()).unwrap_or_default();
+    for (name, est) in &clocks {
+        if let Some(m) = est.model() {
+            let r = est.residuals();
+            let mut meta = BTreeMap::new();
+            meta.insert("reference_sensor_ns".to_owned(), m.reference.0.to_string());
+            meta.insert("offset_ns".to_owned(), format!("{:.0}", m.offset_ns));
+            meta.insert("drift_ppm".to_owned(), format!("{:.3}", m.drift * 1e6));
+            meta.insert("residual_p50_ns".to_owned(), format!("{:.0}", r.p50_ns));
+            meta.insert("residual_p95_ns".to_owned(), format!("{:.0}", r.p95_ns));
+            meta.insert("residual_max_ns".to_owned(), format!("{:.0}", r.max_ns));
+            meta.insert("pairs".to_owned(), est.pairs().to_string());
+            bag.metadata(&format!("clock_sync/{name}"), meta)?;
+        }
+    }
+    let mut summary = LiveSummary::default();
+    let mut end = BTreeMap::new();
+    for (name, h) in &health {
+        let v = [
+            h.received.load(Ordering::Relaxed),
+            h.queued.load(Ordering::Relaxed),
+            h.dropped.load(Ordering::Relaxed),
+            h.decode_errors.load(Ordering::Relaxed),
+            h.lost.load(Ordering::Relaxed),
+            h.reconnects.load(Ordering::Relaxed),
+        ];
+        end.insert(format!("{name}_received"), v[0].to_string());
+        end.insert(format!("{name}_dropped"), v[2].to_string());
+        end.insert(format!("{name}_decode_errors"), v[3].to_string());
+        end.insert(format!("{name}_lost"), v[4].to_string());
+        summary.health.insert(name.to_string(), v);
+    }
+    bag.metadata("hilrig/end", end)?;
+    print_health(&health);
+    summary.counts = bag.finish()?;
+    Ok(summary)
+}
+
+fn print_health(health: &BTreeMap<&'static str, Arc<Health>>) {
+    for (name, h) in health {
+        eprintln!(
+            "{name}: received {}, written {}, dropped {}, decode errors {}, lost {}, reconnects {}",
+            h.received.load(Ordering::Relaxed),
+            h.queued.load(Ordering::Relaxed),
+            h.dropped.load(Ordering::Relaxed),
+            h.decode_errors.load(Ordering::Relaxed),
+            h.lost.load(Ordering::Relaxed),
+            h.reconnects.load(Ordering::Relaxed)
+        );
+    }
+}
+
+fn send_scan(
+    tx: &SyncSender<Event>,
+    h: &Health,
+    frame: &str,
+    packets: &[Stamped<hilrig_velodyne::DataPacket>],
+) {
+    if packets.is_empty() {
+        return;
+    }
+    let encoded: Vec<[u8; 1206]> = packets.iter().map(|p| p.value.encode()).collect();
+    let list: Vec<(UtcNanos, &[u8; 1206])> = packets
+        .iter()
+        .zip(&encoded)
+        .map(|(p, e)| (p.sensor.unwrap_or(p.host), e))
+        .collect();
+    let stamp = list[0].0;
+    let publish = packets.last().map_or(stamp, |p| p.host);
+    let cdr = msgs::velodyne_scan(stamp, frame, &list);
+    send(
+        tx,
+        h,
+        Event {
+            topic: crate::record::topics::VELODYNE_PACKETS,
+            ty: &types()["scan"],
+            log_time: stamp,
+            publish_time: publish,
+            cdr,
+        },
+    );
+}
+
+#[allow(clippy::too_many_arguments)]
+async fn lidar_task(
+    mut source: LidarSource,
+    frame: String,
+    cut: u16,
+    period_us: f64,
+    tx: SyncSender<Event>,
+    h: Arc<Health>,
+    clocks: Arc<Mutex<BTreeMap<&'static str, ClockEstimator>>>,
+    mut shutdown: tokio::sync::watch::Receiver<bool>,
+) {
+    let mut hours = HourResolver::default();
+    let mut rotation = RotationAssembler::new(cut, period_us);
+    let t = types();
+    loop {
+        let item = tokio::select! {
+            item = source.next() => item,
+            _ = shutdown.changed() => {
+                if let Some(done) = rotation.finish() {
+                    send_scan(&tx, &h, &frame, &done.packets);
+                }
+                h.lost.store(rotation.loss().lost, Ordering::Relaxed);
+                return;
+            }
+        };
+        let Ok(item) = item else { continue };
+        h.received.fetch_add(1, Ordering::Relaxed);
+        match item {
+            LidarItem::Position(p) => {
+                hours.handle_position(&p.value, p.host);
+                let cdr = msgs::raw_packet(p.host, &frame, &p.value.encode());
+                send(
+                    &tx,
+                    &h,
+                    Event {
+                        topic: crate::record::topics::VELODYNE_POSITION,
+                        ty: &t["raw"],
+                        log_time: p.host,
+                        publish_time: p.host,
+                        cdr,
+                    },
+                );
+            }
+            LidarItem::Data(d) => {
+                let sensor = hours.resolve(d.value.timestamp_us, d.host).map(|(s, _)| s);
+                let synced = match sensor {
+                    Some(s) => {
+                        let mut c = clocks.lock().unwrap_or_else(|e| e.into_inner());
+                        let est = c.entry("lidar").or_insert_with(ClockEstimator::new);
+                        est.handle(s, d.host);
+                        est.model().map_or(s, |m| m.to_host(s))
+                    }
+                    None => d.host,
+                };
+                if let Some(done) = rotation.push(Stamped {
+                    host: d.host,
+                    sensor: Some(synced),
+                    value: d.value,
+                }) {
+                    h.lost.store(rotation.loss().lost, Ordering::Relaxed);
+                    send_scan(&tx, &h, &frame, &done.packets);
+                }
+            }
+            LidarItem::Rejected { .. } => {
+                h.decode_errors.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+}
+
+async fn gnss_task(
+    mut source: hilrig_gnss::serial::SerialSource,
+    frame: String,
+    tx: SyncSender<Event>,
+    h: Arc<Health>,
+    clocks: Arc<Mutex<BTreeMap<&'static str, ClockEstimator>>>,
+    mut shutdown: tokio::sync::watch::Receiver<bool>,
+) {
+    let mut framer = Framer::new();
+    let mut nmea = NmeaEpochs::default();
+    let mut ubx = UbxEpochs::default();
+    let mut last_host: Option<UtcNanos> = None;
+    let t = types();
+    loop {
+        let chunk = tokio::select! {
+            c = source.next_chunk() => c,
+            _ = shutdown.changed() => return,
+        };
+        h.reconnects
+            .store(source.stats.reconnects, Ordering::Relaxed);
+        framer.push(&chunk.bytes);
+        while let Some(item) = framer.next_frame() {
+            let host = chunk.host;
+            let epoch_host = last_host.unwrap_or(host);
+            let Item::Frame { frame: f, .. } = item else {
+                h.decode_errors.fetch_add(1, Ordering::Relaxed);
+                continue;
+            };
+            last_host = Some(host);
+            h.received.fetch_add(1, Ordering::Relaxed);
+            let mut fixes = Vec::new();
+            match f {
+                Frame::Nmea(s) => {
+                    send(
+                        &tx,
+                        &h,
+                        Event {
+                            topic: crate::record::topics::GNSS_NMEA,
+                            ty: &t["nmea"],
+                            log_time: host,
+                            publish_time: host,
+                            cdr: msgs::nmea_sentence(host, &frame, &s),
+                        },
+                    );
+                    match hilrig_gnss::nmea::parse(&s) {
+                        Ok(sentence) => fixes.extend(nmea.push(&sentence)),
+                        Err(_) => {
+                            h.decode_errors.fetch_add(1, Ordering::Relaxed);
+                        }
+                    }
+                }
+                Frame::Ubx { class, id, payload } => {
+                    let raw = hilrig_gnss::framer::ubx_frame(class, id, &payload);
+                    send(
+                        &tx,
+                        &h,
+                        Event {
+                            topic: crate::record::topics::GNSS_UBX,
+                            ty: &t["raw"],
+                            log_time: host,
+                            publish_time: host,
+                            cdr: msgs::raw_packet(host, &frame, &raw),
+                        },
+                    );
+                    if let Ok(m) = hilrig_gnss::ubx::decode(class, id, &payload) {
+                        fixes.extend(ubx.push(&m));
+                    }
+                }
+                Frame::Rtcm3 { .. } => {}
+            }
+            for fix in fixes {
+                let Some(time) = fix.time else { continue };
+                let synced = {
+                    let mut c = clocks.lock().unwrap_or_else(|e| e.into_inner());
+                    let est = c.entry("gnss").or_insert_with(ClockEstimator::new);
+                    est.handle(time, epoch_host);
+                    est.model().map_or(time, |m| m.to_host(time))
+                };
+                if let Some(nav) = crate::record::nav_sat_fix(&fix) {
+                    send(
+                        &tx,
+                        &h,
+                        Event {
+                            topic: crate::record::topics::GNSS_FIX,
+                            ty: &t["fix"],
+                            log_time: synced,
+                            publish_time: epoch_host,
+                            cdr: msgs::nav_sat_fix(time, &frame, &nav),
+                        },
+                    );
+                }
+            }
+        }
+    }
+}
+
+async fn can_task(
+    mut source: hilrig_can::socketcan_source::SocketCanSource,
+    tx: SyncSender<Event>,
+    h: Arc<Health>,
+    mut shutdown: tokio::sync::watch::Receiver<bool>,
+) {
+    let t = types();
+    let iface = source.interface().to_owned();
+    loop {
+        let f = tokio::select! {
+            f = source.next() => f,
+            _ = shutdown.changed() => return,
+        };
+        let Ok(f) = f else { continue };
+        h.received.fetch_add(1, Ordering::Relaxed);
+        let host = f.host;
+        let (ty, cdr) = if f.value.fd {
+            (
+                &t["raw"],
+                msgs::raw_packet(host, &iface, &f.value.encode_socketcan()),
+            )
+        } else {
+            (&t["can"], msgs::can_frame(host, &iface, &f.value))
+        };
+        send(
+            &tx,
+            &h,
+            Event {
+                topic: crate::record::topics::CAN_FRAMES,
+                ty,
+                log_time: host,
+                publish_time: host,
+                cdr,
+            },
+        );
+    }
+}
