@@ -376,7 +376,7 @@ async fn lidar_task(
                 let synced = match sensor {
                     Some(s) => {
                         let mut c = clocks.lock().unwrap_or_else(|e| e.into_inner());
-                        let est = c.entry("lidar").or_insert_with(ClockEstimator::new);
+                        let est = c.entry("lidar").or_default();
                         est.handle(s, d.host);
                         est.model().map_or(s, |m| m.to_host(s))
                     }
@@ -472,7 +472,7 @@ async fn gnss_task(
                 let Some(time) = fix.time else { continue };
                 let synced = {
                     let mut c = clocks.lock().unwrap_or_else(|e| e.into_inner());
-                    let est = c.entry("gnss").or_insert_with(ClockEstimator::new);
+                    let est = c.entry("gnss").or_default();
                     est.handle(time, epoch_host);
                     est.model().map_or(time, |m| m.to_host(time))
                 };
