@@ -139,6 +139,16 @@ fn init_logging(verbose: u8) {
 }
 
 fn main() -> ExitCode {
+    // A file-size limit (or a quota) must end in a write error the recorder can report and
+    // stop on, not in SIGXFSZ killing it mid-chunk.
+    // SAFETY: setting a signal to SIG_IGN at startup, before any thread exists, installs no
+    // handler code and cannot race.
+    let _ = unsafe {
+        nix::sys::signal::signal(
+            nix::sys::signal::Signal::SIGXFSZ,
+            nix::sys::signal::SigHandler::SigIgn,
+        )
+    };
     let cli = Cli::parse();
     init_logging(cli.verbose);
     let result = match cli.command {
@@ -159,10 +169,26 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", describe(&e));
             ExitCode::from(2)
         }
     }
+}
+
+/// The error and its causes, each said once: library errors already quote their cause in
+/// their message, so a cause whose text is already there is not repeated.
+fn describe(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if !out.contains(&text) {
+            if !out.is_empty() {
+                out.push_str(": ");
+            }
+            out.push_str(&text);
+        }
+    }
+    out
 }
 
 fn run_decode(args: DecodeArgs) -> Result<ExitCode> {

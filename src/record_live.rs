@@ -100,8 +100,11 @@ pub enum LiveError {
         /// The error.
         error: String,
     },
+    /// The recording could not be started (output not writable).
+    #[error("cannot start recording")]
+    Create(#[source] BagError),
     /// Writing failed (disk full, unwritable). Everything written before is in the `.active` file.
-    #[error("{0} (everything recorded before is in the .active file: run `hilrig recover` on it)")]
+    #[error("recording stopped; everything recorded before is in the .active file (run `hilrig recover` on it)")]
     Bag(#[from] BagError),
 }
 
@@ -118,7 +121,7 @@ pub async fn record_live(
         level: rec.compression_level,
         chunk_size: rec.chunk_size_mib * 1024 * 1024,
     };
-    let mut bag = BagWriter::create(output, &options)?;
+    let mut bag = BagWriter::create(output, &options).map_err(LiveError::Create)?;
     let mut meta = BTreeMap::new();
     meta.insert("rig".to_owned(), rig.name.clone());
     meta.insert(
@@ -216,9 +219,15 @@ pub async fn record_live(
     drop(tx);
 
     // The writer: a plain thread, so file I/O never blocks the runtime.
+    // When writing fails (disk full, device gone) the recorder must stop and say so, not go on
+    // receiving into a queue nobody drains.
+    let (failed_tx, failed_rx) = tokio::sync::oneshot::channel::<()>();
     let writer = std::thread::spawn(move || -> Result<BagWriter, BagError> {
         while let Ok(e) = rx.recv() {
-            bag.write(e.topic, e.ty, e.log_time, e.publish_time, &e.cdr)?;
+            if let Err(err) = bag.write(e.topic, e.ty, e.log_time, e.publish_time, &e.cdr) {
+                let _ = failed_tx.send(());
+                return Err(err);
+            }
         }
         Ok(bag)
     });
@@ -234,7 +243,10 @@ pub async fn record_live(
             }
         })
     };
-    stop.await;
+    tokio::select! {
+        _ = stop => {}
+        _ = failed_rx => eprintln!("error: writing {} failed; stopping the recorder", output.display()),
+    }
     let _ = shutdown_tx.send(true);
     for t in tasks {
         // Bounded: a source stuck in a syscall is abandoned after two seconds.

@@ -389,3 +389,21 @@ fn info_summarises_a_recording_and_points_cut_off_files_to_recover() {
     assert_eq!(info.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&info.stderr).contains("run `hilrig recover"));
 }
+
+#[test]
+fn an_unwritable_output_is_a_clear_error_at_start() {
+    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml");
+    let fixture = common::fixture("vlp16_room.pcapng");
+    let out = std::process::Command::new(common::hilrig_bin())
+        .args(["record", "--rig", rig, "--from"])
+        .arg(&fixture)
+        .args(["-o", "/nonexistent-folder/drive.mcap"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("cannot create /nonexistent-folder/drive.mcap.active"),
+        "{stderr}"
+    );
+}

@@ -44,7 +44,16 @@ impl Default for BagOptions {
 /// (complete chunks; `hilrig recover` finishes it).
 #[derive(Debug, thiserror::Error)]
 pub enum BagError {
-    /// Creating or renaming the file failed.
+    /// The output file cannot be created (missing folder, no permission, read-only disk).
+    #[error("cannot create {path}: {source}")]
+    Create {
+        /// The file.
+        path: String,
+        /// Cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Flushing or renaming the file failed.
     #[error("{path}: {source}")]
     Io {
         /// The file.
@@ -84,7 +93,7 @@ impl BagWriter {
         let mut active = target.as_os_str().to_owned();
         active.push(".active");
         let active = PathBuf::from(active);
-        let file = File::create(&active).map_err(|e| BagError::Io {
+        let file = File::create(&active).map_err(|e| BagError::Create {
             path: active.display().to_string(),
             source: e,
         })?;
