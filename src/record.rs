@@ -97,6 +97,7 @@ struct Context<'a> {
 /// Per-pass state of the sources.
 struct Sources {
     hours: HourResolver,
+    hour_source: Option<hilrig_velodyne::clock::HourSource>,
     lidar_clock: ClockEstimator,
     gnss_clock: ClockEstimator,
     framers: BTreeMap<u32, SerialState>,
@@ -117,6 +118,7 @@ impl Sources {
     fn new() -> Sources {
         Sources {
             hours: HourResolver::default(),
+            hour_source: None,
             lidar_clock: ClockEstimator::new(),
             gnss_clock: ClockEstimator::new(),
             framers: BTreeMap::new(),
@@ -225,9 +227,19 @@ impl Context<'_> {
                         let Ok(p) = DataPacket::decode(payload) else {
                             continue;
                         };
-                        let Some((sensor, _)) = src.hours.resolve(p.timestamp_us, host) else {
+                        let Some((sensor, hour_source)) = src.hours.resolve(p.timestamp_us, host)
+                        else {
                             continue;
                         };
+                        // The hour moving from the host clock to the RMC can shift sensor times
+                        // by hours: pairs from before belong to another line.
+                        if src
+                            .hour_source
+                            .replace(hour_source)
+                            .is_some_and(|prev| prev != hour_source)
+                        {
+                            src.lidar_clock = ClockEstimator::new();
+                        }
                         match out.as_deref_mut() {
                             None => src.lidar_clock.handle(sensor, host),
                             Some(o) => {
@@ -508,6 +520,7 @@ pub fn record_from(
     for p in inputs {
         ctx.run_capture(p, &mut src, None, &mut summary)?;
     }
+    let src_hours = src.hours.clone();
     let lidar_model = src.lidar_clock.model();
     let gnss_model = src.gnss_clock.model();
     for (name, est) in [("lidar", &src.lidar_clock), ("gnss", &src.gnss_clock)] {
@@ -590,7 +603,10 @@ pub fn record_from(
         meta.insert("pairs".to_owned(), pairs.to_string());
         out.bag.metadata(&format!("clock_sync/{name}"), meta)?;
     }
+    // Pass 1 has seen the position packets: resolve hours with their RMC from the first packet.
+    let pass1_hours = src_hours.clone();
     let mut src = Sources::new();
+    src.hours = pass1_hours;
     for p in inputs {
         ctx.run_capture(p, &mut src, Some(&mut out), &mut summary)?;
     }

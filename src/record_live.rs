@@ -352,6 +352,7 @@ async fn lidar_task(
     mut shutdown: tokio::sync::watch::Receiver<bool>,
 ) {
     let mut hours = HourResolver::default();
+    let mut hour_source = None;
     let mut rotation = RotationAssembler::new(cut, period_us);
     let t = types();
     loop {
@@ -384,10 +385,15 @@ async fn lidar_task(
                 );
             }
             LidarItem::Data(d) => {
-                let sensor = hours.resolve(d.value.timestamp_us, d.host).map(|(s, _)| s);
-                let synced = match sensor {
-                    Some(s) => {
+                let resolved = hours.resolve(d.value.timestamp_us, d.host);
+                let synced = match resolved {
+                    Some((s, src)) => {
                         let mut c = clocks.lock().unwrap_or_else(|e| e.into_inner());
+                        // The hour moving from the host clock to the RMC can shift sensor times
+                        // by hours: the pairs from before belong to another line.
+                        if hour_source.replace(src).is_some_and(|prev| prev != src) {
+                            c.insert("lidar", ClockEstimator::new());
+                        }
                         let est = c.entry("lidar").or_default();
                         est.handle(s, d.host);
                         est.model().map_or(s, |m| m.to_host(s))

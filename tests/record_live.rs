@@ -167,14 +167,14 @@ fn live_recording_of_udp_and_pty_finishes_cleanly_on_sigint() {
     assert_eq!(v["channels"]["/velodyne_position"]["count"], position);
     assert_eq!(v["channels"]["/gnss/nmea"]["count"], sentences);
     assert_eq!(v["metadata"]["hilrig/end"]["lidar_dropped"], "0");
-    assert!(
-        v["metadata"]["clock_sync/lidar"]["pairs"]
-            .as_str()
-            .unwrap()
-            .parse::<usize>()
-            .unwrap()
-            >= data
-    );
+    // Pairs since the hour source settled (the fixture's position packet may arrive after the
+    // first data packets: then the model restarts on the RMC's hour).
+    let pairs: usize = v["metadata"]["clock_sync/lidar"]["pairs"]
+        .as_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(pairs > data / 2 && pairs <= data, "pairs {pairs}");
 }
 
 #[test]

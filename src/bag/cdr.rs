@@ -118,6 +118,10 @@ mod tests {
         assert_eq!(&b[8..12], &2u32.to_le_bytes());
         assert_eq!(&b[12..16], &3u32.to_le_bytes()); // "ab\0"
         assert_eq!(&b[16..19], b"ab\0");
-        assert_eq!(b.len(), 4 + 24, "f64 aligned to 8: at 16..24 after the header");
+        assert_eq!(
+            b.len(),
+            4 + 24,
+            "f64 aligned to 8: at 16..24 after the header"
+        );
     }
 }
