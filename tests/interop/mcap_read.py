@@ -42,10 +42,13 @@ def main():
     path = sys.argv[1]
     decode = set()
     limit = 1_000_000
+    count_scan_packets = False
     args = sys.argv[2:]
     while args:
         a = args.pop(0)
-        if a == "--decode":
+        if a == "--count-scan-packets":
+            count_scan_packets = True
+        elif a == "--decode":
             decode.add(args.pop(0))
         elif a == "--limit":
             limit = int(args.pop(0))
@@ -64,8 +67,16 @@ def main():
             for c in (summary.chunk_indexes if summary else [])
         ]
         counts = defaultdict(int)
+        scan_packets = 0
         for schema, channel, message in reader.iter_messages():
             counts[channel.topic] += 1
+            if count_scan_packets and schema.name == "velodyne_msgs/msg/VelodyneScan":
+                # Read only the sequence length: header stamp (8), frame_id (u32 + bytes), align 4.
+                d = message.data
+                n = int.from_bytes(d[12:16], "little")
+                off = 16 + n
+                off += (4 - (off - 4) % 4) % 4
+                scan_packets += int.from_bytes(d[off:off + 4], "little")
             out.setdefault("last_log_time", 0)
             out["last_log_time"] = max(out["last_log_time"], message.log_time)
             out["channels"][channel.topic] = {"type": schema.name, "schema_encoding": schema.encoding, "encoding": channel.message_encoding}
@@ -80,6 +91,7 @@ def main():
                 out["messages"][channel.topic].append(d)
         for topic, n in counts.items():
             out["channels"][topic]["count"] = n
+        out["scan_packets"] = scan_packets
         f.seek(0)
         reader = make_reader(f, validate_crcs=True)
         for m in reader.iter_metadata():
