@@ -389,7 +389,7 @@ fn thirty_seconds_at_20000_packets_per_second_lose_nothing() {
         r.gnss.write_all(nmea_sentence(&body).as_bytes()).unwrap();
         sentences += 1;
         std::thread::sleep(Duration::from_millis(50));
-        if sentences % 20 == 0 {
+        if sentences.is_multiple_of(20) {
             peak = peak.max(peak_rss_kib(pid).unwrap_or(0));
         }
     }
