@@ -22,7 +22,7 @@ use hilrig_gnss::framer::{Frame, Framer, Item};
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::clock::HourResolver;
 use hilrig_velodyne::{
-    DataPacket, Decoder, Model, PositionPacket, RotationAssembler, DATA_PACKET_SIZE,
+    Decoder, Model, PositionPacket, RawDataPacket, RotationAssembler, DATA_PACKET_SIZE,
     POSITION_PACKET_SIZE,
 };
 use std::collections::BTreeMap;
@@ -131,7 +131,7 @@ struct Output<'a> {
     bag: BagWriter,
     lidar: Option<ClockModel>,
     gnss: Option<ClockModel>,
-    rotation: Option<RotationAssembler>,
+    rotation: Option<RotationAssembler<RawDataPacket>>,
     frame_lidar: String,
     frame_gnss: String,
     last_speed: Option<f64>,
@@ -224,10 +224,12 @@ impl Context<'_> {
                             }
                         }
                     } else if dst.port() == l.data_port && payload.len() == DATA_PACKET_SIZE {
-                        let Ok(p) = DataPacket::decode(payload) else {
+                        // Validated but not decoded: the recorder writes the bytes as received.
+                        let Ok(raw) = RawDataPacket::check(payload) else {
                             continue;
                         };
-                        let Some((sensor, hour_source)) = src.hours.resolve(p.timestamp_us, host)
+                        let Some((sensor, hour_source)) =
+                            src.hours.resolve(RawDataPacket::timestamp_of(raw), host)
                         else {
                             continue;
                         };
@@ -248,7 +250,7 @@ impl Context<'_> {
                                     if let Some(done) = rot.push(hilrig_stamp::Stamped {
                                         host,
                                         sensor: Some(t),
-                                        value: p,
+                                        value: RawDataPacket(Box::new(*raw)),
                                     }) {
                                         write_scan(o, &done.packets)?;
                                     }
@@ -427,16 +429,14 @@ impl Context<'_> {
 
 fn write_scan(
     o: &mut Output<'_>,
-    packets: &[hilrig_stamp::Stamped<DataPacket>],
+    packets: &[hilrig_stamp::Stamped<RawDataPacket>],
 ) -> Result<(), RecordError> {
     let Some(first) = packets.first() else {
         return Ok(());
     };
-    let encoded: Vec<[u8; 1206]> = packets.iter().map(|p| p.value.encode()).collect();
     let list: Vec<(UtcNanos, &[u8; 1206])> = packets
         .iter()
-        .zip(&encoded)
-        .map(|(p, e)| (p.sensor.unwrap_or(p.host), e))
+        .map(|p| (p.sensor.unwrap_or(p.host), &*p.value.0))
         .collect();
     let stamp = first.sensor.unwrap_or(first.host);
     let publish = packets.last().map_or(first.host, |p| p.host);

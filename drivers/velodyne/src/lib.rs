@@ -29,7 +29,7 @@ pub use error::{CalibrationError, DecodeError};
 pub use model::{Model, ProductId};
 pub use packet::{Block, Channel, DataPacket, ReturnMode, DATA_PACKET_SIZE};
 pub use position::{PositionPacket, PpsStatus, Rmc, POSITION_PACKET_SIZE};
-pub use rotation::{LossCounter, Rotation, RotationAssembler};
+pub use rotation::{LossCounter, RawDataPacket, Rotation, RotationAssembler, RotationPacket};
 
 /// Default UDP port of data packets.
 pub const DATA_PORT: u16 = 2368;

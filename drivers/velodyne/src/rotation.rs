@@ -6,8 +6,85 @@
 //! fixed time (the firing cycle times the columns per packet), so a gap of n periods is n - 1
 //! lost packets. Time jumps (sensor re-synchronised, clock reset) are counted apart, not as loss.
 
-use crate::packet::DataPacket;
+use crate::packet::{DataPacket, DATA_PACKET_SIZE};
 use hilrig_stamp::Stamped;
+
+/// What rotation assembly needs of a packet: the azimuth of its first block and its sensor
+/// timestamp. Implemented for decoded packets and for raw payloads, so that the recorder can
+/// keep the bytes it will write without decoding and re-encoding every packet.
+pub trait RotationPacket {
+    /// Azimuth of the first block, hundredths of a degree.
+    fn first_azimuth(&self) -> u16;
+    /// Timestamp, microseconds past the hour.
+    fn timestamp_us(&self) -> u32;
+}
+
+impl RotationPacket for DataPacket {
+    fn first_azimuth(&self) -> u16 {
+        self.blocks[0].azimuth
+    }
+    fn timestamp_us(&self) -> u32 {
+        self.timestamp_us
+    }
+}
+
+/// A data packet's payload as received (already checked to be a valid data packet).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RawDataPacket(pub Box<[u8; DATA_PACKET_SIZE]>);
+
+impl RawDataPacket {
+    /// Wraps a payload after checking size, block flags and azimuths (as [`DataPacket::decode`]
+    /// does, without decoding the channels).
+    pub fn new(bytes: &[u8]) -> Result<RawDataPacket, crate::DecodeError> {
+        let arr = RawDataPacket::check(bytes)?;
+        Ok(RawDataPacket(Box::new(*arr)))
+    }
+
+    /// The checks of [`RawDataPacket::new`] without copying; gives the payload as an array.
+    pub fn check(bytes: &[u8]) -> Result<&[u8; DATA_PACKET_SIZE], crate::DecodeError> {
+        let arr: &[u8; DATA_PACKET_SIZE] =
+            bytes
+                .try_into()
+                .map_err(|_| crate::DecodeError::WrongSize {
+                    expected: DATA_PACKET_SIZE,
+                    got: bytes.len(),
+                })?;
+        for i in 0..crate::packet::BLOCKS {
+            let o = i * crate::packet::BLOCK_SIZE;
+            let flag = u16::from_le_bytes([arr[o], arr[o + 1]]);
+            if flag != crate::packet::FLAG_UPPER {
+                return Err(crate::DecodeError::BadBlockFlag {
+                    block: i,
+                    offset: o,
+                    got: flag,
+                });
+            }
+            let az = u16::from_le_bytes([arr[o + 2], arr[o + 3]]);
+            if az > 36_000 {
+                return Err(crate::DecodeError::AzimuthOutOfRange {
+                    block: i,
+                    offset: o + 2,
+                    got: az,
+                });
+            }
+        }
+        Ok(arr)
+    }
+
+    /// Sensor timestamp of a checked payload, microseconds past the hour.
+    pub fn timestamp_of(arr: &[u8; DATA_PACKET_SIZE]) -> u32 {
+        u32::from_le_bytes([arr[1200], arr[1201], arr[1202], arr[1203]])
+    }
+}
+
+impl RotationPacket for RawDataPacket {
+    fn first_azimuth(&self) -> u16 {
+        u16::from_le_bytes([self.0[2], self.0[3]])
+    }
+    fn timestamp_us(&self) -> u32 {
+        u32::from_le_bytes([self.0[1200], self.0[1201], self.0[1202], self.0[1203]])
+    }
+}
 
 /// Microseconds in an hour, where sensor timestamps wrap.
 const HOUR_US: i64 = 3_600_000_000;
@@ -63,9 +140,9 @@ impl LossCounter {
 
 /// One rotation's packets.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Rotation {
+pub struct Rotation<P = DataPacket> {
     /// Packets in order of arrival.
-    pub packets: Vec<Stamped<DataPacket>>,
+    pub packets: Vec<Stamped<P>>,
     /// Packets lost inside this rotation (from timestamp gaps).
     pub lost_packets: u64,
     /// Whether the rotation began at the cut (false for the first, partial one).
@@ -74,16 +151,16 @@ pub struct Rotation {
 
 /// Groups packets into rotations.
 #[derive(Clone, Debug)]
-pub struct RotationAssembler {
+pub struct RotationAssembler<P = DataPacket> {
     cut: u16,
-    current: Vec<Stamped<DataPacket>>,
+    current: Vec<Stamped<P>>,
     last_rel: Option<u16>,
     lost_in_current: u64,
     started_at_cut: bool,
     loss: LossCounter,
 }
 
-impl RotationAssembler {
+impl<P: RotationPacket> RotationAssembler<P> {
     /// Cuts at `cut_centideg` (hundredths of a degree, 0..36000); `period_us` is the time one
     /// packet covers ([`crate::decode::Decoder::packet_period_us`]).
     pub fn new(cut_centideg: u16, period_us: f64) -> Self {
@@ -103,9 +180,9 @@ impl RotationAssembler {
     }
 
     /// Adds a packet; returns the rotation it completed, if any.
-    pub fn push(&mut self, pkt: Stamped<DataPacket>) -> Option<Rotation> {
-        let lost = self.loss.observe(pkt.value.timestamp_us);
-        let az = pkt.value.blocks[0].azimuth;
+    pub fn push(&mut self, pkt: Stamped<P>) -> Option<Rotation<P>> {
+        let lost = self.loss.observe(pkt.value.timestamp_us());
+        let az = pkt.value.first_azimuth();
         let rel = ((i32::from(az) - i32::from(self.cut)).rem_euclid(36_000)) as u16;
         let crossed = matches!(self.last_rel, Some(prev) if rel < prev);
         self.last_rel = Some(rel);
@@ -125,7 +202,7 @@ impl RotationAssembler {
     }
 
     /// The last, possibly partial, rotation.
-    pub fn finish(&mut self) -> Option<Rotation> {
+    pub fn finish(&mut self) -> Option<Rotation<P>> {
         if self.current.is_empty() {
             return None;
         }
