@@ -44,6 +44,8 @@ pub mod topics {
     pub const CAN_FRAMES: &str = "/can/frames";
     /// Ego speed and yaw rate.
     pub const EGO_TWIST: &str = "/ego/twist";
+    /// Rig extrinsics.
+    pub const TF_STATIC: &str = "/tf_static";
 }
 
 /// Why recording from captures failed.
@@ -605,6 +607,20 @@ pub fn record_from(
     }
     // Pass 1 has seen the position packets: resolve hours with their RMC from the first packet.
     let pass1_hours = src_hours.clone();
+    // The rig's extrinsics, stamped at the start of the data.
+    let first = summary
+        .clocks
+        .iter()
+        .map(|(_, m, _, _)| m.to_host(m.reference))
+        .min()
+        .unwrap_or(UtcNanos::EPOCH);
+    out.bag.write(
+        topics::TF_STATIC,
+        &msgs::tf_message_type(),
+        first,
+        first,
+        &msgs::tf_message(first, &rig.transforms()),
+    )?;
     let mut src = Sources::new();
     src.hours = pass1_hours;
     for p in inputs {

@@ -136,6 +136,14 @@ pub async fn record_live(
         rig_text.as_bytes(),
         UtcNanos::now(),
     )?;
+    let now = UtcNanos::now();
+    bag.write(
+        crate::record::topics::TF_STATIC,
+        &msgs::tf_message_type(),
+        now,
+        now,
+        &msgs::tf_message(now, &rig.transforms()),
+    )?;
 
     let (tx, rx) = sync_channel::<Event>(QUEUE);
     // Sources finish their pending state (the last partial rotation, the open GNSS epoch) when

@@ -188,6 +188,8 @@ fn generated_drive_records_with_synchronised_clocks() {
             "/can/frames",
             "--decode",
             "/velodyne_packets",
+            "--decode",
+            "/tf_static",
         ])
         .output()
         .unwrap();
@@ -260,6 +262,17 @@ fn generated_drive_records_with_synchronised_clocks() {
         assert_eq!(f["status"]["status"], 2);
         assert_eq!(f["position_covariance"][8], 0.025 * 0.025);
     }
+    // The rig's extrinsics from rigs/demo.toml.
+    let tf = &v["messages"]["/tf_static"][0]["transforms"];
+    assert_eq!(tf[0]["header"]["frame_id"], "base_link");
+    assert_eq!(tf[0]["child_frame_id"], "velodyne");
+    assert_eq!(tf[0]["transform"]["translation"]["z"], 1.95);
+    assert_eq!(tf[0]["transform"]["rotation"]["w"], 1.0);
+    assert_eq!(tf[1]["child_frame_id"], "gnss");
+    assert_eq!(
+        v["channels"]["/tf_static"]["type"],
+        "tf2_msgs/msg/TFMessage"
+    );
     let tw = &v["messages"]["/ego/twist"][0];
     assert!((tw["twist"]["linear"]["x"].as_f64().unwrap() - 5.0).abs() < 1e-9);
     assert!((tw["twist"]["angular"]["z"].as_f64().unwrap() + 0.1).abs() < 1e-9);

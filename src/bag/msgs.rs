@@ -234,3 +234,79 @@ pub fn twist_stamped(
     }
     w.finish()
 }
+
+/// `tf2_msgs/msg/TFMessage`.
+pub fn tf_message_type() -> MessageType {
+    MessageType {
+        name: "tf2_msgs/msg/TFMessage",
+        schema: with_deps(
+            "geometry_msgs/TransformStamped[] transforms\n",
+            &[
+                ("geometry_msgs/TransformStamped", "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/Transform transform\n"),
+                ("std_msgs/Header", HEADER),
+                ("builtin_interfaces/Time", TIME),
+                ("geometry_msgs/Transform", "geometry_msgs/Vector3 translation\ngeometry_msgs/Quaternion rotation\n"),
+                ("geometry_msgs/Vector3", "float64 x\nfloat64 y\nfloat64 z\n"),
+                ("geometry_msgs/Quaternion", "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1\n"),
+            ],
+        ),
+    }
+}
+
+/// One static transform: `child` in `parent`, translation in metres, rotation as roll, pitch,
+/// yaw in radians (applied yaw, then pitch, then roll: the ROS RPY convention).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Transform {
+    /// Parent frame.
+    pub parent: String,
+    /// Child frame.
+    pub child: String,
+    /// Translation x, y, z.
+    pub translation: [f64; 3],
+    /// Roll, pitch, yaw.
+    pub rpy: [f64; 3],
+}
+
+/// Quaternion (x, y, z, w) of roll, pitch, yaw.
+pub fn quaternion_from_rpy(roll: f64, pitch: f64, yaw: f64) -> [f64; 4] {
+    let (sr, cr) = (roll * 0.5).sin_cos();
+    let (sp, cp) = (pitch * 0.5).sin_cos();
+    let (sy, cy) = (yaw * 0.5).sin_cos();
+    [
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+        cr * cp * cy + sr * sp * sy,
+    ]
+}
+
+/// A TFMessage with static transforms.
+pub fn tf_message(stamp: UtcNanos, transforms: &[Transform]) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(128 * transforms.len() + 8);
+    w.sequence_len(transforms.len());
+    for t in transforms {
+        header(&mut w, stamp, &t.parent);
+        w.string(&t.child);
+        for v in t.translation {
+            w.f64(v);
+        }
+        for v in quaternion_from_rpy(t.rpy[0], t.rpy[1], t.rpy[2]) {
+            w.f64(v);
+        }
+    }
+    w.finish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quaternion_of_a_quarter_turn_in_yaw() {
+        let q = quaternion_from_rpy(0.0, 0.0, std::f64::consts::FRAC_PI_2);
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        for (a, b) in q.iter().zip([0.0, 0.0, h, h]) {
+            assert!((a - b).abs() < 1e-12, "{q:?}");
+        }
+    }
+}
