@@ -223,6 +223,30 @@ impl Rig {
     }
 }
 
+impl Rig {
+    /// The rig's extrinsics as static transforms from `base_link` (the vehicle frame).
+    pub fn transforms(&self) -> Vec<crate::bag::msgs::Transform> {
+        let t = |child: &str, m: &Mounting| crate::bag::msgs::Transform {
+            parent: "base_link".into(),
+            child: child.into(),
+            translation: [m.x, m.y, m.z],
+            rpy: [
+                m.roll_deg.to_radians(),
+                m.pitch_deg.to_radians(),
+                m.yaw_deg.to_radians(),
+            ],
+        };
+        let mut out = Vec::new();
+        if let Some(l) = &self.lidar {
+            out.push(t(&l.frame_id, &l.mounting));
+        }
+        if let Some(g) = &self.gnss {
+            out.push(t(&g.frame_id, &g.antenna));
+        }
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -250,29 +274,5 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("lidar.model"));
-    }
-}
-
-impl Rig {
-    /// The rig's extrinsics as static transforms from `base_link` (the vehicle frame).
-    pub fn transforms(&self) -> Vec<crate::bag::msgs::Transform> {
-        let t = |child: &str, m: &Mounting| crate::bag::msgs::Transform {
-            parent: "base_link".into(),
-            child: child.into(),
-            translation: [m.x, m.y, m.z],
-            rpy: [
-                m.roll_deg.to_radians(),
-                m.pitch_deg.to_radians(),
-                m.yaw_deg.to_radians(),
-            ],
-        };
-        let mut out = Vec::new();
-        if let Some(l) = &self.lidar {
-            out.push(t(&l.frame_id, &l.mounting));
-        }
-        if let Some(g) = &self.gnss {
-            out.push(t(&g.frame_id, &g.antenna));
-        }
-        out
     }
 }
