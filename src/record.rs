@@ -10,7 +10,7 @@
 //! go into the file's metadata for `check`.
 
 use crate::bag::msgs::{self, NavSatFix};
-use crate::bag::{BagError, BagOptions, BagWriter};
+use crate::bag::{BagError, BagWriter};
 use crate::clock::{ClockEstimator, ClockModel};
 use crate::rig::Rig;
 use hilrig_can::ego::{EgoSample, EgoTracker, Quantity};
@@ -539,11 +539,7 @@ pub fn record_from(
 
     // Pass 2: write.
     let rec = &rig.recording;
-    let options = BagOptions {
-        compression: rec.compression,
-        level: rec.compression_level,
-        chunk_size: rec.chunk_size_mib * 1024 * 1024,
-    };
+    let options = rec.bag_options();
     let bag = BagWriter::create(output, &options)?;
     let period = ctx
         .decoder
@@ -614,10 +610,9 @@ pub fn record_from(
         .map(|(_, m, _, _)| m.to_host(m.reference))
         .min()
         .unwrap_or(UtcNanos::EPOCH);
-    out.bag.write(
+    out.bag.write_static(
         topics::TF_STATIC,
         &msgs::tf_message_type(),
-        first,
         first,
         &msgs::tf_message(first, &rig.transforms()),
     )?;

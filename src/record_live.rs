@@ -10,7 +10,7 @@
 //! errors, reconnects) is printed every few seconds and at the end.
 
 use crate::bag::msgs::{self, MessageType};
-use crate::bag::{BagError, BagOptions, BagWriter};
+use crate::bag::{BagError, BagWriter};
 use crate::clock::ClockEstimator;
 use crate::rig::Rig;
 use hilrig_gnss::epoch::{NmeaEpochs, UbxEpochs};
@@ -116,11 +116,7 @@ pub async fn record_live(
     stop: impl std::future::Future<Output = ()>,
 ) -> Result<LiveSummary, LiveError> {
     let rec = &rig.recording;
-    let options = BagOptions {
-        compression: rec.compression,
-        level: rec.compression_level,
-        chunk_size: rec.chunk_size_mib * 1024 * 1024,
-    };
+    let options = rec.bag_options();
     let mut bag = BagWriter::create(output, &options).map_err(LiveError::Create)?;
     let mut meta = BTreeMap::new();
     meta.insert("rig".to_owned(), rig.name.clone());
@@ -137,10 +133,9 @@ pub async fn record_live(
         UtcNanos::now(),
     )?;
     let now = UtcNanos::now();
-    bag.write(
+    bag.write_static(
         crate::record::topics::TF_STATIC,
         &msgs::tf_message_type(),
-        now,
         now,
         &msgs::tf_message(now, &rig.transforms()),
     )?;

@@ -124,6 +124,26 @@ pub struct RecordingConfig {
     /// Chunk size in MiB (a chunk is also closed after one second).
     #[serde(default = "default_chunk_mib")]
     pub chunk_size_mib: u64,
+    /// Start a new file after this many MiB (default: never). Static data (rig, metadata,
+    /// /tf_static) is repeated in every file.
+    #[serde(default)]
+    pub split_size_mib: Option<u64>,
+    /// Start a new file after this many seconds of data (default: never).
+    #[serde(default)]
+    pub split_duration_s: Option<f64>,
+}
+
+impl RecordingConfig {
+    /// The writer options these settings mean.
+    pub fn bag_options(&self) -> crate::bag::BagOptions {
+        crate::bag::BagOptions {
+            compression: self.compression,
+            level: self.compression_level,
+            chunk_size: self.chunk_size_mib * 1024 * 1024,
+            split_size: self.split_size_mib.map(|m| m * 1024 * 1024),
+            split_duration_ns: self.split_duration_s.map(|s| (s * 1e9) as i64),
+        }
+    }
 }
 
 impl Default for RecordingConfig {
@@ -133,6 +153,8 @@ impl Default for RecordingConfig {
             compression: default_compression(),
             compression_level: default_level(),
             chunk_size_mib: default_chunk_mib(),
+            split_size_mib: None,
+            split_duration_s: None,
         }
     }
 }

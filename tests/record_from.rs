@@ -420,3 +420,79 @@ fn an_unwritable_output_is_a_clear_error_at_start() {
         "{stderr}"
     );
 }
+
+/// Splitting by duration: every file stands on its own (rig attachment, metadata, /tf_static),
+/// and together they hold every message of the unsplit recording.
+#[test]
+#[cfg_attr(
+    not(hilrig_python),
+    ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
+)]
+fn split_files_repeat_static_data_and_together_hold_everything() {
+    let truth = generate(10);
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("drive.pcapng");
+    std::fs::write(&input, &truth.capture).unwrap();
+    let demo =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml")).unwrap();
+    let rig = dir.path().join("split.toml");
+    std::fs::write(
+        &rig,
+        demo.replace(
+            "dbc = \"hilrig-ego.dbc\"",
+            &format!(
+                "dbc = \"{}/rigs/hilrig-ego.dbc\"",
+                env!("CARGO_MANIFEST_DIR")
+            ),
+        ) + "split_duration_s = 3.0\n",
+    )
+    .unwrap();
+    let out = dir.path().join("drive.mcap");
+    let st = std::process::Command::new(common::hilrig_bin())
+        .arg("record")
+        .arg("--rig")
+        .arg(&rig)
+        .arg("--from")
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let mut files: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
+        .collect();
+    files.sort();
+    assert_eq!(files.len(), 4, "10 s in 3 s files: {files:?}");
+    let mut nmea = 0;
+    for f in &files {
+        let o = std::process::Command::new(common::python())
+            .arg(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/tests/interop/mcap_read.py"
+            ))
+            .arg(f)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(v["channels"]["/tf_static"]["count"], 1, "{f:?}");
+        assert_eq!(v["metadata"]["hilrig"]["rig"], "demo-vlp16", "{f:?}");
+        assert!(
+            v["attachments"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|a| a["name"] == "rig.toml"),
+            "{f:?}"
+        );
+        nmea += v["channels"]["/gnss/nmea"]["count"].as_u64().unwrap_or(0);
+    }
+    assert_eq!(nmea as usize, truth.sentences);
+}

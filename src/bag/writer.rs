@@ -28,6 +28,10 @@ pub struct BagOptions {
     pub level: u32,
     /// Chunk size in bytes (a chunk is also closed after one second of log time).
     pub chunk_size: u64,
+    /// Start a new file after this many bytes of messages (None: never).
+    pub split_size: Option<u64>,
+    /// Start a new file after this much log time, nanoseconds (None: never).
+    pub split_duration_ns: Option<i64>,
 }
 
 impl Default for BagOptions {
@@ -36,6 +40,8 @@ impl Default for BagOptions {
             compression: Compression::Zstd,
             level: 1,
             chunk_size: 4 * 1024 * 1024,
+            split_size: None,
+            split_duration_ns: None,
         }
     }
 }
@@ -74,7 +80,7 @@ pub enum BagError {
 }
 
 /// Writes one MCAP file.
-pub struct BagWriter {
+struct OneFile {
     writer: mcap::Writer<BufWriter<File>>,
     active: PathBuf,
     target: PathBuf,
@@ -86,10 +92,10 @@ pub struct BagWriter {
 
 const CHUNK_MAX_SPAN_NS: i64 = 1_000_000_000;
 
-impl BagWriter {
+impl OneFile {
     /// Creates `TARGET.active` (e.g. `drive.mcap.active`) for writing; [`BagWriter::finish`]
     /// renames it to `target`.
-    pub fn create(target: &Path, options: &BagOptions) -> Result<BagWriter, BagError> {
+    fn create(target: &Path, options: &BagOptions) -> Result<OneFile, BagError> {
         let mut active = target.as_os_str().to_owned();
         active.push(".active");
         let active = PathBuf::from(active);
@@ -113,7 +119,7 @@ impl BagWriter {
                 path: active.display().to_string(),
                 source: e,
             })?;
-        Ok(BagWriter {
+        Ok(OneFile {
             writer,
             active,
             target: target.to_owned(),
@@ -219,11 +225,6 @@ impl BagWriter {
         self.writer.attach(&a).map_err(|e| self.err(e))
     }
 
-    /// Messages written per topic.
-    pub fn counts(&self) -> &BTreeMap<String, u64> {
-        &self.counts
-    }
-
     /// Writes the summary and renames `.active` to the target name.
     pub fn finish(mut self) -> Result<BTreeMap<String, u64>, BagError> {
         self.writer.finish().map_err(|e| self.err(e))?;
@@ -241,6 +242,188 @@ impl BagWriter {
             path: self.target.display().to_string(),
             source: e,
         })?;
+        Ok(self.counts)
+    }
+}
+
+/// A static item repeated at the start of every split file.
+#[derive(Clone)]
+enum Static {
+    Metadata(String, BTreeMap<String, String>),
+    Attachment(String, String, Vec<u8>, UtcNanos),
+    Message(String, MessageType, UtcNanos, Vec<u8>),
+}
+
+/// Writes a recording: one MCAP file, or a series when splitting by size or duration. Static
+/// data (metadata, attachments, `/tf_static`) is written again at the start of every file, so
+/// each file stands on its own in Foxglove, `ros2 bag` and `hilrig check`.
+pub struct BagWriter {
+    current: Option<OneFile>,
+    options: BagOptions,
+    target: PathBuf,
+    index: u32,
+    statics: Vec<Static>,
+    file_start: Option<UtcNanos>,
+    bytes: u64,
+    counts: BTreeMap<String, u64>,
+    files: Vec<PathBuf>,
+}
+
+impl BagWriter {
+    /// Starts a recording at `target` (with splitting: `STEM_0000.mcap`, `STEM_0001.mcap`, ...).
+    /// Each file is written as `NAME.active` and renamed when it is complete.
+    pub fn create(target: &Path, options: &BagOptions) -> Result<BagWriter, BagError> {
+        let mut w = BagWriter {
+            current: None,
+            options: options.clone(),
+            target: target.to_owned(),
+            index: 0,
+            statics: Vec::new(),
+            file_start: None,
+            bytes: 0,
+            counts: BTreeMap::new(),
+            files: Vec::new(),
+        };
+        let first = w.file_name(0);
+        w.current = Some(OneFile::create(&first, options)?);
+        w.files.push(first);
+        Ok(w)
+    }
+
+    fn splitting(&self) -> bool {
+        self.options.split_size.is_some() || self.options.split_duration_ns.is_some()
+    }
+
+    fn file_name(&self, index: u32) -> PathBuf {
+        if !self.splitting() {
+            return self.target.clone();
+        }
+        let stem = self
+            .target
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let ext = self
+            .target
+            .extension()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "mcap".into());
+        self.target
+            .with_file_name(format!("{stem}_{index:04}.{ext}"))
+    }
+
+    fn file(&mut self) -> &mut OneFile {
+        self.current
+            .as_mut()
+            .expect("a file is open between create and finish")
+    }
+
+    fn rotate(&mut self) -> Result<(), BagError> {
+        if let Some(done) = self.current.take() {
+            done.finish()?;
+        }
+        self.index += 1;
+        let name = self.file_name(self.index);
+        let mut next = OneFile::create(&name, &self.options)?;
+        for s in &self.statics {
+            match s {
+                Static::Metadata(n, m) => next.metadata(n, m.clone())?,
+                Static::Attachment(n, t, d, at) => next.attach(n, t, d, *at)?,
+                Static::Message(topic, ty, t, cdr) => next.write(topic, ty, *t, *t, cdr)?,
+            }
+        }
+        self.current = Some(next);
+        self.files.push(name);
+        self.file_start = None;
+        self.bytes = 0;
+        Ok(())
+    }
+
+    /// Writes one CDR message.
+    pub fn write(
+        &mut self,
+        topic: &str,
+        ty: &MessageType,
+        log_time: UtcNanos,
+        publish_time: UtcNanos,
+        cdr: &[u8],
+    ) -> Result<(), BagError> {
+        let start = *self.file_start.get_or_insert(log_time);
+        let over_size = self.options.split_size.is_some_and(|s| self.bytes >= s);
+        let over_time = self
+            .options
+            .split_duration_ns
+            .is_some_and(|d| log_time.0 - start.0 >= d);
+        if over_size || over_time {
+            self.rotate()?;
+            self.file_start = Some(log_time);
+        }
+        self.bytes += cdr.len() as u64;
+        *self.counts.entry(topic.to_owned()).or_insert(0) += 1;
+        self.file().write(topic, ty, log_time, publish_time, cdr)
+    }
+
+    /// Writes a message that every split file repeats (e.g. `/tf_static`).
+    pub fn write_static(
+        &mut self,
+        topic: &str,
+        ty: &MessageType,
+        time: UtcNanos,
+        cdr: &[u8],
+    ) -> Result<(), BagError> {
+        self.statics.push(Static::Message(
+            topic.to_owned(),
+            ty.clone(),
+            time,
+            cdr.to_vec(),
+        ));
+        *self.counts.entry(topic.to_owned()).or_insert(0) += 1;
+        self.file().write(topic, ty, time, time, cdr)
+    }
+
+    /// Adds a metadata record (repeated in every split file written after this call).
+    pub fn metadata(
+        &mut self,
+        name: &str,
+        entries: BTreeMap<String, String>,
+    ) -> Result<(), BagError> {
+        self.statics
+            .push(Static::Metadata(name.to_owned(), entries.clone()));
+        self.file().metadata(name, entries)
+    }
+
+    /// Adds an attachment (repeated in every split file written after this call).
+    pub fn attach(
+        &mut self,
+        name: &str,
+        media_type: &str,
+        data: &[u8],
+        time: UtcNanos,
+    ) -> Result<(), BagError> {
+        self.statics.push(Static::Attachment(
+            name.to_owned(),
+            media_type.to_owned(),
+            data.to_vec(),
+            time,
+        ));
+        self.file().attach(name, media_type, data, time)
+    }
+
+    /// Messages written per topic, over all files.
+    pub fn counts(&self) -> &BTreeMap<String, u64> {
+        &self.counts
+    }
+
+    /// The files of this recording so far.
+    pub fn files(&self) -> &[PathBuf] {
+        &self.files
+    }
+
+    /// Finishes the last file.
+    pub fn finish(mut self) -> Result<BTreeMap<String, u64>, BagError> {
+        if let Some(f) = self.current.take() {
+            f.finish()?;
+        }
         Ok(self.counts)
     }
 }
