@@ -103,6 +103,8 @@ struct Sources {
     lidar_clock: ClockEstimator,
     gnss_clock: ClockEstimator,
     framers: BTreeMap<u32, SerialState>,
+    /// UTC of the first fix of a serial log (from pass 1), stamping what comes before it.
+    first_fix: Option<UtcNanos>,
 }
 
 /// A serial interface's framer and epoch assemblers, with the receive time of the last frame:
@@ -114,6 +116,9 @@ struct SerialState {
     nmea: NmeaEpochs,
     ubx: UbxEpochs,
     last_host: Option<UtcNanos>,
+    last_fix: Option<UtcNanos>,
+    /// The stream has no receive times (a raw serial log).
+    timeless: bool,
 }
 
 impl Sources {
@@ -124,6 +129,7 @@ impl Sources {
             lidar_clock: ClockEstimator::new(),
             gnss_clock: ClockEstimator::new(),
             framers: BTreeMap::new(),
+            first_fix: None,
         }
     }
 }
@@ -262,54 +268,7 @@ impl Context<'_> {
                     }
                 }
                 Packet::Serial(bytes) => {
-                    let entry = src.framers.entry(item.interface).or_default();
-                    entry.framer.push(bytes);
-                    let mut fixes = Vec::new();
-                    while let Some(it) = entry.framer.next_frame() {
-                        let Item::Frame { frame, .. } = it else {
-                            continue;
-                        };
-                        // A fix completed by this frame was received with the previous one.
-                        let epoch_host = entry.last_host.unwrap_or(host);
-                        entry.last_host = Some(host);
-                        match frame {
-                            Frame::Nmea(s) => {
-                                if let Some(o) = out.as_deref_mut() {
-                                    o.bag.write(
-                                        topics::GNSS_NMEA,
-                                        &msgs::nmea_sentence_type(),
-                                        host,
-                                        host,
-                                        &msgs::nmea_sentence(host, &o.frame_gnss, &s),
-                                    )?;
-                                }
-                                if let Ok(sentence) = hilrig_gnss::nmea::parse(&s) {
-                                    fixes.extend(
-                                        entry.nmea.push(&sentence).map(|f| (f, epoch_host)),
-                                    );
-                                }
-                            }
-                            Frame::Ubx { class, id, payload } => {
-                                if let Some(o) = out.as_deref_mut() {
-                                    let raw = hilrig_gnss::framer::ubx_frame(class, id, &payload);
-                                    o.bag.write(
-                                        topics::GNSS_UBX,
-                                        &msgs::raw_packet_type(),
-                                        host,
-                                        host,
-                                        &msgs::raw_packet(host, &o.frame_gnss, &raw),
-                                    )?;
-                                }
-                                if let Ok(m) = hilrig_gnss::ubx::decode(class, id, &payload) {
-                                    fixes.extend(entry.ubx.push(&m).map(|f| (f, epoch_host)));
-                                }
-                            }
-                            Frame::Rtcm3 { .. } => {}
-                        }
-                    }
-                    for (f, h) in fixes {
-                        self.fix(src, out.as_deref_mut(), &f, h)?;
-                    }
+                    self.serial(src, out.as_deref_mut(), item.interface, bytes, Some(host))?;
                 }
                 Packet::Can(frame) => {
                     if let Some(o) = out.as_deref_mut() {
@@ -318,20 +277,113 @@ impl Context<'_> {
                 }
             }
         }
+        self.finish_serial(src, out)
+    }
+
+    /// Closes the serial epochs still open at the end of an input.
+    fn finish_serial(
+        &self,
+        src: &mut Sources,
+        mut out: Option<&mut Output<'_>>,
+    ) -> Result<(), RecordError> {
         // Epochs still open at the end of the input, received with the interface's last frame.
         let open: Vec<(Fix, UtcNanos)> = src
             .framers
             .values_mut()
             .filter_map(|s| s.last_host.map(|h| (s, h)))
             .flat_map(|(s, h)| {
+                let timeless = s.timeless;
                 s.nmea
                     .finish()
                     .into_iter()
                     .chain(s.ubx.finish())
-                    .map(move |f| (f, h))
+                    .map(move |f| {
+                        // A log without receive times: the fix's own UTC is its host time.
+                        let h = if timeless { f.time.unwrap_or(h) } else { h };
+                        (f, h)
+                    })
             })
             .collect();
         for (f, h) in open {
+            self.fix(src, out.as_deref_mut(), &f, h)?;
+        }
+        Ok(())
+    }
+
+    /// Bytes of a serial stream; `host` is the receive time, or `None` for logs without one
+    /// (then frames carry the UTC of the latest fix, and fixes their own UTC).
+    fn serial(
+        &self,
+        src: &mut Sources,
+        mut out: Option<&mut Output<'_>>,
+        interface: u32,
+        bytes: &[u8],
+        host: Option<UtcNanos>,
+    ) -> Result<(), RecordError> {
+        let first_fix = src.first_fix;
+        let entry = src.framers.entry(interface).or_default();
+        entry.timeless = host.is_none();
+        entry.framer.push(bytes);
+        let mut fixes = Vec::new();
+        while let Some(it) = entry.framer.next_frame() {
+            let Item::Frame { frame, .. } = it else {
+                continue;
+            };
+            let t = host
+                .or(entry.last_fix)
+                .or(first_fix)
+                .unwrap_or(UtcNanos::EPOCH);
+            // A fix completed by this frame was received with the previous one.
+            let epoch_host = entry.last_host.unwrap_or(t);
+            entry.last_host = Some(t);
+            match frame {
+                Frame::Nmea(s) => {
+                    if let Some(o) = out.as_deref_mut() {
+                        o.bag.write(
+                            topics::GNSS_NMEA,
+                            &msgs::nmea_sentence_type(),
+                            t,
+                            t,
+                            &msgs::nmea_sentence(t, &o.frame_gnss, &s),
+                        )?;
+                    }
+                    if let Ok(sentence) = hilrig_gnss::nmea::parse(&s) {
+                        fixes.extend(entry.nmea.push(&sentence).map(|f| (f, epoch_host)));
+                    }
+                }
+                Frame::Ubx { class, id, payload } => {
+                    if let Some(o) = out.as_deref_mut() {
+                        let raw = hilrig_gnss::framer::ubx_frame(class, id, &payload);
+                        o.bag.write(
+                            topics::GNSS_UBX,
+                            &msgs::raw_packet_type(),
+                            t,
+                            t,
+                            &msgs::raw_packet(t, &o.frame_gnss, &raw),
+                        )?;
+                    }
+                    if let Ok(m) = hilrig_gnss::ubx::decode(class, id, &payload) {
+                        fixes.extend(entry.ubx.push(&m).map(|f| (f, epoch_host)));
+                    }
+                }
+                Frame::Rtcm3 { .. } => {}
+            }
+            for (f, _) in &fixes {
+                if let Some(ft) = f.time {
+                    entry.last_fix = Some(ft);
+                }
+            }
+        }
+        for (f, h) in fixes {
+            if let Some(ft) = f.time {
+                src.first_fix.get_or_insert(ft);
+            }
+            // Without receive times the fix's own time is its host time.
+            let h = if host.is_some() {
+                h
+            } else {
+                f.time.unwrap_or(h)
+            };
             self.fix(src, out.as_deref_mut(), &f, h)?;
         }
         Ok(())
@@ -453,6 +505,96 @@ fn write_scan(
     Ok(())
 }
 
+/// What an input file is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum InputKind {
+    /// pcap or pcapng.
+    Capture,
+    /// A candump log (`(time) iface id#data` lines).
+    Candump,
+    /// A raw serial byte log (gpsd logs included), without receive times.
+    Serial,
+}
+
+fn input_kind(p: &Path) -> Result<InputKind, RecordError> {
+    let err = |e| RecordError::Input {
+        path: p.display().to_string(),
+        source: CaptureError::Io {
+            offset: 0,
+            source: e,
+        },
+    };
+    let f = std::fs::File::open(p).map_err(err)?;
+    let (is_capture, mut head) = hilrig_capture::reader::sniff(f).map_err(err)?;
+    if is_capture {
+        return Ok(InputKind::Capture);
+    }
+    let mut first = Vec::new();
+    std::io::Read::read_to_end(&mut std::io::Read::take(&mut head, 4096), &mut first)
+        .map_err(err)?;
+    let text = String::from_utf8_lossy(&first);
+    let line = text
+        .lines()
+        .find(|l| !l.trim().is_empty() && !l.starts_with('#'))
+        .unwrap_or("");
+    if line.starts_with('(') && hilrig_can::candump::parse_line(line, 1).is_ok() {
+        return Ok(InputKind::Candump);
+    }
+    Ok(InputKind::Serial)
+}
+
+/// Serial logs get interface numbers above any capture's, one per file.
+const SERIAL_LOG_INTERFACE: u32 = 1 << 20;
+
+impl Context<'_> {
+    fn run_input(
+        &self,
+        path: &Path,
+        kind: InputKind,
+        src: &mut Sources,
+        mut out: Option<&mut Output<'_>>,
+        summary: &mut RecordSummary,
+    ) -> Result<(), RecordError> {
+        let err = |e| RecordError::Input {
+            path: path.display().to_string(),
+            source: CaptureError::Io {
+                offset: 0,
+                source: e,
+            },
+        };
+        match kind {
+            InputKind::Capture => self.run_capture(path, src, out, summary),
+            InputKind::Candump => {
+                let Some(o) = out.as_deref_mut() else {
+                    return Ok(());
+                };
+                let text = std::fs::read_to_string(path).map_err(err)?;
+                for (i, line) in text.lines().enumerate() {
+                    match hilrig_can::candump::parse_line(line, i + 1) {
+                        Ok(Some(lf)) => self.can(o, &lf.frame, lf.time)?,
+                        Ok(None) => {}
+                        Err(e) => {
+                            summary
+                                .input_errors
+                                .push(format!("{}: {e}", path.display()));
+                            break;
+                        }
+                    }
+                }
+                Ok(())
+            }
+            InputKind::Serial => {
+                let iface = SERIAL_LOG_INTERFACE + src.framers.len() as u32;
+                let bytes = std::fs::read(path).map_err(err)?;
+                for chunk in bytes.chunks(4096) {
+                    self.serial(src, out.as_deref_mut(), iface, chunk, None)?;
+                }
+                self.finish_serial(src, out)
+            }
+        }
+    }
+}
+
 /// Records captures into one MCAP at `output` (written as `output.active`, renamed at the end).
 pub fn record_from(
     rig: &Rig,
@@ -460,27 +602,9 @@ pub fn record_from(
     inputs: &[PathBuf],
     output: &Path,
 ) -> Result<RecordSummary, RecordError> {
+    let mut kinds = Vec::new();
     for p in inputs {
-        let f = std::fs::File::open(p).map_err(|e| RecordError::Input {
-            path: p.display().to_string(),
-            source: CaptureError::Io {
-                offset: 0,
-                source: e,
-            },
-        })?;
-        let (is_capture, _) = hilrig_capture::reader::sniff(f).map_err(|e| RecordError::Input {
-            path: p.display().to_string(),
-            source: CaptureError::Io {
-                offset: 0,
-                source: e,
-            },
-        })?;
-        if !is_capture {
-            return Err(RecordError::Unsupported {
-                path: p.display().to_string(),
-                what: "not a pcap/pcapng capture; record --from reads captures (lidar UDP, SocketCAN and serial interfaces) for now".into(),
-            });
-        }
+        kinds.push(input_kind(p)?);
     }
     let model = match &rig.lidar {
         Some(l) => Some(l.model.parse::<Model>().map_err(RecordError::Rig)?),
@@ -519,10 +643,11 @@ pub fn record_from(
 
     // Pass 1: clock models.
     let mut src = Sources::new();
-    for p in inputs {
-        ctx.run_capture(p, &mut src, None, &mut summary)?;
+    for (p, k) in inputs.iter().zip(&kinds) {
+        ctx.run_input(p, *k, &mut src, None, &mut summary)?;
     }
     let src_hours = src.hours.clone();
+    let first_fix = src.first_fix;
     let lidar_model = src.lidar_clock.model();
     let gnss_model = src.gnss_clock.model();
     for (name, est) in [("lidar", &src.lidar_clock), ("gnss", &src.gnss_clock)] {
@@ -618,8 +743,9 @@ pub fn record_from(
     )?;
     let mut src = Sources::new();
     src.hours = pass1_hours;
-    for p in inputs {
-        ctx.run_capture(p, &mut src, Some(&mut out), &mut summary)?;
+    src.first_fix = first_fix;
+    for (p, k) in inputs.iter().zip(&kinds) {
+        ctx.run_input(p, *k, &mut src, Some(&mut out), &mut summary)?;
     }
     if let Some(mut rot) = out.rotation.take() {
         if let Some(done) = rot.finish() {

@@ -496,3 +496,90 @@ fn split_files_repeat_static_data_and_together_hold_everything() {
     }
     assert_eq!(nmea as usize, truth.sentences);
 }
+
+/// `--from` also reads candump logs (their times are the host times) and raw serial logs such
+/// as gpsd's (no receive times: fixes carry their own UTC).
+#[test]
+#[cfg_attr(
+    not(all(hilrig_python, hilrig_real_data)),
+    ignore = "needs HILRIG_PYTHON and HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
+fn candump_and_gpsd_logs_record_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let candump = dir.path().join("can.log");
+    let mut log = String::new();
+    for i in 0..40u64 {
+        // Ego_Motion: 5 m/s, -0.1 rad/s.
+        log.push_str(&format!(
+            "({}.{:06}) can0 123#F401FC1800000000\n",
+            1_700_000_000 + i / 10,
+            (i % 10) * 100_000
+        ));
+    }
+    std::fs::write(&candump, log).unwrap();
+    let gpsd = common::real_data().join("gnss/nmea-rtk.log");
+    let out = dir.path().join("mixed.mcap");
+    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml");
+    let st = std::process::Command::new(common::hilrig_bin())
+        .args(["record", "--rig", rig, "--from"])
+        .arg(&candump)
+        .arg(&gpsd)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let o = std::process::Command::new(common::python())
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/interop/mcap_read.py"
+        ))
+        .arg(&out)
+        .args(["--decode", "/gnss/fix", "--decode", "/ego/twist"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["channels"]["/can/frames"]["count"], 40);
+    assert_eq!(v["channels"]["/ego/twist"]["count"], 40);
+    assert!(
+        (v["messages"]["/ego/twist"][0]["twist"]["angular"]["z"]
+            .as_f64()
+            .unwrap()
+            + 0.1)
+            .abs()
+            < 1e-9
+    );
+    // The gpsd log: every fix hilrig decodes from the raw log is in the file, RTK-fixed epochs
+    // as NavSatFix status 2 (GBAS), at their own UTC.
+    let bytes = std::fs::read(&gpsd).unwrap();
+    let mut s = hilrig::gnss::GnssStream::for_gpsd_log();
+    let mut fixes = Vec::new();
+    s.push(&bytes, &mut fixes);
+    s.finish(&mut fixes);
+    let with_time: Vec<_> = fixes
+        .iter()
+        .filter(|f| f.time.is_some() && f.lat.is_some())
+        .collect();
+    let recorded = v["messages"]["/gnss/fix"].as_array().unwrap();
+    assert_eq!(recorded.len(), with_time.len());
+    for (r, f) in recorded.iter().zip(&with_time) {
+        assert_eq!(r["_log_time"].as_i64().unwrap(), f.time.unwrap().0);
+        let expected = if matches!(f.quality, 4 | 5) {
+            2
+        } else if f.quality == 2 {
+            1
+        } else {
+            0
+        };
+        assert_eq!(r["status"]["status"].as_i64().unwrap(), expected);
+    }
+    assert!(
+        recorded.iter().any(|r| r["status"]["status"] == 2),
+        "the log has RTK-fixed epochs"
+    );
+}
