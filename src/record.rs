@@ -46,6 +46,8 @@ pub mod topics {
     pub const EGO_TWIST: &str = "/ego/twist";
     /// Rig extrinsics.
     pub const TF_STATIC: &str = "/tf_static";
+    /// Decoded lidar points per rotation, for viewing.
+    pub const POINTS: &str = "/points";
 }
 
 /// Why recording from captures failed.
@@ -140,6 +142,8 @@ struct Output<'a> {
     lidar: Option<ClockModel>,
     gnss: Option<ClockModel>,
     rotation: Option<RotationAssembler<RawDataPacket>>,
+    /// Decoder for /points (None: not written).
+    points: Option<Decoder>,
     frame_lidar: String,
     frame_gnss: String,
     last_speed: Option<f64>,
@@ -502,7 +506,49 @@ fn write_scan(
         publish,
         &cdr,
     )?;
+    if let Some(d) = &o.points {
+        let cdr = cloud_cdr(d, stamp, &o.frame_lidar, &list);
+        o.bag.write(
+            topics::POINTS,
+            &msgs::point_cloud2_type(),
+            stamp,
+            publish,
+            &cdr,
+        )?;
+    }
     Ok(())
+}
+
+/// The decoded points of one rotation as a PointCloud2 (for viewing in Foxglove / RViz).
+pub fn cloud_cdr(
+    decoder: &Decoder,
+    stamp: UtcNanos,
+    frame: &str,
+    packets: &[(UtcNanos, &[u8; 1206])],
+) -> Vec<u8> {
+    let mut points = Vec::with_capacity(packets.len() * 384);
+    let mut buf = Vec::with_capacity(800);
+    for (t, bytes) in packets {
+        let Ok(p) = hilrig_velodyne::DataPacket::decode(&bytes[..]) else {
+            continue;
+        };
+        buf.clear();
+        if decoder.decode_into(&p, &mut buf).is_err() {
+            continue;
+        }
+        let base = (t.0 - stamp.0) as f64 * 1e-9;
+        points.extend(buf.iter().map(|q| {
+            (
+                q.x,
+                q.y,
+                q.z,
+                f32::from(q.intensity),
+                u16::from(q.ring),
+                (base + f64::from(q.time_offset_ns) * 1e-9) as f32,
+            )
+        }));
+    }
+    msgs::point_cloud2(stamp, frame, &points)
 }
 
 /// What an input file is.
@@ -678,6 +724,7 @@ pub fn record_from(
             rotation: rig.lidar.as_ref().zip(period).map(|(l, p)| {
                 RotationAssembler::new((l.cut_azimuth_deg * 100.0).round() as u16, p)
             }),
+            points: ctx.decoder.clone().filter(|_| rig.recording.points),
             frame_lidar: rig
                 .lidar
                 .as_ref()

@@ -65,6 +65,7 @@ fn types() -> &'static BTreeMap<&'static str, MessageType> {
         m.insert("nmea", msgs::nmea_sentence_type());
         m.insert("fix", msgs::nav_sat_fix_type());
         m.insert("can", msgs::can_frame_type());
+        m.insert("points", msgs::point_cloud2_type());
         m
     })
 }
@@ -182,6 +183,9 @@ pub async fn record_live(
             h,
             clocks.clone(),
             shutdown.clone(),
+            rig.recording
+                .points
+                .then(|| hilrig_velodyne::Decoder::new(model)),
         )));
     }
     if let Some(g) = &rig.gnss {
@@ -316,6 +320,7 @@ fn send_scan(
     tx: &SyncSender<Event>,
     h: &Health,
     frame: &str,
+    points: Option<&hilrig_velodyne::Decoder>,
     packets: &[Stamped<hilrig_velodyne::DataPacket>],
 ) {
     if packets.is_empty() {
@@ -341,6 +346,20 @@ fn send_scan(
             cdr,
         },
     );
+    if let Some(d) = points {
+        let cdr = crate::record::cloud_cdr(d, stamp, frame, &list);
+        send(
+            tx,
+            h,
+            Event {
+                topic: crate::record::topics::POINTS,
+                ty: &types()["points"],
+                log_time: stamp,
+                publish_time: publish,
+                cdr,
+            },
+        );
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -353,6 +372,7 @@ async fn lidar_task(
     h: Arc<Health>,
     clocks: Arc<Mutex<BTreeMap<&'static str, ClockEstimator>>>,
     mut shutdown: tokio::sync::watch::Receiver<bool>,
+    points: Option<hilrig_velodyne::Decoder>,
 ) {
     let mut hours = HourResolver::default();
     let mut hour_source = None;
@@ -363,7 +383,7 @@ async fn lidar_task(
             item = source.next() => item,
             _ = shutdown.changed() => {
                 if let Some(done) = rotation.finish() {
-                    send_scan(&tx, &h, &frame, &done.packets);
+                    send_scan(&tx, &h, &frame, points.as_ref(), &done.packets);
                 }
                 h.lost.store(rotation.loss().lost, Ordering::Relaxed);
                 return;
@@ -409,7 +429,7 @@ async fn lidar_task(
                     value: d.value,
                 }) {
                     h.lost.store(rotation.loss().lost, Ordering::Relaxed);
-                    send_scan(&tx, &h, &frame, &done.packets);
+                    send_scan(&tx, &h, &frame, points.as_ref(), &done.packets);
                 }
             }
             LidarItem::Rejected { .. } => {

@@ -131,6 +131,11 @@ pub struct RecordingConfig {
     /// Start a new file after this many seconds of data (default: never).
     #[serde(default)]
     pub split_duration_s: Option<f64>,
+    /// Also write the decoded points of each rotation to /points (PointCloud2) for viewing.
+    /// Off by default: it roughly doubles the file and costs CPU on the vehicle, and the
+    /// packets already hold everything (`record --from` can add it in the office).
+    #[serde(default)]
+    pub points: bool,
 }
 
 impl RecordingConfig {
@@ -155,6 +160,7 @@ impl Default for RecordingConfig {
             chunk_size_mib: default_chunk_mib(),
             split_size_mib: None,
             split_duration_s: None,
+            points: false,
         }
     }
 }

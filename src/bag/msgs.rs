@@ -297,6 +297,67 @@ pub fn tf_message(stamp: UtcNanos, transforms: &[Transform]) -> Vec<u8> {
     w.finish()
 }
 
+/// `sensor_msgs/msg/PointCloud2`.
+pub fn point_cloud2_type() -> MessageType {
+    MessageType {
+        name: "sensor_msgs/msg/PointCloud2",
+        schema: with_deps(
+            "std_msgs/Header header\nuint32 height\nuint32 width\nsensor_msgs/PointField[] fields\nbool is_bigendian\nuint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense\n",
+            &[
+                ("std_msgs/Header", HEADER),
+                ("builtin_interfaces/Time", TIME),
+                (
+                    "sensor_msgs/PointField",
+                    "uint8 INT8=1\nuint8 UINT8=2\nuint8 INT16=3\nuint8 UINT16=4\nuint8 INT32=5\nuint8 UINT32=6\nuint8 FLOAT32=7\nuint8 FLOAT64=8\nstring name\nuint32 offset\nuint8 datatype\nuint32 count\n",
+                ),
+            ],
+        ),
+    }
+}
+
+/// Bytes per point of [`point_cloud2`]: x, y, z, intensity (float32), ring (uint16, 2 bytes
+/// padding), time (float32, seconds after the header stamp) — the layout of ros-drivers'
+/// `velodyne_pointcloud`, so existing tools read it.
+pub const POINT_STEP: usize = 24;
+
+/// A PointCloud2 of decoded lidar points (one rotation), for viewing.
+pub fn point_cloud2(
+    stamp: UtcNanos,
+    frame_id: &str,
+    points: &[(f32, f32, f32, f32, u16, f32)],
+) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(160 + points.len() * POINT_STEP);
+    header(&mut w, stamp, frame_id);
+    w.u32(1).u32(points.len() as u32);
+    let fields: [(&str, u32, u8); 6] = [
+        ("x", 0, 7),
+        ("y", 4, 7),
+        ("z", 8, 7),
+        ("intensity", 12, 7),
+        ("ring", 16, 4),
+        ("time", 20, 7),
+    ];
+    w.sequence_len(fields.len());
+    for (name, offset, datatype) in fields {
+        w.string(name).u32(offset).u8(datatype).u32(1);
+    }
+    w.bool(false)
+        .u32(POINT_STEP as u32)
+        .u32((points.len() * POINT_STEP) as u32);
+    let mut data = Vec::with_capacity(points.len() * POINT_STEP);
+    for &(x, y, z, i, ring, t) in points {
+        data.extend_from_slice(&x.to_le_bytes());
+        data.extend_from_slice(&y.to_le_bytes());
+        data.extend_from_slice(&z.to_le_bytes());
+        data.extend_from_slice(&i.to_le_bytes());
+        data.extend_from_slice(&ring.to_le_bytes());
+        data.extend_from_slice(&[0, 0]);
+        data.extend_from_slice(&t.to_le_bytes());
+    }
+    w.bytes(&data).bool(true);
+    w.finish()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
