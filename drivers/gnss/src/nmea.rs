@@ -353,7 +353,8 @@ pub fn parse(sentence: &str) -> Result<Sentence, NmeaError> {
     let address = parts.next().unwrap_or("");
     let f: Vec<&str> = parts.collect();
     // Standard sentences: two-letter talker + three-letter type; proprietary ones start with P.
-    let kind = if address.len() == 5 && !address.starts_with('P') {
+    // (Only ASCII addresses: a multi-byte character must not be split; found by cargo-fuzz.)
+    let kind = if address.len() == 5 && address.is_ascii() && !address.starts_with('P') {
         &address[2..]
     } else {
         ""
@@ -515,6 +516,13 @@ mod tests {
             hilrig_stamp::civil::iso8601_millis(r.utc().unwrap()),
             "2020-03-18T13:28:19.600Z"
         );
+    }
+
+    /// Found by cargo-fuzz: a non-ASCII address field split a multi-byte character.
+    #[test]
+    fn non_ascii_address_is_not_a_panic() {
+        let s = crate::framer::nmea_sentence("Tո84");
+        assert!(matches!(parse(&s), Ok(Sentence::Other { .. })));
     }
 
     #[test]
