@@ -449,9 +449,9 @@ fn run_record(args: RecordArgs) -> Result<ExitCode> {
             "{out}: clock {name}: offset {:.3} ms, drift {:.2} ppm, residual p50 {:.0} us, p95 {:.0} us, max {:.0} us ({pairs} pairs)",
             m.offset_ns * 1e-6,
             m.drift * 1e6,
-            r[0] * 1e-3,
-            r[1] * 1e-3,
-            r[2] * 1e-3
+            r.p50_ns * 1e-3,
+            r.p95_ns * 1e-3,
+            r.max_ns * 1e-3
         );
     }
     eprintln!("{out}: lidar packets lost: {}", summary.lidar_lost);

@@ -84,7 +84,7 @@ pub struct RecordSummary {
     /// Messages per topic.
     pub counts: BTreeMap<String, u64>,
     /// Clock models per source (name, model, residual p50/p95/max in ns, pairs).
-    pub clocks: Vec<(String, ClockModel, [f64; 3], u64)>,
+    pub clocks: Vec<(String, ClockModel, crate::clock::Residuals, u64)>,
     /// Lidar packets lost (sensor timestamp gaps).
     pub lidar_lost: u64,
     /// Inputs that ended early (truncated), with the error.
@@ -699,12 +699,7 @@ pub fn record_from(
     for (name, est) in [("lidar", &src.lidar_clock), ("gnss", &src.gnss_clock)] {
         if let Some(m) = est.model() {
             let r = est.residuals();
-            summary.clocks.push((
-                name.to_owned(),
-                m,
-                [r.p50_ns, r.p95_ns, r.max_ns],
-                est.pairs(),
-            ));
+            summary.clocks.push((name.to_owned(), m, r, est.pairs()));
         }
     }
 
@@ -763,15 +758,10 @@ pub fn record_from(
     );
     out.bag.metadata("hilrig", meta)?;
     for (name, m, r, pairs) in &summary.clocks {
-        let mut meta = BTreeMap::new();
-        meta.insert("reference_sensor_ns".to_owned(), m.reference.0.to_string());
-        meta.insert("offset_ns".to_owned(), format!("{:.0}", m.offset_ns));
-        meta.insert("drift_ppm".to_owned(), format!("{:.3}", m.drift * 1e6));
-        meta.insert("residual_p50_ns".to_owned(), format!("{:.0}", r[0]));
-        meta.insert("residual_p95_ns".to_owned(), format!("{:.0}", r[1]));
-        meta.insert("residual_max_ns".to_owned(), format!("{:.0}", r[2]));
-        meta.insert("pairs".to_owned(), pairs.to_string());
-        out.bag.metadata(&format!("clock_sync/{name}"), meta)?;
+        out.bag.metadata(
+            &format!("clock_sync/{name}"),
+            crate::clock::metadata(m, r, *pairs),
+        )?;
     }
     // Pass 1 has seen the position packets: resolve hours with their RMC from the first packet.
     let pass1_hours = src_hours.clone();

@@ -267,15 +267,7 @@ pub async fn record_live(
     let clocks = clocks.lock().map(|c| c.clone()).unwrap_or_default();
     for (name, est) in &clocks {
         if let Some(m) = est.model() {
-            let r = est.residuals();
-            let mut meta = BTreeMap::new();
-            meta.insert("reference_sensor_ns".to_owned(), m.reference.0.to_string());
-            meta.insert("offset_ns".to_owned(), format!("{:.0}", m.offset_ns));
-            meta.insert("drift_ppm".to_owned(), format!("{:.3}", m.drift * 1e6));
-            meta.insert("residual_p50_ns".to_owned(), format!("{:.0}", r.p50_ns));
-            meta.insert("residual_p95_ns".to_owned(), format!("{:.0}", r.p95_ns));
-            meta.insert("residual_max_ns".to_owned(), format!("{:.0}", r.max_ns));
-            meta.insert("pairs".to_owned(), est.pairs().to_string());
+            let meta = crate::clock::metadata(&m, &est.residuals(), est.pairs());
             bag.metadata(&format!("clock_sync/{name}"), meta)?;
         }
     }

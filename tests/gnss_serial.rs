@@ -8,26 +8,10 @@ mod common;
 use hilrig::gnss::serial::SerialSource;
 use hilrig::gnss::GnssStream;
 use std::io::Write;
-use std::os::fd::AsFd;
 use std::path::Path;
 use std::time::Duration;
 
 const BAUD: u32 = 115_200;
-
-/// Opens a pty pair; returns the master as a file and the slave's path.
-fn pty() -> (std::fs::File, String) {
-    let p = nix::pty::openpty(None, None).expect("openpty");
-    let name = nix::unistd::ttyname(p.slave.as_fd())
-        .expect("ttyname")
-        .display()
-        .to_string();
-    // Raw mode on the slave so the line discipline passes bytes through untouched.
-    let mut t = nix::sys::termios::tcgetattr(p.slave.as_fd()).unwrap();
-    nix::sys::termios::cfmakeraw(&mut t);
-    nix::sys::termios::tcsetattr(p.slave.as_fd(), nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
-    drop(p.slave);
-    (std::fs::File::from(p.master), name)
-}
 
 fn relink(link: &Path, target: &str) {
     let tmp = link.with_extension("new");
@@ -60,7 +44,7 @@ async fn real_log_at_115200_baud_through_a_pty_survives_unplug() {
     let split = log.len() / 2;
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("gnss0");
-    let (mut master, name) = pty();
+    let (mut master, name) = common::pty();
     relink(&link, &name);
     let mut source = SerialSource::open(link.to_str().unwrap(), BAUD).unwrap();
 
@@ -74,7 +58,7 @@ async fn real_log_at_115200_baud_through_a_pty_survives_unplug() {
         drop(master);
         std::thread::sleep(Duration::from_millis(300));
         // Plugged back in: a new device behind the same stable name.
-        let (mut master, name) = pty();
+        let (mut master, name) = common::pty();
         relink(&link2, &name);
         // Give the source time to reopen before sending (data sent to a closed port is lost
         // on real hardware too).

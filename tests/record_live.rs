@@ -10,7 +10,6 @@ use hilrig::capture::{CaptureReader, Demux};
 use hilrig::gnss::framer::nmea_sentence;
 use std::io::Write;
 use std::net::UdpSocket;
-use std::os::fd::AsFd;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command};
 use std::time::{Duration, Instant};
@@ -21,19 +20,6 @@ fn free_port() -> u16 {
         .local_addr()
         .unwrap()
         .port()
-}
-
-fn pty() -> (std::fs::File, String) {
-    let p = nix::pty::openpty(None, None).unwrap();
-    let name = nix::unistd::ttyname(p.slave.as_fd())
-        .unwrap()
-        .display()
-        .to_string();
-    let mut t = nix::sys::termios::tcgetattr(p.slave.as_fd()).unwrap();
-    nix::sys::termios::cfmakeraw(&mut t);
-    nix::sys::termios::tcsetattr(p.slave.as_fd(), nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
-    drop(p.slave);
-    (std::fs::File::from(p.master), name)
 }
 
 struct Rig {
@@ -48,7 +34,7 @@ struct Rig {
 fn rig() -> Rig {
     let dir = tempfile::tempdir().unwrap();
     let (data, position) = (free_port(), free_port());
-    let (master, tty) = pty();
+    let (master, tty) = common::pty();
     let path = dir.path().join("rig.toml");
     std::fs::write(
         &path,

@@ -69,3 +69,19 @@ pub fn hilrig_decode(args: &[&str]) -> (Option<i32>, String, String) {
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
 }
+
+/// A pseudo-terminal pair in raw mode: the master as a file, and the slave's path (what a
+/// serial source opens).
+pub fn pty() -> (std::fs::File, String) {
+    use std::os::fd::AsFd;
+    let p = nix::pty::openpty(None, None).expect("openpty");
+    let name = nix::unistd::ttyname(p.slave.as_fd())
+        .expect("ttyname")
+        .display()
+        .to_string();
+    let mut t = nix::sys::termios::tcgetattr(p.slave.as_fd()).unwrap();
+    nix::sys::termios::cfmakeraw(&mut t);
+    nix::sys::termios::tcsetattr(p.slave.as_fd(), nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
+    drop(p.slave);
+    (std::fs::File::from(p.master), name)
+}
