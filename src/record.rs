@@ -107,6 +107,8 @@ struct Sources {
     framers: BTreeMap<u32, SerialState>,
     /// UTC of the first fix of a serial log (from pass 1), stamping what comes before it.
     first_fix: Option<UtcNanos>,
+    /// PPS byte of the last position packet.
+    pps_byte: Option<u8>,
 }
 
 /// A serial interface's framer and epoch assemblers, with the receive time of the last frame:
@@ -132,6 +134,7 @@ impl Sources {
             gnss_clock: ClockEstimator::new(),
             framers: BTreeMap::new(),
             first_fix: None,
+            pps_byte: None,
         }
     }
 }
@@ -225,6 +228,7 @@ impl Context<'_> {
                     if dst.port() == l.position_port && payload.len() == POSITION_PACKET_SIZE {
                         if let Ok(p) = PositionPacket::decode(payload) {
                             src.hours.handle_position(&p, host);
+                            src.pps_byte = Some(p.pps_byte);
                             if let Some(o) = out.as_deref_mut() {
                                 o.bag.write(
                                     topics::VELODYNE_POSITION,
@@ -694,6 +698,8 @@ pub fn record_from(
     }
     let src_hours = src.hours.clone();
     let first_fix = src.first_fix;
+    let pass1_pps = src.pps_byte;
+    let pass1_hour_source = src.hour_source;
     let lidar_model = src.lidar_clock.model();
     let gnss_model = src.gnss_clock.model();
     for (name, est) in [("lidar", &src.lidar_clock), ("gnss", &src.gnss_clock)] {
@@ -741,6 +747,13 @@ pub fn record_from(
             .map_or("can.dbc".into(), |n| n.to_string_lossy().into_owned());
         out.bag.attach(&name, "text/plain", bytes, start)?;
     }
+    if let Some(c) = rig.lidar.as_ref().and_then(|l| l.calibration.as_ref()) {
+        let path = rig.resolve(c);
+        let bytes = std::fs::read(&path)
+            .map_err(|e| RecordError::Rig(format!("calibration {}: {e}", path.display())))?;
+        out.bag
+            .attach("lidar-calibration.yaml", "application/yaml", &bytes, start)?;
+    }
     // Metadata first: a recording cut off later still says what it is and how it was synced.
     let mut meta = BTreeMap::new();
     meta.insert("rig".to_owned(), rig.name.clone());
@@ -758,10 +771,20 @@ pub fn record_from(
     );
     out.bag.metadata("hilrig", meta)?;
     for (name, m, r, pairs) in &summary.clocks {
-        out.bag.metadata(
-            &format!("clock_sync/{name}"),
-            crate::clock::metadata(m, r, *pairs),
-        )?;
+        let mut meta = crate::clock::metadata(m, r, *pairs);
+        if name == "lidar" {
+            if let Some(s) = pass1_hour_source {
+                meta.insert("hour_source".to_owned(), format!("{s:?}"));
+            }
+            if let Some(b) = pass1_pps {
+                let reports = model != Some(Model::Hdl32e);
+                meta.insert(
+                    "pps".to_owned(),
+                    format!("{:?}", hilrig_velodyne::PpsStatus::from_byte(b, reports)),
+                );
+            }
+        }
+        out.bag.metadata(&format!("clock_sync/{name}"), meta)?;
     }
     // Pass 1 has seen the position packets: resolve hours with their RMC from the first packet.
     let pass1_hours = src_hours.clone();

@@ -146,6 +146,11 @@ pub async fn record_live(
     // this flips, instead of being aborted mid-message.
     let (shutdown_tx, shutdown) = tokio::sync::watch::channel(false);
     let clocks: Arc<Mutex<BTreeMap<&'static str, ClockEstimator>>> = Arc::default();
+    let pps: Arc<Mutex<Option<u8>>> = Arc::default();
+    let lidar_model = rig
+        .lidar
+        .as_ref()
+        .and_then(|l| l.model.parse::<Model>().ok());
     let mut health: BTreeMap<&'static str, Arc<Health>> = BTreeMap::new();
     let mut tasks = Vec::new();
 
@@ -186,6 +191,7 @@ pub async fn record_live(
             rig.recording
                 .points
                 .then(|| hilrig_velodyne::Decoder::new(model)),
+            pps.clone(),
         )));
     }
     if let Some(g) = &rig.gnss {
@@ -267,7 +273,16 @@ pub async fn record_live(
     let clocks = clocks.lock().map(|c| c.clone()).unwrap_or_default();
     for (name, est) in &clocks {
         if let Some(m) = est.model() {
-            let meta = crate::clock::metadata(&m, &est.residuals(), est.pairs());
+            let mut meta = crate::clock::metadata(&m, &est.residuals(), est.pairs());
+            if *name == "lidar" {
+                if let Some(b) = pps.lock().ok().and_then(|g| *g) {
+                    let reports = lidar_model != Some(Model::Hdl32e);
+                    meta.insert(
+                        "pps".to_owned(),
+                        format!("{:?}", hilrig_velodyne::PpsStatus::from_byte(b, reports)),
+                    );
+                }
+            }
             bag.metadata(&format!("clock_sync/{name}"), meta)?;
         }
     }
@@ -365,6 +380,7 @@ async fn lidar_task(
     clocks: Arc<Mutex<BTreeMap<&'static str, ClockEstimator>>>,
     mut shutdown: tokio::sync::watch::Receiver<bool>,
     points: Option<hilrig_velodyne::Decoder>,
+    pps: Arc<Mutex<Option<u8>>>,
 ) {
     let mut hours = HourResolver::default();
     let mut hour_source = None;
@@ -386,6 +402,9 @@ async fn lidar_task(
         match item {
             LidarItem::Position(p) => {
                 hours.handle_position(&p.value, p.host);
+                if let Ok(mut b) = pps.lock() {
+                    *b = Some(p.value.pps_byte);
+                }
                 let cdr = msgs::raw_packet(p.host, &frame, &p.value.encode());
                 send(
                     &tx,

@@ -23,6 +23,9 @@ pub struct Rig {
     /// Recording settings.
     #[serde(default)]
     pub recording: RecordingConfig,
+    /// Limits `hilrig check` judges the reference data by.
+    #[serde(default)]
+    pub thresholds: Thresholds,
     /// Folder of the rig file (set when loaded; paths resolve against it).
     #[serde(skip)]
     pub base: PathBuf,
@@ -196,6 +199,51 @@ fn default_chunk_mib() -> u64 {
     4
 }
 
+/// Limits for the reference-data check (seed §6: reference data must be an order of magnitude
+/// more accurate than the smallest structure the metrics resolve). Each default says where it
+/// comes from; override them per rig.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Thresholds {
+    /// Share of epochs that must be RTK-fixed. Default 0.95: float epochs carry decimetre
+    /// errors, so more than one epoch in twenty makes the trajectory unfit for a 10 cm grid.
+    pub min_rtk_fixed_share: f64,
+    /// Largest 1-sigma horizontal error of an epoch, m. Default 0.02: twice the 1 cm + 1 ppm
+    /// horizontal RTK accuracy that receiver data sheets (u-blox F9P, Trimble) state.
+    pub max_sigma_horizontal_m: f64,
+    /// Largest 1-sigma vertical error, m. Default 0.04: twice the data-sheet vertical RTK
+    /// accuracy (about 2 cm).
+    pub max_sigma_vertical_m: f64,
+    /// Largest age of RTK corrections, s. Default 5: beyond that RTK engines degrade to float
+    /// (the default correction timeout of common receivers).
+    pub max_correction_age_s: f64,
+    /// A gap is this many nominal periods without data. Default 3: one lost sample is noise,
+    /// three in a row is a gap.
+    pub gap_periods: f64,
+    /// Largest 95th percentile of clock-model residuals (transport jitter), µs. Default 1000:
+    /// at 10 km/h the ego moves 2.8 mm in 1 ms, well inside a 10 cm cell.
+    pub max_clock_residual_p95_us: f64,
+    /// Smallest grid cell the metrics may use, m (seed §6: 10 cm).
+    pub min_grid_cell_m: f64,
+    /// The grid cell must be at least this many times the reference accuracy (seed §6: 10).
+    pub grid_cell_accuracy_factor: f64,
+}
+
+impl Default for Thresholds {
+    fn default() -> Self {
+        Thresholds {
+            min_rtk_fixed_share: 0.95,
+            max_sigma_horizontal_m: 0.02,
+            max_sigma_vertical_m: 0.04,
+            max_correction_age_s: 5.0,
+            gap_periods: 3.0,
+            max_clock_residual_p95_us: 1000.0,
+            min_grid_cell_m: 0.10,
+            grid_cell_accuracy_factor: 10.0,
+        }
+    }
+}
+
 /// A rig file that cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum RigError {
@@ -297,6 +345,16 @@ mod tests {
         .unwrap();
         let e = Rig::load(&bad).unwrap_err().to_string();
         assert!(e.contains("unknown field `data_prot`"), "{e}");
+        assert_eq!(rig.thresholds.min_grid_cell_m, 0.10);
+        std::fs::write(
+            &bad,
+            "name = \"x\"\n[thresholds]\nmin_rtk_fixed_share = 0.9\nmax_sigma_horizontl_m = 1\n",
+        )
+        .unwrap();
+        assert!(Rig::load(&bad)
+            .unwrap_err()
+            .to_string()
+            .contains("max_sigma_horizontl_m"));
         std::fs::write(&bad, "name = \"x\"\n[lidar]\nmodel = \"hdl64\"\n").unwrap();
         assert!(Rig::load(&bad)
             .unwrap_err()

@@ -306,6 +306,29 @@ fn generated_drive_records_with_synchronised_clocks() {
         v["channels"]["/tf_static"]["type"],
         "tf2_msgs/msg/TFMessage"
     );
+    // Lidar scans: the log time is the first packet's sensor time mapped onto the host clock,
+    // i.e. its true time plus the latency floor, to 100 µs.
+    for scan in v["messages"]["/velodyne_packets"].as_array().unwrap() {
+        let data: Vec<u8> = scan["packets"][0]["data"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|b| b.as_u64().unwrap() as u8)
+            .collect();
+        let toh_ns = i64::from(u32::from_le_bytes([
+            data[1200], data[1201], data[1202], data[1203],
+        ])) * 1000;
+        let hour = UtcNanos(T0).hour_floor().0;
+        let sensor = (hour + toh_ns) as f64;
+        // sensor = true - offset - drift (true - T0)  =>  true = (sensor + offset - drift T0) / (1 - drift)
+        let true_t = (sensor + LIDAR_OFFSET_NS - LIDAR_DRIFT * T0 as f64) / (1.0 - LIDAR_DRIFT);
+        let log = scan["_log_time"].as_u64().unwrap() as f64;
+        assert!(
+            (log - (true_t + LIDAR_LATENCY_NS)).abs() < 100_000.0,
+            "scan log time off by {} µs",
+            (log - true_t - LIDAR_LATENCY_NS) / 1e3
+        );
+    }
     let tw = &v["messages"]["/ego/twist"][0];
     assert!((tw["twist"]["linear"]["x"].as_f64().unwrap() - 5.0).abs() < 1e-9);
     assert!((tw["twist"]["angular"]["z"].as_f64().unwrap() + 0.1).abs() < 1e-9);
@@ -477,7 +500,8 @@ fn split_files_repeat_static_data_and_together_hold_everything() {
                 "dbc = \"{}/rigs/hilrig-ego.dbc\"",
                 env!("CARGO_MANIFEST_DIR")
             ),
-        ) + "split_duration_s = 3.0\n",
+        )
+        .replace("[recording]\n", "[recording]\nsplit_duration_s = 3.0\n"),
     )
     .unwrap();
     let out = dir.path().join("drive.mcap");

@@ -177,13 +177,22 @@ fn kill_9_mid_recording_is_recovered_losing_at_most_one_and_a_half_seconds() {
         .filter(|(p, _)| *p == 2368)
         .map(|(_, b)| b)
         .collect();
-    // Stream for ~2.6 s at the VLP-16 pace, with NMEA at 10 Hz, then pull the plug at a moment
-    // that falls inside a chunk.
+    // Stream at the VLP-16 pace, with NMEA at 10 Hz, then pull the plug.
     let start_t = Instant::now();
     let period = Duration::from_micros(1327);
     let mut i = 0usize;
     let mut next_nmea = Instant::now();
-    while start_t.elapsed() < Duration::from_millis(2600) {
+    // A random moment between 2 and 3 s (the clock's nanoseconds as the die).
+    let run_for = Duration::from_millis(
+        2000 + u64::from(
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .unwrap()
+                .subsec_nanos()
+                % 1000,
+        ),
+    );
+    while start_t.elapsed() < run_for {
         let mut p = payloads[i % payloads.len()].clone();
         // Advance the sensor timestamp so packets look like one continuous stream.
         let ts = 1_000_000u32 + (i as u32) * 1327;
@@ -223,7 +232,9 @@ fn kill_9_mid_recording_is_recovered_losing_at_most_one_and_a_half_seconds() {
     let v = read(&recovered);
     let last = v["last_log_time"].as_u64().expect("messages recovered");
     let lost = (killed_at - last) as f64 * 1e-9;
-    println!("sent {i} packets; recovered up to {lost:.3} s before the kill");
+    println!(
+        "killed after {run_for:?}, {i} packets sent; recovered up to {lost:.3} s before the kill"
+    );
     assert!(lost <= 1.5, "lost {lost} s");
     assert_eq!(v["metadata"]["hilrig"]["rig"], "live-test");
 }
