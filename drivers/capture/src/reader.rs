@@ -351,11 +351,16 @@ fn check_pcapng_block_length(
     offset: u64,
     big_endian: &mut bool,
 ) -> Result<(), CaptureError> {
-    if data.len() < 12 {
+    // The length field is in bytes 4..8; a block is checked as soon as they are buffered (a
+    // short block at the very end of a file is exactly where the overflow was found).
+    if data.len() < 8 {
         return Ok(());
     }
     let block_type = u32::from_le_bytes([data[0], data[1], data[2], data[3]]);
     if block_type == 0x0A0D_0D0A {
+        if data.len() < 12 {
+            return Ok(()); // the byte-order magic is not buffered yet
+        }
         match [data[8], data[9], data[10], data[11]] {
             [0x4D, 0x3C, 0x2B, 0x1A] => *big_endian = false,
             [0x1A, 0x2B, 0x3C, 0x4D] => *big_endian = true,
@@ -458,6 +463,23 @@ mod tests {
         b.extend_from_slice(&[0xff; 8]);
         b.extend_from_slice(&[0, 0, 0, 28]);
         b.extend_from_slice(&[0, 0, 0, 3, 0, 0, 0, 8, 0, 0, 0, 8]);
+        let mut r = CaptureReader::new(std::io::Cursor::new(b)).unwrap();
+        let e = r.next_record().unwrap().unwrap_err();
+        assert!(
+            e.to_string().contains("declares a length of 8 bytes"),
+            "{e}"
+        );
+    }
+
+    /// Found by cargo-fuzz (second campaign): a big-endian section whose next block declares
+    /// 8 bytes and the file ends inside it.
+    #[test]
+    fn short_block_at_the_end_of_the_file_is_an_error_not_a_panic() {
+        let b = vec![
+            0x0a, 0x0d, 0x0d, 0x0a, 0x00, 0x00, 0x00, 0x1c, 0x1a, 0x2b, 0x3c, 0x4d, 0x00, 0x32,
+            0xc8, 0x00, 0x00, 0x00, 0xff, 0xf9, 0xdf, 0x4c, 0x3c, 0x2b, 0x1a, 0xff, 0x02, 0x29,
+            0x80, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x08, 0x00, 0x01, 0x09,
+        ];
         let mut r = CaptureReader::new(std::io::Cursor::new(b)).unwrap();
         let e = r.next_record().unwrap().unwrap_err();
         assert!(
