@@ -9,6 +9,7 @@ hits both alike; the best round of each is reported, then the ratio.
 usage: benches/compare_velodyne_decoder.py [CAPTURE] [ROUNDS]
    (default capture: $HILRIG_REAL_DATA/velodyne/hdl32e_monterey.pcap; run with the venv python)
 """
+import importlib.metadata
 import io
 import json
 import os
@@ -44,6 +45,6 @@ for _ in range(rounds):
 assert vd_points == h_points, f"point counts differ: velodyne-decoder {vd_points}, hilrig {h_points}"
 vd_rate, h_rate = vd_points / vd_best, h_points / h_best
 print(f"capture: {capture} ({len(raw) / 1e6:.1f} MB, {h_points} points)")
-print(f"velodyne-decoder {vd.__version__} read_pcap: {vd_rate / 1e6:8.2f} M points/s  (best of {rounds})")
+print(f"velodyne-decoder {importlib.metadata.version('velodyne-decoder')} read_pcap: {vd_rate / 1e6:8.2f} M points/s  (best of {rounds})")
 print(f"hilrig decode (in-memory, 1 thread): {h_rate / 1e6:8.2f} M points/s  (best of {rounds}x3)")
 print(f"ratio hilrig / velodyne-decoder: {h_rate / vd_rate:.2f}")

@@ -61,6 +61,7 @@ fn main() {
     let rig_path = concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml");
     let mut rig = hilrig::rig::Rig::load(std::path::Path::new(rig_path)).unwrap();
     rig.can = None; // lidar only: the same payloads as the bare writer
+    rig.recording.points = false; // and no decoded clouds (the bare writer has none)
     let text = std::fs::read_to_string(rig_path).unwrap();
     let _ = std::fs::read(&capture).unwrap(); // warm the page cache
     let mut best_h = f64::INFINITY;
