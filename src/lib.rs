@@ -13,6 +13,7 @@ pub mod lidar;
 pub mod points_out;
 pub mod record;
 pub mod record_live;
+pub mod replay;
 pub mod rig;
 
 pub use hilrig_can as can;

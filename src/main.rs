@@ -40,6 +40,51 @@ enum Command {
     Recover(RecoverArgs),
     /// Summarise an MCAP: channels, types, counts, rates, time span, clock synchronisation.
     Info(InfoArgs),
+    /// Play a recording (.mcap) or capture (.pcap/.pcapng) back to a device under test at the
+    /// original pace: lidar over UDP, GNSS to a serial port or a new pty, CAN to an interface.
+    Replay(ReplayArgs),
+}
+
+#[derive(clap::Args)]
+struct ReplayArgs {
+    /// The recording or capture.
+    file: PathBuf,
+    /// Where lidar data packets go (e.g. 192.168.1.77:2368).
+    #[arg(long)]
+    lidar_to: Option<std::net::SocketAddr>,
+    /// Where lidar position packets go (e.g. 192.168.1.77:8308).
+    #[arg(long)]
+    position_to: Option<std::net::SocketAddr>,
+    /// Serial device for the GNSS stream, or `pty` to open a pseudo-terminal (its path is printed).
+    #[arg(long)]
+    gnss_to: Option<String>,
+    /// Baud rate of the GNSS serial output (bytes are paced at this rate).
+    #[arg(long, default_value_t = 115_200)]
+    baud: u32,
+    /// SocketCAN interface for CAN frames.
+    #[arg(long)]
+    can_to: Option<String>,
+    /// Playback speed factor (2 = twice as fast).
+    #[arg(long, default_value_t = 1.0)]
+    speed: f64,
+    /// Start again at the end, until Ctrl-C.
+    #[arg(long = "loop")]
+    repeat: bool,
+    /// Start this many seconds into the file.
+    #[arg(long)]
+    start: Option<f64>,
+    /// End this many seconds into the file.
+    #[arg(long)]
+    end: Option<f64>,
+    /// Rewrite Velodyne timestamps and position packets (PPS locked, RMC) to the present.
+    #[arg(long)]
+    now: bool,
+    /// UDP ports of data and position packets in captures.
+    #[arg(long, default_value_t = hilrig::velodyne::DATA_PORT)]
+    data_port: u16,
+    /// UDP port of position packets in captures.
+    #[arg(long, default_value_t = hilrig::velodyne::POSITION_PORT)]
+    position_port: u16,
 }
 
 #[derive(clap::Args)]
@@ -156,6 +201,7 @@ fn main() -> ExitCode {
         Command::Record(args) => run_record(args),
         Command::Recover(args) => run_recover(args),
         Command::Info(args) => run_info(args),
+        Command::Replay(args) => run_replay(args),
     };
     match result {
         Ok(code) => code,
@@ -582,4 +628,190 @@ fn run_record_live(
     } else {
         ExitCode::from(1)
     })
+}
+
+/// Shifts a position packet to `at`: timestamp, PPS locked, RMC time and date.
+fn position_now(p: &[u8], at: hilrig::stamp::UtcNanos) -> Vec<u8> {
+    let Ok(mut pkt) = hilrig::velodyne::PositionPacket::decode(p) else {
+        return p.to_vec();
+    };
+    pkt.timestamp_us = (at.nanos_past_hour() / 1000) as u32;
+    pkt.pps_byte = 2;
+    if let Some(s) = pkt.nmea() {
+        if let Ok(body) = hilrig::gnss::nmea::body(s) {
+            let mut f: Vec<String> = body.split(',').map(str::to_owned).collect();
+            if f.len() > 9 && f[0].ends_with("RMC") {
+                let iso = hilrig::stamp::civil::iso8601_millis(hilrig::stamp::UtcNanos(
+                    at.0 - at.0.rem_euclid(1_000_000_000),
+                ));
+                f[1] = format!("{}{}{}", &iso[11..13], &iso[14..16], &iso[17..19]);
+                f[2] = "A".into();
+                f[9] = format!("{}{}{}", &iso[8..10], &iso[5..7], &iso[2..4]);
+                let sentence = hilrig::gnss::framer::nmea_sentence(&f.join(","));
+                pkt = hilrig::velodyne::PositionPacket::new(
+                    pkt.timestamp_us,
+                    hilrig::velodyne::PpsStatus::Locked,
+                    &sentence,
+                );
+            }
+        }
+    }
+    pkt.encode().to_vec()
+}
+
+fn run_replay(args: ReplayArgs) -> Result<ExitCode> {
+    use hilrig::replay::{load, wait_until, window, Pacing, Payload};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    if !(args.speed > 0.0 && args.speed.is_finite()) {
+        bail!("--speed must be a positive number");
+    }
+    let items = window(
+        load(&args.file, args.data_port, args.position_port)?,
+        args.start,
+        args.end,
+    );
+    if items.is_empty() {
+        bail!(
+            "{}: nothing to replay (in the chosen --start/--end window)",
+            args.file.display()
+        );
+    }
+    let udp = std::net::UdpSocket::bind("0.0.0.0:0").context("cannot open a UDP socket")?;
+    let mut gnss: Option<Box<dyn Write>> = match args.gnss_to.as_deref() {
+        None => None,
+        Some("pty") => {
+            use std::os::fd::AsFd;
+            let p = nix::pty::openpty(None, None).context("cannot open a pseudo-terminal")?;
+            let mut t = nix::sys::termios::tcgetattr(p.slave.as_fd())?;
+            nix::sys::termios::cfmakeraw(&mut t);
+            nix::sys::termios::tcsetattr(p.slave.as_fd(), nix::sys::termios::SetArg::TCSANOW, &t)?;
+            let name = nix::unistd::ttyname(p.slave.as_fd())?;
+            println!("gnss pty: {}", name.display());
+            io::stdout().flush()?;
+            // The slave stays open here too, so a reader that opens and closes it loses nothing.
+            std::mem::forget(p.slave);
+            Some(Box::new(std::fs::File::from(p.master)))
+        }
+        Some(dev) => Some(Box::new(
+            tokio_serial::new(dev, args.baud)
+                .open()
+                .with_context(|| format!("cannot open serial port {dev}"))?,
+        )),
+    };
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()?;
+    let can = match &args.can_to {
+        Some(i) => {
+            Some(rt.block_on(async { hilrig::can::socketcan_source::SocketCanSource::open(i) })?)
+        }
+        None => None,
+    };
+    let stop = std::sync::Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            if let Ok(rt) = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+            {
+                rt.block_on(async {
+                    let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).ok();
+                    tokio::select! {
+                        _ = tokio::signal::ctrl_c() => {}
+                        _ = async { if let Some(t) = term.as_mut() { t.recv().await; } else { std::future::pending::<()>().await } } => {}
+                    }
+                });
+            }
+            stop.store(true, Ordering::SeqCst);
+        });
+    }
+    let first = items[0].time;
+    let mut lags = Vec::with_capacity(items.len());
+    let byte_time = std::time::Duration::from_secs_f64(10.0 / f64::from(args.baud));
+    let mut skipped = 0u64;
+    'outer: loop {
+        let wall0 = std::time::Instant::now();
+        let utc0 = hilrig::stamp::UtcNanos::now();
+        let mut serial_free = wall0;
+        for item in &items {
+            if stop.load(Ordering::Relaxed) {
+                break 'outer;
+            }
+            let offset = std::time::Duration::from_nanos(
+                ((item.time.0 - first.0) as f64 / args.speed) as u64,
+            );
+            let mut deadline = wall0 + offset;
+            if let Payload::Serial(b) = &item.payload {
+                // A serial line cannot carry bytes faster than its baud rate.
+                deadline = deadline.max(serial_free);
+                serial_free = deadline + byte_time * b.len() as u32;
+            }
+            wait_until(deadline);
+            let lag = std::time::Instant::now().saturating_duration_since(deadline);
+            let at = hilrig::stamp::UtcNanos(utc0.0 + offset.as_nanos() as i64);
+            let sent = match &item.payload {
+                Payload::LidarData(b) => match args.lidar_to {
+                    Some(to) => {
+                        if args.now {
+                            let mut b = b.clone();
+                            b[1200..1204].copy_from_slice(
+                                &((at.nanos_past_hour() / 1000) as u32).to_le_bytes(),
+                            );
+                            udp.send_to(&b, to)?;
+                        } else {
+                            udp.send_to(b, to)?;
+                        }
+                        true
+                    }
+                    None => false,
+                },
+                Payload::LidarPosition(b) => match args.position_to {
+                    Some(to) => {
+                        let b = if args.now {
+                            position_now(b, at)
+                        } else {
+                            b.clone()
+                        };
+                        udp.send_to(&b, to)?;
+                        true
+                    }
+                    None => false,
+                },
+                Payload::Serial(b) => match gnss.as_mut() {
+                    Some(w) => {
+                        w.write_all(b)?;
+                        w.flush()?;
+                        true
+                    }
+                    None => false,
+                },
+                Payload::Can(f) => match &can {
+                    Some(c) => {
+                        rt.block_on(c.send(f))?;
+                        true
+                    }
+                    None => false,
+                },
+            };
+            if sent {
+                lags.push(lag.as_nanos() as i64);
+            } else {
+                skipped += 1;
+            }
+        }
+        if !args.repeat {
+            break;
+        }
+    }
+    if args.gnss_to.as_deref() == Some("pty") {
+        // Closing the pty's master discards what the reader has not read yet: give it time.
+        std::thread::sleep(std::time::Duration::from_millis(500));
+    }
+    let p = Pacing::from_lags(lags);
+    eprintln!(
+        "replayed {} items ({} without a destination); lag p50 {:.1} us, p99 {:.1} us, max {:.1} us",
+        p.sent, skipped, p.p50_us, p.p99_us, p.max_us
+    );
+    Ok(ExitCode::SUCCESS)
 }
