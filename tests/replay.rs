@@ -26,12 +26,11 @@ fn udp_payloads(path: &Path) -> Vec<(UtcNanos, u16, Vec<u8>)> {
     out
 }
 
+/// What a receiver got: data payloads, position payloads, data arrival instants, replay stderr.
+type Received = (Vec<Vec<u8>>, Vec<Vec<u8>>, Vec<Instant>, String);
+
 /// Replays `file` to two local sockets and collects what arrives, with arrival instants.
-fn receive(
-    file: &Path,
-    extra: &[&str],
-    until_quiet: Duration,
-) -> (Vec<Vec<u8>>, Vec<Vec<u8>>, Vec<Instant>, String) {
+fn receive(file: &Path, extra: &[&str], until_quiet: Duration) -> Received {
     let data = UdpSocket::bind("127.0.0.1:0").unwrap();
     let pos = UdpSocket::bind("127.0.0.1:0").unwrap();
     data.set_read_timeout(Some(Duration::from_millis(20)))
