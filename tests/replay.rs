@@ -298,3 +298,30 @@ fn a_replay_recorded_again_gives_the_same_payloads() {
     );
     assert_eq!(pos.len(), want.iter().filter(|e| e.1 == 8308).count());
 }
+
+#[test]
+fn now_rewrites_sensor_time_pps_and_rmc_to_the_present() {
+    let file = common::fixture("vlp16_room.pcapng");
+    let before = UtcNanos::now();
+    let (data, pos, _, _) = receive(&file, &["--now"], Duration::from_millis(300));
+    let after = UtcNanos::now();
+    assert_eq!(pos.len(), 1);
+    let p = hilrig::velodyne::PositionPacket::decode(&pos[0]).unwrap();
+    assert_eq!(
+        hilrig::velodyne::PpsStatus::from_byte(p.pps_byte, true),
+        hilrig::velodyne::PpsStatus::Locked
+    );
+    let rmc = p.rmc().expect("an RMC").expect("valid");
+    let t = rmc.utc().unwrap();
+    assert!(
+        t.0 >= before.0 - 2_000_000_000 && t.0 <= after.0,
+        "RMC time {t} is now ({before}..{after})"
+    );
+    // Data packets: microseconds past the current hour, within the replay's span.
+    let toh = u32::from_le_bytes([data[0][1200], data[0][1201], data[0][1202], data[0][1203]]);
+    let resolved = hilrig::velodyne::clock::resolve_toh(toh, after);
+    assert!(
+        resolved.0 >= before.0 - 1_000_000 && resolved.0 <= after.0,
+        "packet time {resolved} is now"
+    );
+}
