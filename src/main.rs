@@ -269,7 +269,22 @@ fn run_decode(args: DecodeArgs) -> Result<ExitCode> {
     };
     let file =
         File::open(&args.file).with_context(|| format!("cannot open {}", args.file.display()))?;
-    let source = BufReader::with_capacity(1 << 20, file);
+    // Refuse the wrong kind of file before creating the output (no header-only CSV left behind).
+    let (is_capture, source) =
+        hilrig::capture::reader::sniff(BufReader::with_capacity(1 << 20, file))
+            .with_context(|| format!("cannot read {}", args.file.display()))?;
+    if !is_capture {
+        let magic: Vec<u8> = source
+            .get_ref()
+            .0
+            .get_ref()
+            .iter()
+            .take(4)
+            .copied()
+            .collect();
+        let e = hilrig::capture::CaptureError::NotACapture { magic };
+        bail!("decoding {}: {e}", args.file.display());
+    }
     let out = open_output(args.output.as_deref())?;
     let out = BufWriter::with_capacity(1 << 20, out);
     let summary = match args.format {
