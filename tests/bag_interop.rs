@@ -11,22 +11,8 @@ use hilrig::stamp::UtcNanos;
 use std::collections::BTreeMap;
 
 fn read(path: &std::path::Path, decode: &[&str]) -> serde_json::Value {
-    let mut cmd = std::process::Command::new(common::python());
-    cmd.arg(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/interop/mcap_read.py"
-    ))
-    .arg(path);
-    for t in decode {
-        cmd.args(["--decode", t]);
-    }
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "mcap reader failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
+    let args: Vec<&str> = decode.iter().flat_map(|t| ["--decode", t]).collect();
+    common::mcap_json(path, &args)
 }
 
 #[test]

@@ -354,18 +354,7 @@ fn a_recording_cut_off_mid_chunk_is_recovered_losing_at_most_a_second_and_a_half
         .output()
         .unwrap();
     assert!(st.status.success());
-    let read = |p: &std::path::Path| -> serde_json::Value {
-        let o = std::process::Command::new(common::python())
-            .arg(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/tests/interop/mcap_read.py"
-            ))
-            .arg(p)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        serde_json::from_slice(&o.stdout).unwrap()
-    };
+    let read = |p: &std::path::Path| common::mcap_json(p, &[]);
     let whole = read(&full);
     let bytes = std::fs::read(&full).unwrap();
     for fraction in [0.3, 0.55, 0.8] {

@@ -84,17 +84,7 @@ fn fixture_payloads() -> Vec<(u16, Vec<u8>)> {
 }
 
 fn read(path: &Path) -> serde_json::Value {
-    let o = Command::new(common::python())
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/interop/mcap_read.py"
-        ))
-        .arg(path)
-        .args(["--decode", "/velodyne_packets"])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    serde_json::from_slice(&o.stdout).unwrap()
+    common::mcap_json(path, &["--decode", "/velodyne_packets"])
 }
 
 #[test]

@@ -85,3 +85,23 @@ pub fn pty() -> (std::fs::File, String) {
     drop(p.slave);
     (std::fs::File::from(p.master), name)
 }
+
+/// Reads an MCAP with the Python `mcap` reader (CRC validation on) and `rosbags`
+/// (tests/interop/mcap_read.py); `args` are the script's options (`--decode TOPIC`, ...).
+pub fn mcap_json(path: &std::path::Path, args: &[&str]) -> serde_json::Value {
+    let o = std::process::Command::new(python())
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/interop/mcap_read.py"
+        ))
+        .arg(path)
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "mcap reader failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).unwrap()
+}
