@@ -173,13 +173,9 @@ fn generated_drive_records_with_synchronised_clocks() {
     assert!(run.status.success(), "{stderr}");
     println!("{stderr}");
 
-    let json = std::process::Command::new(common::python())
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/interop/mcap_read.py"
-        ))
-        .arg(&out)
-        .args([
+    let v = common::mcap_json(
+        &out,
+        &[
             "--decode",
             "/gnss/fix",
             "--decode",
@@ -192,15 +188,8 @@ fn generated_drive_records_with_synchronised_clocks() {
             "/tf_static",
             "--decode",
             "/points",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        json.status.success(),
-        "{}",
-        String::from_utf8_lossy(&json.stderr)
+        ],
     );
-    let v: serde_json::Value = serde_json::from_slice(&json.stdout).unwrap();
     assert_eq!(v["profile"], "ros2");
     let count = |t: &str| v["channels"][t]["count"].as_u64().unwrap_or(0) as usize;
     assert_eq!(count("/gnss/nmea"), truth.sentences);
@@ -518,16 +507,7 @@ fn split_files_repeat_static_data_and_together_hold_everything() {
     assert_eq!(files.len(), 4, "10 s in 3 s files: {files:?}");
     let mut nmea = 0;
     for f in &files {
-        let o = std::process::Command::new(common::python())
-            .arg(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/tests/interop/mcap_read.py"
-            ))
-            .arg(f)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let v = common::mcap_json(f, &[]);
         assert_eq!(v["channels"]["/tf_static"]["count"], 1, "{f:?}");
         assert_eq!(v["metadata"]["hilrig"]["rig"], "demo-vlp16", "{f:?}");
         assert!(
@@ -579,17 +559,7 @@ fn candump_and_gpsd_logs_record_too() {
         "{}",
         String::from_utf8_lossy(&st.stderr)
     );
-    let o = std::process::Command::new(common::python())
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/interop/mcap_read.py"
-        ))
-        .arg(&out)
-        .args(["--decode", "/gnss/fix", "--decode", "/ego/twist"])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let v = common::mcap_json(&out, &["--decode", "/gnss/fix", "--decode", "/ego/twist"]);
     assert_eq!(v["channels"]["/can/frames"]["count"], 40);
     assert_eq!(v["channels"]["/ego/twist"]["count"], 40);
     assert!(

@@ -389,17 +389,7 @@ fn thirty_seconds_at_20000_packets_per_second_lose_nothing() {
     )
     .unwrap();
     let status = child.wait().unwrap();
-    let o = Command::new(common::python())
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/interop/mcap_read.py"
-        ))
-        .arg(&r.out)
-        .arg("--count-scan-packets")
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let v = common::mcap_json(&r.out, &["--count-scan-packets"]);
     let in_file = v["scan_packets"].as_u64().unwrap();
     println!("sent {sent} packets and {sentences} sentences; file holds {in_file} packets and {} sentences; peak RSS {:.1} MB", v["channels"]["/gnss/nmea"]["count"], peak as f64 / 1024.0);
     assert!(
