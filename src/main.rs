@@ -675,16 +675,17 @@ fn position_now(p: &[u8], at: hilrig::stamp::UtcNanos) -> Vec<u8> {
 }
 
 fn run_replay(args: ReplayArgs) -> Result<ExitCode> {
-    use hilrig::replay::{load, wait_until, window, Pacing, Payload};
+    use hilrig::replay::{load_partial, wait_until, window, Pacing, Payload};
     use std::sync::atomic::{AtomicBool, Ordering};
     if !(args.speed > 0.0 && args.speed.is_finite()) {
         bail!("--speed must be a positive number");
     }
-    let items = window(
-        load(&args.file, args.data_port, args.position_port)?,
-        args.start,
-        args.end,
-    );
+    let (items, damage) = load_partial(&args.file, args.data_port, args.position_port)?;
+    if let Some(e) = &damage {
+        // Replay what was read before the damage; the exit status still says it was incomplete.
+        eprintln!("error: {e} (replaying the {} items before it)", items.len());
+    }
+    let items = window(items, args.start, args.end);
     if items.is_empty() {
         bail!(
             "{}: nothing to replay (in the chosen --start/--end window)",
@@ -828,5 +829,11 @@ fn run_replay(args: ReplayArgs) -> Result<ExitCode> {
         "replayed {} items ({} without a destination); lag p50 {:.1} us, p99 {:.1} us, max {:.1} us",
         p.sent, skipped, p.p50_us, p.p99_us, p.max_us
     );
-    Ok(ExitCode::SUCCESS)
+    Ok(match damage {
+        None => ExitCode::SUCCESS,
+        Some(e) => {
+            eprintln!("error: {e}: the rest of the input was not replayed");
+            ExitCode::from(1)
+        }
+    })
 }

@@ -52,25 +52,43 @@ pub enum ReplayError {
 ///
 /// Captures stream in file order; an MCAP's messages are collected and sorted by log time (the
 /// packets of a VelodyneScan at their own stamps), so memory is proportional to the recording.
+/// A capture that breaks off part way is an error here; [`load_partial`] keeps what came before.
 pub fn load(
     path: &Path,
     data_port: u16,
     position_port: u16,
 ) -> Result<Vec<ReplayItem>, ReplayError> {
+    match load_partial(path, data_port, position_port)? {
+        (items, None) => Ok(items),
+        (_, Some(e)) => Err(e),
+    }
+}
+
+/// Like [`load`], but a capture that is cut off or damaged part way (a drive log whose disk
+/// filled up) still gives every item before the damage, with the error beside it: the lab
+/// can replay what was recorded and is told what was not.
+pub fn load_partial(
+    path: &Path,
+    data_port: u16,
+    position_port: u16,
+) -> Result<(Vec<ReplayItem>, Option<ReplayError>), ReplayError> {
     let err = |what: String| ReplayError::Input {
         path: path.display().to_string(),
         what,
     };
     let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
     if bytes.starts_with(mcap::MAGIC) {
-        return load_mcap(&bytes).map_err(err);
+        return load_mcap(&bytes).map(|v| (v, None)).map_err(err);
     }
     let mut d = Demux::new(
         CaptureReader::new(std::io::Cursor::new(bytes)).map_err(|e| err(e.to_string()))?,
     );
     let mut out = Vec::new();
     while let Some(item) = d.next_item() {
-        let item = item.map_err(|e| err(e.to_string()))?;
+        let item = match item {
+            Ok(i) => i,
+            Err(e) => return Ok((out, Some(err(e.to_string())))),
+        };
         let payload = match item.packet {
             Packet::Udp { dst, payload, .. }
                 if dst.port() == data_port
@@ -93,7 +111,7 @@ pub fn load(
             payload,
         });
     }
-    Ok(out)
+    Ok((out, None))
 }
 
 /// A minimal CDR reader for the recorder's own message layouts.

@@ -599,3 +599,52 @@ fn candump_and_gpsd_logs_record_too() {
         "the log has RTK-fixed epochs"
     );
 }
+
+#[test]
+#[cfg_attr(
+    not(hilrig_python),
+    ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
+)]
+fn a_truncated_input_capture_fails_but_records_everything_before_the_cut() {
+    let truth = generate(4);
+    let dir = tempfile::tempdir().unwrap();
+    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml");
+    let record = |input: &[u8], name: &str| {
+        let path = dir.path().join(format!("{name}.pcapng"));
+        std::fs::write(&path, input).unwrap();
+        let out = dir.path().join(format!("{name}.mcap"));
+        let run = std::process::Command::new(common::hilrig_bin())
+            .args(["record", "--rig", rig, "--from"])
+            .arg(&path)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        (run, out)
+    };
+    let (full_run, full) = record(&truth.capture, "full");
+    assert!(full_run.status.success());
+    let cut_at = truth.capture.len() * 6 / 10 + 17;
+    let (cut_run, cut) = record(&truth.capture[..cut_at], "cut");
+    let stderr = String::from_utf8_lossy(&cut_run.stderr);
+    assert_eq!(cut_run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("truncated"), "{stderr}");
+    assert!(
+        stderr.contains("everything before it was recorded"),
+        "{stderr}"
+    );
+    // The output is a finished MCAP (CRCs checked by the Python reader), not a cut-off file.
+    assert!(cut.exists());
+    let whole = common::mcap_json(&full, &[]);
+    let part = common::mcap_json(&cut, &[]);
+    assert_eq!(part["profile"], "ros2");
+    for topic in ["/velodyne_packets", "/gnss/fix", "/can/frames"] {
+        let n_full = whole["channels"][topic]["count"].as_u64().unwrap();
+        let n_cut = part["channels"][topic]["count"].as_u64().unwrap();
+        println!("{topic}: {n_cut} of {n_full} messages before the cut at 60 %");
+        assert!(
+            n_cut * 10 >= n_full * 5 && n_cut < n_full,
+            "{topic}: {n_cut} of {n_full}"
+        );
+    }
+}

@@ -29,8 +29,20 @@ fn udp_payloads(path: &Path) -> Vec<(UtcNanos, u16, Vec<u8>)> {
 /// What a receiver got: data payloads, position payloads, data arrival instants, replay stderr.
 type Received = (Vec<Vec<u8>>, Vec<Vec<u8>>, Vec<Instant>, String);
 
-/// Replays `file` to two local sockets and collects what arrives, with arrival instants.
+/// Replays `file` to two local sockets and collects what arrives, with arrival instants; the
+/// replay must succeed.
 fn receive(file: &Path, extra: &[&str], until_quiet: Duration) -> Received {
+    let (code, got) = receive_with_status(file, extra, until_quiet);
+    assert_eq!(code, Some(0), "{}", got.3);
+    got
+}
+
+/// [`receive`] with the replay's exit code, whatever it is.
+fn receive_with_status(
+    file: &Path,
+    extra: &[&str],
+    until_quiet: Duration,
+) -> (Option<i32>, Received) {
     let data = UdpSocket::bind("127.0.0.1:0").unwrap();
     let pos = UdpSocket::bind("127.0.0.1:0").unwrap();
     data.set_read_timeout(Some(Duration::from_millis(20)))
@@ -63,12 +75,55 @@ fn receive(file: &Path, extra: &[&str], until_quiet: Duration) -> Received {
         }
     }
     let out = child.wait_with_output().unwrap();
+    (
+        out.status.code(),
+        (d, p, at, String::from_utf8_lossy(&out.stderr).into_owned()),
+    )
+}
+
+#[test]
+fn a_truncated_capture_replays_everything_before_the_cut_and_exits_1() {
+    let fixture = common::fixture("vlp16_room.pcapng");
+    let full = std::fs::read(&fixture).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let cut = dir.path().join("cut.pcapng");
+    std::fs::write(&cut, &full[..full.len() * 6 / 10 + 5]).unwrap();
+    // What an independent read of the cut file gives before its error.
+    let (mut expected, mut positions) = (Vec::new(), 0);
+    let mut d = Demux::new(CaptureReader::new(std::fs::File::open(&cut).unwrap()).unwrap());
+    let mut failed = false;
+    while let Some(i) = d.next_item() {
+        match i {
+            Ok(i) => {
+                if let Packet::Udp { dst, payload, .. } = i.packet {
+                    match dst.port() {
+                        2368 => expected.push(payload.to_vec()),
+                        8308 => positions += 1,
+                        _ => {}
+                    }
+                }
+            }
+            Err(_) => {
+                failed = true;
+                break;
+            }
+        }
+    }
+    assert!(failed, "the cut file must be damaged");
+    assert!(expected.len() > 50, "{}", expected.len());
+    let (code, (data, _, _, stderr)) =
+        receive_with_status(&cut, &["--speed", "4"], Duration::from_millis(300));
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("truncated"), "{stderr}");
     assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        stderr.contains(&format!(
+            "replaying the {} items before it",
+            expected.len() + positions
+        )),
+        "{stderr}"
     );
-    (d, p, at, String::from_utf8_lossy(&out.stderr).into_owned())
+    assert_eq!(data.len(), expected.len());
+    assert!(data == expected, "payloads before the cut arrive identical");
 }
 
 #[test]
