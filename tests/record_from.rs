@@ -161,14 +161,7 @@ fn generated_drive_records_with_synchronised_clocks() {
     let input = dir.path().join("drive.pcapng");
     std::fs::write(&input, &truth.capture).unwrap();
     let out = dir.path().join("drive.mcap");
-    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml");
-    let run = std::process::Command::new(common::hilrig_bin())
-        .args(["record", "--rig", rig, "--from"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let run = common::record_from(&common::demo_rig(), &[&input], &out);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(run.status.success(), "{stderr}");
     println!("{stderr}");
@@ -334,14 +327,7 @@ fn a_recording_cut_off_mid_chunk_is_recovered_losing_at_most_a_second_and_a_half
     let input = dir.path().join("drive.pcapng");
     std::fs::write(&input, &truth.capture).unwrap();
     let full = dir.path().join("full.mcap");
-    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml");
-    let st = std::process::Command::new(common::hilrig_bin())
-        .args(["record", "--rig", rig, "--from"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&full)
-        .output()
-        .unwrap();
+    let st = common::record_from(&common::demo_rig(), &[&input], &full);
     assert!(st.status.success());
     let read = |p: &std::path::Path| common::mcap_json(p, &[]);
     let whole = read(&full);
@@ -351,15 +337,7 @@ fn a_recording_cut_off_mid_chunk_is_recovered_losing_at_most_a_second_and_a_half
         let cut = dir.path().join(format!("cut{fraction}.mcap.active"));
         std::fs::write(&cut, &bytes[..cut_at]).unwrap();
         let rec = dir.path().join(format!("rec{fraction}.mcap"));
-        let st = std::process::Command::new(common::hilrig_bin())
-            .arg("recover")
-            .arg(&cut)
-            .arg("-o")
-            .arg(&rec)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&st.stderr);
-        assert!(st.status.success(), "{stderr}");
+        let stderr = common::recover(&cut, &rec);
         assert!(stderr.contains("cut off"), "{stderr}");
         let got = read(&rec);
         // The newest data that had reached the disk: the end time of the last chunk that starts
@@ -391,15 +369,8 @@ fn a_recording_cut_off_mid_chunk_is_recovered_losing_at_most_a_second_and_a_half
 fn info_summarises_a_recording_and_points_cut_off_files_to_recover() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("room.mcap");
-    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml");
     let fixture = common::fixture("vlp16_room.pcapng");
-    let st = std::process::Command::new(common::hilrig_bin())
-        .args(["record", "--rig", rig, "--from"])
-        .arg(&fixture)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let st = common::record_from(&common::demo_rig(), &[&fixture], &out);
     assert!(
         st.status.success(),
         "{}",
@@ -483,16 +454,7 @@ fn split_files_repeat_static_data_and_together_hold_everything() {
     )
     .unwrap();
     let out = dir.path().join("drive.mcap");
-    let st = std::process::Command::new(common::hilrig_bin())
-        .arg("record")
-        .arg("--rig")
-        .arg(&rig)
-        .arg("--from")
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let st = common::record_from(&rig, &[&input], &out);
     assert!(
         st.status.success(),
         "{}",
@@ -545,15 +507,7 @@ fn candump_and_gpsd_logs_record_too() {
     std::fs::write(&candump, log).unwrap();
     let gpsd = common::real_data().join("gnss/nmea-rtk.log");
     let out = dir.path().join("mixed.mcap");
-    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml");
-    let st = std::process::Command::new(common::hilrig_bin())
-        .args(["record", "--rig", rig, "--from"])
-        .arg(&candump)
-        .arg(&gpsd)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let st = common::record_from(&common::demo_rig(), &[&candump, &gpsd], &out);
     assert!(
         st.status.success(),
         "{}",
@@ -608,18 +562,11 @@ fn candump_and_gpsd_logs_record_too() {
 fn a_truncated_input_capture_fails_but_records_everything_before_the_cut() {
     let truth = generate(4);
     let dir = tempfile::tempdir().unwrap();
-    let rig = concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml");
     let record = |input: &[u8], name: &str| {
         let path = dir.path().join(format!("{name}.pcapng"));
         std::fs::write(&path, input).unwrap();
         let out = dir.path().join(format!("{name}.mcap"));
-        let run = std::process::Command::new(common::hilrig_bin())
-            .args(["record", "--rig", rig, "--from"])
-            .arg(&path)
-            .arg("-o")
-            .arg(&out)
-            .output()
-            .unwrap();
+        let run = common::record_from(&common::demo_rig(), &[&path], &out);
         (run, out)
     };
     let (full_run, full) = record(&truth.capture, "full");

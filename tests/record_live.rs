@@ -207,18 +207,7 @@ fn kill_9_mid_recording_is_recovered_losing_at_most_one_and_a_half_seconds() {
     let active = PathBuf::from(format!("{}.active", r.out.display()));
     assert!(active.exists());
     let recovered = r.out.with_extension("recovered.mcap");
-    let st = Command::new(common::hilrig_bin())
-        .arg("recover")
-        .arg(&active)
-        .arg("-o")
-        .arg(&recovered)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    common::recover(&active, &recovered);
     let v = read(&recovered);
     let last = v["last_log_time"].as_u64().expect("messages recovered");
     let lost = (killed_at - last) as f64 * 1e-9;
@@ -293,18 +282,7 @@ fn a_full_disk_stops_the_recorder_with_a_clear_error_and_keeps_what_was_written(
     );
     assert!(stderr.contains("run `hilrig recover`"), "{stderr}");
     let recovered = r.out.with_extension("recovered.mcap");
-    let st = Command::new(common::hilrig_bin())
-        .arg("recover")
-        .arg(&active)
-        .arg("-o")
-        .arg(&recovered)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    common::recover(&active, &recovered);
     let v = read(&recovered);
     let packets: usize = v["messages"]["/velodyne_packets"]
         .as_array()

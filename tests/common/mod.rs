@@ -105,3 +105,40 @@ pub fn mcap_json(path: &std::path::Path, args: &[&str]) -> serde_json::Value {
     );
     serde_json::from_slice(&o.stdout).unwrap()
 }
+
+/// The demo rig file.
+pub fn demo_rig() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml"))
+}
+
+/// Runs `hilrig record --rig RIG --from INPUTS... -o OUT` to the end; the caller checks the exit.
+pub fn record_from(
+    rig: &std::path::Path,
+    inputs: &[&std::path::Path],
+    out: &std::path::Path,
+) -> std::process::Output {
+    std::process::Command::new(hilrig_bin())
+        .arg("record")
+        .arg("--rig")
+        .arg(rig)
+        .arg("--from")
+        .args(inputs)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+/// Runs `hilrig recover CUT -o OUT`, asserts that it succeeded and returns its stderr.
+pub fn recover(cut: &std::path::Path, out: &std::path::Path) -> String {
+    let o = std::process::Command::new(hilrig_bin())
+        .arg("recover")
+        .arg(cut)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "recover failed: {stderr}");
+    stderr
+}
