@@ -52,7 +52,7 @@ pub enum ReplayError {
 ///
 /// Captures stream in file order; an MCAP's messages are collected and sorted by log time (the
 /// packets of a VelodyneScan at their own stamps), so memory is proportional to the recording.
-/// A capture that breaks off part way is an error here; [`load_partial`] keeps what came before.
+/// A file that breaks off part way is an error here; [`load_partial`] keeps what came before.
 pub fn load(
     path: &Path,
     data_port: u16,
@@ -64,9 +64,9 @@ pub fn load(
     }
 }
 
-/// Like [`load`], but a capture that is cut off or damaged part way (a drive log whose disk
-/// filled up) still gives every item before the damage, with the error beside it: the lab
-/// can replay what was recorded and is told what was not.
+/// Like [`load`], but a capture or recording that is cut off or damaged part way (a drive log
+/// whose disk filled up) still gives every item before the damage, with the error beside it:
+/// the lab can replay what was recorded and is told what was not.
 pub fn load_partial(
     path: &Path,
     data_port: u16,
@@ -77,17 +77,28 @@ pub fn load_partial(
         what,
     };
     let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
+    let (items, damage) = schedule(bytes, data_port, position_port).map_err(err)?;
+    Ok((items, damage.map(err)))
+}
+
+/// The sans-IO core of [`load_partial`]: the schedule of a capture or MCAP recording held in
+/// memory. `Err` when the bytes are no capture or recording at all; otherwise the items read and
+/// what stopped the reading early, if anything.
+pub fn schedule(
+    bytes: Vec<u8>,
+    data_port: u16,
+    position_port: u16,
+) -> Result<(Vec<ReplayItem>, Option<String>), String> {
     if bytes.starts_with(mcap::MAGIC) {
-        return load_mcap(&bytes).map(|v| (v, None)).map_err(err);
+        return load_mcap(&bytes);
     }
-    let mut d = Demux::new(
-        CaptureReader::new(std::io::Cursor::new(bytes)).map_err(|e| err(e.to_string()))?,
-    );
+    let mut d =
+        Demux::new(CaptureReader::new(std::io::Cursor::new(bytes)).map_err(|e| e.to_string())?);
     let mut out = Vec::new();
     while let Some(item) = d.next_item() {
         let item = match item {
             Ok(i) => i,
-            Err(e) => return Ok((out, Some(err(e.to_string())))),
+            Err(e) => return Ok((out, Some(e.to_string()))),
         };
         let payload = match item.packet {
             Packet::Udp { dst, payload, .. }
@@ -156,81 +167,238 @@ impl<'a> Cdr<'a> {
     }
 }
 
-fn load_mcap(bytes: &[u8]) -> Result<Vec<ReplayItem>, String> {
-    let stream =
-        mcap::MessageStream::new_with_options(bytes, mcap::read::Options::IgnoreEndMagic.into())
-            .map_err(|e| e.to_string())?;
+/// The schedule of an MCAP recording; a recording cut off or damaged part way (`.active` after a
+/// crash) gives the messages before the damage and says where it stopped.
+fn load_mcap(bytes: &[u8]) -> Result<(Vec<ReplayItem>, Option<String>), String> {
+    let options = mcap::sans_io::LinearReaderOptions::default()
+        .with_skip_end_magic(true)
+        .with_emit_chunks(true)
+        .with_record_length_limit(bytes.len());
     let mut out = Vec::new();
-    for m in stream {
-        let m = m.map_err(|e| e.to_string())?;
-        let t = UtcNanos(m.log_time as i64);
-        let bad = || format!("{}: a message does not decode as its type", m.channel.topic);
-        match m.channel.topic.as_str() {
-            crate::record::topics::VELODYNE_PACKETS => {
-                let mut c = Cdr::new(&m.data).ok_or_else(bad)?;
-                c.header().ok_or_else(bad)?;
-                let n = c.u32().ok_or_else(bad)?;
-                for _ in 0..n {
-                    let stamp = c.time().ok_or_else(bad)?;
-                    let data = c.bytes(hilrig_velodyne::DATA_PACKET_SIZE).ok_or_else(bad)?;
-                    out.push(ReplayItem {
-                        time: stamp,
-                        payload: Payload::LidarData(data.to_vec()),
-                    });
+    let mut channels = mcap::read::ChannelAccumulator::<'static>::default();
+    let damage = records(bytes, options, &mut |op, body| {
+        data_record(op, body, &mut channels, &mut out)
+    })
+    .err()
+    .map(|e| format!("the recording is damaged after {} items: {e}", out.len()));
+    out.sort_by_key(|i| i.time);
+    Ok((out, damage))
+}
+
+/// What [`records`] hands each record to: opcode and body in, whether to go on out.
+type RecordVisitor<'a> = dyn FnMut(u8, &[u8]) -> Result<bool, String> + 'a;
+
+/// Feeds every record of `bytes` (opcode, body) to `each` until it says stop. The records are
+/// handed over raw so that only the ones replay needs are parsed: the mcap crate's parser panics
+/// on some damaged records it does not need (an attachment shorter than its CRC, found by
+/// fuzzing `replay_schedule`).
+fn records(
+    mut bytes: &[u8],
+    options: mcap::sans_io::LinearReaderOptions,
+    each: &mut RecordVisitor<'_>,
+) -> Result<(), String> {
+    use mcap::sans_io::LinearReadEvent;
+    let mut reader = mcap::sans_io::LinearReader::new_with_options(options);
+    while let Some(event) = reader.next_event() {
+        match event.map_err(|e| e.to_string())? {
+            LinearReadEvent::ReadRequest(need) => {
+                let n = need.min(bytes.len());
+                reader.insert(n).copy_from_slice(&bytes[..n]);
+                reader.notify_read(n);
+                bytes = &bytes[n..];
+            }
+            LinearReadEvent::Record { data, opcode } => {
+                if !each(opcode, data)? {
+                    break;
                 }
             }
-            crate::record::topics::VELODYNE_POSITION | crate::record::topics::GNSS_UBX => {
-                let mut c = Cdr::new(&m.data).ok_or_else(bad)?;
-                c.header().ok_or_else(bad)?;
-                let n = c.u32().ok_or_else(bad)? as usize;
-                let data = c.bytes(n).ok_or_else(bad)?.to_vec();
-                let payload = if m.channel.topic == crate::record::topics::VELODYNE_POSITION {
-                    Payload::LidarPosition(data)
-                } else {
-                    Payload::Serial(data)
-                };
-                out.push(ReplayItem { time: t, payload });
-            }
-            crate::record::topics::GNSS_NMEA => {
-                let mut c = Cdr::new(&m.data).ok_or_else(bad)?;
-                c.header().ok_or_else(bad)?;
-                let s = c.string().ok_or_else(bad)?;
-                out.push(ReplayItem {
-                    time: t,
-                    payload: Payload::Serial(format!("{s}\r\n").into_bytes()),
-                });
-            }
-            crate::record::topics::CAN_FRAMES
-                if m.channel
-                    .schema
-                    .as_ref()
-                    .is_some_and(|s| s.name == "can_msgs/msg/Frame") =>
-            {
-                let mut c = Cdr::new(&m.data).ok_or_else(bad)?;
-                c.header().ok_or_else(bad)?;
-                let id = c.u32().ok_or_else(bad)?;
-                let flags = c.bytes(3).ok_or_else(bad)?;
-                let dlc = c.bytes(1).ok_or_else(bad)?[0];
-                let data = c.bytes(8).ok_or_else(bad)?;
-                let (rtr, ext, error) = (flags[0] != 0, flags[1] != 0, flags[2] != 0);
-                let f = if rtr {
-                    CanFrame::new_remote(id, ext, dlc)
-                } else {
-                    CanFrame::new(id, ext, &data[..usize::from(dlc.min(8))])
-                };
-                if let Some(mut f) = f {
-                    f.error = error;
-                    out.push(ReplayItem {
-                        time: t,
-                        payload: Payload::Can(f),
-                    });
-                }
-            }
-            _ => {}
         }
     }
-    out.sort_by_key(|i| i.time);
-    Ok(out)
+    Ok(())
+}
+
+/// How much larger than its compressed bytes a chunk may claim to be. The `mcap` crate (0.26)
+/// reserves a chunk's claimed uncompressed size, and the claimed length of each record inside
+/// it, before reading, so one flipped bit in a damaged recording could ask for exabytes (a panic)
+/// or gigabytes (an abort where memory is limited); fuzzing `replay_schedule` found both. Sensor
+/// data compress by well under 100x.
+const MAX_CHUNK_EXPANSION: u64 = 1000;
+
+/// One record of the data section (opcode, body); false at its end. Chunks are opened here rather
+/// than by the mcap crate, so that every size a damaged file claims (a chunk's, a record's inside
+/// it) is checked against the bytes really there before anything is allocated for it.
+fn data_record(
+    op: u8,
+    body: &[u8],
+    channels: &mut mcap::read::ChannelAccumulator<'static>,
+    out: &mut Vec<ReplayItem>,
+) -> Result<bool, String> {
+    use mcap::records::op;
+    match op {
+        op::SCHEMA | op::CHANNEL | op::MESSAGE => {
+            let record = mcap::parse_record(op, body).map_err(|e| e.to_string())?;
+            record_into(record, channels, out)?;
+        }
+        op::CHUNK => {
+            let mcap::records::Record::Chunk { header, data } =
+                mcap::parse_record(op, body).map_err(|e| e.to_string())?
+            else {
+                return Err("a chunk record that is no chunk".into());
+            };
+            let limit = (data.len() as u64)
+                .saturating_mul(MAX_CHUNK_EXPANSION)
+                .saturating_add(1 << 20);
+            if header.uncompressed_size > limit {
+                return Err(format!(
+                    "a chunk of {} bytes claims {} bytes uncompressed",
+                    data.len(),
+                    header.uncompressed_size
+                ));
+            }
+            let inner = decompress(&header, &data)?;
+            let options = mcap::sans_io::LinearReaderOptions::default()
+                .with_skip_start_magic(true)
+                .with_skip_end_magic(true)
+                .with_record_length_limit(inner.len());
+            records(&inner, options, &mut |op, body| match op {
+                op::SCHEMA | op::CHANNEL | op::MESSAGE => {
+                    data_record(op, body, channels, out)?;
+                    Ok(true)
+                }
+                _ => Ok(true),
+            })?;
+        }
+        op::DATA_END => return Ok(false),
+        _ => {}
+    }
+    Ok(true)
+}
+
+/// A chunk's records, uncompressed, checked against the size its header claims (which has been
+/// checked for plausibility already, so it bounds the allocation).
+fn decompress(header: &mcap::records::ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    let claimed = header.uncompressed_size as usize;
+    let body = match header.compression.as_str() {
+        "" => data.to_vec(),
+        "zstd" => zstd::bulk::decompress(data, claimed).map_err(|e| format!("zstd: {e}"))?,
+        "lz4" => {
+            let mut out = Vec::with_capacity(claimed);
+            lz4::Decoder::new(data)
+                .map_err(|e| format!("lz4: {e}"))?
+                .take(claimed as u64 + 1)
+                .read_to_end(&mut out)
+                .map_err(|e| format!("lz4: {e}"))?;
+            out
+        }
+        other => return Err(format!("a chunk compressed with unknown {other:?}")),
+    };
+    if body.len() != claimed {
+        return Err(format!(
+            "a chunk claims {claimed} bytes uncompressed but holds {}",
+            body.len()
+        ));
+    }
+    Ok(body)
+}
+
+/// One record of the data section: schemas and channels are remembered, messages scheduled.
+fn record_into(
+    record: mcap::records::Record<'_>,
+    channels: &mut mcap::read::ChannelAccumulator<'static>,
+    out: &mut Vec<ReplayItem>,
+) -> Result<(), String> {
+    match record {
+        mcap::records::Record::Schema { header, data } => channels
+            .add_schema(header, std::borrow::Cow::Owned(data.into_owned()))
+            .map_err(|e| e.to_string()),
+        mcap::records::Record::Channel(c) => channels.add_channel(c).map_err(|e| e.to_string()),
+        mcap::records::Record::Message { header, data } => {
+            let channel = channels.get(header.channel_id).ok_or_else(|| {
+                format!(
+                    "a message on channel {} that was never defined",
+                    header.channel_id
+                )
+            })?;
+            message_into(&channel, header.log_time, &data, out)
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Schedules one message of the recorder's topics; others are passed over.
+fn message_into(
+    channel: &mcap::Channel<'_>,
+    log_time: u64,
+    data: &[u8],
+    out: &mut Vec<ReplayItem>,
+) -> Result<(), String> {
+    let t = UtcNanos(log_time as i64);
+    let bad = || format!("{}: a message does not decode as its type", channel.topic);
+    match channel.topic.as_str() {
+        crate::record::topics::VELODYNE_PACKETS => {
+            let mut c = Cdr::new(data).ok_or_else(bad)?;
+            c.header().ok_or_else(bad)?;
+            let n = c.u32().ok_or_else(bad)?;
+            for _ in 0..n {
+                let stamp = c.time().ok_or_else(bad)?;
+                let data = c.bytes(hilrig_velodyne::DATA_PACKET_SIZE).ok_or_else(bad)?;
+                out.push(ReplayItem {
+                    time: stamp,
+                    payload: Payload::LidarData(data.to_vec()),
+                });
+            }
+        }
+        crate::record::topics::VELODYNE_POSITION | crate::record::topics::GNSS_UBX => {
+            let mut c = Cdr::new(data).ok_or_else(bad)?;
+            c.header().ok_or_else(bad)?;
+            let n = c.u32().ok_or_else(bad)? as usize;
+            let data = c.bytes(n).ok_or_else(bad)?.to_vec();
+            let payload = if channel.topic == crate::record::topics::VELODYNE_POSITION {
+                Payload::LidarPosition(data)
+            } else {
+                Payload::Serial(data)
+            };
+            out.push(ReplayItem { time: t, payload });
+        }
+        crate::record::topics::GNSS_NMEA => {
+            let mut c = Cdr::new(data).ok_or_else(bad)?;
+            c.header().ok_or_else(bad)?;
+            let s = c.string().ok_or_else(bad)?;
+            out.push(ReplayItem {
+                time: t,
+                payload: Payload::Serial(format!("{s}\r\n").into_bytes()),
+            });
+        }
+        crate::record::topics::CAN_FRAMES
+            if channel
+                .schema
+                .as_ref()
+                .is_some_and(|s| s.name == "can_msgs/msg/Frame") =>
+        {
+            let mut c = Cdr::new(data).ok_or_else(bad)?;
+            c.header().ok_or_else(bad)?;
+            let id = c.u32().ok_or_else(bad)?;
+            let flags = c.bytes(3).ok_or_else(bad)?;
+            let dlc = c.bytes(1).ok_or_else(bad)?[0];
+            let data = c.bytes(8).ok_or_else(bad)?;
+            let (rtr, ext, error) = (flags[0] != 0, flags[1] != 0, flags[2] != 0);
+            let f = if rtr {
+                CanFrame::new_remote(id, ext, dlc)
+            } else {
+                CanFrame::new(id, ext, &data[..usize::from(dlc.min(8))])
+            };
+            if let Some(mut f) = f {
+                f.error = error;
+                out.push(ReplayItem {
+                    time: t,
+                    payload: Payload::Can(f),
+                });
+            }
+        }
+        _ => {}
+    }
+    Ok(())
 }
 
 /// Keeps items between `start` and `end` seconds after the first item.
@@ -292,6 +460,98 @@ pub fn wait_until(deadline: Instant) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An MCAP with a header and one zstd chunk holding `records`, claiming `size`.
+    fn recording_with_chunk(records: &[u8], size: u64) -> Vec<u8> {
+        let compressed = zstd::bulk::compress(records, 3).unwrap();
+        let record = |op: u8, body: &[u8]| {
+            let mut r = vec![op];
+            r.extend_from_slice(&(body.len() as u64).to_le_bytes());
+            r.extend_from_slice(body);
+            r
+        };
+        let mut header = Vec::new();
+        for s in ["ros2", "test"] {
+            header.extend_from_slice(&(s.len() as u32).to_le_bytes());
+            header.extend_from_slice(s.as_bytes());
+        }
+        let mut chunk = Vec::new();
+        chunk.extend_from_slice(&0u64.to_le_bytes()); // start time
+        chunk.extend_from_slice(&0u64.to_le_bytes()); // end time
+        chunk.extend_from_slice(&size.to_le_bytes()); // uncompressed size
+        chunk.extend_from_slice(&0u32.to_le_bytes()); // no CRC
+        chunk.extend_from_slice(&4u32.to_le_bytes());
+        chunk.extend_from_slice(b"zstd");
+        chunk.extend_from_slice(&(compressed.len() as u64).to_le_bytes());
+        chunk.extend_from_slice(&compressed);
+        let mut out = mcap::MAGIC.to_vec();
+        out.extend(record(0x01, &header));
+        out.extend(record(0x06, &chunk));
+        out
+    }
+
+    /// The inputs with which fuzzing `replay_schedule` made the mcap crate reserve exabytes or
+    /// slice out of bounds (fixtures/fuzz, in the fuzz target's encoding: an odd first byte
+    /// stands for the MCAP magic). They end in a schedule with the damage named.
+    #[test]
+    fn the_fuzzer_s_damaged_recordings_are_damage_not_a_panic() {
+        for name in [
+            "replay_schedule_chunk_size.bin",
+            "replay_schedule_record_length.bin",
+            "replay_schedule_attachment.bin",
+        ] {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("fixtures/fuzz")
+                .join(name);
+            let data = std::fs::read(path).unwrap();
+            assert_eq!(data[0] % 2, 1);
+            let file = [mcap::MAGIC, &data[1..]].concat();
+            let (_, damage) = schedule(file, 2368, 8308).unwrap();
+            let damage = damage.expect("damage reported");
+            assert!(
+                damage.starts_with("the recording is damaged after"),
+                "{name}: {damage}"
+            );
+        }
+    }
+
+    /// Found by fuzzing (`replay_schedule`): sizes a damaged recording claims, for a chunk or for
+    /// a record inside one, made the mcap crate reserve exabytes (a panic). They are damage,
+    /// reported with what came before.
+    #[test]
+    fn absurd_sizes_in_a_damaged_recording_are_damage_not_a_panic() {
+        // A record inside the chunk claiming 0x7221f3000004011e bytes, as the fuzzer found.
+        let mut inner = vec![0x03];
+        inner.extend_from_slice(&0x7221_f300_0004_011e_u64.to_le_bytes());
+        inner.extend_from_slice(&[0; 16]);
+        let file = recording_with_chunk(&inner, inner.len() as u64);
+        let (items, damage) = schedule(file, 2368, 8308).unwrap();
+        assert!(items.is_empty());
+        let damage = damage.expect("damage reported");
+        assert!(
+            damage.starts_with("the recording is damaged after 0 items"),
+            "{damage}"
+        );
+
+        // A chunk claiming far more than it can hold.
+        let file = recording_with_chunk(&inner, u64::MAX / 3);
+        let damage = schedule(file, 2368, 8308)
+            .unwrap()
+            .1
+            .expect("damage reported");
+        assert!(
+            damage.contains("claims 6148914691236517205 bytes uncompressed"),
+            "{damage}"
+        );
+
+        // A chunk claiming a little more than it holds.
+        let file = recording_with_chunk(&inner, inner.len() as u64 + 5);
+        let damage = schedule(file, 2368, 8308)
+            .unwrap()
+            .1
+            .expect("damage reported");
+        assert!(damage.contains("but holds 25"), "{damage}");
+    }
 
     #[test]
     fn window_keeps_the_requested_seconds() {
