@@ -675,12 +675,12 @@ fn position_now(p: &[u8], at: hilrig::stamp::UtcNanos) -> Vec<u8> {
 }
 
 fn run_replay(args: ReplayArgs) -> Result<ExitCode> {
-    use hilrig::replay::{load_partial, wait_until, window, Pacing, Payload};
+    use hilrig::replay::{load, wait_until, window, Pacing, Payload};
     use std::sync::atomic::{AtomicBool, Ordering};
     if !(args.speed > 0.0 && args.speed.is_finite()) {
         bail!("--speed must be a positive number");
     }
-    let (items, damage) = load_partial(&args.file, args.data_port, args.position_port)?;
+    let (items, damage) = load(&args.file, args.data_port, args.position_port)?;
     if let Some(e) = &damage {
         // Replay what was read before the damage; the exit status still says it was incomplete.
         eprintln!("error: {e} (replaying the {} items before it)", items.len());

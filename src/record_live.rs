@@ -109,6 +109,14 @@ pub enum LiveError {
     Bag(#[from] BagError),
 }
 
+/// Maps an error opening `source_name` to the recorder's error that names the source.
+fn source_error<E: std::fmt::Display>(source_name: &'static str) -> impl FnOnce(E) -> LiveError {
+    move |e| LiveError::Source {
+        source_name,
+        error: e.to_string(),
+    }
+}
+
 /// Runs the recorder until `stop` resolves; then finishes the file.
 pub async fn record_live(
     rig: &Rig,
@@ -156,10 +164,7 @@ pub async fn record_live(
 
     // Open every source before writing anything: a wrong port stops the recorder at start.
     if let Some(l) = &rig.lidar {
-        let model: Model = l.model.parse().map_err(|e: String| LiveError::Source {
-            source_name: "lidar",
-            error: e,
-        })?;
+        let model: Model = l.model.parse().map_err(source_error("lidar"))?;
         let ip: std::net::IpAddr = l.bind.parse().map_err(|e| LiveError::Source {
             source_name: "lidar",
             error: format!("bind address {}: {e}", l.bind),
@@ -170,10 +175,7 @@ pub async fn record_live(
             Some(model),
             DEFAULT_RECV_BUFFER,
         )
-        .map_err(|e| LiveError::Source {
-            source_name: "lidar",
-            error: e.to_string(),
-        })?;
+        .map_err(source_error("lidar"))?;
         let h = Arc::new(Health::default());
         health.insert("lidar", h.clone());
         let period = hilrig_velodyne::Decoder::new(model)
@@ -195,12 +197,8 @@ pub async fn record_live(
         )));
     }
     if let Some(g) = &rig.gnss {
-        let source = hilrig_gnss::serial::SerialSource::open(&g.port, g.baud).map_err(|e| {
-            LiveError::Source {
-                source_name: "gnss",
-                error: e.to_string(),
-            }
-        })?;
+        let source = hilrig_gnss::serial::SerialSource::open(&g.port, g.baud)
+            .map_err(source_error("gnss"))?;
         let h = Arc::new(Health::default());
         health.insert("gnss", h.clone());
         tasks.push(tokio::spawn(gnss_task(
@@ -213,13 +211,8 @@ pub async fn record_live(
         )));
     }
     if let Some(c) = &rig.can {
-        let source =
-            hilrig_can::socketcan_source::SocketCanSource::open(&c.interface).map_err(|e| {
-                LiveError::Source {
-                    source_name: "can",
-                    error: e.to_string(),
-                }
-            })?;
+        let source = hilrig_can::socketcan_source::SocketCanSource::open(&c.interface)
+            .map_err(source_error("can"))?;
         let h = Arc::new(Health::default());
         health.insert("can", h.clone());
         tasks.push(tokio::spawn(can_task(

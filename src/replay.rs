@@ -7,6 +7,7 @@
 //! the lag (send time minus deadline) in the microseconds; the lag of every send is kept and its
 //! p50, p99 and maximum are reported at the end.
 
+use crate::bag::cdr::CdrReader;
 use hilrig_capture::demux::{Demux, Packet};
 use hilrig_capture::{CanFrame, CaptureReader};
 use hilrig_stamp::UtcNanos;
@@ -52,22 +53,10 @@ pub enum ReplayError {
 ///
 /// Captures stream in file order; an MCAP's messages are collected and sorted by log time (the
 /// packets of a VelodyneScan at their own stamps), so memory is proportional to the recording.
-/// A file that breaks off part way is an error here; [`load_partial`] keeps what came before.
+/// A capture or recording that is cut off or damaged part way (a drive log whose disk filled up)
+/// still gives every item before the damage, with the error beside it: the lab can replay what
+/// was recorded and is told what was not.
 pub fn load(
-    path: &Path,
-    data_port: u16,
-    position_port: u16,
-) -> Result<Vec<ReplayItem>, ReplayError> {
-    match load_partial(path, data_port, position_port)? {
-        (items, None) => Ok(items),
-        (_, Some(e)) => Err(e),
-    }
-}
-
-/// Like [`load`], but a capture or recording that is cut off or damaged part way (a drive log
-/// whose disk filled up) still gives every item before the damage, with the error beside it:
-/// the lab can replay what was recorded and is told what was not.
-pub fn load_partial(
     path: &Path,
     data_port: u16,
     position_port: u16,
@@ -81,7 +70,7 @@ pub fn load_partial(
     Ok((items, damage.map(err)))
 }
 
-/// The sans-IO core of [`load_partial`]: the schedule of a capture or MCAP recording held in
+/// The sans-IO core of [`load`]: the schedule of a capture or MCAP recording held in
 /// memory. `Err` when the bytes are no capture or recording at all; otherwise the items read and
 /// what stopped the reading early, if anything.
 pub fn schedule(
@@ -123,48 +112,6 @@ pub fn schedule(
         });
     }
     Ok((out, None))
-}
-
-/// A minimal CDR reader for the recorder's own message layouts.
-struct Cdr<'a> {
-    b: &'a [u8],
-    pos: usize,
-}
-
-impl<'a> Cdr<'a> {
-    fn new(b: &'a [u8]) -> Option<Self> {
-        (b.len() >= 4).then_some(Cdr { b, pos: 4 })
-    }
-    fn align(&mut self, n: usize) {
-        let rel = self.pos - 4;
-        self.pos += (n - rel % n) % n;
-    }
-    fn u32(&mut self) -> Option<u32> {
-        self.align(4);
-        let v = self.b.get(self.pos..self.pos + 4)?;
-        self.pos += 4;
-        Some(u32::from_le_bytes([v[0], v[1], v[2], v[3]]))
-    }
-    fn time(&mut self) -> Option<UtcNanos> {
-        let s = self.u32()? as i32;
-        let n = self.u32()?;
-        Some(UtcNanos::from_secs_nanos(i64::from(s), n))
-    }
-    fn bytes(&mut self, n: usize) -> Option<&'a [u8]> {
-        let v = self.b.get(self.pos..self.pos.checked_add(n)?)?;
-        self.pos += n;
-        Some(v)
-    }
-    fn string(&mut self) -> Option<&'a str> {
-        let n = self.u32()? as usize;
-        let s = self.bytes(n)?;
-        std::str::from_utf8(s.strip_suffix(&[0]).unwrap_or(s)).ok()
-    }
-    fn header(&mut self) -> Option<UtcNanos> {
-        let t = self.time()?;
-        self.string()?;
-        Some(t)
-    }
 }
 
 /// The schedule of an MCAP recording; a recording cut off or damaged part way (`.active` after a
@@ -260,12 +207,10 @@ fn data_record(
                 .with_skip_start_magic(true)
                 .with_skip_end_magic(true)
                 .with_record_length_limit(inner.len());
+            // A chunk holds no chunks and no data end; anything else goes the same way.
             records(&inner, options, &mut |op, body| match op {
-                op::SCHEMA | op::CHANNEL | op::MESSAGE => {
-                    data_record(op, body, channels, out)?;
-                    Ok(true)
-                }
-                _ => Ok(true),
+                op::CHUNK | op::DATA_END => Ok(true),
+                _ => data_record(op, body, channels, out),
             })?;
         }
         op::DATA_END => return Ok(false),
@@ -337,7 +282,7 @@ fn message_into(
     let bad = || format!("{}: a message does not decode as its type", channel.topic);
     match channel.topic.as_str() {
         crate::record::topics::VELODYNE_PACKETS => {
-            let mut c = Cdr::new(data).ok_or_else(bad)?;
+            let mut c = CdrReader::new(data).ok_or_else(bad)?;
             c.header().ok_or_else(bad)?;
             let n = c.u32().ok_or_else(bad)?;
             for _ in 0..n {
@@ -350,7 +295,7 @@ fn message_into(
             }
         }
         crate::record::topics::VELODYNE_POSITION | crate::record::topics::GNSS_UBX => {
-            let mut c = Cdr::new(data).ok_or_else(bad)?;
+            let mut c = CdrReader::new(data).ok_or_else(bad)?;
             c.header().ok_or_else(bad)?;
             let n = c.u32().ok_or_else(bad)? as usize;
             let data = c.bytes(n).ok_or_else(bad)?.to_vec();
@@ -362,7 +307,7 @@ fn message_into(
             out.push(ReplayItem { time: t, payload });
         }
         crate::record::topics::GNSS_NMEA => {
-            let mut c = Cdr::new(data).ok_or_else(bad)?;
+            let mut c = CdrReader::new(data).ok_or_else(bad)?;
             c.header().ok_or_else(bad)?;
             let s = c.string().ok_or_else(bad)?;
             out.push(ReplayItem {
@@ -376,7 +321,7 @@ fn message_into(
                 .as_ref()
                 .is_some_and(|s| s.name == "can_msgs/msg/Frame") =>
         {
-            let mut c = Cdr::new(data).ok_or_else(bad)?;
+            let mut c = CdrReader::new(data).ok_or_else(bad)?;
             c.header().ok_or_else(bad)?;
             let id = c.u32().ok_or_else(bad)?;
             let flags = c.bytes(3).ok_or_else(bad)?;

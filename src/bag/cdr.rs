@@ -5,6 +5,8 @@
 //! Strings are a `u32` length including the terminating NUL, the bytes and the NUL; sequences a
 //! `u32` element count and the elements; fixed arrays just the elements.
 
+use hilrig_stamp::UtcNanos;
+
 /// Writes one CDR message.
 #[derive(Debug)]
 pub struct CdrWriter {
@@ -104,6 +106,62 @@ impl CdrWriter {
     }
 }
 
+/// Reads the recorder's own message layouts back (replay): each read is `None` past the end, so a
+/// damaged message is reported, never a panic.
+#[derive(Debug)]
+pub struct CdrReader<'a> {
+    b: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> CdrReader<'a> {
+    /// A reader after the encapsulation header; `None` when even that is missing.
+    pub fn new(b: &'a [u8]) -> Option<Self> {
+        (b.len() >= 4).then_some(CdrReader { b, pos: 4 })
+    }
+
+    fn align(&mut self, n: usize) {
+        let rel = self.pos - 4;
+        self.pos += (n - rel % n) % n;
+    }
+
+    /// A `u32`.
+    pub fn u32(&mut self) -> Option<u32> {
+        self.align(4);
+        let v = self.b.get(self.pos..self.pos + 4)?;
+        self.pos += 4;
+        Some(u32::from_le_bytes([v[0], v[1], v[2], v[3]]))
+    }
+
+    /// A `builtin_interfaces/Time`.
+    pub fn time(&mut self) -> Option<UtcNanos> {
+        let s = self.u32()? as i32;
+        let n = self.u32()?;
+        Some(UtcNanos::from_secs_nanos(i64::from(s), n))
+    }
+
+    /// `n` bytes (a fixed array, or a sequence's elements after its length).
+    pub fn bytes(&mut self, n: usize) -> Option<&'a [u8]> {
+        let v = self.b.get(self.pos..self.pos.checked_add(n)?)?;
+        self.pos += n;
+        Some(v)
+    }
+
+    /// A string, without its terminating NUL.
+    pub fn string(&mut self) -> Option<&'a str> {
+        let n = self.u32()? as usize;
+        let s = self.bytes(n)?;
+        std::str::from_utf8(s.strip_suffix(&[0]).unwrap_or(s)).ok()
+    }
+
+    /// A `std_msgs/Header`: its stamp (the frame id is read past).
+    pub fn header(&mut self) -> Option<UtcNanos> {
+        let t = self.time()?;
+        self.string()?;
+        Some(t)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -123,5 +181,22 @@ mod tests {
             4 + 24,
             "f64 aligned to 8: at 16..24 after the header"
         );
+    }
+
+    #[test]
+    fn the_reader_reads_what_the_writer_wrote_and_stops_at_the_end() {
+        let mut w = CdrWriter::new();
+        w.i32(12)
+            .u32(345)
+            .string("lidar")
+            .u32(7)
+            .fixed_bytes(&[1, 2, 3]);
+        let b = w.finish();
+        let mut r = CdrReader::new(&b).unwrap();
+        assert_eq!(r.header(), Some(UtcNanos::from_secs_nanos(12, 345)));
+        assert_eq!(r.u32(), Some(7));
+        assert_eq!(r.bytes(3), Some(&[1u8, 2, 3][..]));
+        assert_eq!(r.u32(), None);
+        assert!(CdrReader::new(&b[..3]).is_none());
     }
 }
