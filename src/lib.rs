@@ -11,10 +11,12 @@ pub mod clock;
 pub mod gnss_log;
 pub mod lidar;
 pub mod points_out;
+pub mod pose;
 pub mod record;
 pub mod record_live;
 pub mod replay;
 pub mod rig;
+pub mod scene;
 
 pub use hilrig_can as can;
 pub use hilrig_capture as capture;
