@@ -17,6 +17,7 @@ pub mod record_live;
 pub mod replay;
 pub mod rig;
 pub mod scene;
+pub mod sim;
 
 pub use hilrig_can as can;
 pub use hilrig_capture as capture;

@@ -22,7 +22,7 @@ pub mod rotation;
 #[cfg(feature = "tokio")]
 pub mod source;
 
-pub use calibration::Calibration;
+pub use calibration::{Beam, Calibration};
 pub use decode::{Decoder, LaserId, Point, ReturnType};
 pub use encode::{PacketEncoder, Sequence};
 pub use error::{CalibrationError, DecodeError};

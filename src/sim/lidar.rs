@@ -1,0 +1,461 @@
+//! The lidar model: casts each firing of a data packet into the scene and fills in what the
+//! sensor would have measured.
+//!
+//! The simulator works on packet *skeletons*: the block azimuths, stamp, return mode and product
+//! of a packet (from a recording for re-simulation, or from a spinning-sensor schedule for
+//! synthesis). Every channel's beam is the one the decoder assigns to that channel
+//! ([`hilrig_velodyne::Decoder::firing`] and [`hilrig_velodyne::Calibration::beam`]), so decoding a
+//! simulated packet puts every point back on the ray that produced it, and re-simulation keeps
+//! the recording's timing and azimuths exactly.
+//!
+//! Each firing happens at its own time (packet stamp plus the manual's firing offset) and is cast
+//! from the ego pose at that time composed with the rig's mounting; actors are at their pose at
+//! that time too.
+
+use super::model::{Effect, ModelError, ModelFile};
+use crate::pose::{mounting_isometry, Trajectory};
+use crate::rig::Mounting;
+use crate::scene::{ActorPoses, Scene};
+use hilrig_stamp::UtcNanos;
+use hilrig_velodyne::packet::{ReturnMode, BLOCKS, CHANNELS};
+use hilrig_velodyne::{Calibration, Channel, DataPacket, Decoder, Model};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+/// One echo of a firing, before quantisation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Echo {
+    /// Range from the beam origin, metres.
+    pub range: f64,
+    /// Received power relative to a ρ = 1 target at 1 m, normal incidence, full footprint.
+    pub power: f64,
+    /// Reflectivity the intensity byte reports (×100): footprint-weighted ρ for the idealized
+    /// model, ρ cos^k θ with the intensity effect; partial footprints report less.
+    pub reflectivity: f64,
+}
+
+/// What one firing reports: at most a strongest and a last echo.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Returns {
+    /// Strongest echo.
+    pub strongest: Option<Echo>,
+    /// Last (farthest) echo.
+    pub last: Option<Echo>,
+}
+
+/// The effects of a model, ready to apply.
+#[derive(Clone, Debug)]
+struct Compiled {
+    noise: Option<Normal<f64>>,
+    bias_m: f64,
+    dropout: f64,
+    min_power: Option<f64>,
+    /// Sub-ray angular offsets (horizontal, vertical) in radians, and the merge distance.
+    divergence: Option<(Vec<(f64, f64)>, f64)>,
+    per_firing_pose: bool,
+    time_offset_ns: i64,
+    intensity: Option<(f64, f64)>,
+    weather: Option<(f64, f64, f64, f64)>,
+    misalignment: UnitQuaternion<f64>,
+}
+
+impl Compiled {
+    fn new(model: &ModelFile) -> Result<Compiled, ModelError> {
+        model.validate()?;
+        let mut c = Compiled {
+            noise: None,
+            bias_m: 0.0,
+            dropout: 0.0,
+            min_power: None,
+            divergence: None,
+            per_firing_pose: true,
+            time_offset_ns: 0,
+            intensity: None,
+            weather: None,
+            misalignment: UnitQuaternion::identity(),
+        };
+        for e in &model.effects {
+            match *e {
+                Effect::RangeNoise { sigma_m } => {
+                    c.noise = Normal::new(0.0, sigma_m).ok();
+                }
+                Effect::RangeBias { bias_m } => c.bias_m = bias_m,
+                Effect::RandomDropout { probability } => c.dropout = probability,
+                Effect::DetectionThreshold {
+                    reference_range_m,
+                    reference_reflectivity,
+                } => c.min_power = Some(reference_reflectivity / reference_range_m.powi(2)),
+                Effect::BeamDivergence {
+                    horizontal_mrad,
+                    vertical_mrad,
+                    sub_rays_per_axis,
+                    range_separation_m,
+                } => {
+                    // A grid over the footprint's bounding box, keeping points inside the
+                    // ellipse (all of them when n = 1).
+                    let n = sub_rays_per_axis as usize;
+                    let mut offs = Vec::new();
+                    for i in 0..n {
+                        for j in 0..n {
+                            let u = if n == 1 {
+                                0.0
+                            } else {
+                                -1.0 + 2.0 * i as f64 / (n - 1) as f64
+                            };
+                            let v = if n == 1 {
+                                0.0
+                            } else {
+                                -1.0 + 2.0 * j as f64 / (n - 1) as f64
+                            };
+                            if u * u + v * v <= 1.0 + 1e-9 {
+                                offs.push((
+                                    u * horizontal_mrad * 0.5e-3,
+                                    v * vertical_mrad * 0.5e-3,
+                                ));
+                            }
+                        }
+                    }
+                    c.divergence = Some((offs, range_separation_m));
+                }
+                Effect::MotionDistortion { enabled } => c.per_firing_pose = enabled,
+                Effect::TimeOffset { offset_ms } => {
+                    c.time_offset_ns = (offset_ms * 1e6).round() as i64;
+                }
+                Effect::MountMisalignment {
+                    roll_deg,
+                    pitch_deg,
+                    yaw_deg,
+                } => {
+                    c.misalignment = UnitQuaternion::from_euler_angles(
+                        roll_deg.to_radians(),
+                        pitch_deg.to_radians(),
+                        yaw_deg.to_radians(),
+                    )
+                }
+                Effect::Intensity {
+                    incidence_exponent,
+                    noise_sigma,
+                } => c.intensity = Some((incidence_exponent, noise_sigma)),
+                Effect::Weather {
+                    extinction_per_m,
+                    clutter_probability,
+                    clutter_max_range_m,
+                    clutter_reflectivity,
+                } => {
+                    c.weather = Some((
+                        extinction_per_m,
+                        clutter_probability,
+                        clutter_max_range_m,
+                        clutter_reflectivity,
+                    ))
+                }
+            }
+        }
+        Ok(c)
+    }
+}
+
+/// When a packet's firings happened.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PacketTime {
+    /// Reference (UTC) time of the packet stamp, i.e. of its first firing.
+    pub first_firing: UtcNanos,
+    /// Reference time of the first firing of the rotation the packet belongs to (the single pose
+    /// used when `motion_distortion` is disabled).
+    pub rotation_start: UtcNanos,
+}
+
+/// Counters of one simulation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SimStats {
+    /// Firings cast.
+    pub firings: u64,
+    /// Firings with at least one return.
+    pub returns: u64,
+    /// Firings whose time lies outside the ego trajectory (reported as no return).
+    pub outside_trajectory: u64,
+}
+
+/// A lidar in a scene, on a vehicle, with a model.
+pub struct LidarSim<'a> {
+    scene: &'a Scene,
+    decoder: Decoder,
+    mount: Isometry3<f64>,
+    fx: Compiled,
+    min_range: f64,
+    max_range: f64,
+}
+
+/// Velodyne's calibrated reflectivity byte: 0-100 for diffuse targets (percent), 101-255 for
+/// retro-reflectors.
+fn intensity_byte(apparent: f64) -> u8 {
+    if apparent <= 1.0 {
+        (apparent * 100.0).round().clamp(0.0, 100.0) as u8
+    } else {
+        (100.0 + (apparent - 1.0) * 15.5)
+            .round()
+            .clamp(101.0, 255.0) as u8
+    }
+}
+
+impl<'a> LidarSim<'a> {
+    /// A simulator for `model` (geometry from `calibration`) mounted at `mounting` on the
+    /// vehicle, in `scene`, applying `file`'s effects.
+    pub fn new(
+        scene: &'a Scene,
+        model: Model,
+        calibration: Calibration,
+        mounting: &Mounting,
+        file: &ModelFile,
+    ) -> Result<LidarSim<'a>, ModelError> {
+        let fx = Compiled::new(file)?;
+        let limits = file.limits.unwrap_or(super::model::Limits {
+            min_range_m: None,
+            max_range_m: None,
+        });
+        let mut mount = mounting_isometry(mounting);
+        mount.rotation *= fx.misalignment;
+        Ok(LidarSim {
+            scene,
+            decoder: Decoder::with_calibration(model, calibration),
+            mount,
+            fx,
+            min_range: limits.min_range_m.unwrap_or(0.5),
+            max_range: limits.max_range_m.unwrap_or(model.max_range_m()),
+        })
+    }
+
+    /// The decoder whose firing geometry the simulator uses.
+    pub fn decoder(&self) -> &Decoder {
+        &self.decoder
+    }
+
+    /// The sensor-to-vehicle transform used (mounting plus any misalignment effect).
+    pub fn mount(&self) -> &Isometry3<f64> {
+        &self.mount
+    }
+
+    /// The time a firing stamped `stamp` is cast at (the time_offset effect applied).
+    pub fn cast_time(&self, stamp: UtcNanos) -> UtcNanos {
+        UtcNanos(stamp.0 + self.fx.time_offset_ns)
+    }
+
+    /// Sensor-to-local transform at reference time `t` on `ego` (`None` outside it).
+    pub fn sensor_pose(
+        &self,
+        ego: &Trajectory,
+        t: UtcNanos,
+        hint: &mut usize,
+    ) -> Option<Isometry3<f64>> {
+        ego.pose_at(t, hint).map(|v| v * self.mount)
+    }
+
+    /// Casts one beam (origin and unit direction in the local frame) with actors at `actors`
+    /// and applies the model's effects.
+    pub fn fire(
+        &self,
+        o: &Point3<f64>,
+        d: &Vector3<f64>,
+        actors: &ActorPoses,
+        rng: &mut impl Rng,
+    ) -> Returns {
+        let fx = &self.fx;
+        if fx.dropout > 0.0 && rng.random::<f64>() < fx.dropout {
+            return Returns::default();
+        }
+        let alpha = fx.weather.map_or(0.0, |w| w.0);
+        let k = fx.intensity.map(|i| i.0);
+        let contribution = |range: f64, refl: f64, cos: f64, share: f64| Echo {
+            range,
+            power: share * refl * cos / (range * range) * (-2.0 * alpha * range).exp(),
+            reflectivity: share * refl * k.map_or(1.0, |k| cos.max(0.0).powf(k)),
+        };
+        let mut echoes: [Echo; 4] = [Echo {
+            range: 0.0,
+            power: 0.0,
+            reflectivity: 0.0,
+        }; 4];
+        let mut n = 0usize;
+        match &fx.divergence {
+            None => {
+                if let Some(h) = self.scene.cast(o, d, 0.0, self.max_range * 1.5, actors) {
+                    let cos = -h.normal.dot(d);
+                    echoes[0] = contribution(h.range, h.material.reflectivity, cos, 1.0);
+                    n = 1;
+                }
+            }
+            Some((offsets, separation)) => {
+                // Orthonormal frame around the beam: u horizontal, w "up" across the beam.
+                let u = {
+                    let c = d.cross(&Vector3::z());
+                    let l = c.norm();
+                    if l > 1e-9 {
+                        c / l
+                    } else {
+                        Vector3::x()
+                    }
+                };
+                let w = u.cross(d);
+                let share = 1.0 / offsets.len() as f64;
+                let mut subs: Vec<Echo> = Vec::with_capacity(offsets.len());
+                for &(a, b) in offsets {
+                    let sd = (d + u * a + w * b).normalize();
+                    if let Some(h) = self.scene.cast(o, &sd, 0.0, self.max_range * 1.5, actors) {
+                        let cos = -h.normal.dot(&sd);
+                        subs.push(contribution(h.range, h.material.reflectivity, cos, share));
+                    }
+                }
+                subs.sort_by(|a, b| a.range.total_cmp(&b.range));
+                // Merge sub-ray hits within the pulse's range resolution into echoes.
+                let mut i = 0;
+                while i < subs.len() {
+                    let mut j = i + 1;
+                    while j < subs.len() && subs[j].range - subs[j - 1].range <= *separation {
+                        j += 1;
+                    }
+                    let group = &subs[i..j];
+                    let p: f64 = group.iter().map(|e| e.power).sum();
+                    let e = Echo {
+                        range: if p > 0.0 {
+                            group.iter().map(|e| e.range * e.power).sum::<f64>() / p
+                        } else {
+                            group[0].range
+                        },
+                        power: p,
+                        reflectivity: group.iter().map(|e| e.reflectivity).sum(),
+                    };
+                    if n < echoes.len() {
+                        echoes[n] = e;
+                        n += 1;
+                    } else if let Some(weakest) = echoes
+                        .iter_mut()
+                        .min_by(|a, b| a.power.total_cmp(&b.power))
+                        .filter(|w| w.power < e.power)
+                    {
+                        *weakest = e;
+                    }
+                    i = j;
+                }
+            }
+        }
+        if let Some((_, p, rmax, refl)) = fx.weather {
+            if p > 0.0 && rng.random::<f64>() < p && n < echoes.len() {
+                let lo = self.min_range.min(rmax);
+                let r = lo + rng.random::<f64>() * (rmax - lo);
+                echoes[n] = contribution(r, refl, 1.0, 1.0);
+                n += 1;
+            }
+        }
+        let mut out = Returns::default();
+        for e in &mut echoes[..n] {
+            if let Some(min) = fx.min_power {
+                if e.power < min {
+                    continue;
+                }
+            }
+            e.range += fx.bias_m;
+            if let Some(noise) = &fx.noise {
+                e.range += noise.sample(rng);
+            }
+            if e.range < self.min_range || e.range > self.max_range {
+                continue;
+            }
+            if out.strongest.is_none_or(|s| e.power > s.power) {
+                out.strongest = Some(*e);
+            }
+            if out.last.is_none_or(|l| e.range > l.range) {
+                out.last = Some(*e);
+            }
+        }
+        out
+    }
+
+    fn channel(&self, laser: usize, e: Option<Echo>, rng: &mut impl Rng) -> Channel {
+        let Some(e) = e else {
+            return Channel::default();
+        };
+        let Some(distance) = self.decoder.calibration().raw_distance(laser, e.range) else {
+            return Channel::default();
+        };
+        let mut reflectivity = intensity_byte(e.reflectivity);
+        if let Some((_, sigma)) = self.fx.intensity {
+            if sigma > 0.0 {
+                let noise = Normal::new(0.0, sigma).map_or(0.0, |n| n.sample(rng));
+                reflectivity = (f64::from(reflectivity) + noise).round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        Channel {
+            distance,
+            reflectivity,
+        }
+    }
+
+    /// Fills the channels of `skeleton` (block azimuths, stamp, mode and product are kept) with
+    /// what the model measures when the packet's first firing happened at `time.first_firing`,
+    /// the ego following `ego`. `seed` makes the effects' randomness reproducible per packet.
+    pub fn simulate(
+        &self,
+        skeleton: &DataPacket,
+        time: PacketTime,
+        ego: &Trajectory,
+        seed: u64,
+        stats: &mut SimStats,
+    ) -> DataPacket {
+        let mut pkt = skeleton.clone();
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mode = skeleton.return_mode.mode().unwrap_or(ReturnMode::Strongest);
+        let dual = mode == ReturnMode::Dual;
+        let columns = if dual { BLOCKS / 2 } else { BLOCKS };
+        let rate = self.decoder.rotation_rate(skeleton, columns);
+        let n = self.decoder.model().lasers();
+        let mut hint = 0usize;
+        let mut actors = self.scene.new_actor_poses();
+        let has_actors = !self.scene.actors.is_empty();
+        let fixed_pose = if self.fx.per_firing_pose {
+            None
+        } else {
+            Some(self.sensor_pose(ego, self.cast_time(time.rotation_start), &mut hint))
+        };
+        for column in 0..columns {
+            let block = if dual { 2 * column + 1 } else { column };
+            for ch in 0..CHANNELS {
+                let (az, t_us) = self.decoder.firing(skeleton, block, column, ch, rate);
+                let laser = ch % n;
+                let t = self.cast_time(UtcNanos(
+                    time.first_firing.0 + (t_us * 1000.0).round() as i64,
+                ));
+                stats.firings += 1;
+                let pose = match fixed_pose {
+                    Some(p) => p,
+                    None => self.sensor_pose(ego, t, &mut hint),
+                };
+                let Some(sensor) = pose else {
+                    stats.outside_trajectory += 1;
+                    continue;
+                };
+                let beam = self.decoder.calibration().beam(laser, az);
+                let o = sensor.transform_point(&Point3::from(beam.origin));
+                let d = sensor.transform_vector(&Vector3::from(beam.direction));
+                if has_actors {
+                    self.scene.actor_poses(t, &mut actors);
+                }
+                let r = self.fire(&o, &d, &actors, &mut rng);
+                if r.strongest.is_some() {
+                    stats.returns += 1;
+                }
+                let strongest = self.channel(laser, r.strongest, &mut rng);
+                if dual {
+                    pkt.blocks[2 * column + 1].channels[ch] = strongest;
+                    pkt.blocks[2 * column].channels[ch] = self.channel(laser, r.last, &mut rng);
+                } else if mode == ReturnMode::Last {
+                    pkt.blocks[column].channels[ch] = self.channel(laser, r.last, &mut rng);
+                } else {
+                    pkt.blocks[column].channels[ch] = strongest;
+                }
+            }
+        }
+        pkt
+    }
+}

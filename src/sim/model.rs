@@ -1,0 +1,392 @@
+//! The lidar model file (`model.toml`): the idealized model of seed Table 1 plus a list of named
+//! effects, each with its parameters. The gap workflow adds effects to this list one at a time.
+//!
+//! ```toml
+//! name = "vlp16-truth"
+//! description = "what this model is for"
+//!
+//! [limits]                 # optional; defaults from the sensor's specification sheet
+//! min_range_m = 0.5
+//! max_range_m = 100.0
+//!
+//! [[effect]]
+//! name = "range_noise"
+//! sigma_m = 0.012
+//!
+//! [[effect]]
+//! name = "detection_threshold"
+//! reference_range_m = 100.0
+//! reference_reflectivity = 0.10
+//! ```
+//!
+//! Each effect may appear once. Unknown names and keys are errors.
+
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Range limits of the idealized model.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    /// Returns nearer than this are not reported (the sensor's blind zone), metres.
+    pub min_range_m: Option<f64>,
+    /// Returns beyond this are not reported, metres (default: the model's specification).
+    pub max_range_m: Option<f64>,
+}
+
+/// One effect of the catalogue. Documentation says what it does, its parameters, and where the
+/// phenomenon and its typical values come from.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(tag = "name", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Effect {
+    /// Zero-mean Gaussian noise on every range. Source: the range accuracy of the Velodyne
+    /// specification sheets ("±3 cm typical" for VLP-16/VLP-32C, taken as about 2σ); seed
+    /// Table 1 lists noise as the first phenomenological effect.
+    RangeNoise {
+        /// Standard deviation, metres.
+        sigma_m: f64,
+    },
+    /// A constant added to every range (an uncalibrated distance offset). Source: per-laser
+    /// `dist_correction` of Velodyne calibration files, which exists because such biases occur.
+    RangeBias {
+        /// Bias, metres (positive: farther).
+        bias_m: f64,
+    },
+    /// Each firing is lost with a fixed probability, independent of the target (random
+    /// detection failures). Source: seed Table 1 (detection probability), Rosenberger et al. 2019.
+    RandomDropout {
+        /// Probability that a firing reports nothing.
+        probability: f64,
+    },
+    /// Received power against a detection threshold. For an extended Lambertian target the lidar
+    /// equation gives P ∝ ρ cos θ / R² (ρ reflectivity, θ incidence angle, R range; beam
+    /// entirely on the target), times the two-way atmospheric transmission. A target of
+    /// `reference_reflectivity` at normal incidence is detected up to `reference_range_m`, so a
+    /// target ρ, θ reaches `reference_range_m · sqrt(ρ cos θ / reference_reflectivity)`: dark
+    /// objects vanish at long range. Source: the lidar range equation (Jelalian, "Laser Radar
+    /// Systems", 1992) and the specification sheets' "range at 10 % reflectivity".
+    DetectionThreshold {
+        /// Range at which the reference target is still detected, metres.
+        reference_range_m: f64,
+        /// Reflectivity of that reference target.
+        reference_reflectivity: f64,
+    },
+    /// The beam is a cone, not a line: `sub_rays_per_axis²` sub-rays across the elliptical
+    /// footprint share its power. Sub-ray hits within `range_separation_m` merge into one echo at
+    /// their power-weighted mean range (mixed returns between a foreground edge and what lies
+    /// behind); farther apart they are separate echoes (strongest and last). A partial footprint
+    /// gives an edge return with less power. Source: specification sheets (VLP-16: 3.0 mrad
+    /// horizontal, 1.5 mrad vertical divergence); mixed pixels in Hebert & Krotkov 1992.
+    BeamDivergence {
+        /// Full divergence across, milliradians.
+        horizontal_mrad: f64,
+        /// Full divergence along elevation, milliradians.
+        vertical_mrad: f64,
+        /// Sub-rays per axis (odd keeps one on the beam axis).
+        #[serde(default = "default_sub_rays")]
+        sub_rays_per_axis: u32,
+        /// Echoes closer than this merge (the pulse's range resolution), metres.
+        #[serde(default = "default_separation")]
+        range_separation_m: f64,
+    },
+    /// Whether each laser fires at its own time and pose (`enabled = true`, the default of every
+    /// model: a rotating sensor on a moving vehicle always sees this) or the whole rotation is
+    /// placed at the pose of its first firing (`false`: what a frame-based simulator does, kept so
+    /// the gap workflow can show what the distortion costs). Source: seed §3 on time
+    /// synchronisation; the VLP-16 manual's firing timing.
+    MotionDistortion {
+        /// Fire each laser at its own pose.
+        enabled: bool,
+    },
+    /// The lidar's timestamps are late against reference time: a firing stamped `t` happened at
+    /// `t + offset` (an unsynchronised or misconfigured clock). Source: seed §6 (temporal
+    /// accuracy of the reference data).
+    TimeOffset {
+        /// Offset, milliseconds.
+        offset_ms: f64,
+    },
+    /// The sensor is mounted rotated from the rig file's extrinsics by these angles (applied as
+    /// yaw, pitch, roll in the sensor frame). Source: extrinsic calibration error; seed §6.
+    MountMisalignment {
+        /// Roll error, degrees.
+        #[serde(default)]
+        roll_deg: f64,
+        /// Pitch error, degrees.
+        #[serde(default)]
+        pitch_deg: f64,
+        /// Yaw error, degrees.
+        #[serde(default)]
+        yaw_deg: f64,
+    },
+    /// Intensity depends on the incidence angle (`100 ρ cos^k θ`, Lambertian k = 1) with Gaussian
+    /// noise, instead of the idealized model's calibrated reflectivity `100 ρ`. Source: Velodyne
+    /// manual on calibrated reflectivity (0-100 diffuse, 101-255 retro-reflective); Kashani et
+    /// al. 2015, "A review of lidar radiometric processing".
+    Intensity {
+        /// Exponent k of cos θ.
+        #[serde(default = "one")]
+        incidence_exponent: f64,
+        /// Standard deviation of the intensity, counts.
+        #[serde(default)]
+        noise_sigma: f64,
+    },
+    /// Rain or fog: two-way extinction `exp(-2 α R)` of the received power (acts through
+    /// `detection_threshold`, which it requires) and near clutter: with `clutter_probability` a
+    /// firing also sees a droplet echo at a uniform range up to `clutter_max_range_m` with the
+    /// power of a `clutter_reflectivity` target. Source: Rasshofer, Spies & Spies 2011,
+    /// "Influences of weather phenomena on automotive laser radar systems"; Goodin et al. 2019,
+    /// "Predicting the influence of rain on LIDAR in ADAS" (α ≈ 0.01 R_rain^0.6 per metre for rain
+    /// rate in mm/h); fog α = 3.912 / visibility (Koschmieder).
+    Weather {
+        /// Extinction coefficient α, per metre.
+        extinction_per_m: f64,
+        /// Probability of a clutter echo per firing.
+        #[serde(default)]
+        clutter_probability: f64,
+        /// Clutter appears up to this range, metres.
+        #[serde(default = "default_clutter_range")]
+        clutter_max_range_m: f64,
+        /// Apparent reflectivity of a clutter echo.
+        #[serde(default = "default_clutter_reflectivity")]
+        clutter_reflectivity: f64,
+    },
+}
+
+fn default_sub_rays() -> u32 {
+    5
+}
+fn default_separation() -> f64 {
+    0.5
+}
+fn one() -> f64 {
+    1.0
+}
+fn default_clutter_range() -> f64 {
+    3.0
+}
+fn default_clutter_reflectivity() -> f64 {
+    0.05
+}
+
+impl Effect {
+    /// The effect's name as written in `model.toml`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Effect::RangeNoise { .. } => "range_noise",
+            Effect::RangeBias { .. } => "range_bias",
+            Effect::RandomDropout { .. } => "random_dropout",
+            Effect::DetectionThreshold { .. } => "detection_threshold",
+            Effect::BeamDivergence { .. } => "beam_divergence",
+            Effect::MotionDistortion { .. } => "motion_distortion",
+            Effect::TimeOffset { .. } => "time_offset",
+            Effect::MountMisalignment { .. } => "mount_misalignment",
+            Effect::Intensity { .. } => "intensity",
+            Effect::Weather { .. } => "weather",
+        }
+    }
+}
+
+/// A model: limits and effects.
+#[derive(Clone, Debug, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelFile {
+    /// Name (written into simulated recordings).
+    pub name: String,
+    /// What the model is for.
+    #[serde(default)]
+    pub description: String,
+    /// Range limits.
+    #[serde(default)]
+    pub limits: Option<Limits>,
+    /// The effects, in any order (each at most once).
+    #[serde(default, rename = "effect")]
+    pub effects: Vec<Effect>,
+}
+
+/// Why a model cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    /// Cannot read.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        /// Path.
+        path: String,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// Malformed TOML, unknown effect or key.
+    #[error("{path}: {message}")]
+    Toml {
+        /// Path.
+        path: String,
+        /// Message with line and column.
+        message: String,
+    },
+    /// A parameter out of range or a conflict.
+    #[error("model '{model}', effect {effect}: {what}")]
+    Invalid {
+        /// Model name.
+        model: String,
+        /// Effect name.
+        effect: String,
+        /// What is wrong.
+        what: String,
+    },
+}
+
+impl ModelFile {
+    /// The idealized model (no effects).
+    pub fn idealized() -> ModelFile {
+        ModelFile {
+            name: "idealized".into(),
+            description: "seed Table 1: ray casting with a perfect beam".into(),
+            ..ModelFile::default()
+        }
+    }
+
+    /// Reads and checks a model file.
+    pub fn load(path: &Path) -> Result<ModelFile, ModelError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let m: ModelFile = toml::from_str(&text).map_err(|e| ModelError::Toml {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        m.validate()?;
+        Ok(m)
+    }
+
+    /// The TOML text of this model (what simulated recordings store in their metadata).
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).unwrap_or_default()
+    }
+
+    /// Checks parameter ranges and that each effect appears once.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        let bad = |e: &Effect, what: String| ModelError::Invalid {
+            model: self.name.clone(),
+            effect: e.name().into(),
+            what,
+        };
+        let mut seen = std::collections::HashSet::new();
+        for e in &self.effects {
+            if !seen.insert(e.name()) {
+                return Err(bad(e, "appears more than once".into()));
+            }
+            let finite_nonneg = |v: f64| v.is_finite() && v >= 0.0;
+            let ok = match e {
+                Effect::RangeNoise { sigma_m } => finite_nonneg(*sigma_m),
+                Effect::RangeBias { bias_m } => bias_m.is_finite(),
+                Effect::RandomDropout { probability } => (0.0..=1.0).contains(probability),
+                Effect::DetectionThreshold {
+                    reference_range_m,
+                    reference_reflectivity,
+                } => *reference_range_m > 0.0 && *reference_reflectivity > 0.0,
+                Effect::BeamDivergence {
+                    horizontal_mrad,
+                    vertical_mrad,
+                    sub_rays_per_axis,
+                    range_separation_m,
+                } => {
+                    finite_nonneg(*horizontal_mrad)
+                        && finite_nonneg(*vertical_mrad)
+                        && (1..=15).contains(sub_rays_per_axis)
+                        && finite_nonneg(*range_separation_m)
+                }
+                Effect::MotionDistortion { .. } => true,
+                Effect::TimeOffset { offset_ms } => offset_ms.is_finite(),
+                Effect::MountMisalignment {
+                    roll_deg,
+                    pitch_deg,
+                    yaw_deg,
+                } => [roll_deg, pitch_deg, yaw_deg]
+                    .iter()
+                    .all(|v| v.abs() <= 45.0),
+                Effect::Intensity {
+                    incidence_exponent,
+                    noise_sigma,
+                } => finite_nonneg(*incidence_exponent) && finite_nonneg(*noise_sigma),
+                Effect::Weather {
+                    extinction_per_m,
+                    clutter_probability,
+                    clutter_max_range_m,
+                    clutter_reflectivity,
+                } => {
+                    finite_nonneg(*extinction_per_m)
+                        && (0.0..=1.0).contains(clutter_probability)
+                        && *clutter_max_range_m > 0.0
+                        && finite_nonneg(*clutter_reflectivity)
+                }
+            };
+            if !ok {
+                return Err(bad(e, format!("parameters out of range: {e:?}")));
+            }
+            if matches!(e, Effect::Weather { .. })
+                && !self
+                    .effects
+                    .iter()
+                    .any(|x| matches!(x, Effect::DetectionThreshold { .. }))
+            {
+                return Err(bad(
+                    e,
+                    "needs detection_threshold: extinction removes returns only through it".into(),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_the_catalogue_and_rejects_mistakes() {
+        let text = r#"
+name = "t"
+[[effect]]
+name = "range_noise"
+sigma_m = 0.02
+[[effect]]
+name = "detection_threshold"
+reference_range_m = 100.0
+reference_reflectivity = 0.1
+[[effect]]
+name = "weather"
+extinction_per_m = 0.004
+"#;
+        let m: ModelFile = toml::from_str(text).unwrap();
+        m.validate().unwrap();
+        assert_eq!(m.effects.len(), 3);
+        let back: ModelFile = toml::from_str(&m.to_toml()).unwrap();
+        assert_eq!(back, m);
+        assert!(
+            toml::from_str::<ModelFile>("name = \"t\"\n[[effect]]\nname = \"sparkle\"\n").is_err()
+        );
+        assert!(toml::from_str::<ModelFile>(
+            "name = \"t\"\n[[effect]]\nname = \"range_noise\"\nsigma = 1.0\n"
+        )
+        .is_err());
+        let dup: ModelFile = toml::from_str(
+            "name = \"t\"\n[[effect]]\nname = \"range_bias\"\nbias_m = 1.0\n[[effect]]\nname = \"range_bias\"\nbias_m = 2.0\n",
+        )
+        .unwrap();
+        assert!(dup
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("more than once"));
+        let weather: ModelFile = toml::from_str(
+            "name = \"t\"\n[[effect]]\nname = \"weather\"\nextinction_per_m = 0.01\n",
+        )
+        .unwrap();
+        assert!(weather
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("detection_threshold"));
+    }
+}

@@ -1,0 +1,88 @@
+//! A spinning sensor's packet schedule: when each data packet's first firing happens and at
+//! which azimuths its blocks start, for synthesis (re-simulation takes both from the recording).
+
+use super::lidar::PacketTime;
+use hilrig_stamp::UtcNanos;
+use hilrig_velodyne::decode::firing_offset_us;
+use hilrig_velodyne::packet::{Block, ReturnMode, BLOCKS, FLAG_UPPER};
+use hilrig_velodyne::{Channel, DataPacket, Model};
+
+/// A sensor spinning at a constant rate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spin {
+    /// Model.
+    pub model: Model,
+    /// Return mode.
+    pub mode: ReturnMode,
+    /// Rotations per minute (300..1200 on Velodyne sensors).
+    pub rpm: f64,
+    /// Azimuth at `t0`, degrees.
+    pub phase_deg: f64,
+    /// Reference time of the first packet's first firing.
+    pub t0: UtcNanos,
+}
+
+/// A packet without returns, and when it fired.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skeleton {
+    /// The packet (channels empty; stamp in the sensor's clock).
+    pub packet: DataPacket,
+    /// Its timing in reference time.
+    pub time: PacketTime,
+}
+
+impl Spin {
+    /// Time one packet covers, nanoseconds.
+    pub fn packet_period_ns(&self) -> f64 {
+        let t = self.model.timing();
+        let columns = if self.mode == ReturnMode::Dual {
+            BLOCKS / 2
+        } else {
+            BLOCKS
+        };
+        columns as f64 * t.sequences_per_block as f64 * t.sequence_us * 1000.0
+    }
+
+    fn azimuth_deg(&self, t: f64) -> f64 {
+        self.phase_deg + self.rpm * 6.0 * (t - self.t0.0 as f64) * 1e-9
+    }
+
+    /// Packet `k` of the schedule; `sensor_clock` maps reference time to the sensor's own clock
+    /// (its stamps).
+    pub fn packet(&self, k: u64, sensor_clock: impl Fn(UtcNanos) -> UtcNanos) -> Skeleton {
+        let first = self.t0.0 as f64 + k as f64 * self.packet_period_ns();
+        let dual = self.mode == ReturnMode::Dual;
+        let blocks = std::array::from_fn(|b| {
+            let column = if dual { b / 2 } else { b };
+            let t = first + firing_offset_us(self.model, column, 0) * 1000.0;
+            let az = (self.azimuth_deg(t) * 100.0).round().rem_euclid(36_000.0) as u16;
+            Block {
+                flag: FLAG_UPPER,
+                azimuth: az % 36_000,
+                channels: [Channel::default(); 32],
+            }
+        });
+        let first_firing = UtcNanos(first.round() as i64);
+        let turns = (self.azimuth_deg(first) / 360.0).floor();
+        let rotation_start =
+            self.t0.0 as f64 + (turns * 360.0 - self.phase_deg) / (self.rpm * 6.0) * 1e9;
+        let stamp = sensor_clock(first_firing);
+        Skeleton {
+            packet: DataPacket {
+                blocks,
+                timestamp_us: (stamp.nanos_past_hour() / 1000) as u32,
+                return_mode: self.mode.byte(),
+                product: self.model.product(),
+            },
+            time: PacketTime {
+                first_firing,
+                rotation_start: UtcNanos(rotation_start.round() as i64),
+            },
+        }
+    }
+
+    /// Number of packets in `seconds`.
+    pub fn packets_in(&self, seconds: f64) -> u64 {
+        (seconds * 1e9 / self.packet_period_ns()).floor() as u64
+    }
+}

@@ -1,0 +1,748 @@
+//! The lidar model against closed-form geometry, analytic motion and the statistics of each effect
+//! (issue 5, must-holds 1, 3 and 4).
+
+use hilrig::pose::{PoseSample, Trajectory};
+use hilrig::rig::Mounting;
+use hilrig::scene::file::{Ground, ObjectFile, Placement, SceneFile, Wgs84};
+use hilrig::scene::{Scene, Shape};
+use hilrig::sim::lidar::Returns;
+use hilrig::sim::spin::Spin;
+use hilrig::sim::{Effect, LidarSim, ModelFile, SimStats};
+use hilrig::stamp::UtcNanos;
+use hilrig::velodyne::packet::ReturnMode;
+use hilrig::velodyne::{Calibration, Decoder, Model, Point};
+use nalgebra::{Point3, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::path::Path;
+
+const T0: UtcNanos = UtcNanos(1_763_700_000_000_000_000);
+
+fn scene(objects: Vec<ObjectFile>, ground: Option<Ground>) -> Scene {
+    let file = SceneFile {
+        name: "test".into(),
+        origin: Wgs84 {
+            latitude_deg: 48.0,
+            longitude_deg: 11.0,
+            height_m: 0.0,
+        },
+        ground,
+        objects,
+        actors: vec![],
+    };
+    Scene::from_file(file, Path::new("."), Path::new("test.toml")).unwrap()
+}
+
+fn object(name: &str, x: f64, y: f64, z: f64, shape: Shape, reflectivity: f64) -> ObjectFile {
+    ObjectFile {
+        name: name.into(),
+        pose: Placement {
+            x,
+            y,
+            z,
+            ..Placement::default()
+        },
+        reflectivity,
+        accuracy_m: 0.0,
+        parts: vec![shape],
+    }
+}
+
+fn wall(x: f64, reflectivity: f64) -> ObjectFile {
+    // Near face at `x`, 1 km wide, 40 m tall.
+    object(
+        "wall",
+        x + 0.25,
+        0.0,
+        -20.0,
+        Shape::Box {
+            size: [0.5, 1000.0, 40.0],
+            at: Placement::default(),
+            reflectivity: None,
+        },
+        reflectivity,
+    )
+}
+
+/// Constant speed `v` (m/s) and yaw rate `w` (rad/s) from the origin heading east, sampled
+/// every millisecond over `seconds`.
+fn ctrv(v: f64, w: f64, seconds: f64) -> Trajectory {
+    // From one second before T0, so that rotations begun before T0 have poses too.
+    let n = (seconds * 1000.0) as i64;
+    Trajectory::new(
+        (-1000..=n)
+            .map(|i| {
+                let t = i as f64 * 1e-3;
+                let (x, y) = analytic_xy(v, w, t);
+                PoseSample {
+                    t: UtcNanos(T0.0 + i * 1_000_000),
+                    position: Vector3::new(x, y, 0.0),
+                    yaw: w * t,
+                    pitch: 0.0,
+                    roll: 0.0,
+                }
+            })
+            .collect(),
+    )
+    .unwrap()
+}
+
+fn analytic_xy(v: f64, w: f64, t: f64) -> (f64, f64) {
+    if w.abs() < 1e-12 {
+        (v * t, 0.0)
+    } else {
+        (v / w * (w * t).sin(), v / w * (1.0 - (w * t).cos()))
+    }
+}
+
+const SENSOR_Z: f64 = 1.5;
+
+fn mounting() -> Mounting {
+    Mounting {
+        x: 0.0,
+        y: 0.0,
+        z: SENSOR_Z,
+        ..Mounting::default()
+    }
+}
+
+fn model(effects: Vec<Effect>) -> ModelFile {
+    ModelFile {
+        name: "test".into(),
+        effects,
+        ..ModelFile::idealized()
+    }
+}
+
+/// One rotation (plus a little) of simulated packets, decoded.
+fn simulate_and_decode(
+    sim: &LidarSim,
+    ego: &Trajectory,
+    spin: Spin,
+    packets: u64,
+) -> Vec<(Point, UtcNanos)> {
+    let dec = Decoder::new(spin.model);
+    let mut out = Vec::new();
+    let mut stats = SimStats::default();
+    for k in 0..packets {
+        let sk = spin.packet(k, |t| t);
+        let pkt = sim.simulate(&sk.packet, sk.time, ego, k, &mut stats);
+        for p in dec.decode(&pkt).unwrap() {
+            out.push((
+                p,
+                UtcNanos(sk.time.first_firing.0 + i64::from(p.time_offset_ns)),
+            ));
+        }
+    }
+    assert_eq!(stats.outside_trajectory, 0);
+    out
+}
+
+fn spin(model: Model) -> Spin {
+    Spin {
+        model,
+        mode: ReturnMode::Strongest,
+        rpm: 600.0,
+        phase_deg: 300.0,
+        t0: UtcNanos(T0.0 + 10_000_000),
+    }
+}
+
+fn laser_elevation(model: Model, laser: usize) -> f64 {
+    model.laser_specs()[laser].vertical_deg.to_radians()
+}
+
+/// Half a range count plus f32 storage of the decoded metres.
+fn quantum(model: Model) -> f64 {
+    // f32 in the decoder (angle, sin/cos and the stored metres) adds up to ~0.02 mm here.
+    model.distance_resolution_m() / 2.0 + 3e-5
+}
+
+#[test]
+fn static_sensor_facing_a_wall_reproduces_each_lasers_range() {
+    for model in [Model::Vlp16, Model::Vlp32c, Model::Hdl32e] {
+        let d_wall = 12.0;
+        let s = scene(vec![wall(d_wall, 0.5)], None);
+        let sim = LidarSim::new(
+            &s,
+            model,
+            Calibration::builtin(model),
+            &mounting(),
+            &ModelFile::idealized(),
+        )
+        .unwrap();
+        let ego = ctrv(0.0, 0.0, 1.0);
+        let sp = spin(model);
+        let pts = simulate_and_decode(&sim, &ego, sp, sp.packets_in(0.1) + 1);
+        let mut lasers_seen = vec![0usize; model.lasers()];
+        for (p, _) in &pts {
+            let a = f64::from(p.azimuth_deg).to_radians();
+            let w = laser_elevation(model, usize::from(p.laser.0));
+            let rot = -model.laser_specs()[usize::from(p.laser.0)]
+                .azimuth_offset_deg
+                .to_radians();
+            // The beam's horizontal angle (azimuth minus the laser's rotation correction).
+            let beam_az = (a - rot + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+            assert!(
+                beam_az.abs() < 90f64.to_radians(),
+                "{model}: a return behind the sensor"
+            );
+            if beam_az.abs() > 60f64.to_radians() {
+                // At grazing incidence the decoder's f32 azimuth (±4e-7 rad) moves the range by
+                // more than the quantum: d r / d a = r tan a.
+                continue;
+            }
+            // Closed form: a plane at x = d_wall from the beam's origin.
+            let expect = d_wall / (w.cos() * beam_az.cos());
+            assert!(
+                (f64::from(p.distance_m) - expect).abs() <= quantum(model),
+                "{model} laser {}: {} vs {expect}",
+                p.laser.0,
+                p.distance_m
+            );
+            lasers_seen[usize::from(p.laser.0)] += 1;
+            if beam_az.abs() < 0.3f64.to_radians() {
+                // Straight ahead each laser's range is d / cos(elevation).
+                assert!((f64::from(p.distance_m) - d_wall / w.cos()).abs() < 0.01);
+            }
+        }
+        assert!(
+            lasers_seen.iter().all(|&n| n > 100),
+            "{model}: {lasers_seen:?}"
+        );
+    }
+}
+
+#[test]
+fn ranges_to_ground_boxes_and_cylinders_match_closed_form() {
+    let model = Model::Vlp16;
+    let q = quantum(model);
+    let cyl = object(
+        "column",
+        8.0,
+        0.0,
+        0.0,
+        Shape::Cylinder {
+            radius: 1.0,
+            height: 5.0,
+            at: Placement::default(),
+            reflectivity: None,
+        },
+        0.5,
+    );
+    let boxed = object(
+        "box",
+        -6.0,
+        0.0,
+        0.0,
+        Shape::Box {
+            size: [2.0, 4.0, 1.0],
+            at: Placement {
+                yaw_deg: 30.0,
+                ..Placement::default()
+            },
+            reflectivity: None,
+        },
+        0.5,
+    );
+    let ground = Ground {
+        z: 0.0,
+        half_size_m: 100.0,
+        reflectivity: 0.2,
+        accuracy_m: 0.0,
+    };
+    let s = scene(vec![cyl, boxed], Some(ground));
+    let sim = LidarSim::new(
+        &s,
+        model,
+        Calibration::builtin(model),
+        &mounting(),
+        &ModelFile::idealized(),
+    )
+    .unwrap();
+    let ego = ctrv(0.0, 0.0, 1.0);
+    let sp = spin(model);
+    let pts = simulate_and_decode(&sim, &ego, sp, sp.packets_in(0.1) + 1);
+    let (mut n_cyl, mut n_ground, mut n_box) = (0, 0, 0);
+    let yaw = 30f64.to_radians();
+    for (p, _) in &pts {
+        let laser = usize::from(p.laser.0);
+        let w = laser_elevation(model, laser);
+        let a = f64::from(p.azimuth_deg).to_radians();
+        let zoff = model.laser_specs()[laser].vertical_offset_m;
+        let origin = Vector3::new(0.0, 0.0, SENSOR_Z + zoff);
+        let dir = Vector3::new(w.cos() * a.cos(), -w.cos() * a.sin(), w.sin());
+        let mut candidates = Vec::new();
+        // Ground: z = 0.
+        if dir.z < 0.0 {
+            candidates.push(-origin.z / dir.z);
+        }
+        // Cylinder at (8, 0), r = 1, z in [0, 5]: horizontal quadratic.
+        let h = (dir.x * dir.x + dir.y * dir.y).sqrt();
+        let hx = dir.x / h;
+        let along = 8.0 * hx;
+        let perp2 = 64.0 - along * along;
+        if perp2 <= 1.0 && along > 0.0 {
+            let th = along - (1.0 - perp2).sqrt();
+            let t = th / h;
+            let z = origin.z + t * dir.z;
+            if (0.0..=5.0).contains(&z) {
+                candidates.push(t);
+            }
+        }
+        // Box at (-6, 0) yawed 30°: slab intersection in its frame.
+        {
+            let (c, s_) = (yaw.cos(), yaw.sin());
+            let rel = origin - Vector3::new(-6.0, 0.0, 0.0);
+            let lo = Vector3::new(c * rel.x + s_ * rel.y, -s_ * rel.x + c * rel.y, rel.z);
+            let ld = Vector3::new(c * dir.x + s_ * dir.y, -s_ * dir.x + c * dir.y, dir.z);
+            let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+            for (o, d, lo_b, hi_b) in [
+                (lo.x, ld.x, -1.0, 1.0),
+                (lo.y, ld.y, -2.0, 2.0),
+                (lo.z, ld.z, 0.0, 1.0),
+            ] {
+                if d.abs() < 1e-15 {
+                    if o < lo_b || o > hi_b {
+                        t0 = f64::INFINITY;
+                    }
+                    continue;
+                }
+                let (a1, b1) = ((lo_b - o) / d, (hi_b - o) / d);
+                t0 = t0.max(a1.min(b1));
+                t1 = t1.min(a1.max(b1));
+            }
+            if t0 <= t1 && t0 > 0.0 {
+                candidates.push(t0);
+            }
+        }
+        let expect = candidates.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(
+            expect.is_finite(),
+            "laser {laser} az {}: a return where nothing is",
+            p.azimuth_deg
+        );
+        assert!(
+            (f64::from(p.distance_m) - expect).abs() <= q,
+            "laser {laser} az {}: {} vs {expect}",
+            p.azimuth_deg,
+            p.distance_m
+        );
+        let hit = origin + dir * expect;
+        if hit.z.abs() < 1e-6 {
+            n_ground += 1;
+        } else if (hit.x - 8.0).hypot(hit.y) < 1.0 + 1e-6 {
+            n_cyl += 1;
+        } else {
+            n_box += 1;
+        }
+    }
+    assert!(
+        n_cyl > 50 && n_ground > 1000 && n_box > 50,
+        "{n_cyl} {n_ground} {n_box}"
+    );
+}
+
+#[test]
+fn per_firing_poses_follow_constant_speed_and_yaw_rate() {
+    let model = Model::Vlp16;
+    let s = scene(vec![], None);
+    let mount = Mounting {
+        x: 1.2,
+        y: 0.3,
+        z: 1.9,
+        ..Mounting::default()
+    };
+    let sim = LidarSim::new(
+        &s,
+        model,
+        Calibration::builtin(model),
+        &mount,
+        &ModelFile::idealized(),
+    )
+    .unwrap();
+    let (v, w) = (2.5, 0.4);
+    let ego = ctrv(v, w, 2.0);
+    let sp = spin(model);
+    let dec = Decoder::new(model);
+    let mut hint = 0;
+    let mut worst = 0.0f64;
+    for k in 0..sp.packets_in(1.0) {
+        let sk = sp.packet(k, |t| t);
+        let rate = dec.rotation_rate(&sk.packet, 12);
+        for col in 0..12 {
+            for ch in 0..32 {
+                let (_, t_us) = dec.firing(&sk.packet, col, col, ch, rate);
+                let t = UtcNanos(sk.time.first_firing.0 + (t_us * 1000.0).round() as i64);
+                let pose = sim.sensor_pose(&ego, t, &mut hint).unwrap();
+                let ts = (t.0 - T0.0) as f64 * 1e-9;
+                let (x, y) = analytic_xy(v, w, ts);
+                let yaw = w * ts;
+                let expect = Vector3::new(
+                    x + 1.2 * yaw.cos() - 0.3 * yaw.sin(),
+                    y + 1.2 * yaw.sin() + 0.3 * yaw.cos(),
+                    1.9,
+                );
+                worst = worst.max((pose.translation.vector - expect).norm());
+                let (_, _, got_yaw) = pose.rotation.euler_angles();
+                assert!((got_yaw - yaw).abs() < 1e-9);
+            }
+        }
+    }
+    // 1 ms samples of a 1 m/s² turn: chord error ≤ a dt² / 8 ≈ 1.3e-7 m.
+    assert!(worst < 1e-6, "worst pose error {worst} m");
+}
+
+/// Ranges of the lasers at elevation ±1° straight ahead, per decoded point, keyed by firing.
+fn forward_ranges(effects: Vec<Effect>, v: f64) -> Vec<(f64, f64, f64, UtcNanos, UtcNanos)> {
+    let model = Model::Vlp16;
+    let s = scene(vec![wall(30.0, 0.5)], None);
+    let sim = LidarSim::new(
+        &s,
+        model,
+        Calibration::builtin(model),
+        &mounting(),
+        &model_of(effects),
+    )
+    .unwrap();
+    let ego = ctrv(v, 0.0, 2.0);
+    let sp = spin(model);
+    simulate_and_decode(&sim, &ego, sp, sp.packets_in(0.3))
+        .into_iter()
+        .filter(|(p, _)| {
+            let a = f64::from(p.azimuth_deg);
+            !(20.0..=340.0).contains(&a)
+        })
+        .map(|(p, t)| {
+            let w = laser_elevation(model, usize::from(p.laser.0));
+            let a = f64::from(p.azimuth_deg).to_radians();
+            let packet_start = UtcNanos(t.0 - i64::from(p.time_offset_ns));
+            (f64::from(p.distance_m), w, a, t, packet_start)
+        })
+        .collect()
+}
+
+fn model_of(effects: Vec<Effect>) -> ModelFile {
+    model(effects)
+}
+
+#[test]
+fn time_offset_and_motion_distortion_shift_points_as_expected() {
+    let v = 3.0;
+    // Idealized, moving toward the wall: range = (30 - v t) / (cos w cos a).
+    let base = forward_ranges(vec![], v);
+    assert!(base.len() > 1000);
+    for &(r, w, a, t, _) in &base {
+        let ts = (t.0 - T0.0) as f64 * 1e-9;
+        let expect = (30.0 - v * ts) / (w.cos() * a.cos());
+        assert!((r - expect).abs() <= 0.001 + 1e-5, "{r} vs {expect}");
+    }
+    // time_offset: firings happen 20 ms later than stamped, so 6 cm nearer.
+    let offset = forward_ranges(vec![Effect::TimeOffset { offset_ms: 20.0 }], v);
+    assert_eq!(offset.len(), base.len());
+    for (&(r0, w, a, ..), &(r1, ..)) in base.iter().zip(&offset) {
+        let expect = v * 0.020 / (w.cos() * a.cos());
+        assert!(
+            ((r0 - r1) - expect).abs() <= 0.002 + 1e-5,
+            "{} vs {expect}",
+            r0 - r1
+        );
+    }
+    // Without motion distortion every firing of a rotation is cast from the rotation's start.
+    let frozen = forward_ranges(vec![Effect::MotionDistortion { enabled: false }], v);
+    let sp = spin(Model::Vlp16);
+    let period = 60.0 / sp.rpm;
+    let mut max_shift = 0.0f64;
+    for (&(r0, w, a, t, packet), &(r1, ..)) in base.iter().zip(&frozen) {
+        let ts = (t.0 - sp.t0.0) as f64 * 1e-9;
+        let tp = (packet.0 - sp.t0.0) as f64 * 1e-9;
+        // A packet belongs to the rotation in which its first firing happened; that rotation
+        // began when the azimuth last passed 0 before it.
+        let first_zero = (360.0 - sp.phase_deg) / 360.0 * period;
+        let rotation_start = first_zero + ((tp - first_zero) / period).floor() * period;
+        let since_start = ts - rotation_start;
+        let expect = v * since_start / (w.cos() * a.cos());
+        assert!(
+            ((r1 - r0) - expect).abs() <= 0.002 + 1e-5,
+            "{} vs {expect}",
+            r1 - r0
+        );
+        max_shift = max_shift.max(r1 - r0);
+    }
+    assert!(max_shift > 0.25, "{max_shift}");
+}
+
+fn beam_sim(s: &Scene, effects: Vec<Effect>) -> LidarSim<'_> {
+    LidarSim::new(
+        s,
+        Model::Vlp16,
+        Calibration::builtin(Model::Vlp16),
+        &mounting(),
+        &model(effects),
+    )
+    .unwrap()
+}
+
+fn fire_at(sim: &LidarSim, s: &Scene, dir: Vector3<f64>, rng: &mut ChaCha8Rng) -> Returns {
+    sim.fire(
+        &Point3::new(0.0, 0.0, SENSOR_Z),
+        &dir.normalize(),
+        &s.new_actor_poses(),
+        rng,
+    )
+}
+
+#[test]
+fn range_noise_sigma_and_bias_are_recovered() {
+    let s = scene(vec![wall(20.0, 0.5)], None);
+    let sim = beam_sim(
+        &s,
+        vec![
+            Effect::RangeNoise { sigma_m: 0.02 },
+            Effect::RangeBias { bias_m: 0.05 },
+        ],
+    );
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let n = 100_000;
+    let r: Vec<f64> = (0..n)
+        .map(|_| {
+            fire_at(&sim, &s, Vector3::x(), &mut rng)
+                .strongest
+                .unwrap()
+                .range
+        })
+        .collect();
+    let mean = r.iter().sum::<f64>() / n as f64;
+    let sd = (r.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
+    assert!(((sd - 0.02) / 0.02).abs() < 0.05, "sigma {sd}");
+    assert!((mean - 20.05).abs() < 0.001, "mean {mean}");
+}
+
+#[test]
+fn random_dropout_rate_matches() {
+    let s = scene(vec![wall(20.0, 0.5)], None);
+    let sim = beam_sim(&s, vec![Effect::RandomDropout { probability: 0.1 }]);
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let n = 100_000;
+    let lost = (0..n)
+        .filter(|_| {
+            fire_at(&sim, &s, Vector3::x(), &mut rng)
+                .strongest
+                .is_none()
+        })
+        .count();
+    let p = lost as f64 / n as f64;
+    // Binomial sd at p = 0.1, n = 1e5: 0.00095; allow 4 sd.
+    assert!((p - 0.1).abs() < 0.0038, "dropout {p}");
+}
+
+#[test]
+fn maximum_range_follows_reflectivity_and_incidence() {
+    let threshold = Effect::DetectionThreshold {
+        reference_range_m: 100.0,
+        reference_reflectivity: 0.1,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    for (rho, incidence_deg) in [(0.05, 0.0), (0.1, 0.0), (0.3, 0.0), (0.3, 60.0)] {
+        // Bisect the range at which the return vanishes; the wall is placed so that the beam
+        // meets it at that range and incidence.
+        let a = f64::to_radians(incidence_deg);
+        let (mut lo, mut hi) = (1.0, 400.0);
+        for _ in 0..30 {
+            let mid = (lo + hi) / 2.0;
+            let s = scene(vec![wall(mid * a.cos(), rho)], None);
+            let sim = LidarSim::new(
+                &s,
+                Model::Vlp16,
+                Calibration::builtin(Model::Vlp16),
+                &mounting(),
+                &ModelFile {
+                    limits: Some(hilrig::sim::model::Limits {
+                        min_range_m: None,
+                        max_range_m: Some(1000.0),
+                    }),
+                    ..model(vec![threshold.clone()])
+                },
+            )
+            .unwrap();
+            let dir = Vector3::new(a.cos(), a.sin(), 0.0);
+            if fire_at(&sim, &s, dir, &mut rng).strongest.is_some() {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let a = f64::to_radians(incidence_deg);
+        let range_at_max = lo;
+        let expect = 100.0 * (rho * a.cos() / 0.1).sqrt();
+        assert!(
+            ((range_at_max - expect) / expect).abs() < 0.01,
+            "rho {rho} at {incidence_deg}°: {range_at_max} vs {expect}"
+        );
+    }
+}
+
+#[test]
+fn beam_divergence_gives_edge_and_mixed_returns() {
+    // A thin post 10 m ahead whose right edge is at y = 0, a wall 0.3 m behind it (mixed returns),
+    // in a second scene, 10 m behind it (separate echoes: strongest and last differ).
+    let post = |x: f64| {
+        object(
+            "post",
+            x + 0.1,
+            1.0,
+            -5.0,
+            Shape::Box {
+                size: [0.2, 2.0, 10.0],
+                at: Placement::default(),
+                reflectivity: None,
+            },
+            0.5,
+        )
+    };
+    let divergence = Effect::BeamDivergence {
+        horizontal_mrad: 3.0,
+        vertical_mrad: 1.5,
+        sub_rays_per_axis: 7,
+        range_separation_m: 0.5,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    // Sweep the beam across the edge (y at 10 m from -3 cm to +3 cm).
+    let sweep = |s: &Scene, effects: Vec<Effect>, rng: &mut ChaCha8Rng| -> Vec<(f64, Returns)> {
+        let sim = beam_sim(s, effects);
+        (0..=120)
+            .map(|i| {
+                let y = -0.03 + 0.0005 * f64::from(i);
+                let dir = Vector3::new(10.0, y, 0.0);
+                (y, fire_at(&sim, s, dir, rng))
+            })
+            .collect()
+    };
+    let near = scene(vec![post(10.0), wall(10.3, 0.5)], None);
+    // Idealized: every range is either the post (10 m) or the wall (11.3 m), and the switch is
+    // exactly at the edge.
+    for (y, r) in sweep(&near, vec![], &mut rng) {
+        if y.abs() < 1e-9 {
+            continue;
+        }
+        let range = r.strongest.unwrap().range;
+        let expect_post = y > 0.0;
+        assert!(
+            if expect_post {
+                (range - 10.0 * (1.0 + (y / 10.0).powi(2)).sqrt()).abs() < 1e-6
+            } else {
+                range > 10.29
+            },
+            "idealized y {y}: {range}"
+        );
+    }
+    let mixed: Vec<f64> = sweep(&near, vec![divergence.clone()], &mut rng)
+        .into_iter()
+        .map(|(_, r)| r.strongest.unwrap().range)
+        .filter(|&r| r > 10.01 && r < 10.29)
+        .collect();
+    // The footprint at 10 m is 3 cm across: about 3 cm of the 6 cm sweep is mixed.
+    assert!(
+        mixed.len() >= 40 && mixed.len() <= 80,
+        "{} mixed",
+        mixed.len()
+    );
+    let far = scene(vec![post(10.0), wall(20.0, 0.5)], None);
+    let two_echoes: Vec<(f64, Returns)> = sweep(&far, vec![divergence], &mut rng)
+        .into_iter()
+        .filter(|(_, r)| {
+            let (s, l) = (r.strongest.unwrap(), r.last.unwrap());
+            (s.range - l.range).abs() > 5.0
+        })
+        .collect();
+    assert!(
+        two_echoes.len() >= 40,
+        "{} two-echo firings",
+        two_echoes.len()
+    );
+    // Edge returns beyond the geometric edge (y < 0) carry less than the full reflectivity.
+    let beyond: Vec<f64> = two_echoes
+        .iter()
+        .filter(|(y, _)| *y < -0.002)
+        .map(|(_, r)| {
+            r.last
+                .unwrap()
+                .reflectivity
+                .min(r.strongest.unwrap().reflectivity)
+        })
+        .collect();
+    assert!(
+        !beyond.is_empty() && beyond.iter().all(|&x| x < 0.5),
+        "{beyond:?}"
+    );
+}
+
+#[test]
+fn weather_adds_near_clutter_and_shortens_range() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let threshold = Effect::DetectionThreshold {
+        reference_range_m: 100.0,
+        reference_reflectivity: 0.1,
+    };
+    let weather = Effect::Weather {
+        extinction_per_m: 0.01,
+        clutter_probability: 0.2,
+        clutter_max_range_m: 3.0,
+        clutter_reflectivity: 0.5,
+    };
+    // Far wall at 60 m, ρ = 0.1: clear weather sees it; α = 0.01/m loses e^-1.2 of the power.
+    let s = scene(vec![wall(60.0, 0.1)], None);
+    let clear = beam_sim(&s, vec![threshold.clone()]);
+    assert!(fire_at(&clear, &s, Vector3::x(), &mut rng)
+        .strongest
+        .is_some());
+    let rainy = beam_sim(&s, vec![threshold, weather]);
+    let n = 20_000;
+    let mut clutter = 0;
+    for _ in 0..n {
+        let r = fire_at(&rainy, &s, Vector3::x(), &mut rng);
+        // ρ 0.1 at 60 m with e^-1.2: 0.1/3600 · 0.30 < 0.1/10000 · ... → below threshold.
+        if let Some(e) = r.strongest {
+            assert!(
+                e.range <= 3.0,
+                "the wall should vanish in rain, got {}",
+                e.range
+            );
+            clutter += 1;
+        }
+    }
+    let p = f64::from(clutter) / f64::from(n);
+    assert!((p - 0.2).abs() < 0.012, "clutter rate {p}");
+}
+
+#[test]
+fn intensity_follows_incidence_and_mount_misalignment_rotates_the_beam() {
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let s = scene(vec![wall(10.0, 0.6)], None);
+    let ideal = beam_sim(&s, vec![]);
+    let lambert = beam_sim(
+        &s,
+        vec![Effect::Intensity {
+            incidence_exponent: 1.0,
+            noise_sigma: 0.0,
+        }],
+    );
+    let a = 60f64.to_radians();
+    let dir = Vector3::new(a.cos(), a.sin(), 0.0);
+    let i0 = fire_at(&ideal, &s, dir, &mut rng).strongest.unwrap();
+    let i1 = fire_at(&lambert, &s, dir, &mut rng).strongest.unwrap();
+    assert!((i0.reflectivity - 0.6).abs() < 1e-9);
+    assert!((i1.reflectivity - 0.3).abs() < 1e-9, "{}", i1.reflectivity);
+    // A 2° yaw misalignment: straight ahead now hits the wall 2° off normal.
+    let skew = beam_sim(
+        &s,
+        vec![Effect::MountMisalignment {
+            roll_deg: 0.0,
+            pitch_deg: 0.0,
+            yaw_deg: 2.0,
+        }],
+    );
+    let q = skew.mount().rotation * Vector3::x();
+    assert!((q.y - 2f64.to_radians().sin()).abs() < 1e-12);
+}
