@@ -93,16 +93,42 @@ impl<R: Read + Send + 'static> CaptureReader<R> {
             source: e,
         })?;
         let head = chained.get_ref().0.get_ref();
+        if head.starts_with(&ZSTD_MAGIC) {
+            // A zstd-compressed capture (`.pcapng.zst`): read through a streaming decoder.
+            // Byte offsets in errors then count decompressed bytes.
+            let decoder =
+                zstd::stream::read::Decoder::new(chained).map_err(|e| CaptureError::Io {
+                    offset: 0,
+                    source: e,
+                })?;
+            let (inner_is_capture, inner) = sniff(decoder).map_err(|e| CaptureError::Io {
+                offset: 0,
+                source: e,
+            })?;
+            let inner_head = inner.get_ref().0.get_ref();
+            if !inner_is_capture || inner_head.starts_with(&ZSTD_MAGIC) {
+                return Err(CaptureError::NotACapture {
+                    magic: inner_head.iter().take(4).copied().collect(),
+                });
+            }
+            let pcapng = inner_head.starts_with(&[0x0a, 0x0d, 0x0d, 0x0a]);
+            let boxed: Box<dyn Read + Send> = Box::new(inner);
+            return Self::from_sniffed(boxed, pcapng);
+        }
         if !is_capture {
             return Err(CaptureError::NotACapture {
                 magic: head.iter().take(4).copied().collect(),
             });
         }
-        let format = if head.starts_with(&[0x0a, 0x0d, 0x0d, 0x0a]) {
-            Format::Pcapng
-        } else {
-            Format::Pcap
-        };
+        let pcapng = head.starts_with(&[0x0a, 0x0d, 0x0d, 0x0a]);
+        Self::from_sniffed(chained, pcapng)
+    }
+
+    fn from_sniffed(
+        chained: impl Read + Send + 'static,
+        pcapng: bool,
+    ) -> Result<Self, CaptureError> {
+        let format = if pcapng { Format::Pcapng } else { Format::Pcap };
         let inner = pcap_parser::create_reader(INITIAL_BUFFER, chained).map_err(|e| match e {
             PcapError::Incomplete(_) | PcapError::Eof | PcapError::UnexpectedEof => {
                 CaptureError::Truncated { offset: 0 }
@@ -391,19 +417,24 @@ fn units_to_utc(units: u64, per_sec: u64, offset_secs: i64) -> UtcNanos {
     UtcNanos::from_secs_nanos((secs as i64).saturating_add(offset_secs), nanos)
 }
 
-/// Whether the first bytes of a file are a pcap or pcapng magic.
+/// Whether the first bytes of a file are a pcap or pcapng magic (or a zstd frame, which
+/// [`CaptureReader::new`] opens and checks again inside).
 pub fn is_capture_magic(head: &[u8]) -> bool {
-    matches!(
-        head.get(..4),
-        Some(
-            [0x0a, 0x0d, 0x0d, 0x0a]
-                | [0xd4, 0xc3, 0xb2, 0xa1]
-                | [0xa1, 0xb2, 0xc3, 0xd4]
-                | [0x4d, 0x3c, 0xb2, 0xa1]
-                | [0xa1, 0xb2, 0x3c, 0x4d]
+    head.starts_with(&ZSTD_MAGIC)
+        || matches!(
+            head.get(..4),
+            Some(
+                [0x0a, 0x0d, 0x0d, 0x0a]
+                    | [0xd4, 0xc3, 0xb2, 0xa1]
+                    | [0xa1, 0xb2, 0xc3, 0xd4]
+                    | [0x4d, 0x3c, 0xb2, 0xa1]
+                    | [0xa1, 0xb2, 0x3c, 0x4d]
+            )
         )
-    )
 }
+
+/// The first bytes of a zstd frame: captures compressed with `zstd` are read transparently.
+pub const ZSTD_MAGIC: [u8; 4] = [0x28, 0xb5, 0x2f, 0xfd];
 
 /// A source whose first bytes were read ahead and are given back first.
 pub type Sniffed<R> = std::io::Chain<std::io::Cursor<Vec<u8>>, R>;

@@ -361,4 +361,38 @@ mod tests {
         assert_eq!(d.stats().fragments, 2);
         assert_eq!(d.stats().fragments_dropped, 0);
     }
+
+    #[test]
+    fn zstd_compressed_captures_read_like_plain_ones() {
+        let mut w = PcapngWriter::new(Vec::new(), "t").unwrap();
+        let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
+        for i in 0..50u8 {
+            let f = udp_ethernet_frame(addr(1), addr(2368), &[i; 100]);
+            w.write_packet(eth, UtcNanos(i64::from(i) * 1000), &f)
+                .unwrap();
+        }
+        let plain = w.finish().unwrap();
+        let packed = zstd::encode_all(&plain[..], 3).unwrap();
+        assert!(packed.len() < plain.len() / 4);
+        let read = |bytes: Vec<u8>| {
+            let mut d = Demux::new(CaptureReader::new(Cursor::new(bytes)).unwrap());
+            let mut v = Vec::new();
+            while let Some(item) = d.next_item() {
+                let item = item.unwrap();
+                if let Packet::Udp { payload, .. } = item.packet {
+                    v.push((item.time, payload.to_vec()));
+                }
+            }
+            v
+        };
+        let a = read(plain);
+        assert_eq!(a.len(), 50);
+        assert_eq!(a, read(packed));
+        // zstd around something else is still refused with the inner magic.
+        let text = zstd::encode_all(&b"not a capture at all"[..], 3).unwrap();
+        match CaptureReader::new(Cursor::new(text)) {
+            Err(crate::CaptureError::NotACapture { magic }) => assert_eq!(magic, b"not ".to_vec()),
+            other => panic!("{:?}", other.map(|_| ())),
+        }
+    }
 }
