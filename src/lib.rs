@@ -8,6 +8,7 @@
 pub mod bag;
 pub mod can_log;
 pub mod clock;
+pub mod geodesy;
 pub mod gnss_log;
 pub mod lidar;
 pub mod points_out;

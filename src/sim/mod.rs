@@ -1,9 +1,11 @@
 //! Simulation: the lidar model (seed Table 1: idealized ray casting plus named effects), the
 //! spinning-sensor schedule, and the synthesis of whole measured drives.
 
+pub mod drive;
 pub mod lidar;
 pub mod model;
 pub mod spin;
+pub mod synth;
 
 pub use lidar::{Echo, LidarSim, PacketTime, Returns, SimStats};
 pub use model::{Effect, ModelFile};

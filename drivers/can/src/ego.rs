@@ -41,12 +41,23 @@ pub enum Unit {
 }
 
 impl Unit {
-    fn to_si(self, v: f64) -> f64 {
+    /// A value in this unit in SI (m/s, rad/s, rad).
+    pub fn to_si(self, v: f64) -> f64 {
         match self {
             Unit::MetersPerSecond | Unit::RadiansPerSecond | Unit::Radians => v,
             Unit::KilometersPerHour => v / 3.6,
             Unit::MilesPerHour => v * 0.447_04,
             Unit::DegreesPerSecond | Unit::Degrees => v.to_radians(),
+        }
+    }
+
+    /// An SI value in this unit (inverse of [`Unit::to_si`]).
+    pub fn from_si(self, v: f64) -> f64 {
+        match self {
+            Unit::MetersPerSecond | Unit::RadiansPerSecond | Unit::Radians => v,
+            Unit::KilometersPerHour => v * 3.6,
+            Unit::MilesPerHour => v / 0.447_04,
+            Unit::DegreesPerSecond | Unit::Degrees => v.to_degrees(),
         }
     }
 }

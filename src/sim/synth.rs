@@ -1,0 +1,529 @@
+//! Synthesizes measured drives as they come off the vehicle: per repetition one pcapng (optionally
+//! zstd-compressed) holding Velodyne data and position packets, the GNSS receiver's serial
+//! stream (GGA, RMC, GST) and the ego CAN frames, with realistic reference errors; plus what the
+//! engineer would have (the surveyed scene) and what only the synthesizer knows (the truth).
+//!
+//! Per repetition `rep-NN/`:
+//! - `drive.pcapng[.zst]`: the capture (interfaces: eth0, the GNSS serial port as USER0, can0);
+//! - `scene.toml` + actor CSVs: the scene as surveyed (static objects displaced by the survey
+//!   error, the walker's trajectory as measured);
+//! - `truth.csv`: the true rear-axle trajectory; `truth.toml`: seeds, variation drawn, errors
+//!   injected and counts.
+//!
+//! Randomness comes from ChaCha8 streams seeded from `(seed, repetition, purpose)`, so a
+//! repetition is reproducible on its own and independent of thread scheduling.
+
+use super::drive::{DriveFile, Driven};
+use super::lidar::{LidarSim, SimStats};
+use super::model::ModelFile;
+use super::spin::Spin;
+use crate::geodesy::Enu;
+use crate::rig::Rig;
+use crate::scene::file::{ActorFile, SceneFile};
+use crate::scene::Scene;
+use hilrig_can::dbc::Database;
+use hilrig_capture::writer::udp_ethernet_frame;
+use hilrig_capture::{CanFrame, LinkType, PcapngWriter};
+use hilrig_gnss::framer::nmea_sentence;
+use hilrig_stamp::UtcNanos;
+use hilrig_velodyne::packet::ReturnMode;
+use hilrig_velodyne::{Calibration, Model, PositionPacket, PpsStatus};
+use nalgebra::{Point3, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use rayon::prelude::*;
+use std::net::{Ipv4Addr, SocketAddrV4};
+use std::path::{Path, PathBuf};
+
+/// Why synthesis failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SynthError {
+    /// An input is wrong.
+    #[error("{0}")]
+    Input(String),
+    /// Writing failed.
+    #[error("writing {path}: {source}")]
+    Io {
+        /// Path.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+}
+
+/// What to synthesize.
+pub struct SynthJob<'a> {
+    /// The true scene (as it really is).
+    pub scene_file: &'a SceneFile,
+    /// Its directory (meshes).
+    pub scene_base: &'a Path,
+    /// The drive.
+    pub drive: &'a DriveFile,
+    /// Directory of the drive file (the rig path is relative to it).
+    pub drive_base: &'a Path,
+    /// The truth model.
+    pub truth: &'a ModelFile,
+    /// Base seed.
+    pub seed: u64,
+    /// Compress the captures with zstd (`.pcapng.zst`).
+    pub compress: bool,
+    /// Human variation and reference errors on (off: the planned drive, no noise, no loss).
+    pub errors: bool,
+}
+
+/// Counts of one repetition.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct RepSummary {
+    /// Repetition number (1-based).
+    pub rep: u32,
+    /// Capture file name (in the repetition's directory).
+    pub capture: PathBuf,
+    /// Data packets written.
+    pub lidar_packets: u64,
+    /// Data packets dropped (injected loss).
+    pub lidar_packets_lost: u64,
+    /// Position packets written.
+    pub position_packets: u64,
+    /// NMEA sentences written.
+    pub sentences: u64,
+    /// CAN frames written.
+    pub can_frames: u64,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Seconds the ego waited for the walker.
+    pub yield_stop_s: f64,
+    /// Firings with a return / all firings.
+    pub return_share: f64,
+}
+
+fn stream_rng(seed: u64, rep: u32, purpose: u64) -> ChaCha8Rng {
+    // SplitMix64-style mixing of the three so nearby seeds give unrelated streams.
+    let mut z = seed
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add(u64::from(rep) << 32)
+        .wrapping_add(purpose);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    ChaCha8Rng::seed_from_u64(z ^ (z >> 31))
+}
+
+fn hms(t: UtcNanos) -> (String, String) {
+    let tod = t.0.rem_euclid(86_400_000_000_000);
+    let days = t.0.div_euclid(86_400_000_000_000);
+    let (y, m, d) = hilrig_stamp::civil::civil_from_days(days);
+    (
+        format!(
+            "{:02}{:02}{:02}.{:02}",
+            tod / 3_600_000_000_000,
+            tod / 60_000_000_000 % 60,
+            tod / 1_000_000_000 % 60,
+            tod / 10_000_000 % 100
+        ),
+        format!("{d:02}{m:02}{:02}", y.rem_euclid(100)),
+    )
+}
+
+fn nmea_lat_lon(lat: f64, lon: f64) -> String {
+    let f = |v: f64, width: usize| {
+        let a = v.abs();
+        let deg = a.floor();
+        let min = (a - deg) * 60.0;
+        format!("{:0width$}{:010.7}", deg as i64, min, width = width)
+    };
+    format!(
+        "{},{},{},{}",
+        f(lat, 2),
+        if lat >= 0.0 { 'N' } else { 'S' },
+        f(lon, 3),
+        if lon >= 0.0 { 'E' } else { 'W' }
+    )
+}
+
+fn write_file(path: &Path, bytes: &[u8]) -> Result<(), SynthError> {
+    std::fs::write(path, bytes).map_err(|source| SynthError::Io {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+/// Synthesizes repetition `rep` (1-based) into `dir`.
+pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, SynthError> {
+    let input = |e: String| SynthError::Input(e);
+    let rig_path = job.drive_base.join(&job.drive.rig);
+    let rig = Rig::load(&rig_path).map_err(|e| input(e.to_string()))?;
+    let lidar = rig
+        .lidar
+        .as_ref()
+        .ok_or_else(|| input(format!("{}: synth needs a [lidar]", rig_path.display())))?;
+    let model: Model = lidar.model.parse().map_err(input)?;
+    let calibration = match &lidar.calibration {
+        Some(p) => {
+            Calibration::from_file(&rig.resolve(p), model).map_err(|e| input(e.to_string()))?
+        }
+        None => Calibration::builtin(model),
+    };
+    let gnss_cfg = rig
+        .gnss
+        .as_ref()
+        .ok_or_else(|| input(format!("{}: synth needs a [gnss]", rig_path.display())))?;
+    let can_cfg = rig
+        .can
+        .as_ref()
+        .ok_or_else(|| input(format!("{}: synth needs a [can]", rig_path.display())))?;
+    let dbc = Database::from_file(&rig.resolve(&can_cfg.dbc)).map_err(|e| input(e.to_string()))?;
+    let mode = match job.drive.lidar.return_mode.as_str() {
+        "strongest" => ReturnMode::Strongest,
+        "last" => ReturnMode::Last,
+        "dual" => ReturnMode::Dual,
+        other => {
+            return Err(input(format!(
+                "lidar return_mode '{other}': expected strongest, last or dual"
+            )))
+        }
+    };
+
+    std::fs::create_dir_all(dir).map_err(|source| SynthError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
+    let errors = job.errors;
+    let driven: Driven = job
+        .drive
+        .drive(&mut stream_rng(job.seed, rep, 1), errors)
+        .map_err(|e| input(e.to_string()))?;
+
+    // The true scene with this repetition's walkers.
+    let mut truth_file = job.scene_file.clone();
+    let mut surveyed = job.scene_file.clone();
+    for (name, traj) in &driven.walkers {
+        let csv = dir.join(format!(
+            "{}.csv",
+            name.replace(|c: char| !c.is_alphanumeric(), "_")
+        ));
+        write_file(&csv, traj.to_csv().as_bytes())?;
+        let mut found = false;
+        for (a, s) in truth_file.actors.iter_mut().zip(surveyed.actors.iter_mut()) {
+            if &a.name == name {
+                a.trajectory = csv.clone();
+                s.trajectory = PathBuf::from(csv.file_name().unwrap_or_default());
+                found = true;
+            }
+        }
+        if !found {
+            return Err(input(format!(
+                "drive walker '{name}' is not an actor of the scene"
+            )));
+        }
+    }
+    // Actors of the scene without a walk keep their trajectory files (resolved absolutely).
+    for a in truth_file.actors.iter_mut() {
+        if a.trajectory.is_relative() && !a.trajectory.starts_with(dir) {
+            a.trajectory = job.scene_base.join(&a.trajectory);
+        }
+    }
+    let scene = Scene::from_file(truth_file, job.scene_base, Path::new("scene"))
+        .map_err(|e| input(e.to_string()))?;
+
+    // The surveyed scene: each static object displaced by the survey error.
+    let mut survey_rng = stream_rng(job.seed, rep, 2);
+    let sigma = if errors {
+        job.drive.survey.sigma_m
+    } else {
+        0.0
+    };
+    let survey_noise = Normal::new(0.0, sigma.max(0.0)).map_err(|e| input(e.to_string()))?;
+    for o in &mut surveyed.objects {
+        o.pose.x += survey_noise.sample(&mut survey_rng);
+        o.pose.y += survey_noise.sample(&mut survey_rng);
+        o.accuracy_m = o.accuracy_m.max(sigma);
+    }
+    for o in surveyed.objects.iter_mut().flat_map(|o| o.parts.iter_mut()) {
+        if let crate::scene::Shape::Mesh { file, .. } = o {
+            *file = std::path::absolute(job.scene_base.join(&*file)).unwrap_or(file.clone());
+        }
+    }
+    surveyed
+        .actors
+        .retain(|a: &ActorFile| driven.walkers.iter().any(|(n, _)| n == &a.name));
+    let text = toml::to_string(&surveyed).map_err(|e| input(e.to_string()))?;
+    write_file(
+        &dir.join("scene.toml"),
+        format!(
+            "# Scene as surveyed for repetition {rep} (static objects with survey error, sigma {sigma} m).\n{text}"
+        )
+        .as_bytes(),
+    )?;
+    write_file(&dir.join("truth.csv"), driven.ego.to_csv().as_bytes())?;
+
+    let sim = LidarSim::new(&scene, model, calibration, &lidar.mounting, job.truth)
+        .map_err(|e| input(e.to_string()))?;
+    let (start, end) = driven.span;
+    let mut events: Vec<(i64, u32, Vec<u8>)> = Vec::new();
+    const ETH: u32 = 0;
+    const SER: u32 = 1;
+    const CAN: u32 = 2;
+    let addr = |port| SocketAddrV4::new(Ipv4Addr::new(192, 168, 1, 201), port);
+    let host = |port| SocketAddrV4::new(Ipv4Addr::new(192, 168, 1, 77), port);
+
+    // Lidar: PPS-locked (its clock is UTC), packets stamped by the host after their last firing.
+    let ls = &job.drive.lidar;
+    let mut lrng = stream_rng(job.seed, rep, 3);
+    let spin = Spin {
+        model,
+        mode,
+        rpm: ls.rpm,
+        phase_deg: lrng.random::<f64>() * 360.0,
+        t0: UtcNanos(start.0 + 1_000_000),
+    };
+    let n_packets = spin.packets_in((end.0 - spin.t0.0) as f64 * 1e-9 - 0.002);
+    let period = spin.packet_period_ns();
+    let seed = job.seed;
+    let results: Vec<(Vec<u8>, SimStats, u32)> = (0..n_packets)
+        .into_par_iter()
+        .map(|k| {
+            let sk = spin.packet(k, |t| t);
+            let mut stats = SimStats::default();
+            let pkt = sim.simulate(
+                &sk.packet,
+                sk.time,
+                &driven.ego,
+                seed ^ (u64::from(rep) << 40) ^ k,
+                &mut stats,
+            );
+            (pkt.encode().to_vec(), stats, sk.packet.timestamp_us)
+        })
+        .collect();
+    let jitter =
+        Normal::new(0.0, ls.jitter_us.max(0.0) * 1000.0).map_err(|e| input(e.to_string()))?;
+    let mut summary = RepSummary {
+        rep,
+        duration_s: (end.0 - start.0) as f64 * 1e-9,
+        yield_stop_s: driven
+            .yield_stop
+            .map_or(0.0, |(a, b)| (b.0 - a.0) as f64 * 1e-9),
+        ..RepSummary::default()
+    };
+    let (mut firings, mut returns) = (0u64, 0u64);
+    let mut last_host = 0i64;
+    let mut gga_for_position = String::new();
+    for (k, (bytes, stats, ts_us)) in results.into_iter().enumerate() {
+        firings += stats.firings;
+        returns += stats.returns;
+        let first = spin.t0.0 as f64 + k as f64 * period;
+        let lat = if errors {
+            ls.latency_us * 1000.0 + jitter.sample(&mut lrng).abs()
+        } else {
+            ls.latency_us * 1000.0
+        };
+        let h = ((first + period + lat) as i64).max(last_host + 1000);
+        if errors && lrng.random::<f64>() < ls.packet_loss {
+            summary.lidar_packets_lost += 1;
+            continue;
+        }
+        last_host = h;
+        events.push((h, ETH, udp_ethernet_frame(addr(2368), host(2368), &bytes)));
+        summary.lidar_packets += 1;
+        if ls.position_every > 0 && (k as u64).is_multiple_of(u64::from(ls.position_every)) {
+            // The RMC of the last whole second, as the sensor forwards it from the receiver.
+            let t = UtcNanos(first as i64);
+            let sec = UtcNanos(t.0 - t.0.rem_euclid(1_000_000_000));
+            let (hms_s, date) = hms(sec);
+            let mut hint = 0;
+            let (lat_lon, sog, cog) = match driven.ego.sample_at(sec, &mut hint) {
+                Some(p) => {
+                    let enu = Enu::new(&job.scene_file.origin);
+                    let w = enu.to_wgs84(&p.position);
+                    (
+                        nmea_lat_lon(w.latitude_deg, w.longitude_deg),
+                        0.0,
+                        (90.0 - p.yaw.to_degrees()).rem_euclid(360.0),
+                    )
+                }
+                None => (gga_for_position.clone(), 0.0, 0.0),
+            };
+            gga_for_position = lat_lon.clone();
+            let rmc = nmea_sentence(&format!(
+                "GPRMC,{hms_s},A,{lat_lon},{sog:.1},{cog:.1},{date},,,D"
+            ));
+            let pp = PositionPacket::new(ts_us, PpsStatus::Locked, rmc.trim_end());
+            events.push((
+                h + 200_000,
+                ETH,
+                udp_ethernet_frame(addr(8308), host(8308), &pp.encode()),
+            ));
+            summary.position_packets += 1;
+        }
+    }
+    summary.return_share = returns as f64 / firings.max(1) as f64;
+
+    // GNSS: fixes of the antenna (lever arm from the rig) with RTK noise (Gauss-Markov).
+    let gs = &job.drive.gnss;
+    let mut grng = stream_rng(job.seed, rep, 4);
+    let enu = Enu::new(&job.scene_file.origin);
+    let dt = 1.0 / gs.rate_hz;
+    let phi = (-dt / gs.correlation_s.max(1e-3)).exp();
+    let drive_h = (1.0 - phi * phi).sqrt() * gs.sigma_horizontal_m;
+    let drive_v = (1.0 - phi * phi).sqrt() * gs.sigma_vertical_m;
+    let unit = Normal::new(0.0, 1.0).map_err(|e| input(e.to_string()))?;
+    let mut noise = Vector3::new(
+        unit.sample(&mut grng) * gs.sigma_horizontal_m,
+        unit.sample(&mut grng) * gs.sigma_horizontal_m,
+        unit.sample(&mut grng) * gs.sigma_vertical_m,
+    );
+    let lever = Vector3::new(gnss_cfg.antenna.x, gnss_cfg.antenna.y, gnss_cfg.antenna.z);
+    let step_ns = (1e9 / gs.rate_hz).round() as i64;
+    let mut t = UtcNanos(start.0 + (step_ns - start.0.rem_euclid(step_ns)) % step_ns);
+    let mut hint = 0;
+    while t <= end {
+        let Some(p) = driven.ego.sample_at(t, &mut hint) else {
+            break;
+        };
+        noise = Vector3::new(
+            phi * noise.x + drive_h * unit.sample(&mut grng),
+            phi * noise.y + drive_h * unit.sample(&mut grng),
+            phi * noise.z + drive_v * unit.sample(&mut grng),
+        );
+        let antenna = p.isometry().transform_point(&Point3::from(lever)).coords
+            + if errors { noise } else { Vector3::zeros() };
+        let w = enu.to_wgs84(&antenna);
+        let (hms_s, date) = hms(t);
+        let ll = nmea_lat_lon(w.latitude_deg, w.longitude_deg);
+        let mut vh = 0;
+        let vel = driven.ego.velocity_at(t, &mut vh).unwrap_or_default();
+        let sog_kn = vel.xy().norm() / 0.514_444;
+        let cog = (90.0 - vel.y.atan2(vel.x).to_degrees()).rem_euclid(360.0);
+        let alt = w.height_m - gs.geoid_separation_m;
+        let body = [
+            format!(
+                "GNGGA,{hms_s},{ll},4,14,0.7,{alt:.3},M,{:.3},M,1.0,0042",
+                gs.geoid_separation_m
+            ),
+            format!("GNRMC,{hms_s},A,{ll},{sog_kn:.3},{cog:.2},{date},,,R"),
+            format!(
+                "GNGST,{hms_s},{:.3},{:.3},{:.3},0.0,{:.3},{:.3},{:.3}",
+                (2.0 * gs.sigma_horizontal_m.powi(2) + gs.sigma_vertical_m.powi(2)).sqrt(),
+                gs.sigma_horizontal_m,
+                gs.sigma_horizontal_m,
+                gs.sigma_horizontal_m,
+                gs.sigma_horizontal_m,
+                gs.sigma_vertical_m
+            ),
+        ];
+        let mut bytes = Vec::new();
+        for b in &body {
+            bytes.extend(nmea_sentence(b).bytes());
+            summary.sentences += 1;
+        }
+        let lat_ns = gs.latency_ms * 1e6
+            + if errors {
+                (unit.sample(&mut grng) * gs.jitter_ms * 1e6).abs()
+            } else {
+                0.0
+            };
+        events.push((t.0 + lat_ns as i64, SER, bytes));
+        t = UtcNanos(t.0 + step_ns);
+    }
+
+    // CAN: ego motion from the rig's DBC mapping.
+    let cs = &job.drive.can;
+    let mut crng = stream_rng(job.seed, rep, 5);
+    let ego_map = &can_cfg.ego;
+    let speed_map = ego_map
+        .speed
+        .as_ref()
+        .ok_or_else(|| input("the rig's [can.ego] has no speed".into()))?;
+    let msg = dbc
+        .message_by_name(&speed_map.message)
+        .ok_or_else(|| input(format!("DBC has no message '{}'", speed_map.message)))?;
+    let index = |name: &str| msg.signals.iter().position(|s| s.name == name);
+    let step_ns = (1e9 / cs.rate_hz).round() as i64;
+    let mut t = UtcNanos(start.0 + step_ns / 2);
+    let mut counter = 0u32;
+    let mut hint = 0;
+    while t <= end {
+        let Some(seg) = driven.ego.segment(t, &mut hint) else {
+            break;
+        };
+        let (v, w) = driven.motion[seg];
+        let noisy = |x: f64, s: f64, r: &mut ChaCha8Rng| {
+            if errors {
+                x + Normal::new(0.0, s).map_or(0.0, |n| n.sample(r))
+            } else {
+                x
+            }
+        };
+        let mut values = Vec::new();
+        let si_to = |m: &hilrig_can::ego::SignalMap, si: f64| m.unit.from_si(si / m.scale);
+        if let Some(i) = index(&speed_map.signal) {
+            values.push((i, si_to(speed_map, noisy(v, cs.speed_sigma_mps, &mut crng))));
+        }
+        if let Some(m) = ego_map.yaw_rate.as_ref().filter(|m| m.message == msg.name) {
+            if let Some(i) = index(&m.signal) {
+                values.push((i, si_to(m, noisy(w, cs.yaw_rate_sigma_rps, &mut crng))));
+            }
+        }
+        if let Some(m) = ego_map
+            .steering_wheel_angle
+            .as_ref()
+            .filter(|m| m.message == msg.name)
+        {
+            if let Some(i) = index(&m.signal) {
+                // Bicycle model: wheel angle atan(L κ), steering ratio 15, wheelbase 2.7 m.
+                let kappa = if v > 0.1 { w / v } else { 0.0 };
+                values.push((i, si_to(m, (2.7 * kappa).atan() * 15.0)));
+            }
+        }
+        if let Some(i) = index("Counter") {
+            values.push((i, f64::from(counter % 16)));
+        }
+        counter += 1;
+        let data = msg.encode(&values);
+        let frame = CanFrame::new(msg.id, msg.extended, &data)
+            .ok_or_else(|| input(format!("message {} does not fit a CAN frame", msg.name)))?;
+        events.push((
+            t.0 + (cs.latency_ms * 1e6) as i64,
+            CAN,
+            frame.encode_socketcan(),
+        ));
+        summary.can_frames += 1;
+        t = UtcNanos(t.0 + step_ns);
+    }
+
+    events.sort_by_key(|e| e.0);
+    let mut w = PcapngWriter::new(Vec::new(), "hilrig synth").map_err(|source| SynthError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
+    let io = |source| SynthError::Io {
+        path: dir.to_owned(),
+        source,
+    };
+    w.add_interface(LinkType::ETHERNET, "eth0").map_err(io)?;
+    w.add_interface(LinkType::USER0, &gnss_cfg.port)
+        .map_err(io)?;
+    w.add_interface(LinkType::CAN_SOCKETCAN, &can_cfg.interface)
+        .map_err(io)?;
+    for (t, i, b) in &events {
+        w.write_packet(*i, UtcNanos(*t), b).map_err(io)?;
+    }
+    let bytes = w.finish().map_err(io)?;
+    let (name, bytes) = if job.compress {
+        (
+            "drive.pcapng.zst",
+            zstd::encode_all(&bytes[..], 19).map_err(io)?,
+        )
+    } else {
+        ("drive.pcapng", bytes)
+    };
+    write_file(&dir.join(name), &bytes)?;
+    summary.capture = PathBuf::from(name);
+    let manifest = format!(
+        "# What only the synthesizer knows about repetition {rep}.\nseed = {}\nrepetition = {rep}\nmodel = {:?}\nerrors = {errors}\n\n[summary]\n{}",
+        job.seed,
+        job.truth.name,
+        toml::to_string(&summary).unwrap_or_default()
+    );
+    write_file(&dir.join("truth.toml"), manifest.as_bytes())?;
+    Ok(summary)
+}
