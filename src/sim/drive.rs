@@ -430,8 +430,13 @@ impl DriveFile {
             .collect();
         let planned = Polyline::new(catmull_rom(&wps, 200));
         let length = planned.length();
-        // The driver's deviation: two smooth half-waves along the path, zero at both ends.
-        let (a1, a2) = (gauss(v.lateral_m), gauss(v.lateral_m * 0.5));
+        // The driver's deviation: two smooth half-waves along the path, zero at both ends, plus
+        // a final offset that grows in smoothly (nobody parks on the same centimetre twice).
+        let (a1, a2, a_end) = (
+            gauss(v.lateral_m),
+            gauss(v.lateral_m * 0.5),
+            gauss(v.lateral_m * 0.5),
+        );
         let driven_pts: Vec<Vector2<f64>> = (0..=(length / 0.02).ceil() as usize)
             .map(|k| {
                 let s = (k as f64 * 0.02).min(length);
@@ -439,7 +444,8 @@ impl DriveFile {
                 let normal = Vector2::new(-tan.y, tan.x);
                 let x = s / length;
                 let off = a1 * (std::f64::consts::PI * x).sin()
-                    + a2 * (2.0 * std::f64::consts::PI * x).sin();
+                    + a2 * (2.0 * std::f64::consts::PI * x).sin()
+                    + a_end * x * x * (3.0 - 2.0 * x);
                 pos + normal * off
             })
             .collect();

@@ -202,6 +202,10 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
             name.replace(|c: char| !c.is_alphanumeric(), "_")
         ));
         write_file(&csv, traj.to_csv().as_bytes())?;
+        let csv = std::path::absolute(&csv).map_err(|source| SynthError::Io {
+            path: csv.clone(),
+            source,
+        })?;
         let mut found = false;
         for (a, s) in truth_file.actors.iter_mut().zip(surveyed.actors.iter_mut()) {
             if &a.name == name {
@@ -218,7 +222,7 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
     }
     // Actors of the scene without a walk keep their trajectory files (resolved absolutely).
     for a in truth_file.actors.iter_mut() {
-        if a.trajectory.is_relative() && !a.trajectory.starts_with(dir) {
+        if a.trajectory.is_relative() {
             a.trajectory = job.scene_base.join(&a.trajectory);
         }
     }
