@@ -266,7 +266,7 @@ impl Scene {
             // Cheap reject: distance from the actor's origin to the ray line.
             let c = pose.translation.vector - o.coords;
             let along = c.dot(d);
-            if (c - d * along).norm() > a.radius || along + a.radius < tmin {
+            if (c - d * along).norm_squared() > a.radius * a.radius || along + a.radius < tmin {
                 continue;
             }
             let limit = best.map_or(tmax, |h| h.range);

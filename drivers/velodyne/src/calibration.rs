@@ -131,6 +131,14 @@ impl Calibration {
     pub fn beam(&self, laser: usize, azimuth_hundredths: f64) -> Beam {
         let cal = &self.lasers[laser];
         let (sin_a, cos_a) = azimuth_sin_cos(azimuth_hundredths, cal.rot_correction_rad);
+        self.beam_at(laser, sin_a, cos_a)
+    }
+
+    /// [`Calibration::beam`] from the sine and cosine of the beam's horizontal angle (azimuth
+    /// minus the laser's rotation correction), for callers that get them by angle addition.
+    #[inline]
+    pub fn beam_at(&self, laser: usize, sin_a: f64, cos_a: f64) -> Beam {
+        let cal = &self.lasers[laser];
         let (vo, ho) = (cal.vertical_offset_m, cal.horizontal_offset_m);
         Beam {
             origin: [

@@ -1,0 +1,270 @@
+//! The lidar model's speed on the parking scene (issue 5, must-hold 6):
+//! - rays per second of the idealized model (per-firing pose, decoder beams, instanced
+//!   pedestrian, quantisation into packets) against bare obvhs traversal of the very same rays
+//!   in the same run (ratio, should be at least 0.8);
+//! - simulation of a VLP-32C along the recorded drive on both cores, as a multiple of real time
+//!   (re-simulation's core; should be at least 5x);
+//! - BVH build time of the scene.
+//!
+//! `cargo bench --bench raycast` runs criterion on each and then prints the ratios from
+//! interleaved rounds, so that both sides of a ratio see the same machine load.
+
+use criterion::{criterion_group, Criterion, Throughput};
+use hilrig::pose::Trajectory;
+use hilrig::rig::Mounting;
+use hilrig::scene::Scene;
+use hilrig::sim::spin::{Skeleton, Spin};
+use hilrig::sim::{LidarSim, ModelFile, SimStats};
+use hilrig::stamp::UtcNanos;
+use hilrig::velodyne::packet::ReturnMode;
+use hilrig::velodyne::{Calibration, Model};
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+use std::hint::black_box;
+use std::path::PathBuf;
+use std::time::Instant;
+
+fn fixture(p: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures")
+        .join(p)
+}
+
+struct Setup {
+    scene: Scene,
+    ego: Trajectory,
+    mounting: Mounting,
+}
+
+fn setup() -> Setup {
+    let scene = Scene::load(&fixture("parking/rep-01/scene.toml")).unwrap();
+    let ego = Trajectory::from_csv(
+        &std::fs::read_to_string(fixture("parking/rep-01/truth.csv")).unwrap(),
+    )
+    .unwrap();
+    let rig = hilrig::rig::Rig::load(&PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/rigs/demo.toml"
+    )))
+    .unwrap();
+    Setup {
+        scene,
+        ego,
+        mounting: rig.lidar.unwrap().mounting,
+    }
+}
+
+fn skeletons(model: Model, mode: ReturnMode, ego: &Trajectory, seconds: f64) -> Vec<Skeleton> {
+    let start = ego.span().0;
+    let spin = Spin {
+        model,
+        mode,
+        rpm: 600.0,
+        phase_deg: 0.0,
+        // Mid-drive: the ego is moving and the pedestrian is in view.
+        t0: UtcNanos(start.0 + 4_000_000_000),
+    };
+    (0..spin.packets_in(seconds))
+        .map(|k| spin.packet(k, |t| t))
+        .collect()
+}
+
+/// The rays the model casts for these packets (same arithmetic as `LidarSim::simulate`): in the
+/// local frame for the static BVH, and in each actor's frame (at that firing's time) for the
+/// actors' BVHs.
+type Ray = (Point3<f64>, Vector3<f64>);
+
+fn rays(sim: &LidarSim, scene: &Scene, ego: &Trajectory, sk: &[Skeleton]) -> Vec<(Ray, Vec<Ray>)> {
+    let dec = sim.decoder();
+    let n = dec.model().lasers();
+    let mut out = Vec::new();
+    let mut hint = 0;
+    let mut actor_hints = vec![0; scene.actors.len()];
+    for s in sk {
+        let rate = dec.rotation_rate(&s.packet, 12);
+        for col in 0..12 {
+            for ch in 0..32 {
+                let (az, t_us) = dec.firing(&s.packet, col, col, ch, rate);
+                let t = UtcNanos(s.time.first_firing.0 + (t_us * 1000.0).round() as i64);
+                let pose = sim.sensor_pose(ego, t, &mut hint).unwrap();
+                let beam = dec.calibration().beam(ch % n, az);
+                let o = pose.transform_point(&Point3::from(beam.origin));
+                let d = pose.transform_vector(&Vector3::from(beam.direction));
+                let local = scene
+                    .actors
+                    .iter()
+                    .zip(actor_hints.iter_mut())
+                    .filter_map(|(a, h)| a.trajectory.pose_at(t, h))
+                    .map(|p| {
+                        (
+                            p.inverse_transform_point(&o),
+                            p.inverse_transform_vector(&d),
+                        )
+                    })
+                    .collect();
+                out.push(((o, d), local));
+            }
+        }
+    }
+    out
+}
+
+/// Every BVH traversal the model does for these rays, and nothing else.
+fn bare(scene: &Scene, rays: &[(Ray, Vec<Ray>)]) -> usize {
+    let mut hits = 0;
+    for ((o, d), local) in rays {
+        let mut limit = 150.0;
+        if let Some(h) = scene.statics.cast(o, d, 0.0, limit) {
+            limit = h.range;
+            hits += 1;
+        }
+        for (a, (lo, ld)) in scene.actors.iter().zip(local) {
+            if let Some(h) = a.geometry.cast(lo, ld, 0.0, limit) {
+                limit = h.range;
+                hits += 1;
+            }
+        }
+        black_box(limit);
+    }
+    hits
+}
+
+fn model_run(sim: &LidarSim, ego: &Trajectory, sk: &[Skeleton]) -> u64 {
+    let mut stats = SimStats::default();
+    for (k, s) in sk.iter().enumerate() {
+        black_box(sim.simulate(&s.packet, s.time, ego, k as u64, &mut stats));
+    }
+    stats.returns
+}
+
+fn bench(c: &mut Criterion) {
+    let s = setup();
+    let ideal = ModelFile::idealized();
+    let model = Model::Vlp16;
+    let sim = LidarSim::new(
+        &s.scene,
+        model,
+        Calibration::builtin(model),
+        &s.mounting,
+        &ideal,
+    )
+    .unwrap();
+    let sk = skeletons(model, ReturnMode::Strongest, &s.ego, 0.1);
+    let r = rays(&sim, &s.scene, &s.ego, &sk);
+    let mut g = c.benchmark_group("parking_vlp16_rotation");
+    g.throughput(Throughput::Elements(r.len() as u64));
+    g.bench_function("bare_obvhs_traversal", |b| b.iter(|| bare(&s.scene, &r)));
+    g.bench_function("idealized_model", |b| {
+        b.iter(|| model_run(&sim, &s.ego, &sk))
+    });
+    g.finish();
+
+    let mut g = c.benchmark_group("bvh_build");
+    g.bench_function("parking_scene", |b| {
+        b.iter(|| Scene::load(&fixture("parking/rep-01/scene.toml")).unwrap())
+    });
+    g.finish();
+}
+
+fn report() {
+    let s = setup();
+    let ideal = ModelFile::idealized();
+    let model = Model::Vlp16;
+    let sim = LidarSim::new(
+        &s.scene,
+        model,
+        Calibration::builtin(model),
+        &s.mounting,
+        &ideal,
+    )
+    .unwrap();
+    let sk = skeletons(model, ReturnMode::Strongest, &s.ego, 1.0);
+    let r = rays(&sim, &s.scene, &s.ego, &sk);
+    let (mut t_bare, mut t_model) = (Vec::new(), Vec::new());
+    for _ in 0..15 {
+        let t = Instant::now();
+        black_box(bare(&s.scene, &r));
+        t_bare.push(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        black_box(model_run(&sim, &s.ego, &sk));
+        t_model.push(t.elapsed().as_secs_f64());
+    }
+    t_bare.sort_by(f64::total_cmp);
+    t_model.sort_by(f64::total_cmp);
+    let n = r.len() as f64;
+    let (bare_rate, model_rate) = (n / t_bare[7], n / t_model[7]);
+    println!(
+        "rays/s on the parking scene (VLP-16, 1 s of firings, 1 thread, 15 interleaved rounds): \
+         median: idealized model {:.2} M, bare obvhs traversal {:.2} M, ratio {:.2}; \
+         best: {:.2} M vs {:.2} M, ratio {:.2}",
+        model_rate / 1e6,
+        bare_rate / 1e6,
+        model_rate / bare_rate,
+        n / t_model[0] / 1e6,
+        n / t_bare[0] / 1e6,
+        t_bare[0] / t_model[0]
+    );
+
+    let model = Model::Vlp32c;
+    let sim32 = LidarSim::new(
+        &s.scene,
+        model,
+        Calibration::builtin(model),
+        &s.mounting,
+        &ideal,
+    )
+    .unwrap();
+    let truth = ModelFile::load(&fixture("parking/truth.toml")).unwrap();
+    let sim32t = LidarSim::new(
+        &s.scene,
+        model,
+        Calibration::builtin(model),
+        &s.mounting,
+        &truth,
+    )
+    .unwrap();
+    let seconds = 3.0;
+    for (name, sim, mode) in [
+        ("idealized, strongest", &sim32, ReturnMode::Strongest),
+        ("truth model, dual", &sim32t, ReturnMode::Dual),
+    ] {
+        let sk = skeletons(model, mode, &s.ego, seconds);
+        let t = Instant::now();
+        let returns: u64 = sk
+            .par_iter()
+            .enumerate()
+            .map(|(k, x)| {
+                let mut st = SimStats::default();
+                black_box(sim.simulate(&x.packet, x.time, &s.ego, k as u64, &mut st));
+                st.returns
+            })
+            .sum();
+        let el = t.elapsed().as_secs_f64();
+        println!(
+            "VLP-32C {name}: {seconds} s of packets ({} packets, {returns} returns) simulated in {el:.2} s on {} threads: {:.1}x real time",
+            sk.len(),
+            rayon::current_num_threads(),
+            seconds / el
+        );
+    }
+    let t = Instant::now();
+    let sc = Scene::load(&fixture("parking/rep-01/scene.toml")).unwrap();
+    println!(
+        "parking scene: {} static primitives, BVH build {:.1} µs (load with parsing {:.1} µs)",
+        sc.statics.len(),
+        sc.statics.build_time.as_secs_f64() * 1e6,
+        t.elapsed().as_secs_f64() * 1e6
+    );
+}
+
+criterion_group!(benches, bench);
+
+fn main() {
+    benches();
+    if std::env::var_os("HILRIG_BENCH_NO_REPORT").is_none() {
+        report();
+    }
+    criterion::Criterion::default()
+        .configure_from_args()
+        .final_summary();
+}
