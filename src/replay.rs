@@ -117,14 +117,10 @@ pub fn schedule(
 /// The schedule of an MCAP recording; a recording cut off or damaged part way (`.active` after a
 /// crash) gives the messages before the damage and says where it stopped.
 fn load_mcap(bytes: &[u8]) -> Result<(Vec<ReplayItem>, Option<String>), String> {
-    let options = mcap::sans_io::LinearReaderOptions::default()
-        .with_skip_end_magic(true)
-        .with_emit_chunks(true)
-        .with_record_length_limit(bytes.len());
     let mut out = Vec::new();
-    let mut channels = mcap::read::ChannelAccumulator::<'static>::default();
-    let damage = records(bytes, options, &mut |op, body| {
-        data_record(op, body, &mut channels, &mut out)
+    let damage = crate::bag::read::read(bytes, &mut |event| match event {
+        crate::bag::read::Event::Message(m) => message_into(&m, &mut out),
+        _ => Ok(()),
     })
     .err()
     .map(|e| format!("the recording is damaged after {} items: {e}", out.len()));
@@ -132,153 +128,14 @@ fn load_mcap(bytes: &[u8]) -> Result<(Vec<ReplayItem>, Option<String>), String> 
     Ok((out, damage))
 }
 
-/// What [`records`] hands each record to: opcode and body in, whether to go on out.
-type RecordVisitor<'a> = dyn FnMut(u8, &[u8]) -> Result<bool, String> + 'a;
-
-/// Feeds every record of `bytes` (opcode, body) to `each` until it says stop. The records are
-/// handed over raw so that only the ones replay needs are parsed: the mcap crate's parser panics
-/// on some damaged records it does not need (an attachment shorter than its CRC, found by
-/// fuzzing `replay_schedule`).
-fn records(
-    mut bytes: &[u8],
-    options: mcap::sans_io::LinearReaderOptions,
-    each: &mut RecordVisitor<'_>,
-) -> Result<(), String> {
-    use mcap::sans_io::LinearReadEvent;
-    let mut reader = mcap::sans_io::LinearReader::new_with_options(options);
-    while let Some(event) = reader.next_event() {
-        match event.map_err(|e| e.to_string())? {
-            LinearReadEvent::ReadRequest(need) => {
-                let n = need.min(bytes.len());
-                reader.insert(n).copy_from_slice(&bytes[..n]);
-                reader.notify_read(n);
-                bytes = &bytes[n..];
-            }
-            LinearReadEvent::Record { data, opcode } => {
-                if !each(opcode, data)? {
-                    break;
-                }
-            }
-        }
-    }
-    Ok(())
-}
-
-/// How much larger than its compressed bytes a chunk may claim to be. The `mcap` crate (0.26)
-/// reserves a chunk's claimed uncompressed size, and the claimed length of each record inside
-/// it, before reading, so one flipped bit in a damaged recording could ask for exabytes (a panic)
-/// or gigabytes (an abort where memory is limited); fuzzing `replay_schedule` found both. Sensor
-/// data compress by well under 100x.
-const MAX_CHUNK_EXPANSION: u64 = 1000;
-
-/// One record of the data section (opcode, body); false at its end. Chunks are opened here rather
-/// than by the mcap crate, so that every size a damaged file claims (a chunk's, a record's inside
-/// it) is checked against the bytes really there before anything is allocated for it.
-fn data_record(
-    op: u8,
-    body: &[u8],
-    channels: &mut mcap::read::ChannelAccumulator<'static>,
-    out: &mut Vec<ReplayItem>,
-) -> Result<bool, String> {
-    use mcap::records::op;
-    match op {
-        op::SCHEMA | op::CHANNEL | op::MESSAGE => {
-            let record = mcap::parse_record(op, body).map_err(|e| e.to_string())?;
-            record_into(record, channels, out)?;
-        }
-        op::CHUNK => {
-            let mcap::records::Record::Chunk { header, data } =
-                mcap::parse_record(op, body).map_err(|e| e.to_string())?
-            else {
-                return Err("a chunk record that is no chunk".into());
-            };
-            let limit = (data.len() as u64)
-                .saturating_mul(MAX_CHUNK_EXPANSION)
-                .saturating_add(1 << 20);
-            if header.uncompressed_size > limit {
-                return Err(format!(
-                    "a chunk of {} bytes claims {} bytes uncompressed",
-                    data.len(),
-                    header.uncompressed_size
-                ));
-            }
-            let inner = decompress(&header, &data)?;
-            let options = mcap::sans_io::LinearReaderOptions::default()
-                .with_skip_start_magic(true)
-                .with_skip_end_magic(true)
-                .with_record_length_limit(inner.len());
-            // A chunk holds no chunks and no data end; anything else goes the same way.
-            records(&inner, options, &mut |op, body| match op {
-                op::CHUNK | op::DATA_END => Ok(true),
-                _ => data_record(op, body, channels, out),
-            })?;
-        }
-        op::DATA_END => return Ok(false),
-        _ => {}
-    }
-    Ok(true)
-}
-
-/// A chunk's records, uncompressed, checked against the size its header claims (which has been
-/// checked for plausibility already, so it bounds the allocation).
-fn decompress(header: &mcap::records::ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
-    use std::io::Read;
-    let claimed = header.uncompressed_size as usize;
-    let body = match header.compression.as_str() {
-        "" => data.to_vec(),
-        "zstd" => zstd::bulk::decompress(data, claimed).map_err(|e| format!("zstd: {e}"))?,
-        "lz4" => {
-            let mut out = Vec::with_capacity(claimed);
-            lz4::Decoder::new(data)
-                .map_err(|e| format!("lz4: {e}"))?
-                .take(claimed as u64 + 1)
-                .read_to_end(&mut out)
-                .map_err(|e| format!("lz4: {e}"))?;
-            out
-        }
-        other => return Err(format!("a chunk compressed with unknown {other:?}")),
-    };
-    if body.len() != claimed {
-        return Err(format!(
-            "a chunk claims {claimed} bytes uncompressed but holds {}",
-            body.len()
-        ));
-    }
-    Ok(body)
-}
-
-/// One record of the data section: schemas and channels are remembered, messages scheduled.
-fn record_into(
-    record: mcap::records::Record<'_>,
-    channels: &mut mcap::read::ChannelAccumulator<'static>,
-    out: &mut Vec<ReplayItem>,
-) -> Result<(), String> {
-    match record {
-        mcap::records::Record::Schema { header, data } => channels
-            .add_schema(header, std::borrow::Cow::Owned(data.into_owned()))
-            .map_err(|e| e.to_string()),
-        mcap::records::Record::Channel(c) => channels.add_channel(c).map_err(|e| e.to_string()),
-        mcap::records::Record::Message { header, data } => {
-            let channel = channels.get(header.channel_id).ok_or_else(|| {
-                format!(
-                    "a message on channel {} that was never defined",
-                    header.channel_id
-                )
-            })?;
-            message_into(&channel, header.log_time, &data, out)
-        }
-        _ => Ok(()),
-    }
-}
-
 /// Schedules one message of the recorder's topics; others are passed over.
 fn message_into(
-    channel: &mcap::Channel<'_>,
-    log_time: u64,
-    data: &[u8],
+    m: &crate::bag::read::Message<'_>,
     out: &mut Vec<ReplayItem>,
 ) -> Result<(), String> {
-    let t = UtcNanos(log_time as i64);
+    let t = UtcNanos(m.log_time as i64);
+    let data = m.data;
+    let channel = m.channel;
     let bad = || format!("{}: a message does not decode as its type", channel.topic);
     match channel.topic.as_str() {
         crate::record::topics::VELODYNE_PACKETS => {

@@ -5,6 +5,7 @@
 pub mod cdr;
 pub mod info;
 pub mod msgs;
+pub mod read;
 pub mod recover;
 pub mod writer;
 

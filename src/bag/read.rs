@@ -1,0 +1,197 @@
+//! Reading an MCAP robustly: every size a damaged file claims (a chunk's, a record's inside it)
+//! is checked against the bytes really there before anything is allocated for it, so a cut-off
+//! or bit-flipped recording gives what it holds before the damage and a clear error, never a
+//! panic or an abort. Replay and `check` read recordings through this.
+
+use std::collections::BTreeMap;
+
+/// One message with its channel.
+pub struct Message<'a> {
+    /// The channel (topic, schema).
+    pub channel: &'a mcap::Channel<'a>,
+    /// Log time (synchronised UTC), ns.
+    pub log_time: u64,
+    /// Publish time (host receive time), ns.
+    pub publish_time: u64,
+    /// The serialised message.
+    pub data: &'a [u8],
+}
+
+/// What the reader hands over.
+pub enum Event<'a> {
+    /// A message.
+    Message(Message<'a>),
+    /// A metadata record.
+    Metadata {
+        /// Its name.
+        name: &'a str,
+        /// Its key-value pairs.
+        values: &'a BTreeMap<String, String>,
+    },
+}
+
+/// The callback of [`read`].
+pub type Visitor<'a> = dyn FnMut(Event<'_>) -> Result<(), String> + 'a;
+
+/// Walks the data section of an MCAP held in memory and hands every message, metadata record
+/// and attachment to `each`, in file order. `Err` says what stopped the reading (damage, or an
+/// error `each` returned); everything before it has been handed over.
+pub fn read(bytes: &[u8], each: &mut Visitor<'_>) -> Result<(), String> {
+    let options = mcap::sans_io::LinearReaderOptions::default()
+        .with_skip_end_magic(true)
+        .with_emit_chunks(true)
+        .with_record_length_limit(bytes.len());
+    let mut channels = mcap::read::ChannelAccumulator::<'static>::default();
+    records(bytes, options, &mut |op, body| {
+        data_record(op, body, &mut channels, each)
+    })
+}
+
+/// What [`records`] hands each record to: opcode and body in, whether to go on out.
+type RecordVisitor<'a> = dyn FnMut(u8, &[u8]) -> Result<bool, String> + 'a;
+
+/// Feeds every record of `bytes` (opcode, body) to `each` until it says stop. The records are
+/// handed over raw so that only the ones replay needs are parsed: the mcap crate's parser panics
+/// on some damaged records it does not need (an attachment shorter than its CRC, found by
+/// fuzzing `replay_schedule`).
+fn records(
+    mut bytes: &[u8],
+    options: mcap::sans_io::LinearReaderOptions,
+    each: &mut RecordVisitor<'_>,
+) -> Result<(), String> {
+    use mcap::sans_io::LinearReadEvent;
+    let mut reader = mcap::sans_io::LinearReader::new_with_options(options);
+    while let Some(event) = reader.next_event() {
+        match event.map_err(|e| e.to_string())? {
+            LinearReadEvent::ReadRequest(need) => {
+                let n = need.min(bytes.len());
+                reader.insert(n).copy_from_slice(&bytes[..n]);
+                reader.notify_read(n);
+                bytes = &bytes[n..];
+            }
+            LinearReadEvent::Record { data, opcode } => {
+                if !each(opcode, data)? {
+                    break;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// How much larger than its compressed bytes a chunk may claim to be. The `mcap` crate (0.26)
+/// reserves a chunk's claimed uncompressed size, and the claimed length of each record inside
+/// it, before reading, so one flipped bit in a damaged recording could ask for exabytes (a panic)
+/// or gigabytes (an abort where memory is limited); fuzzing `replay_schedule` found both. Sensor
+/// data compress by well under 100x.
+const MAX_CHUNK_EXPANSION: u64 = 1000;
+
+/// One record of the data section (opcode, body); false at its end. Chunks are opened here rather
+/// than by the mcap crate, so that every size a damaged file claims (a chunk's, a record's inside
+/// it) is checked against the bytes really there before anything is allocated for it.
+fn data_record(
+    op: u8,
+    body: &[u8],
+    channels: &mut mcap::read::ChannelAccumulator<'static>,
+    out: &mut Visitor<'_>,
+) -> Result<bool, String> {
+    use mcap::records::op;
+    match op {
+        op::SCHEMA | op::CHANNEL | op::MESSAGE | op::METADATA => {
+            let record = mcap::parse_record(op, body).map_err(|e| e.to_string())?;
+            record_into(record, channels, out)?;
+        }
+        op::CHUNK => {
+            let mcap::records::Record::Chunk { header, data } =
+                mcap::parse_record(op, body).map_err(|e| e.to_string())?
+            else {
+                return Err("a chunk record that is no chunk".into());
+            };
+            let limit = (data.len() as u64)
+                .saturating_mul(MAX_CHUNK_EXPANSION)
+                .saturating_add(1 << 20);
+            if header.uncompressed_size > limit {
+                return Err(format!(
+                    "a chunk of {} bytes claims {} bytes uncompressed",
+                    data.len(),
+                    header.uncompressed_size
+                ));
+            }
+            let inner = decompress(&header, &data)?;
+            let options = mcap::sans_io::LinearReaderOptions::default()
+                .with_skip_start_magic(true)
+                .with_skip_end_magic(true)
+                .with_record_length_limit(inner.len());
+            // A chunk holds no chunks and no data end; anything else goes the same way.
+            records(&inner, options, &mut |op, body| match op {
+                op::CHUNK | op::DATA_END => Ok(true),
+                _ => data_record(op, body, channels, out),
+            })?;
+        }
+        op::DATA_END => return Ok(false),
+        _ => {}
+    }
+    Ok(true)
+}
+
+/// A chunk's records, uncompressed, checked against the size its header claims (which has been
+/// checked for plausibility already, so it bounds the allocation).
+fn decompress(header: &mcap::records::ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    let claimed = header.uncompressed_size as usize;
+    let body = match header.compression.as_str() {
+        "" => data.to_vec(),
+        "zstd" => zstd::bulk::decompress(data, claimed).map_err(|e| format!("zstd: {e}"))?,
+        "lz4" => {
+            let mut out = Vec::with_capacity(claimed);
+            lz4::Decoder::new(data)
+                .map_err(|e| format!("lz4: {e}"))?
+                .take(claimed as u64 + 1)
+                .read_to_end(&mut out)
+                .map_err(|e| format!("lz4: {e}"))?;
+            out
+        }
+        other => return Err(format!("a chunk compressed with unknown {other:?}")),
+    };
+    if body.len() != claimed {
+        return Err(format!(
+            "a chunk claims {claimed} bytes uncompressed but holds {}",
+            body.len()
+        ));
+    }
+    Ok(body)
+}
+
+/// One record of the data section: schemas and channels are remembered, messages and metadata
+/// handed on.
+fn record_into(
+    record: mcap::records::Record<'_>,
+    channels: &mut mcap::read::ChannelAccumulator<'static>,
+    out: &mut Visitor<'_>,
+) -> Result<(), String> {
+    match record {
+        mcap::records::Record::Schema { header, data } => channels
+            .add_schema(header, std::borrow::Cow::Owned(data.into_owned()))
+            .map_err(|e| e.to_string()),
+        mcap::records::Record::Channel(c) => channels.add_channel(c).map_err(|e| e.to_string()),
+        mcap::records::Record::Message { header, data } => {
+            let channel = channels.get(header.channel_id).ok_or_else(|| {
+                format!(
+                    "a message on channel {} that was never defined",
+                    header.channel_id
+                )
+            })?;
+            out(Event::Message(Message {
+                channel: &channel,
+                log_time: header.log_time,
+                publish_time: header.publish_time,
+                data: &data,
+            }))
+        }
+        mcap::records::Record::Metadata(m) => out(Event::Metadata {
+            name: &m.name,
+            values: &m.metadata,
+        }),
+        _ => Ok(()),
+    }
+}
