@@ -240,6 +240,90 @@ impl Default for Survey {
     }
 }
 
+/// A time window of a drive, seconds after its start.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Window {
+    /// Start, s.
+    pub from_s: f64,
+    /// End, s.
+    pub to_s: f64,
+}
+
+impl Window {
+    /// Whether `t_s` (seconds after the start) lies inside.
+    pub fn contains(&self, t_s: f64) -> bool {
+        t_s >= self.from_s && t_s < self.to_s
+    }
+}
+
+/// A degraded RTK solution in a window.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RtkFault {
+    /// Start, s after the drive's start.
+    pub from_s: f64,
+    /// End, s.
+    pub to_s: f64,
+    /// GGA quality written: 5 float, 2 DGNSS, 1 autonomous.
+    pub quality: u8,
+}
+
+/// A sigma spike: the receiver reports (and has) a larger error in a window.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SigmaFault {
+    /// Start, s after the drive's start.
+    pub from_s: f64,
+    /// End, s.
+    pub to_s: f64,
+    /// 1-sigma horizontal error, m.
+    pub sigma_m: f64,
+}
+
+/// The lidar's clock runs free instead of being PPS-locked.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct FreeClock {
+    /// Offset against UTC at the start, ms.
+    pub offset_ms: f64,
+    /// Drift, ppm.
+    pub drift_ppm: f64,
+}
+
+/// Faults injected into the reference data (for testing `hilrig check`); none by default.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Faults {
+    /// RTK float or non-RTK segments.
+    #[serde(default)]
+    pub rtk: Vec<RtkFault>,
+    /// Sigma spikes.
+    #[serde(default)]
+    pub sigma_spike: Vec<SigmaFault>,
+    /// GNSS fixes labelled this much later than the instant they describe, ms.
+    #[serde(default)]
+    pub gnss_time_offset_ms: f64,
+    /// A free-running lidar clock.
+    #[serde(default)]
+    pub lidar_free_running: Option<FreeClock>,
+    /// Windows without lidar data packets.
+    #[serde(default)]
+    pub lidar_gap: Vec<Window>,
+    /// CAN speed reads this factor times the truth.
+    #[serde(default = "one")]
+    pub can_speed_scale: f64,
+    /// The true antenna sits this far from where the rig file says, metres (x, y, z).
+    #[serde(default)]
+    pub antenna_error_m: [f64; 3],
+}
+
+impl Default for Faults {
+    fn default() -> Self {
+        toml::from_str("").expect("defaults")
+    }
+}
+
 /// The drive file.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -273,6 +357,9 @@ pub struct DriveFile {
     /// Survey of static objects.
     #[serde(default)]
     pub survey: Survey,
+    /// Injected faults (none by default).
+    #[serde(default)]
+    pub faults: Option<Faults>,
 }
 
 /// Parses `YYYY-MM-DDTHH:MM:SS[.fff]Z`.

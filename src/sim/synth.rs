@@ -283,10 +283,25 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
     let n_packets = spin.packets_in((end.0 - spin.t0.0) as f64 * 1e-9 - 0.002);
     let period = spin.packet_period_ns();
     let seed = job.seed;
+    let faults = job.drive.faults.clone().unwrap_or_default();
+    let since_start = |t: UtcNanos| (t.0 - start.0) as f64 * 1e-9;
+    // The lidar's clock: UTC when PPS-locked, else free-running with an offset and a drift.
+    let free = faults.lidar_free_running;
+    let sensor_clock = move |t: UtcNanos| match free {
+        Some(c) => UtcNanos(
+            t.0 + (c.offset_ms * 1e6) as i64 + ((t.0 - start.0) as f64 * c.drift_ppm * 1e-6) as i64,
+        ),
+        None => t,
+    };
+    let pps = if free.is_some() {
+        PpsStatus::Absent
+    } else {
+        PpsStatus::Locked
+    };
     let results: Vec<(Vec<u8>, SimStats, u32)> = (0..n_packets)
         .into_par_iter()
         .map(|k| {
-            let sk = spin.packet(k, |t| t);
+            let sk = spin.packet(k, sensor_clock);
             let mut stats = SimStats::default();
             let pkt = sim.simulate(
                 &sk.packet,
@@ -325,6 +340,15 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
             summary.lidar_packets_lost += 1;
             continue;
         }
+        let t_first = UtcNanos(first as i64);
+        if faults
+            .lidar_gap
+            .iter()
+            .any(|w| w.contains(since_start(t_first)))
+        {
+            summary.lidar_packets_lost += 1;
+            continue;
+        }
         last_host = h;
         events.push((h, ETH, udp_ethernet_frame(addr(2368), host(2368), &bytes)));
         summary.lidar_packets += 1;
@@ -350,7 +374,7 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
             let rmc = nmea_sentence(&format!(
                 "GPRMC,{hms_s},A,{lat_lon},{sog:.1},{cog:.1},{date},,,D"
             ));
-            let pp = PositionPacket::new(ts_us, PpsStatus::Locked, rmc.trim_end());
+            let pp = PositionPacket::new(ts_us, pps, rmc.trim_end());
             events.push((
                 h + 200_000,
                 ETH,
@@ -375,13 +399,54 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         unit.sample(&mut grng) * gs.sigma_horizontal_m,
         unit.sample(&mut grng) * gs.sigma_vertical_m,
     );
-    let lever = Vector3::new(gnss_cfg.antenna.x, gnss_cfg.antenna.y, gnss_cfg.antenna.z);
+    // Where the antenna really is (the rig file's lever arm plus any injected error).
+    let lever = Vector3::new(
+        gnss_cfg.antenna.x + faults.antenna_error_m[0],
+        gnss_cfg.antenna.y + faults.antenna_error_m[1],
+        gnss_cfg.antenna.z + faults.antenna_error_m[2],
+    );
+    let offset_ns = (faults.gnss_time_offset_ms * 1e6).round() as i64;
     let step_ns = (1e9 / gs.rate_hz).round() as i64;
     let mut t = UtcNanos(start.0 + (step_ns - start.0.rem_euclid(step_ns)) % step_ns);
     let mut hint = 0;
     while t <= end {
-        let Some(p) = driven.ego.sample_at(t, &mut hint) else {
-            break;
+        // A fix labelled `t` describes the instant `t - offset` (a receiver time offset).
+        let Some(p) = driven.ego.sample_at(UtcNanos(t.0 - offset_ns), &mut hint) else {
+            t = UtcNanos(t.0 + step_ns);
+            continue;
+        };
+        let ts = since_start(t);
+        let rtk_fault = faults
+            .rtk
+            .iter()
+            .find(|f| ts >= f.from_s && ts < f.to_s)
+            .map(|f| f.quality);
+        let spike = faults
+            .sigma_spike
+            .iter()
+            .find(|f| ts >= f.from_s && ts < f.to_s)
+            .map(|f| f.sigma_m);
+        // Degraded solutions: float about 0.2 m, DGNSS 0.5 m, autonomous 1.5 m (1 sigma).
+        let (quality, sigma_h, sigma_v) = match (rtk_fault, spike) {
+            (Some(q), _) => {
+                let s = match q {
+                    5 => 0.20,
+                    2 => 0.50,
+                    _ => 1.50,
+                };
+                (q, s, 2.0 * s)
+            }
+            (None, Some(s)) => (4, s, 2.0 * s),
+            (None, None) => (4, gs.sigma_horizontal_m, gs.sigma_vertical_m),
+        };
+        let extra = if errors && sigma_h > gs.sigma_horizontal_m {
+            Vector3::new(
+                unit.sample(&mut grng) * sigma_h,
+                unit.sample(&mut grng) * sigma_h,
+                unit.sample(&mut grng) * sigma_v,
+            )
+        } else {
+            Vector3::zeros()
         };
         noise = Vector3::new(
             phi * noise.x + drive_h * unit.sample(&mut grng),
@@ -389,7 +454,8 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
             phi * noise.z + drive_v * unit.sample(&mut grng),
         );
         let antenna = p.isometry().transform_point(&Point3::from(lever)).coords
-            + if errors { noise } else { Vector3::zeros() };
+            + if errors { noise } else { Vector3::zeros() }
+            + extra;
         let w = enu.to_wgs84(&antenna);
         let (hms_s, date) = hms(t);
         let ll = nmea_lat_lon(w.latitude_deg, w.longitude_deg);
@@ -400,18 +466,20 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         let alt = w.height_m - gs.geoid_separation_m;
         let body = [
             format!(
-                "GNGGA,{hms_s},{ll},4,14,0.7,{alt:.3},M,{:.3},M,1.0,0042",
-                gs.geoid_separation_m
+                "GNGGA,{hms_s},{ll},{quality},14,0.7,{alt:.3},M,{:.3},M,{},{}",
+                gs.geoid_separation_m,
+                if quality >= 4 { "1.0" } else { "" },
+                if quality >= 4 { "0042" } else { "" },
             ),
             format!("GNRMC,{hms_s},A,{ll},{sog_kn:.3},{cog:.2},{date},,,R"),
             format!(
                 "GNGST,{hms_s},{:.3},{:.3},{:.3},0.0,{:.3},{:.3},{:.3}",
-                (2.0 * gs.sigma_horizontal_m.powi(2) + gs.sigma_vertical_m.powi(2)).sqrt(),
-                gs.sigma_horizontal_m,
-                gs.sigma_horizontal_m,
-                gs.sigma_horizontal_m,
-                gs.sigma_horizontal_m,
-                gs.sigma_vertical_m
+                (2.0 * sigma_h.powi(2) + sigma_v.powi(2)).sqrt(),
+                sigma_h,
+                sigma_h,
+                sigma_h,
+                sigma_h,
+                sigma_v
             ),
         ];
         let mut bytes = Vec::new();
@@ -460,7 +528,11 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         let mut values = Vec::new();
         let si_to = |m: &hilrig_can::ego::SignalMap, si: f64| m.unit.from_si(si / m.scale);
         if let Some(i) = index(&speed_map.signal) {
-            values.push((i, si_to(speed_map, noisy(v, cs.speed_sigma_mps, &mut crng))));
+            let v_read = v * faults.can_speed_scale;
+            values.push((
+                i,
+                si_to(speed_map, noisy(v_read, cs.speed_sigma_mps, &mut crng)),
+            ));
         }
         if let Some(m) = ego_map.yaw_rate.as_ref().filter(|m| m.message == msg.name) {
             if let Some(i) = index(&m.signal) {
