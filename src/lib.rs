@@ -15,6 +15,7 @@ pub mod points_out;
 pub mod pose;
 pub mod record;
 pub mod record_live;
+pub mod reference;
 pub mod replay;
 pub mod rig;
 pub mod scene;

@@ -47,6 +47,24 @@ enum Command {
     /// the vehicle (lidar, GNSS serial, CAN) with realistic reference errors, the surveyed scene
     /// and the truth.
     Synth(SynthArgs),
+    /// Check a recording's reference data (seed §6): spatial and temporal accuracy, faults located
+    /// in time, the smallest admissible grid cell. Exit 0 pass, 1 fail, 2 unusable input.
+    Check(CheckArgs),
+}
+
+#[derive(clap::Args)]
+struct CheckArgs {
+    /// The recording (.mcap).
+    run: PathBuf,
+    /// The scene (origin of the local frame, survey accuracy of static objects).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// The rig file (lever arm, thresholds); default: the one attached to the recording.
+    #[arg(long)]
+    rig: Option<PathBuf>,
+    /// Also write the report as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -235,6 +253,7 @@ fn main() -> ExitCode {
         Command::Info(args) => run_info(args),
         Command::Replay(args) => run_replay(args),
         Command::Synth(args) => run_synth(args),
+        Command::Check(args) => run_check(args),
     };
     match result {
         Ok(code) => code,
@@ -557,6 +576,39 @@ fn run_record(args: RecordArgs) -> Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+fn run_check(args: CheckArgs) -> Result<ExitCode> {
+    use hilrig::reference::{check, run::Run};
+    let run = match Run::read(&args.run) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("verdict: UNUSABLE\n  {e}");
+            return Ok(ExitCode::from(2));
+        }
+    };
+    let rig = match (&args.rig, &run.rig_toml) {
+        (Some(p), _) => hilrig::rig::Rig::load(p)?,
+        (None, Some(text)) => {
+            hilrig::rig::Rig::from_toml(text, "rig.toml attached to the recording")?
+        }
+        (None, None) => {
+            eprintln!("verdict: UNUSABLE\n  the recording has no rig.toml attached: give --rig");
+            return Ok(ExitCode::from(2));
+        }
+    };
+    let scene = args
+        .scene
+        .as_ref()
+        .map(|p| hilrig::scene::Scene::load(p))
+        .transpose()?;
+    let report = check::check(&run, &rig, scene.as_ref());
+    print!("{}", report.text());
+    if let Some(p) = &args.json {
+        std::fs::write(p, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    Ok(ExitCode::from(report.verdict.exit_code()))
 }
 
 fn run_synth(args: SynthArgs) -> Result<ExitCode> {

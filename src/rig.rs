@@ -227,6 +227,21 @@ pub struct Thresholds {
     pub min_grid_cell_m: f64,
     /// The grid cell must be at least this many times the reference accuracy (seed §6: 10).
     pub grid_cell_accuracy_factor: f64,
+    /// Largest relative error of the CAN speed against GNSS. Default 0.01: the tolerance of a
+    /// wheel-speed calibration (tyre wear and pressure change the rolling radius by about 1 %).
+    pub max_speed_scale_error: f64,
+    /// Largest time offset between GNSS and CAN, ms. Default 10: at 10 km/h, 10 ms move the ego
+    /// 2.8 cm, a quarter of the smallest grid cell.
+    pub max_time_offset_ms: f64,
+    /// Largest error of the antenna lever arm the data reveal, m. Default 0.10: in turns a
+    /// lever-arm error becomes a position error of up to its own size, and 10 cm is the grid.
+    pub max_lever_arm_error_m: f64,
+    /// Whether the lidar must be PPS-locked. Default true: without PPS its time comes from host
+    /// stamps and a free-running oscillator (tens of ppm), not from GNSS time.
+    pub require_pps: bool,
+    /// A GNSS epoch further than this many sigmas from the smoothed trajectory is a jump that
+    /// CAN speed and yaw rate cannot explain. Default 5 (a false alarm once in 270 000 epochs).
+    pub max_jump_sigma: f64,
 }
 
 impl Default for Thresholds {
@@ -240,6 +255,11 @@ impl Default for Thresholds {
             max_clock_residual_p95_us: 1000.0,
             min_grid_cell_m: 0.10,
             grid_cell_accuracy_factor: 10.0,
+            max_speed_scale_error: 0.01,
+            max_time_offset_ms: 10.0,
+            max_lever_arm_error_m: 0.10,
+            require_pps: true,
+            max_jump_sigma: 5.0,
         }
     }
 }
@@ -267,6 +287,14 @@ pub enum RigError {
 }
 
 impl Rig {
+    /// Parses a rig file's text (`name` says where it came from in errors).
+    pub fn from_toml(text: &str, name: &str) -> Result<Rig, RigError> {
+        toml::from_str(text).map_err(|e| RigError::Parse {
+            path: name.to_owned(),
+            message: e.to_string(),
+        })
+    }
+
     /// Loads and checks a rig file.
     pub fn load(path: &Path) -> Result<Rig, RigError> {
         let text = std::fs::read_to_string(path).map_err(|e| RigError::Io {

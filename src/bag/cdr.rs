@@ -133,6 +133,14 @@ impl<'a> CdrReader<'a> {
         Some(u32::from_le_bytes([v[0], v[1], v[2], v[3]]))
     }
 
+    /// An `f64`.
+    pub fn f64(&mut self) -> Option<f64> {
+        self.align(8);
+        let v = self.b.get(self.pos..self.pos + 8)?;
+        self.pos += 8;
+        Some(f64::from_le_bytes(v.try_into().ok()?))
+    }
+
     /// A `builtin_interfaces/Time`.
     pub fn time(&mut self) -> Option<UtcNanos> {
         let s = self.u32()? as i32;

@@ -28,6 +28,32 @@ pub enum Event<'a> {
         /// Its key-value pairs.
         values: &'a BTreeMap<String, String>,
     },
+    /// An attachment (rig file, DBC, calibration).
+    Attachment {
+        /// Its name.
+        name: &'a str,
+        /// Its bytes.
+        data: &'a [u8],
+    },
+}
+
+/// An attachment record's name and data, parsed with every length checked (the `mcap` crate
+/// 0.26 slices past the end of an attachment shorter than its CRC).
+fn attachment(body: &[u8]) -> Option<(&str, &[u8])> {
+    let mut pos = 16usize; // log time, create time
+    let mut take = |n: usize| -> Option<&[u8]> {
+        let v = body.get(pos..pos.checked_add(n)?)?;
+        pos += n;
+        Some(v)
+    };
+    let len = |b: &[u8]| b.iter().rev().fold(0u64, |a, &x| (a << 8) | u64::from(x));
+    let n = len(take(4)?) as usize;
+    let name = std::str::from_utf8(take(n)?).ok()?;
+    let n = len(take(4)?) as usize;
+    take(n)?;
+    let n = usize::try_from(len(take(8)?)).ok()?;
+    let data = take(n)?;
+    Some((name, data))
 }
 
 /// The callback of [`read`].
@@ -127,6 +153,11 @@ fn data_record(
                 op::CHUNK | op::DATA_END => Ok(true),
                 _ => data_record(op, body, channels, out),
             })?;
+        }
+        op::ATTACHMENT => {
+            if let Some((name, data)) = attachment(body) {
+                out(Event::Attachment { name, data })?;
+            }
         }
         op::DATA_END => return Ok(false),
         _ => {}

@@ -517,7 +517,19 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         let Some(seg) = driven.ego.segment(t, &mut hint) else {
             break;
         };
-        let (v, w) = driven.motion[seg];
+        // Speed and yaw rate at `t` itself (between the 10 ms samples), so that CAN carries no
+        // timing error beyond its latency.
+        let samples = driven.ego.samples();
+        let f = if seg + 1 < samples.len() {
+            (t.0 - samples[seg].t.0) as f64 / (samples[seg + 1].t.0 - samples[seg].t.0) as f64
+        } else {
+            0.0
+        };
+        let (m0, m1) = (
+            driven.motion[seg],
+            driven.motion[(seg + 1).min(samples.len() - 1)],
+        );
+        let (v, w) = (m0.0 + (m1.0 - m0.0) * f, m0.1 + (m1.1 - m0.1) * f);
         let noisy = |x: f64, s: f64, r: &mut ChaCha8Rng| {
             if errors {
                 x + Normal::new(0.0, s).map_or(0.0, |n| n.sample(r))

@@ -1,0 +1,177 @@
+//! A recorded run as `check` needs it: GNSS epochs (re-parsed from the raw NMEA/UBX streams, so
+//! that RTK state, sigmas and correction age are the receiver's own), ego motion, lidar packet
+//! timing, position-packet PPS states, clock-synchronisation metadata and the rig file.
+
+use crate::bag::cdr::CdrReader;
+use crate::bag::read::{read, Event};
+use crate::record::topics;
+use hilrig_gnss::{Fix, GnssStream};
+use hilrig_stamp::UtcNanos;
+use hilrig_velodyne::{PositionPacket, PpsStatus, DATA_PACKET_SIZE};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// One ego-motion sample (from the DBC mapping, `/ego/twist`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Motion {
+    /// Log time (host time of the CAN frame).
+    pub t: UtcNanos,
+    /// Forward speed, m/s.
+    pub speed: f64,
+    /// Yaw rate, rad/s (counter-clockwise positive).
+    pub yaw_rate: f64,
+}
+
+/// One lidar data packet's timing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PacketTime {
+    /// Host receive stamp.
+    pub host: UtcNanos,
+    /// The sensor's own stamp, µs past the hour.
+    pub sensor_us: u32,
+}
+
+/// A run, read from an MCAP recording.
+#[derive(Clone, Debug, Default)]
+pub struct Run {
+    /// GNSS epochs with the host time of their last sentence.
+    pub fixes: Vec<(UtcNanos, Fix)>,
+    /// Ego motion.
+    pub motion: Vec<Motion>,
+    /// Lidar data packets.
+    pub packets: Vec<PacketTime>,
+    /// Position packets: log time and PPS state.
+    pub pps: Vec<(UtcNanos, PpsStatus)>,
+    /// Metadata records by name.
+    pub metadata: BTreeMap<String, BTreeMap<String, String>>,
+    /// What stopped the reading early (damage), if anything.
+    pub damage: Option<String>,
+    /// The rig file attached by the recorder, if any.
+    pub rig_toml: Option<String>,
+}
+
+/// Why a run cannot be read at all.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// Unreadable.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        /// Path.
+        path: String,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// Not an MCAP.
+    #[error("{0}: not an MCAP recording (check reads what `hilrig record` writes)")]
+    NotMcap(String),
+}
+
+impl Run {
+    /// Reads a recording.
+    pub fn read(path: &Path) -> Result<Run, RunError> {
+        let bytes = std::fs::read(path).map_err(|source| RunError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
+        if !bytes.starts_with(mcap::MAGIC) {
+            return Err(RunError::NotMcap(path.display().to_string()));
+        }
+        Ok(Run::from_bytes(&bytes))
+    }
+
+    /// Reads a recording held in memory (a damaged one up to the damage).
+    pub fn from_bytes(bytes: &[u8]) -> Run {
+        let mut run = Run::default();
+        let mut nmea = GnssStream::default();
+        let mut ubx = GnssStream::default();
+        let mut fixes = Vec::new();
+        let result = read(bytes, &mut |event| {
+            match event {
+                Event::Metadata { name, values } => {
+                    run.metadata.insert(name.to_owned(), values.clone());
+                }
+                Event::Attachment { name, data } => {
+                    if name == "rig.toml" {
+                        run.rig_toml = String::from_utf8(data.to_vec()).ok();
+                    }
+                }
+                Event::Message(m) => {
+                    let host = UtcNanos(m.publish_time as i64);
+                    // Every message of the recorder's topics starts with a std_msgs/Header.
+                    let Some(mut c) = CdrReader::new(m.data) else {
+                        return Ok(());
+                    };
+                    if c.header().is_none() {
+                        return Ok(());
+                    }
+                    match m.channel.topic.as_str() {
+                        topics::GNSS_NMEA => {
+                            if let Some(s) = c.string() {
+                                let line = format!("{s}\r\n");
+                                nmea.push(line.as_bytes(), &mut fixes);
+                                run.fixes.extend(fixes.drain(..).map(|f| (host, f)));
+                            }
+                        }
+                        topics::GNSS_UBX => {
+                            if let Some(n) = c.u32() {
+                                if let Some(b) = c.bytes(n as usize) {
+                                    ubx.push(b, &mut fixes);
+                                    run.fixes.extend(fixes.drain(..).map(|f| (host, f)));
+                                }
+                            }
+                        }
+                        topics::EGO_TWIST => {
+                            let v: Option<Vec<f64>> = (0..6).map(|_| c.f64()).collect();
+                            if let Some(v) = v {
+                                run.motion.push(Motion {
+                                    t: UtcNanos(m.log_time as i64),
+                                    speed: v[0],
+                                    yaw_rate: v[5],
+                                });
+                            }
+                        }
+                        topics::VELODYNE_PACKETS => {
+                            let n = c.u32().unwrap_or(0);
+                            for _ in 0..n {
+                                let (Some(stamp), Some(data)) =
+                                    (c.time(), c.bytes(DATA_PACKET_SIZE))
+                                else {
+                                    break;
+                                };
+                                let sensor_us = u32::from_le_bytes([
+                                    data[1200], data[1201], data[1202], data[1203],
+                                ]);
+                                run.packets.push(PacketTime {
+                                    host: stamp,
+                                    sensor_us,
+                                });
+                            }
+                        }
+                        topics::VELODYNE_POSITION => {
+                            if let Some(n) = c.u32() {
+                                if let Some(Ok(p)) = c.bytes(n as usize).map(PositionPacket::decode)
+                                {
+                                    run.pps.push((
+                                        UtcNanos(m.log_time as i64),
+                                        PpsStatus::from_byte(p.pps_byte, true),
+                                    ));
+                                }
+                            }
+                        }
+                        _ => {}
+                    }
+                }
+            }
+            Ok(())
+        });
+        nmea.finish(&mut fixes);
+        ubx.finish(&mut fixes);
+        let last = run.fixes.last().map_or(UtcNanos(0), |f| f.0);
+        run.fixes.extend(fixes.drain(..).map(|f| (last, f)));
+        run.damage = result.err();
+        run.fixes.sort_by_key(|(h, f)| f.time.unwrap_or(*h));
+        run.motion.sort_by_key(|m| m.t);
+        run.packets.sort_by_key(|p| p.host);
+        run
+    }
+}
