@@ -2,8 +2,14 @@
 //! and velocity (CTRV) motion model, followed by a Rauch-Tung-Striebel pass, so that every
 //! instant uses the measurements before and after it.
 //!
-//! State (rear-axle centre, local ENU frame): `[x, y, ψ, v, ω]`, heading ψ from east
-//! counter-clockwise, speed v along the heading (no side slip at parking speeds), yaw rate ω.
+//! State (rear-axle centre, local ENU frame): `[x, y, ψ, v, ω, a]`, heading ψ from east
+//! counter-clockwise, speed v along the heading (no side slip at parking speeds), yaw rate ω and
+//! longitudinal acceleration a; and two constants that `check` wants to know: the GNSS time
+//! offset δ (a fix stamped t describes the instant t - δ) and the antenna's forward lever arm,
+//! both fixed at their configured values unless [`Settings::estimate_offset_and_lever`] is on.
+//! The acceleration matters: with speed held constant between CAN
+//! frames, the integrated position lags by half a frame interval (10 ms at 50 Hz) whenever the
+//! vehicle accelerates, which would read as a GNSS time offset.
 //! Measurements: the antenna's horizontal position (state position plus the rotated lever arm,
 //! with the receiver's per-epoch sigmas), CAN speed and CAN yaw rate. Jacobians are taken
 //! numerically: five states, and the model stays readable.
@@ -12,8 +18,13 @@ use crate::pose::{PoseSample, Trajectory};
 use hilrig_stamp::UtcNanos;
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 
-type S = SVector<f64, 5>;
-type P = SMatrix<f64, 5, 5>;
+type S = SVector<f64, 8>;
+type P = SMatrix<f64, 8, 8>;
+
+/// Index of the GNSS time offset δ (s) in the state: a fix stamped t describes t - δ.
+const DELTA: usize = 6;
+/// Index of the antenna's forward lever arm (m) in the state.
+const LEVER_X: usize = 7;
 
 /// One GNSS antenna position in the local frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -31,7 +42,7 @@ pub struct GnssObs {
 pub struct Settings {
     /// Antenna position in the vehicle frame (x forward, y left), m.
     pub lever: Vector2<f64>,
-    /// Longitudinal acceleration noise, m/s² per √s.
+    /// Longitudinal jerk noise, m/s³ per √s.
     pub accel_noise: f64,
     /// Yaw acceleration noise, rad/s² per √s.
     pub yaw_accel_noise: f64,
@@ -39,16 +50,20 @@ pub struct Settings {
     pub speed_sigma: f64,
     /// CAN yaw-rate noise, rad/s.
     pub yaw_rate_sigma: f64,
+    /// Estimate the GNSS time offset and the antenna's forward lever arm as constant states
+    /// (starting from 0 s and `lever.x`) instead of taking them as given.
+    pub estimate_offset_and_lever: bool,
 }
 
 impl Default for Settings {
     fn default() -> Self {
         Settings {
             lever: Vector2::zeros(),
-            accel_noise: 1.5,
+            accel_noise: 3.0,
             yaw_accel_noise: 1.0,
             speed_sigma: 0.03,
             yaw_rate_sigma: 0.005,
+            estimate_offset_and_lever: false,
         }
     }
 }
@@ -75,21 +90,23 @@ pub struct EgoTrajectory {
 }
 
 fn ctrv(x: &S, dt: f64) -> S {
-    let (px, py, psi, v, w) = (x[0], x[1], x[2], x[3], x[4]);
+    let (px, py, psi, v, w, a) = (x[0], x[1], x[2], x[3], x[4], x[5]);
+    // The turn at constant rate with the mean speed of the interval.
+    let vm = v + 0.5 * a * dt;
     let (nx, ny) = if w.abs() > 1e-6 {
         (
-            px + v / w * ((psi + w * dt).sin() - psi.sin()),
-            py + v / w * (psi.cos() - (psi + w * dt).cos()),
+            px + vm / w * ((psi + w * dt).sin() - psi.sin()),
+            py + vm / w * (psi.cos() - (psi + w * dt).cos()),
         )
     } else {
-        (px + v * dt * psi.cos(), py + v * dt * psi.sin())
+        (px + vm * dt * psi.cos(), py + vm * dt * psi.sin())
     };
-    S::new(nx, ny, psi + w * dt, v, w)
+    S::from_column_slice(&[nx, ny, psi + w * dt, v + a * dt, w, a, x[DELTA], x[LEVER_X]])
 }
 
-fn jacobian<const M: usize>(f: impl Fn(&S) -> SVector<f64, M>, x: &S) -> SMatrix<f64, M, 5> {
-    let mut j = SMatrix::<f64, M, 5>::zeros();
-    for i in 0..5 {
+fn jacobian<const M: usize>(f: impl Fn(&S) -> SVector<f64, M>, x: &S) -> SMatrix<f64, M, 8> {
+    let mut j = SMatrix::<f64, M, 8>::zeros();
+    for i in 0..8 {
         let h = 1e-6 * (1.0 + x[i].abs());
         let (mut a, mut b) = (*x, *x);
         a[i] += h;
@@ -100,12 +117,16 @@ fn jacobian<const M: usize>(f: impl Fn(&S) -> SVector<f64, M>, x: &S) -> SMatrix
     j
 }
 
+/// Where the antenna was at the instant a fix stamped now describes: the state's position plus
+/// the rotated lever arm (forward part from the state), moved back by δ along the antenna's
+/// velocity.
 fn antenna(x: &S, lever: &Vector2<f64>) -> Vector2<f64> {
     let (s, c) = x[2].sin_cos();
-    Vector2::new(
-        x[0] + c * lever.x - s * lever.y,
-        x[1] + s * lever.x + c * lever.y,
-    )
+    let (lx, ly) = (x[LEVER_X], lever.y);
+    let at = Vector2::new(x[0] + c * lx - s * ly, x[1] + s * lx + c * ly);
+    let (v, w) = (x[3], x[4]);
+    let vel = Vector2::new(v * c - w * (s * lx + c * ly), v * s + w * (c * lx - s * ly));
+    at - vel * x[DELTA]
 }
 
 enum Meas {
@@ -147,11 +168,18 @@ impl EgoTrajectory {
                 d.y.atan2(d.x)
             });
         let p0 = gnss[0].position;
-        let mut x = S::new(p0.x, p0.y, psi0, 0.0, 0.0);
+        let mut x = S::from_column_slice(&[p0.x, p0.y, psi0, 0.0, 0.0, 0.0, 0.0, s.lever.x]);
         let rear = p0 - (antenna(&x, &s.lever) - p0);
         x[0] = rear.x;
         x[1] = rear.y;
-        let mut p = P::from_diagonal(&S::new(1.0, 1.0, 0.5, 1.0, 0.1));
+        let (var_delta, var_lever) = if s.estimate_offset_and_lever {
+            (0.1f64.powi(2), 1.0)
+        } else {
+            (0.0, 0.0)
+        };
+        let mut p = P::from_diagonal(&S::from_column_slice(&[
+            1.0, 1.0, 0.5, 1.0, 0.1, 1.0, var_delta, var_lever,
+        ]));
         let n = events.len();
         let (mut xp, mut pp, mut xf, mut pf, mut fs) = (
             Vec::with_capacity(n),
@@ -170,8 +198,9 @@ impl EgoTrajectory {
             q[(0, 0)] = 1e-6 * dt;
             q[(1, 1)] = 1e-6 * dt;
             q[(2, 2)] = 1e-7 * dt;
-            q[(3, 3)] = s.accel_noise.powi(2) * dt;
+            q[(3, 3)] = 1e-4 * dt;
             q[(4, 4)] = s.yaw_accel_noise.powi(2) * dt;
+            q[(5, 5)] = s.accel_noise.powi(2) * dt;
             p = f * p * f.transpose() + q;
             xp.push(x);
             pp.push(p);
@@ -189,7 +218,7 @@ impl EgoTrajectory {
                     }
                 }
                 Meas::Motion(v, w) => {
-                    let mut h = SMatrix::<f64, 2, 5>::zeros();
+                    let mut h = SMatrix::<f64, 2, 8>::zeros();
                     h[(0, 3)] = 1.0;
                     h[(1, 4)] = 1.0;
                     let r = SMatrix::<f64, 2, 2>::from_diagonal(&Vector2::new(
@@ -244,8 +273,21 @@ impl EgoTrajectory {
         (self.times[0], self.times[self.times.len() - 1])
     }
 
-    /// State `[x, y, ψ, v, ω]` and its covariance at `t` (CTRV from the smoothed state before it).
-    pub fn state_at(&self, t: UtcNanos) -> Option<(SVector<f64, 5>, SMatrix<f64, 5, 5>)> {
+    /// The estimated GNSS time offset (s) and antenna forward lever arm (m), with their 1-sigma
+    /// uncertainties: (δ, σ_δ, x, σ_x).
+    pub fn offset_and_lever(&self) -> (f64, f64, f64, f64) {
+        let (x, p) = (&self.states[0], &self.covs[0]);
+        (
+            x[DELTA],
+            p[(DELTA, DELTA)].max(0.0).sqrt(),
+            x[LEVER_X],
+            p[(LEVER_X, LEVER_X)].max(0.0).sqrt(),
+        )
+    }
+
+    /// State `[x, y, ψ, v, ω, a, δ, lever x]` and its covariance at `t` (propagated from the
+    /// smoothed state before it).
+    pub fn state_at(&self, t: UtcNanos) -> Option<(SVector<f64, 8>, SMatrix<f64, 8, 8>)> {
         let (a, b) = self.span();
         if t < a || t > b {
             return None;
@@ -293,7 +335,12 @@ mod tests {
     fn recovers_a_turning_drive_from_noisy_gnss_and_can() {
         let (v, w) = (3.0, 0.3);
         let lever = Vector2::new(0.6, 0.0);
-        let truth = |t: f64| -> S { ctrv(&S::new(5.0, -2.0, 0.4, v, w), t) };
+        let truth = |t: f64| -> S {
+            ctrv(
+                &S::from_column_slice(&[5.0, -2.0, 0.4, v, w, 0.0, 0.0, 0.6]),
+                t,
+            )
+        };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
         let n = Normal::new(0.0, 0.01).unwrap();
         let gnss: Vec<GnssObs> = (0..200)

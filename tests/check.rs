@@ -1,0 +1,286 @@
+//! `hilrig check` (issue 6): a clean synthesized drive passes with the injected accuracy; each
+//! injected fault is detected, named and located; on real receiver logs the RTK states agree with
+//! gpsd's.
+//!
+//! The drives are the parking scenario (fixtures/parking) synthesized here with `[faults]`
+//! added to its drive file, recorded with `hilrig record --from`, then checked.
+
+mod common;
+
+use common::*;
+use serde_json::Value;
+
+use std::process::Command;
+
+/// Synthesizes the parking drive with `faults` (TOML lines of a `[faults]` table), records it
+/// and checks it; returns the check's exit code and JSON report.
+fn drive_and_check(faults: &str) -> (i32, Value) {
+    let dir = tempfile::tempdir().unwrap();
+    let drive = std::fs::read_to_string(fixture("parking/drive.toml"))
+        .unwrap()
+        .replace(
+            "rig = \"../../rigs/demo.toml\"",
+            &format!("rig = {:?}", common::demo_rig().display().to_string()),
+        );
+    let drive_path = dir.path().join("drive.toml");
+    std::fs::write(&drive_path, format!("{drive}\n[faults]\n{faults}\n")).unwrap();
+    let out = Command::new(hilrig_bin())
+        .args(["synth", "--scene"])
+        .arg(fixture("parking/scene.toml"))
+        .arg("--drive")
+        .arg(&drive_path)
+        .arg("--truth")
+        .arg(fixture("parking/idealized.toml"))
+        .args(["--reps", "1", "--seed", "11", "-o"])
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rep = dir.path().join("out/rep-01");
+    let mcap = dir.path().join("run.mcap");
+    let rec = record_from(&demo_rig(), &[&rep.join("drive.pcapng")], &mcap);
+    assert!(
+        rec.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rec.stderr)
+    );
+    let json = dir.path().join("check.json");
+    let out = Command::new(hilrig_bin())
+        .arg("check")
+        .arg(&mcap)
+        .arg("--scene")
+        .arg(rep.join("scene.toml"))
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    println!("{}", String::from_utf8_lossy(&out.stdout));
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    (out.status.code().unwrap_or(-1), v)
+}
+
+fn faults<'a>(v: &'a Value, name: &str) -> Vec<&'a Value> {
+    v["faults"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|f| f["name"] == name)
+        .collect()
+}
+
+fn names(v: &Value) -> Vec<String> {
+    v["faults"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["name"].as_str().unwrap().to_owned())
+        .collect()
+}
+
+/// The fault lies within `slack` seconds of the injected window.
+fn located(f: &Value, from: f64, to: f64, slack: f64) {
+    let (a, b) = (f["from_s"].as_f64().unwrap(), f["to_s"].as_f64().unwrap());
+    assert!(
+        (a - from).abs() <= slack && (b - to).abs() <= slack,
+        "{}: {a:.2}..{b:.2} s, injected {from}..{to} s",
+        f["name"]
+    );
+}
+
+#[test]
+fn a_clean_drive_passes_with_the_injected_accuracy() {
+    let (code, v) = drive_and_check("");
+    assert_eq!(code, 0, "faults: {:?}", names(&v));
+    assert_eq!(v["verdict"], "pass");
+    // Injected: RTK noise 1 cm per axis, objects surveyed to 10 cm.
+    let ego = v["accuracy"]["ego_m"].as_f64().unwrap();
+    let scene = v["accuracy"]["scene_m"].as_f64().unwrap();
+    assert!((ego - 0.010).abs() <= 0.3 * 0.010, "ego accuracy {ego}");
+    assert!((scene - 0.10).abs() <= 0.3 * 0.10, "scene accuracy {scene}");
+    let reference = v["accuracy"]["reference_m"].as_f64().unwrap();
+    let cell = v["accuracy"]["grid_cell_m"].as_f64().unwrap();
+    assert!((cell - (10.0 * reference).max(0.1)).abs() < 1e-9);
+    // The data-driven estimates agree with the truth as well.
+    let sp = &v["spatial"];
+    assert!((sp["can_speed_scale"].as_f64().unwrap() - 1.0).abs() < 0.005);
+    assert!(sp["gnss_time_offset_ms"].as_f64().unwrap().abs() < 8.0);
+    assert!((sp["lever_arm_x_measured_m"].as_f64().unwrap() - 0.60).abs() < 0.08);
+    assert!(v["segments"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|s| s["verdict"] == "pass"));
+}
+
+#[test]
+fn rtk_float_sigma_spike_lidar_gap_and_free_running_lidar_clock_are_found_and_located() {
+    let (code, v) = drive_and_check(
+        "rtk = [{ from_s = 12.0, to_s = 13.5, quality = 5 }]\n\
+         sigma_spike = [{ from_s = 16.0, to_s = 16.8, sigma_m = 0.08 }]\n\
+         lidar_gap = [{ from_s = 3.0, to_s = 3.4 }]\n\
+         lidar_free_running = { offset_ms = 7.0, drift_ppm = 60.0 }",
+    );
+    assert_eq!(code, 1);
+    assert_eq!(v["verdict"], "fail");
+    let n = names(&v);
+    let float = faults(&v, "rtk_float");
+    assert_eq!(float.len(), 1, "{n:?}");
+    located(float[0], 12.0, 13.5, 0.15);
+    let spike = faults(&v, "sigma_spike");
+    assert_eq!(spike.len(), 1, "{n:?}");
+    located(spike[0], 16.0, 16.8, 0.15);
+    let gap = faults(&v, "lidar_gap");
+    assert_eq!(gap.len(), 1, "{n:?}");
+    located(gap[0], 3.0, 3.4, 0.05);
+    let pps = faults(&v, "lidar_not_pps_locked");
+    assert_eq!(pps.len(), 1, "{n:?}");
+    assert!(
+        pps[0]["detail"].as_str().unwrap().contains("60."),
+        "{}",
+        pps[0]["detail"]
+    );
+    assert!(pps[0]["to_s"].as_f64().unwrap() - pps[0]["from_s"].as_f64().unwrap() > 15.0);
+    // Nothing else is blamed.
+    for other in ["can_speed_scale", "gnss_time_offset", "lever_arm", "jump"] {
+        assert!(faults(&v, other).is_empty(), "false {other}: {n:?}");
+    }
+    // The segments say which parts are usable: 5-6 s is (nothing injected there)... only if the
+    // whole-run PPS fault did not cover it, which it does; so every segment fails with a reason.
+    let segs = v["segments"].as_array().unwrap();
+    let at = |t: f64| {
+        segs.iter()
+            .find(|s| s["from_s"].as_f64().unwrap() <= t && t < s["to_s"].as_f64().unwrap())
+            .unwrap()
+    };
+    assert!(at(12.5)["reasons"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|r| r == "rtk_float"));
+    assert!(!at(7.5)["reasons"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|r| r == "rtk_float"));
+}
+
+#[test]
+fn a_50_ms_gnss_time_offset_is_found() {
+    let (code, v) = drive_and_check("gnss_time_offset_ms = 50.0");
+    assert_eq!(code, 1);
+    let f = faults(&v, "gnss_time_offset");
+    assert_eq!(f.len(), 1, "{:?}", names(&v));
+    let est = v["spatial"]["gnss_time_offset_ms"].as_f64().unwrap();
+    assert!((est - 50.0).abs() < 15.0, "estimated {est} ms");
+    assert!(faults(&v, "lever_arm").is_empty() && faults(&v, "can_speed_scale").is_empty());
+}
+
+#[test]
+fn a_3_percent_can_speed_scale_error_is_found() {
+    let (code, v) = drive_and_check("can_speed_scale = 1.03");
+    assert_eq!(code, 1);
+    let f = faults(&v, "can_speed_scale");
+    assert_eq!(f.len(), 1, "{:?}", names(&v));
+    let est = v["spatial"]["can_speed_scale"].as_f64().unwrap();
+    assert!((est - 1.03).abs() < 0.005, "estimated {est}");
+    assert!(f[0]["detail"].as_str().unwrap().contains("higher"));
+    assert!(faults(&v, "gnss_time_offset").is_empty() && faults(&v, "lever_arm").is_empty());
+}
+
+#[test]
+fn an_antenna_lever_arm_wrong_by_half_a_metre_is_found() {
+    let (code, v) = drive_and_check("antenna_error_m = [0.5, 0.0, 0.0]");
+    assert_eq!(code, 1);
+    let f = faults(&v, "lever_arm");
+    assert_eq!(f.len(), 1, "{:?}", names(&v));
+    let est = v["spatial"]["lever_arm_x_measured_m"].as_f64().unwrap();
+    assert!(
+        (est - 1.10).abs() < 0.15,
+        "estimated antenna x {est} m (true 1.10, rig 0.60)"
+    );
+    // Located in the turn into the slot (the last part of the drive).
+    assert!(f[0]["from_s"].as_f64().unwrap() > 8.0);
+    assert!(faults(&v, "gnss_time_offset").is_empty(), "{:?}", names(&v));
+}
+
+/// Must-hold 3: the RTK states `check` reports for real receiver logs recorded with `record
+/// --from` are gpsd's (TPV status 3 fixed, 4 float, else none), epoch by epoch.
+fn gpsd_states(name: &str) {
+    let log = real_data().join("gnss").join(name);
+    let chk = std::fs::read_to_string(log.with_file_name(format!("{name}.chk"))).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mcap = dir.path().join("run.mcap");
+    let rec = record_from(&demo_rig(), &[&log], &mcap);
+    assert!(
+        rec.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rec.stderr)
+    );
+    let json = dir.path().join("check.json");
+    let out = Command::new(hilrig_bin())
+        .arg("check")
+        .arg(&mcap)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    // No CAN in a receiver log: the run is unusable for re-simulation, the GNSS part is reported.
+    assert_eq!(out.status.code(), Some(2));
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let ours: std::collections::BTreeMap<String, String> = v["spatial"]["rtk_epochs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            (
+                e["time"].as_str().unwrap().to_owned(),
+                e["state"].as_str().unwrap().to_owned(),
+            )
+        })
+        .collect();
+    let (mut matched, mut untimed) = (0, 0);
+    for l in chk.lines().filter(|l| l.starts_with('{')) {
+        let t: Value = serde_json::from_str(l).unwrap();
+        if t["class"] != "TPV" || !t["lat"].is_number() {
+            continue;
+        }
+        let Some(time) = t["time"].as_str() else {
+            untimed += 1;
+            continue;
+        };
+        let state = match t["status"].as_i64() {
+            Some(3) => "fixed",
+            Some(4) => "float",
+            _ => "none",
+        };
+        assert_eq!(
+            ours.get(time).map(String::as_str),
+            Some(state),
+            "{name}: epoch {time}"
+        );
+        matched += 1;
+    }
+    println!("{name}: {matched} gpsd epochs with the same RTK state ({untimed} TPVs without time)");
+    assert!(matched > 0);
+}
+
+macro_rules! gpsd_rtk {
+    ($($test:ident => $file:literal),*) => {$(
+        #[test]
+        #[cfg_attr(not(hilrig_real_data), ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run")]
+        fn $test() {
+            gpsd_states($file);
+        }
+    )*};
+}
+
+gpsd_rtk!(
+    gpsd_rtk_states_trimble => "nmea-rtk.log",
+    gpsd_rtk_states_f9p_rtk => "ublox-zed-f9p-rtk.log",
+    gpsd_rtk_states_f9p_hp => "ublox-zed-f9p-hp.log",
+    gpsd_rtk_states_f9r => "ublox-zed-f9r.log"
+);
