@@ -543,7 +543,7 @@ impl DriveFile {
         // Walkers.
         let mut walkers = Vec::new();
         let mut block: Option<(f64, f64)> = None;
-        let end_guess = 600.0;
+        let end_guess = 3600.0;
         for w in &self.walkers {
             let t_start = w.start_s + gauss(v.walker_start_s);
             let speed = w.speed_mps * (1.0 + gauss(v.walker_speed_factor)).max(0.3);
@@ -647,7 +647,7 @@ impl DriveFile {
                 break;
             }
             if t > end_guess - 60.0 {
-                return Err(bad("the drive does not finish within 9 minutes".into()));
+                return Err(bad("the drive does not finish within 59 minutes".into()));
             }
         }
         let t_arrive = t;

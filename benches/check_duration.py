@@ -1,0 +1,71 @@
+#!/usr/bin/env python3
+"""How long `hilrig check` takes on a long drive, as a share of the drive's duration (issue 6,
+item 4: less than 5 %).
+
+A drive of about MINUTES minutes (default 10) is synthesized with `hilrig synth` on the parking
+scene (a serpentine at 8 km/h with the full VLP-16 stream, RTK GNSS at 10 Hz and CAN at 50 Hz,
+the idealized lidar model), recorded with `hilrig record --from`, then checked; the check's wall
+time is measured around the process (best of three, to ride out a noisy shared machine).
+
+usage: benches/check_duration.py [MINUTES]
+"""
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+minutes = float(sys.argv[1]) if len(sys.argv) > 1 else 10.0
+subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=root, check=True)
+exe = os.path.join(root, "target", "release", "hilrig")
+
+# A serpentine inside the parking scene's 120 m ground: legs of 100 m, 8 m apart.
+speed = 2.2
+legs = max(1, int(minutes * 60 * speed / 108))
+points = []
+for i in range(legs + 1):
+    y = -40 + 8 * (i % 11)
+    xs = (-50.0, 50.0) if i % 2 == 0 else (50.0, -50.0)
+    points += [[xs[0], y], [xs[1], y]]
+# Round the corners: the spline needs distinct points.
+way = []
+for p in points:
+    if not way or way[-1] != p:
+        way.append(p)
+
+with tempfile.TemporaryDirectory() as d:
+    drive = os.path.join(d, "drive.toml")
+    with open(drive, "w") as f:
+        f.write(f'''name = "long serpentine"
+start_utc = "2026-11-21T12:00:00Z"
+rig = "{os.path.join(root, 'rigs', 'demo.toml')}"
+[path]
+waypoints = {way}
+cruise_speed_mps = {speed}
+''')
+    t = time.time()
+    subprocess.run([exe, "synth", "--scene", os.path.join(root, "fixtures/parking/scene.toml"),
+                    "--drive", drive, "--truth", os.path.join(root, "fixtures/parking/idealized.toml"),
+                    "--reps", "1", "--seed", "1", "-o", os.path.join(d, "out")],
+                   check=True, stderr=subprocess.DEVNULL)
+    print(f"synthesized in {time.time() - t:.0f} s")
+    mcap = os.path.join(d, "run.mcap")
+    t = time.time()
+    subprocess.run([exe, "record", "--rig", os.path.join(root, "rigs/demo.toml"), "--from",
+                    os.path.join(d, "out/rep-01/drive.pcapng"), "-o", mcap],
+                   check=True, stderr=subprocess.DEVNULL)
+    print(f"recorded in {time.time() - t:.0f} s ({os.path.getsize(mcap) / 1e6:.0f} MB)")
+    best = None
+    for _ in range(3):
+        t = time.time()
+        r = subprocess.run([exe, "check", mcap, "--json", os.path.join(d, "c.json")],
+                           capture_output=True, text=True)
+        el = time.time() - t
+        best = el if best is None else min(best, el)
+    import json
+    rep = json.load(open(os.path.join(d, "c.json")))
+    dur = rep["duration_s"]
+    print(r.stdout.splitlines()[0], f"(exit {r.returncode})")
+    print(f"drive {dur:.0f} s ({dur / 60:.1f} min); check {best:.2f} s = {100 * best / dur:.2f} % "
+          f"of the drive's duration (limit 5 %)")
