@@ -50,6 +50,38 @@ enum Command {
     /// Check a recording's reference data (seed §6): spatial and temporal accuracy, faults located
     /// in time, the smallest admissible grid cell. Exit 0 pass, 1 fail, 2 unusable input.
     Check(CheckArgs),
+    /// Re-simulate a recording: the same sensor on the same trajectory through the scene with a
+    /// lidar model; writes simulated VelodyneScans and /sim/points. Refuses runs that fail
+    /// `check` unless --force.
+    Resim(ResimArgs),
+}
+
+#[derive(clap::Args)]
+struct ResimArgs {
+    /// The recording (.mcap).
+    run: PathBuf,
+    /// The scene.
+    #[arg(long)]
+    scene: PathBuf,
+    /// The lidar model (model.toml).
+    #[arg(long)]
+    model: PathBuf,
+    /// The output MCAP.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// The rig file; default: the one attached to the recording.
+    #[arg(long)]
+    rig: Option<PathBuf>,
+    /// Take the ego poses from this trajectory file (t, x, y, z, yaw_deg in the scene frame)
+    /// instead of the run's RTK+CAN trajectory.
+    #[arg(long)]
+    trajectory: Option<PathBuf>,
+    /// Re-simulate even when the run fails `check`.
+    #[arg(long)]
+    force: bool,
+    /// Seed of the model's random effects.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
 }
 
 #[derive(clap::Args)]
@@ -254,6 +286,7 @@ fn main() -> ExitCode {
         Command::Replay(args) => run_replay(args),
         Command::Synth(args) => run_synth(args),
         Command::Check(args) => run_check(args),
+        Command::Resim(args) => run_resim(args),
     };
     match result {
         Ok(code) => code,
@@ -576,6 +609,82 @@ fn run_record(args: RecordArgs) -> Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+fn run_resim(args: ResimArgs) -> Result<ExitCode> {
+    use hilrig::sim::resim::{resim, PoseSource, ResimError};
+    let rig = match &args.rig {
+        Some(p) => hilrig::rig::Rig::load(p)?,
+        None => {
+            let run = hilrig::reference::run::Run::read(&args.run)?;
+            let text = run
+                .rig_toml
+                .context("the recording has no rig.toml attached: give --rig")?;
+            hilrig::rig::Rig::from_toml(&text, "rig.toml attached to the recording")?
+        }
+    };
+    let scene = hilrig::scene::Scene::load(&args.scene)?;
+    let model = hilrig::sim::ModelFile::load(&args.model)?;
+    let poses = match &args.trajectory {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            let t = hilrig::pose::Trajectory::from_csv(&text)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
+            PoseSource::File(t, p.display().to_string())
+        }
+        None => PoseSource::Run,
+    };
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("resim [{bar:30}] {pos}/{len} scans, {elapsed}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let progress = |done: u64, total: u64| {
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    match resim(
+        &args.run,
+        &rig,
+        &scene,
+        &args.scene,
+        &model,
+        poses,
+        args.force,
+        args.seed,
+        &args.output,
+        &progress,
+    ) {
+        Ok(s) => {
+            bar.finish_and_clear();
+            eprintln!(
+                "{}: {} scans, {} packets re-simulated with model '{}' ({} of {} firings returned; check: {:?})",
+                args.output.display(),
+                s.scans,
+                s.packets,
+                model.name,
+                s.stats.returns,
+                s.stats.firings,
+                s.verdict.unwrap_or(hilrig::reference::check::Verdict::Unusable)
+            );
+            if s.stats.outside_trajectory > 0 {
+                eprintln!(
+                    "{}: {} firings lie outside the trajectory and have no returns",
+                    args.output.display(),
+                    s.stats.outside_trajectory
+                );
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Err(ResimError::Refused(report)) => {
+            bar.finish_and_clear();
+            eprint!("{}", report.text());
+            eprintln!("error: {}", ResimError::Refused(report.clone()));
+            Ok(ExitCode::from(1))
+        }
+        Err(e) => Err(e.into()),
+    }
 }
 
 fn run_check(args: CheckArgs) -> Result<ExitCode> {

@@ -201,8 +201,10 @@ impl Trajectory {
         let mut s = String::from("t,x,y,z,yaw_deg\n");
         for p in &self.samples {
             let (secs, nanos) = p.t.secs_nanos();
+            // Shortest representations that read back to the same f64: re-simulation from this
+            // file must cast exactly the rays the synthesizer cast.
             s.push_str(&format!(
-                "{secs}.{nanos:09},{:.6},{:.6},{:.6},{:.6}\n",
+                "{secs}.{nanos:09},{},{},{},{}\n",
                 p.position.x,
                 p.position.y,
                 p.position.z,

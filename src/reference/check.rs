@@ -400,15 +400,7 @@ pub fn check(run: &Run, rig: &Rig, scene: Option<&Scene>) -> Report {
         damage: run.damage.clone(),
     };
     // Epochs with a position and a time.
-    let mut epochs: Vec<(UtcNanos, &hilrig_gnss::Fix)> = run
-        .fixes
-        .iter()
-        .filter_map(|(_, f)| Some((f.time?, f)))
-        .filter(|(_, f)| f.lat.is_some() && f.lon.is_some() && f.quality > 0)
-        .collect();
-    // A receiver that sends NMEA and UBX reports each epoch twice: keep one, the one with sigmas.
-    epochs.sort_by_key(|e| (e.0, e.1.sigma_lat_m.is_none()));
-    epochs.dedup_by_key(|e| e.0);
+    let epochs = gnss_epochs(run);
     if epochs.len() < 2 {
         return unusable(
             format!(
@@ -431,14 +423,7 @@ pub fn check(run: &Run, rig: &Rig, scene: Option<&Scene>) -> Report {
         start,
         faults: Vec::new(),
     };
-    let origin = scene.map(|s| s.file.origin).unwrap_or_else(|| {
-        let f = epochs[0].1;
-        Wgs84 {
-            latitude_deg: f.lat.unwrap_or(0.0),
-            longitude_deg: f.lon.unwrap_or(0.0),
-            height_m: f.alt_ellipsoid.unwrap_or(0.0),
-        }
-    });
+    let origin = local_origin(&epochs, scene);
     let enu = Enu::new(&origin);
     let gnss_period =
         median_interval(&epochs.iter().map(|e| e.0).collect::<Vec<_>>()).unwrap_or(100_000_000);
@@ -539,28 +524,7 @@ pub fn check(run: &Run, rig: &Rig, scene: Option<&Scene>) -> Report {
         .gnss
         .as_ref()
         .map_or(Vector2::zeros(), |g| Vector2::new(g.antenna.x, g.antenna.y));
-    let default_sigma = |f: &hilrig_gnss::Fix| match f.rtk {
-        RtkState::Fixed => 0.02,
-        RtkState::Float => 0.3,
-        RtkState::None => 3.0,
-    };
-    let obs: Vec<GnssObs> = epochs
-        .iter()
-        .map(|&(t, f)| {
-            let p = enu.from_wgs84(&Wgs84 {
-                latitude_deg: f.lat.unwrap_or(0.0),
-                longitude_deg: f.lon.unwrap_or(0.0),
-                height_m: f.alt_ellipsoid.unwrap_or(0.0),
-            });
-            let sl = f.sigma_lat_m.unwrap_or(default_sigma(f)).max(0.003);
-            let so = f.sigma_lon_m.unwrap_or(default_sigma(f)).max(0.003);
-            GnssObs {
-                t,
-                position: p.xy(),
-                sigma: Vector2::new(so, sl),
-            }
-        })
-        .collect();
+    let obs = observations(&epochs, &enu);
     let motion: Vec<(UtcNanos, f64, f64)> = run
         .motion
         .iter()
@@ -1198,4 +1162,90 @@ pub fn verdict(
 ) -> Result<Report, super::run::RunError> {
     let run = Run::read(path)?;
     Ok(check(&run, rig, scene))
+}
+
+/// GNSS epochs with a time and a position, one per epoch (a receiver that sends NMEA and UBX
+/// reports each twice: the one with sigmas is kept).
+fn gnss_epochs(run: &Run) -> Vec<(UtcNanos, &hilrig_gnss::Fix)> {
+    let mut epochs: Vec<(UtcNanos, &hilrig_gnss::Fix)> = run
+        .fixes
+        .iter()
+        .filter_map(|(_, f)| Some((f.time?, f)))
+        .filter(|(_, f)| f.lat.is_some() && f.lon.is_some() && f.quality > 0)
+        .collect();
+    epochs.sort_by_key(|e| (e.0, e.1.sigma_lat_m.is_none()));
+    epochs.dedup_by_key(|e| e.0);
+    epochs
+}
+
+/// The origin of the local frame: the scene's, else the first epoch's position.
+fn local_origin(epochs: &[(UtcNanos, &hilrig_gnss::Fix)], scene: Option<&Scene>) -> Wgs84 {
+    scene.map(|s| s.file.origin).unwrap_or_else(|| {
+        let f = epochs[0].1;
+        Wgs84 {
+            latitude_deg: f.lat.unwrap_or(0.0),
+            longitude_deg: f.lon.unwrap_or(0.0),
+            height_m: f.alt_ellipsoid.unwrap_or(0.0),
+        }
+    })
+}
+
+/// Antenna positions in the local frame with the receiver's sigmas (typical values by RTK state
+/// where it reports none).
+fn observations(epochs: &[(UtcNanos, &hilrig_gnss::Fix)], enu: &Enu) -> Vec<GnssObs> {
+    let default_sigma = |f: &hilrig_gnss::Fix| match f.rtk {
+        RtkState::Fixed => 0.02,
+        RtkState::Float => 0.3,
+        RtkState::None => 3.0,
+    };
+    epochs
+        .iter()
+        .map(|&(t, f)| {
+            let p = enu.from_wgs84(&Wgs84 {
+                latitude_deg: f.lat.unwrap_or(0.0),
+                longitude_deg: f.lon.unwrap_or(0.0),
+                height_m: f.alt_ellipsoid.unwrap_or(0.0),
+            });
+            let sl = f.sigma_lat_m.unwrap_or(default_sigma(f)).max(0.003);
+            let so = f.sigma_lon_m.unwrap_or(default_sigma(f)).max(0.003);
+            GnssObs {
+                t,
+                position: p.xy(),
+                sigma: Vector2::new(so, sl),
+            }
+        })
+        .collect()
+}
+
+/// The ego trajectory of a run in the scene's local frame (smoothed RTK GNSS and CAN with the
+/// rig's lever arm), as re-simulation uses it.
+pub fn ego_trajectory(
+    run: &Run,
+    rig: &Rig,
+    scene: Option<&Scene>,
+) -> Result<EgoTrajectory, super::trajectory::TrajectoryError> {
+    let epochs = gnss_epochs(run);
+    if epochs.is_empty() {
+        return Err(super::trajectory::TrajectoryError::Insufficient(
+            "no GNSS epochs with a position".into(),
+        ));
+    }
+    let enu = Enu::new(&local_origin(&epochs, scene));
+    let lever = rig
+        .gnss
+        .as_ref()
+        .map_or(Vector2::zeros(), |g| Vector2::new(g.antenna.x, g.antenna.y));
+    let motion: Vec<(UtcNanos, f64, f64)> = run
+        .motion
+        .iter()
+        .map(|m| (m.t, m.speed, m.yaw_rate))
+        .collect();
+    EgoTrajectory::smooth(
+        &observations(&epochs, &enu),
+        &motion,
+        &Settings {
+            lever,
+            ..Settings::default()
+        },
+    )
 }

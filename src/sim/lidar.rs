@@ -435,7 +435,11 @@ impl<'a> LidarSim<'a> {
         seed: u64,
         stats: &mut SimStats,
     ) -> DataPacket {
+        // Every channel is written below; none keeps what the skeleton carried (a recording's).
         let mut pkt = skeleton.clone();
+        for b in pkt.blocks.iter_mut() {
+            b.channels = [Channel::default(); CHANNELS];
+        }
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mode = skeleton.return_mode.mode().unwrap_or(ReturnMode::Strongest);
         let dual = mode == ReturnMode::Dual;

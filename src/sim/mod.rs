@@ -4,6 +4,7 @@
 pub mod drive;
 pub mod lidar;
 pub mod model;
+pub mod resim;
 pub mod spin;
 pub mod synth;
 

@@ -62,7 +62,11 @@ impl Spin {
                 channels: [Channel::default(); 32],
             }
         });
+        // The sensor defines a packet's firings by its stamp (whole microseconds): the first
+        // firing is taken at the stamp's microsecond, so that re-simulation, which only has the
+        // stamp, casts at the very same instants.
         let first_firing = UtcNanos(first.round() as i64);
+        let first_firing = UtcNanos(first_firing.0 - sensor_clock(first_firing).0.rem_euclid(1000));
         let turns = (self.azimuth_deg(first) / 360.0).floor();
         let rotation_start =
             self.t0.0 as f64 + (turns * 360.0 - self.phase_deg) / (self.rpm * 6.0) * 1e9;

@@ -188,10 +188,14 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         source,
     })?;
     let errors = job.errors;
-    let driven: Driven = job
+    let mut driven: Driven = job
         .drive
         .drive(&mut stream_rng(job.seed, rep, 1), errors)
         .map_err(|e| input(e.to_string()))?;
+    // The truth is the file: everything below uses the trajectory as `truth.csv` holds it, so
+    // that re-simulating from that file casts bit-identical rays.
+    let truth_csv = driven.ego.to_csv();
+    driven.ego = crate::pose::Trajectory::from_csv(&truth_csv).map_err(input)?;
 
     // The true scene with this repetition's walkers.
     let mut truth_file = job.scene_file.clone();
@@ -258,7 +262,7 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         )
         .as_bytes(),
     )?;
-    write_file(&dir.join("truth.csv"), driven.ego.to_csv().as_bytes())?;
+    write_file(&dir.join("truth.csv"), truth_csv.as_bytes())?;
 
     let sim = LidarSim::new(&scene, model, calibration, &lidar.mounting, job.truth)
         .map_err(|e| input(e.to_string()))?;

@@ -1,0 +1,300 @@
+//! Re-simulation: a validated recording turned back into synthetic lidar data, the same sensor
+//! on the same trajectory through the scene's digital twin.
+//!
+//! Every recorded data packet is re-simulated in place: its block azimuths, stamp and return
+//! mode are kept (they are the sensor's firing schedule), its returns are replaced by the
+//! model's. The firings happen at the packet's own stamp — the sensor's time, which is GNSS time
+//! when the lidar is PPS-locked; otherwise the recorder's clock model (host time base) — plus the
+//! manual's firing offsets. The ego pose comes from the run's smoothed RTK+CAN trajectory (or a
+//! trajectory file), the mounting from the rig. The output is an MCAP with the simulated
+//! VelodyneScans (same stamps, so the same decoder and replay apply), `/sim/points` clouds for
+//! viewing, and the model, scene and trajectory source in its metadata.
+
+use super::lidar::{LidarSim, PacketTime, SimStats};
+use super::model::ModelFile;
+use crate::bag::cdr::CdrReader;
+use crate::bag::read::{read, Event};
+use crate::bag::{msgs, BagOptions, BagWriter};
+use crate::pose::Trajectory;
+use crate::record::topics;
+use crate::reference::check::{check, ego_trajectory, Report, Verdict};
+use crate::reference::run::Run;
+use crate::rig::Rig;
+use crate::scene::Scene;
+use hilrig_stamp::UtcNanos;
+use hilrig_velodyne::{Calibration, DataPacket, Decoder, Model, DATA_PACKET_SIZE};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Topic of the simulated clouds.
+pub const SIM_POINTS: &str = "/sim/points";
+
+/// Why re-simulation did not run.
+#[derive(Debug, thiserror::Error)]
+pub enum ResimError {
+    /// The run failed `check` (and `--force` was not given).
+    #[error("the run's reference data fail the check ({}): re-simulating it would measure the reference errors, not the model; see `hilrig check`, or force it", .0.faults.iter().map(|f| f.name).collect::<Vec<_>>().join(", "))]
+    Refused(Box<Report>),
+    /// The input cannot be used.
+    #[error("{0}")]
+    Input(String),
+    /// Writing failed.
+    #[error("writing the simulation: {0}")]
+    Output(String),
+}
+
+/// Where the ego poses come from.
+pub enum PoseSource {
+    /// The run's own RTK+CAN trajectory (the validator's smoother).
+    Run,
+    /// A trajectory file (`t, x, y, z, yaw_deg` in the scene frame), e.g. a synthesizer's truth.
+    File(Trajectory, String),
+}
+
+/// Counts of a re-simulation.
+#[derive(Clone, Debug, Default)]
+pub struct ResimSummary {
+    /// Scans written.
+    pub scans: u64,
+    /// Packets simulated.
+    pub packets: u64,
+    /// Firing and return counts.
+    pub stats: SimStats,
+    /// The check's verdict on the run.
+    pub verdict: Option<Verdict>,
+}
+
+struct Scan {
+    log_time: u64,
+    publish_time: u64,
+    stamp: UtcNanos,
+    packets: Vec<(UtcNanos, [u8; DATA_PACKET_SIZE])>,
+}
+
+/// The sensor time of a packet stamp (µs past the hour) near `near` (the recorder's time of it).
+fn sensor_time(timestamp_us: u32, near: UtcNanos) -> UtcNanos {
+    let hour = 3_600_000_000_000i64;
+    let t = near.hour_floor().0 + i64::from(timestamp_us) * 1000;
+    if t - near.0 > hour / 2 {
+        UtcNanos(t - hour)
+    } else if near.0 - t > hour / 2 {
+        UtcNanos(t + hour)
+    } else {
+        UtcNanos(t)
+    }
+}
+
+/// Re-simulates the run at `run_path` into `out`. `progress(done, total)` is called per scan.
+#[allow(clippy::too_many_arguments)]
+pub fn resim(
+    run_path: &Path,
+    rig: &Rig,
+    scene: &Scene,
+    scene_path: &Path,
+    model: &ModelFile,
+    poses: PoseSource,
+    force: bool,
+    seed: u64,
+    out: &Path,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<ResimSummary, ResimError> {
+    let input = |e: String| ResimError::Input(e);
+    let bytes = std::fs::read(run_path)
+        .map_err(|e| input(format!("cannot read {}: {e}", run_path.display())))?;
+    if !bytes.starts_with(mcap::MAGIC) {
+        return Err(input(format!(
+            "{}: not an MCAP recording",
+            run_path.display()
+        )));
+    }
+    let run = Run::from_bytes(&bytes);
+    let report = check(&run, rig, Some(scene));
+    let mut summary = ResimSummary {
+        verdict: Some(report.verdict),
+        ..ResimSummary::default()
+    };
+    if report.verdict != Verdict::Pass && !force {
+        return Err(ResimError::Refused(Box::new(report)));
+    }
+    let (trajectory, source) = match poses {
+        PoseSource::File(t, name) => (t, format!("file {name}")),
+        PoseSource::Run => {
+            let smooth =
+                ego_trajectory(&run, rig, Some(scene)).map_err(|e| input(e.to_string()))?;
+            let t = smooth
+                .sampled(10_000_000)
+                .ok_or_else(|| input("the run's trajectory is too short".into()))?;
+            (
+                t,
+                "the run's RTK+CAN trajectory (EKF/RTS, 10 ms samples)".into(),
+            )
+        }
+    };
+    let lidar = rig
+        .lidar
+        .as_ref()
+        .ok_or_else(|| input("the rig has no [lidar]".into()))?;
+    let sensor: Model = lidar.model.parse().map_err(input)?;
+    let calibration = match &lidar.calibration {
+        Some(p) => {
+            Calibration::from_file(&rig.resolve(p), sensor).map_err(|e| input(e.to_string()))?
+        }
+        None => Calibration::builtin(sensor),
+    };
+    let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, model)
+        .map_err(|e| input(e.to_string()))?;
+    let pps_locked = run
+        .metadata
+        .get("clock_sync/lidar")
+        .and_then(|m| m.get("pps"))
+        .is_some_and(|p| p == "Locked");
+
+    // The recorded scans.
+    let mut scans = Vec::new();
+    let damage = read(&bytes, &mut |e| {
+        if let Event::Message(m) = e {
+            if m.channel.topic != topics::VELODYNE_PACKETS {
+                return Ok(());
+            }
+            let bad = || format!("{}: a scan does not decode", m.channel.topic);
+            let mut c = CdrReader::new(m.data).ok_or_else(bad)?;
+            let stamp = c.header().ok_or_else(bad)?;
+            let n = c.u32().ok_or_else(bad)?;
+            let mut packets = Vec::with_capacity(n as usize);
+            for _ in 0..n {
+                let t = c.time().ok_or_else(bad)?;
+                let b = c.bytes(DATA_PACKET_SIZE).ok_or_else(bad)?;
+                let mut a = [0u8; DATA_PACKET_SIZE];
+                a.copy_from_slice(b);
+                packets.push((t, a));
+            }
+            scans.push(Scan {
+                log_time: m.log_time,
+                publish_time: m.publish_time,
+                stamp,
+                packets,
+            });
+        }
+        Ok(())
+    })
+    .err();
+    if scans.is_empty() {
+        return Err(input(format!(
+            "{}: no /velodyne_packets to re-simulate{}",
+            run_path.display(),
+            damage.map_or(String::new(), |d| format!(" ({d})"))
+        )));
+    }
+
+    let mut bag = BagWriter::create(out, &BagOptions::default())
+        .map_err(|e| ResimError::Output(e.to_string()))?;
+    let mut meta = BTreeMap::new();
+    meta.insert("model".to_owned(), model.name.clone());
+    meta.insert("model_toml".to_owned(), model.to_toml());
+    meta.insert("scene".to_owned(), scene_path.display().to_string());
+    meta.insert("scene_name".to_owned(), scene.file.name.clone());
+    meta.insert("run".to_owned(), run_path.display().to_string());
+    meta.insert("trajectory".to_owned(), source);
+    meta.insert(
+        "time_base".to_owned(),
+        if pps_locked {
+            "lidar stamps (PPS-locked: GNSS time)".to_owned()
+        } else {
+            "the recorder's clock model (lidar not PPS-locked)".to_owned()
+        },
+    );
+    meta.insert("seed".to_owned(), seed.to_string());
+    meta.insert("check_verdict".to_owned(), format!("{:?}", report.verdict));
+    bag.metadata("sim", meta)
+        .map_err(|e| ResimError::Output(e.to_string()))?;
+    let first_log = UtcNanos(scans[0].log_time as i64);
+    bag.attach(
+        "model.toml",
+        "application/toml",
+        model.to_toml().as_bytes(),
+        first_log,
+    )
+    .map_err(|e| ResimError::Output(e.to_string()))?;
+    let decoder = Decoder::with_calibration(sensor, calibration);
+    let total = scans.len() as u64;
+    let mut index = 0u64;
+    for (k, scan) in scans.iter().enumerate() {
+        let times: Vec<Option<UtcNanos>> = scan
+            .packets
+            .iter()
+            .map(|(t, b)| {
+                DataPacket::decode(&b[..]).ok().map(|p| {
+                    if pps_locked {
+                        sensor_time(p.timestamp_us, *t)
+                    } else {
+                        *t
+                    }
+                })
+            })
+            .collect();
+        let rotation_start = times.iter().flatten().next().copied().unwrap_or(scan.stamp);
+        let base = index;
+        let results: Vec<(UtcNanos, [u8; DATA_PACKET_SIZE], SimStats)> = scan
+            .packets
+            .par_iter()
+            .zip(times.par_iter())
+            .enumerate()
+            .map(|(i, ((t, b), first))| {
+                let mut st = SimStats::default();
+                let out = match (DataPacket::decode(&b[..]), first) {
+                    (Ok(p), Some(first)) => sim
+                        .simulate(
+                            &p,
+                            PacketTime {
+                                first_firing: *first,
+                                rotation_start,
+                            },
+                            &trajectory,
+                            seed ^ (base + i as u64),
+                            &mut st,
+                        )
+                        .encode(),
+                    _ => *b,
+                };
+                (*t, out, st)
+            })
+            .collect();
+        index += scan.packets.len() as u64;
+        let list: Vec<(UtcNanos, &[u8; DATA_PACKET_SIZE])> =
+            results.iter().map(|(t, b, _)| (*t, b)).collect();
+        for (_, _, st) in &results {
+            summary.stats.firings += st.firings;
+            summary.stats.returns += st.returns;
+            summary.stats.outside_trajectory += st.outside_trajectory;
+        }
+        let write = |bag: &mut BagWriter, topic: &str, ty: &msgs::MessageType, cdr: &[u8]| {
+            bag.write(
+                topic,
+                ty,
+                UtcNanos(scan.log_time as i64),
+                UtcNanos(scan.publish_time as i64),
+                cdr,
+            )
+            .map_err(|e| ResimError::Output(e.to_string()))
+        };
+        write(
+            &mut bag,
+            topics::VELODYNE_PACKETS,
+            &msgs::velodyne_scan_type(),
+            &msgs::velodyne_scan(scan.stamp, &lidar.frame_id, &list),
+        )?;
+        write(
+            &mut bag,
+            SIM_POINTS,
+            &msgs::point_cloud2_type(),
+            &crate::record::cloud_cdr(&decoder, scan.stamp, &lidar.frame_id, &list),
+        )?;
+        summary.scans += 1;
+        summary.packets += scan.packets.len() as u64;
+        progress(k as u64 + 1, total);
+    }
+    bag.finish()
+        .map_err(|e| ResimError::Output(e.to_string()))?;
+    Ok(summary)
+}
