@@ -302,7 +302,14 @@ impl<'a> LidarSim<'a> {
                 } else {
                     1.0
                 },
-            reflectivity: share * refl * k.map_or(1.0, |k| cos.max(0.0).powf(k)),
+            reflectivity: share
+                * refl
+                * match k {
+                    None => 1.0,
+                    // Lambertian (k = 1) is the common case; powf costs a tenth of a ray cast.
+                    Some(1.0) => cos.max(0.0),
+                    Some(k) => cos.max(0.0).powf(k),
+                },
         };
         let mut echoes: [Echo; 4] = [Echo {
             range: 0.0,

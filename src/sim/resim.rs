@@ -218,9 +218,11 @@ pub fn resim(
     .map_err(|e| ResimError::Output(e.to_string()))?;
     let decoder = Decoder::with_calibration(sensor, calibration);
     let total = scans.len() as u64;
-    let mut index = 0u64;
+    // All packets of all scans at once (both cores busy whatever the scan size), then the scans'
+    // messages in parallel, then written in order.
+    let mut jobs = Vec::new();
     for (k, scan) in scans.iter().enumerate() {
-        let times: Vec<Option<UtcNanos>> = scan
+        let firsts: Vec<Option<UtcNanos>> = scan
             .packets
             .iter()
             .map(|(t, b)| {
@@ -233,63 +235,88 @@ pub fn resim(
                 })
             })
             .collect();
-        let rotation_start = times.iter().flatten().next().copied().unwrap_or(scan.stamp);
-        let base = index;
-        let results: Vec<(UtcNanos, [u8; DATA_PACKET_SIZE], SimStats)> = scan
-            .packets
-            .par_iter()
-            .zip(times.par_iter())
-            .enumerate()
-            .map(|(i, ((t, b), first))| {
-                let mut st = SimStats::default();
-                let out = match (DataPacket::decode(&b[..]), first) {
-                    (Ok(p), Some(first)) => sim
-                        .simulate(
-                            &p,
-                            PacketTime {
-                                first_firing: *first,
-                                rotation_start,
-                            },
-                            &trajectory,
-                            seed ^ (base + i as u64),
-                            &mut st,
-                        )
-                        .encode(),
-                    _ => *b,
-                };
-                (*t, out, st)
-            })
-            .collect();
-        index += scan.packets.len() as u64;
-        let list: Vec<(UtcNanos, &[u8; DATA_PACKET_SIZE])> =
-            results.iter().map(|(t, b, _)| (*t, b)).collect();
-        for (_, _, st) in &results {
-            summary.stats.firings += st.firings;
-            summary.stats.returns += st.returns;
-            summary.stats.outside_trajectory += st.outside_trajectory;
+        let rotation_start = firsts
+            .iter()
+            .flatten()
+            .next()
+            .copied()
+            .unwrap_or(scan.stamp);
+        for (i, first) in firsts.into_iter().enumerate() {
+            jobs.push((k, i, first, rotation_start));
         }
-        let write = |bag: &mut BagWriter, topic: &str, ty: &msgs::MessageType, cdr: &[u8]| {
-            bag.write(
-                topic,
-                ty,
-                UtcNanos(scan.log_time as i64),
-                UtcNanos(scan.publish_time as i64),
-                cdr,
+    }
+    let simulated: Vec<([u8; DATA_PACKET_SIZE], SimStats)> = jobs
+        .par_iter()
+        .enumerate()
+        .map(|(n, &(k, i, first, rotation_start))| {
+            let b = &scans[k].packets[i].1;
+            let mut st = SimStats::default();
+            let out = match (DataPacket::decode(&b[..]), first) {
+                (Ok(p), Some(first)) => sim
+                    .simulate(
+                        &p,
+                        PacketTime {
+                            first_firing: first,
+                            rotation_start,
+                        },
+                        &trajectory,
+                        seed ^ n as u64,
+                        &mut st,
+                    )
+                    .encode(),
+                _ => *b,
+            };
+            (out, st)
+        })
+        .collect();
+    for (_, st) in &simulated {
+        summary.stats.firings += st.firings;
+        summary.stats.returns += st.returns;
+        summary.stats.outside_trajectory += st.outside_trajectory;
+    }
+    let mut offsets = Vec::with_capacity(scans.len());
+    let mut at = 0;
+    for scan in &scans {
+        offsets.push(at);
+        at += scan.packets.len();
+    }
+    let messages: Vec<(Vec<u8>, Vec<u8>)> = scans
+        .par_iter()
+        .zip(offsets.par_iter())
+        .map(|(scan, &o)| {
+            let list: Vec<(UtcNanos, &[u8; DATA_PACKET_SIZE])> = scan
+                .packets
+                .iter()
+                .zip(&simulated[o..o + scan.packets.len()])
+                .map(|((t, _), (b, _))| (*t, b))
+                .collect();
+            (
+                msgs::velodyne_scan(scan.stamp, &lidar.frame_id, &list),
+                crate::record::cloud_cdr(&decoder, scan.stamp, &lidar.frame_id, &list),
             )
-            .map_err(|e| ResimError::Output(e.to_string()))
-        };
-        write(
-            &mut bag,
+        })
+        .collect();
+    for (k, (scan, (packets_cdr, cloud_cdr))) in scans.iter().zip(&messages).enumerate() {
+        let (log, publish) = (
+            UtcNanos(scan.log_time as i64),
+            UtcNanos(scan.publish_time as i64),
+        );
+        bag.write(
             topics::VELODYNE_PACKETS,
             &msgs::velodyne_scan_type(),
-            &msgs::velodyne_scan(scan.stamp, &lidar.frame_id, &list),
-        )?;
-        write(
-            &mut bag,
+            log,
+            publish,
+            packets_cdr,
+        )
+        .map_err(|e| ResimError::Output(e.to_string()))?;
+        bag.write(
             SIM_POINTS,
             &msgs::point_cloud2_type(),
-            &crate::record::cloud_cdr(&decoder, scan.stamp, &lidar.frame_id, &list),
-        )?;
+            log,
+            publish,
+            cloud_cdr,
+        )
+        .map_err(|e| ResimError::Output(e.to_string()))?;
         summary.scans += 1;
         summary.packets += scan.packets.len() as u64;
         progress(k as u64 + 1, total);
