@@ -284,3 +284,67 @@ gpsd_rtk!(
     gpsd_rtk_states_f9p_hp => "ublox-zed-f9p-hp.log",
     gpsd_rtk_states_f9r => "ublox-zed-f9r.log"
 );
+
+/// A recording cut anywhere or with bytes flipped still gives a report, never a panic (what a
+/// crash or a failing disk leaves behind), and a recording cut early is judged on what it holds.
+#[test]
+fn damaged_recordings_give_a_report_not_a_panic() {
+    use proptest::prelude::*;
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(fixture("parking/drive.toml"))
+        .unwrap()
+        .replace(
+            "rig = \"../../rigs/demo.toml\"",
+            &format!("rig = {:?}", demo_rig().display().to_string()),
+        );
+    std::fs::write(dir.path().join("drive.toml"), text).unwrap();
+    let synth = Command::new(hilrig_bin())
+        .args(["synth", "--scene"])
+        .arg(fixture("parking/scene.toml"))
+        .arg("--drive")
+        .arg(dir.path().join("drive.toml"))
+        .arg("--truth")
+        .arg(fixture("parking/idealized.toml"))
+        .args(["--reps", "1", "-o"])
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    assert!(synth.status.success());
+    let mcap = dir.path().join("run.mcap");
+    let rec = record_from(
+        &demo_rig(),
+        &[&dir.path().join("out/rep-01/drive.pcapng")],
+        &mcap,
+    );
+    assert!(rec.status.success());
+    let bytes = std::fs::read(&mcap).unwrap();
+    let rig = hilrig::rig::Rig::load(&demo_rig()).unwrap();
+    let whole = hilrig::reference::check::check(
+        &hilrig::reference::run::Run::from_bytes(&bytes),
+        &rig,
+        None,
+    );
+    assert_eq!(whole.verdict, hilrig::reference::check::Verdict::Pass);
+    let mut runner = proptest::test_runner::TestRunner::new(ProptestConfig::with_cases(24));
+    runner
+        .run(
+            &(
+                0.0f64..1.0,
+                proptest::collection::vec((0.0f64..1.0, any::<u8>()), 0..8),
+            ),
+            |(cut, flips)| {
+                let mut b = bytes[..(bytes.len() as f64 * cut) as usize].to_vec();
+                for (at, v) in flips {
+                    if !b.is_empty() {
+                        let i = (b.len() as f64 * at) as usize % b.len();
+                        b[i] ^= v;
+                    }
+                }
+                let run = hilrig::reference::run::Run::from_bytes(&b);
+                let report = hilrig::reference::check::check(&run, &rig, None);
+                prop_assert!(!report.text().is_empty());
+                Ok(())
+            },
+        )
+        .unwrap();
+}

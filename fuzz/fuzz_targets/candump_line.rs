@@ -5,7 +5,9 @@ use hilrig_can::candump::{format_line, parse_line};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    let Ok(s) = std::str::from_utf8(data) else { return };
+    let Ok(s) = std::str::from_utf8(data) else {
+        return;
+    };
     for (i, l) in s.lines().enumerate() {
         if let Ok(Some(f)) = parse_line(l, i + 1) {
             let again = parse_line(&format_line(&f), 1).expect("written line parses");

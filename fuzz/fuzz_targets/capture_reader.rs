@@ -8,8 +8,13 @@ use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     // The first byte picks the model so that unknown product bytes still reach the decoder.
-    let model = data.first().map(|b| Model::ALL[usize::from(*b) % Model::ALL.len()]);
-    let options = LidarOptions { model, ..LidarOptions::default() };
+    let model = data
+        .first()
+        .map(|b| Model::ALL[usize::from(*b) % Model::ALL.len()]);
+    let options = LidarOptions {
+        model,
+        ..LidarOptions::default()
+    };
     let mut sink = CountSink::default();
     if let Ok(summary) = decode_capture(std::io::Cursor::new(data.to_vec()), &options, &mut sink) {
         assert_eq!(summary.points, sink.points);

@@ -6,9 +6,13 @@ use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let split = data.iter().position(|&b| b == 0).unwrap_or(data.len());
-    let Ok(text) = std::str::from_utf8(&data[..split]) else { return };
+    let Ok(text) = std::str::from_utf8(&data[..split]) else {
+        return;
+    };
     let payload = data.get(split + 1..).unwrap_or(&[]);
-    let Ok(db) = Database::from_dbc_text(text) else { return };
+    let Ok(db) = Database::from_dbc_text(text) else {
+        return;
+    };
     for m in db.messages() {
         let mut bytes = payload.to_vec();
         bytes.resize(m.size.min(64), 0);
