@@ -1100,6 +1100,17 @@ impl Report {
                 src.source, src.count, src.rate_hz, src.period_ms, src.jitter_ms, src.gaps, src.max_interval_ms
             );
         }
+        for (src, m) in &tm.clock_sync {
+            let get = |k: &str| m.get(k).and_then(|v| v.parse::<f64>().ok());
+            let _ = writeln!(
+                s,
+                "clock {src}: offset {} ms, drift {} ppm, residual p95 {} µs (transport jitter){}",
+                get("offset_ns").map_or("n/a".into(), |v| format!("{:.3}", v * 1e-6)),
+                get("drift_ppm").map_or("n/a".into(), |v| format!("{v:.2}")),
+                get("residual_p95_ns").map_or("n/a".into(), |v| format!("{:.0}", v * 1e-3)),
+                m.get("pps").map_or(String::new(), |p| format!(", PPS {p}"))
+            );
+        }
         if let Some(p) = tm.pps_locked_share {
             let _ = writeln!(
                 s,
