@@ -135,6 +135,8 @@ pub struct Spatial {
     pub rtk_fixed_share: f64,
     /// Receiver 1-sigma horizontal error per axis (larger of lat/lon), m.
     pub sigma_horizontal_m: Stats,
+    /// The three one-second windows with the largest horizontal sigma: (from s, to s, sigma m).
+    pub worst_sigma_windows: Vec<(f64, f64, f64)>,
     /// Receiver 1-sigma vertical error, m.
     pub sigma_vertical_m: Stats,
     /// Correction age, s.
@@ -472,6 +474,22 @@ pub fn check(run: &Run, rig: &Rig, scene: Option<&Scene>) -> Report {
     }
     sp.rtk_fixed_share = sp.rtk_fixed as f64 / epochs.len() as f64;
     sp.sigma_horizontal_m = Stats::of(sig_h);
+    let mut windows: std::collections::BTreeMap<i64, f64> = std::collections::BTreeMap::new();
+    for &(t, f) in &epochs {
+        if let Some(h) = f.sigma_lat_m.zip(f.sigma_lon_m).map(|(a, b)| a.max(b)) {
+            let w = windows
+                .entry((t.0 - start.0).div_euclid(1_000_000_000))
+                .or_insert(0.0);
+            *w = w.max(h);
+        }
+    }
+    let mut worst: Vec<(i64, f64)> = windows.into_iter().collect();
+    worst.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    sp.worst_sigma_windows = worst
+        .iter()
+        .take(3)
+        .map(|&(k, h)| (k as f64, k as f64 + 1.0, h))
+        .collect();
     sp.sigma_vertical_m = Stats::of(sig_v);
     sp.correction_age_s = Stats::of(ages);
     ctx.runs("rtk_float", &float_epochs, gnss_period, |n, _| {
@@ -1049,6 +1067,14 @@ impl Report {
             sp.residual_m.rms,
             sp.jumps
         );
+        if !sp.worst_sigma_windows.is_empty() {
+            let w: Vec<String> = sp
+                .worst_sigma_windows
+                .iter()
+                .map(|(a, b, h)| format!("{a:.0}-{b:.0} s: {h:.3} m"))
+                .collect();
+            let _ = writeln!(s, "largest sigmas: {}", w.join(", "));
+        }
         let _ = writeln!(
             s,
             "GNSS vs CAN: speed scale {}, time offset {}, lever arm x {} (rig {:.2} m), distance {:.1} m (CAN) vs {:.1} m (GNSS), speed residual rms {:.3} m/s, yaw-rate residual rms {:.4} rad/s",
