@@ -417,4 +417,85 @@ mod tests {
             assert!((h.unwrap().range - 0.5).abs() < 1e-12, "{d:?}");
         }
     }
+
+    /// Large, thin and far primitives (a 2 km wall 0.1 m thick, found by fuzzing): the BVH finds
+    /// exactly what brute force over all primitives finds.
+    #[test]
+    fn bvh_agrees_with_brute_force_on_large_thin_geometry() {
+        use rand::{Rng, SeedableRng};
+        let mut prims = Vec::new();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let quad = |prims: &mut Vec<Primitive>, c: [f64; 3], a: [f64; 3], b: [f64; 3], k: u32| {
+            let p = |u: f64, v: f64| {
+                Point3::new(
+                    c[0] + u * a[0] + v * b[0],
+                    c[1] + u * a[1] + v * b[1],
+                    c[2] + u * a[2] + v * b[2],
+                )
+            };
+            let m = Material {
+                reflectivity: 0.5,
+                surface: SurfaceId(k),
+            };
+            prims.extend(Primitive::triangle(
+                p(0.0, 0.0),
+                p(1.0, 0.0),
+                p(1.0, 1.0),
+                m,
+            ));
+            prims.extend(Primitive::triangle(
+                p(0.0, 0.0),
+                p(1.0, 1.0),
+                p(0.0, 1.0),
+                m,
+            ));
+        };
+        quad(
+            &mut prims,
+            [20.0, -1001.0, 1.2],
+            [0.0, 2002.0, 0.0],
+            [0.0, 0.0, 0.1],
+            1,
+        );
+        quad(
+            &mut prims,
+            [-3000.0, -3000.0, 0.0],
+            [6000.0, 0.0, 0.0],
+            [0.0, 6000.0, 0.0],
+            2,
+        );
+        for k in 0..200 {
+            let c = [
+                rng.random_range(-900.0..900.0),
+                rng.random_range(-900.0..900.0),
+                rng.random_range(0.0..5.0),
+            ];
+            quad(&mut prims, c, [0.5, 0.0, 0.0], [0.0, 0.0, 1.5], 10 + k);
+        }
+        let g = Geometry::build(prims.clone());
+        for _ in 0..20_000 {
+            let o = Point3::new(
+                rng.random_range(-500.0..500.0),
+                rng.random_range(-500.0..500.0),
+                rng.random_range(0.5..3.0),
+            );
+            let d = Vector3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-0.2..0.2),
+            )
+            .normalize();
+            let brute = prims
+                .iter()
+                .filter_map(|p| p.intersect(&o, &d, 0.0, 5000.0).map(|(t, _)| t))
+                .fold(f64::INFINITY, f64::min);
+            let got = g
+                .cast(&o, &d, 0.0, 5000.0)
+                .map_or(f64::INFINITY, |h| h.range);
+            assert!(
+                got == brute || (got - brute).abs() < 1e-9,
+                "{o} {d}: bvh {got} brute {brute}"
+            );
+        }
+    }
 }

@@ -175,6 +175,7 @@ impl Scene {
                 )?;
             }
         }
+        check_extent(&prims, path, "static objects")?;
         let statics = Geometry::build(prims);
         let mut actors = Vec::new();
         for (i, a) in file.actors.iter().enumerate() {
@@ -202,6 +203,7 @@ impl Scene {
                     &mut prims,
                 )?;
             }
+            check_extent(&prims, path, &where_)?;
             let geometry = Geometry::build(prims);
             let radius = geometry.bounding_radius();
             actors.push(Actor {
@@ -279,6 +281,24 @@ impl Scene {
         }
         best
     }
+}
+
+/// Scenes are local: the BVH works in f32, whose resolution at 10 km (1 mm) is what the 1 mm
+/// padding of its boxes covers.
+pub const MAX_EXTENT_M: f64 = 10_000.0;
+
+fn check_extent(prims: &[Primitive], path: &Path, what: &str) -> Result<(), SceneError> {
+    use obvhs::Boundable;
+    for p in prims {
+        let b = p.aabb();
+        let m = b.min.abs().max(b.max.abs()).max_element();
+        check(f64::from(m) <= MAX_EXTENT_M && m.is_finite(), path, || {
+            format!(
+                "{what}: geometry reaches {m:.0} m from the scene origin; scenes are local (within {MAX_EXTENT_M:.0} m): put the origin near the site"
+            )
+        })?;
+    }
+    Ok(())
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -416,5 +436,39 @@ mod tests {
             .unwrap();
         assert!((h.range - 9.0).abs() < 1e-9, "{}", h.range);
         assert_eq!(s.surface_name(h.material.surface), "b");
+    }
+
+    #[test]
+    fn a_2_km_wall_loads_and_a_site_12_km_away_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.toml");
+        let head = "name = \"t\"\norigin = { latitude_deg = 48.0, longitude_deg = 11.0, height_m = 0.0 }\n";
+        std::fs::write(
+            &p,
+            format!("{head}[[object]]\nname = \"wall\"\nreflectivity = 0.5\nparts = [{{ shape = \"box\", size = [5.32, 2002, 0.10], at = {{ z = 1.2 }} }}]\n"),
+        )
+        .unwrap();
+        let s = Scene::load(&p).unwrap();
+        let h = s
+            .cast(
+                &Point3::new(0.0, 900.0, 1.25),
+                &Vector3::x(),
+                0.0,
+                100.0,
+                &s.new_actor_poses(),
+            )
+            .unwrap();
+        assert!(
+            (h.range - (2.66 - 0.0)).abs() < 1e-9 || (h.range - 2.66).abs() < 1e-6,
+            "{}",
+            h.range
+        );
+        std::fs::write(
+            &p,
+            format!("{head}[[object]]\nname = \"far\"\npose = {{ x = 12000.0 }}\nreflectivity = 0.5\nparts = [{{ shape = \"box\", size = [1.0, 1.0, 1.0] }}]\n"),
+        )
+        .unwrap();
+        let e = Scene::load(&p).unwrap_err().to_string();
+        assert!(e.contains("scenes are local"), "{e}");
     }
 }
