@@ -54,6 +54,20 @@ fn setup() -> Setup {
     }
 }
 
+impl Setup {
+    /// The lidar model for `model` with the demo rig's mounting in the parking scene.
+    fn sim(&self, model: Model, file: &ModelFile) -> LidarSim<'_> {
+        LidarSim::new(
+            &self.scene,
+            model,
+            Calibration::builtin(model),
+            &self.mounting,
+            file,
+        )
+        .unwrap()
+    }
+}
+
 fn skeletons(model: Model, mode: ReturnMode, ego: &Trajectory, seconds: f64) -> Vec<Skeleton> {
     let start = ego.span().0;
     let spin = Spin {
@@ -139,16 +153,8 @@ fn model_run(sim: &LidarSim, ego: &Trajectory, sk: &[Skeleton]) -> u64 {
 
 fn bench(c: &mut Criterion) {
     let s = setup();
-    let ideal = ModelFile::idealized();
     let model = Model::Vlp16;
-    let sim = LidarSim::new(
-        &s.scene,
-        model,
-        Calibration::builtin(model),
-        &s.mounting,
-        &ideal,
-    )
-    .unwrap();
+    let sim = s.sim(model, &ModelFile::idealized());
     let sk = skeletons(model, ReturnMode::Strongest, &s.ego, 0.1);
     let r = rays(&sim, &s.scene, &s.ego, &sk);
     let mut g = c.benchmark_group("parking_vlp16_rotation");
@@ -168,16 +174,8 @@ fn bench(c: &mut Criterion) {
 
 fn report() {
     let s = setup();
-    let ideal = ModelFile::idealized();
     let model = Model::Vlp16;
-    let sim = LidarSim::new(
-        &s.scene,
-        model,
-        Calibration::builtin(model),
-        &s.mounting,
-        &ideal,
-    )
-    .unwrap();
+    let sim = s.sim(model, &ModelFile::idealized());
     let sk = skeletons(model, ReturnMode::Strongest, &s.ego, 1.0);
     let r = rays(&sim, &s.scene, &s.ego, &sk);
     let (mut t_bare, mut t_model) = (Vec::new(), Vec::new());
@@ -206,23 +204,9 @@ fn report() {
     );
 
     let model = Model::Vlp32c;
-    let sim32 = LidarSim::new(
-        &s.scene,
-        model,
-        Calibration::builtin(model),
-        &s.mounting,
-        &ideal,
-    )
-    .unwrap();
+    let sim32 = s.sim(model, &ModelFile::idealized());
     let truth = ModelFile::load(&fixture("parking/truth.toml")).unwrap();
-    let sim32t = LidarSim::new(
-        &s.scene,
-        model,
-        Calibration::builtin(model),
-        &s.mounting,
-        &truth,
-    )
-    .unwrap();
+    let sim32t = s.sim(model, &truth);
     let seconds = 3.0;
     for (name, sim, mode) in [
         ("idealized, strongest", &sim32, ReturnMode::Strongest),

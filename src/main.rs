@@ -613,16 +613,12 @@ fn run_record(args: RecordArgs) -> Result<ExitCode> {
 
 fn run_resim(args: ResimArgs) -> Result<ExitCode> {
     use hilrig::sim::resim::{resim, PoseSource, ResimError};
-    let rig = match &args.rig {
-        Some(p) => hilrig::rig::Rig::load(p)?,
-        None => {
-            let run = hilrig::reference::run::Run::read(&args.run)?;
-            let text = run
-                .rig_toml
-                .context("the recording has no rig.toml attached: give --rig")?;
-            hilrig::rig::Rig::from_toml(&text, "rig.toml attached to the recording")?
-        }
-    };
+    // Without --rig, resim takes the rig file attached to the recording (reading it once).
+    let rig = args
+        .rig
+        .as_ref()
+        .map(|p| hilrig::rig::Rig::load(p))
+        .transpose()?;
     let scene = hilrig::scene::Scene::load(&args.scene)?;
     let model = hilrig::sim::ModelFile::load(&args.model)?;
     let poses = match &args.trajectory {
@@ -646,7 +642,7 @@ fn run_resim(args: ResimArgs) -> Result<ExitCode> {
     };
     match resim(
         &args.run,
-        &rig,
+        rig.as_ref(),
         &scene,
         &args.scene,
         &model,

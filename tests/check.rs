@@ -15,43 +15,12 @@ use std::process::Command;
 /// Synthesizes the parking drive with `faults` (TOML lines of a `[faults]` table), records it
 /// and checks it; returns the check's exit code and JSON report.
 fn drive_and_check(faults: &str) -> (i32, Value) {
-    let dir = tempfile::tempdir().unwrap();
-    let drive = std::fs::read_to_string(fixture("parking/drive.toml"))
-        .unwrap()
-        .replace(
-            "rig = \"../../rigs/demo.toml\"",
-            &format!("rig = {:?}", common::demo_rig().display().to_string()),
-        );
-    let drive_path = dir.path().join("drive.toml");
-    std::fs::write(&drive_path, format!("{drive}\n[faults]\n{faults}\n")).unwrap();
-    let out = Command::new(hilrig_bin())
-        .args(["synth", "--scene"])
-        .arg(fixture("parking/scene.toml"))
-        .arg("--drive")
-        .arg(&drive_path)
-        .arg("--truth")
-        .arg(fixture("parking/idealized.toml"))
-        .args(["--reps", "1", "--seed", "11", "-o"])
-        .arg(dir.path().join("out"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let rep = dir.path().join("out/rep-01");
-    let mcap = dir.path().join("run.mcap");
-    let rec = record_from(&demo_rig(), &[&rep.join("drive.pcapng")], &mcap);
-    assert!(
-        rec.status.success(),
-        "{}",
-        String::from_utf8_lossy(&rec.stderr)
-    );
+    let d = synth_and_record(&format!("[faults]\n{faults}"), 11, true);
+    let (dir, rep, mcap) = (&d.dir, &d.rep, &d.run);
     let json = dir.path().join("check.json");
     let out = Command::new(hilrig_bin())
         .arg("check")
-        .arg(&mcap)
+        .arg(mcap)
         .arg("--scene")
         .arg(rep.join("scene.toml"))
         .arg("--json")
@@ -294,34 +263,9 @@ gpsd_rtk!(
 #[test]
 fn damaged_recordings_give_a_report_not_a_panic() {
     use proptest::prelude::*;
-    let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(fixture("parking/drive.toml"))
-        .unwrap()
-        .replace(
-            "rig = \"../../rigs/demo.toml\"",
-            &format!("rig = {:?}", demo_rig().display().to_string()),
-        );
-    std::fs::write(dir.path().join("drive.toml"), text).unwrap();
-    let synth = Command::new(hilrig_bin())
-        .args(["synth", "--scene"])
-        .arg(fixture("parking/scene.toml"))
-        .arg("--drive")
-        .arg(dir.path().join("drive.toml"))
-        .arg("--truth")
-        .arg(fixture("parking/idealized.toml"))
-        .args(["--reps", "1", "-o"])
-        .arg(dir.path().join("out"))
-        .output()
-        .unwrap();
-    assert!(synth.status.success());
-    let mcap = dir.path().join("run.mcap");
-    let rec = record_from(
-        &demo_rig(),
-        &[&dir.path().join("out/rep-01/drive.pcapng")],
-        &mcap,
-    );
-    assert!(rec.status.success());
-    let bytes = std::fs::read(&mcap).unwrap();
+    let d = synth_and_record("", 1, true);
+    let mcap = &d.run;
+    let bytes = std::fs::read(mcap).unwrap();
     let rig = hilrig::rig::Rig::load(&demo_rig()).unwrap();
     let whole = hilrig::reference::check::check(
         &hilrig::reference::run::Run::from_bytes(&bytes),

@@ -9,59 +9,14 @@ mod common;
 use common::*;
 use hilrig::replay::{load, Payload};
 use hilrig::velodyne::DataPacket;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
-struct Drive {
-    _dir: tempfile::TempDir,
-    rep: PathBuf,
-    run: PathBuf,
+fn drive(extra: &str, errors: bool) -> SynthRun {
+    synth_and_record(extra, 5, errors)
 }
 
-fn drive(extra: &str, errors: bool) -> Drive {
-    let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(fixture("parking/drive.toml"))
-        .unwrap()
-        .replace(
-            "rig = \"../../rigs/demo.toml\"",
-            &format!("rig = {:?}", demo_rig().display().to_string()),
-        );
-    let d = dir.path().join("drive.toml");
-    std::fs::write(&d, format!("{text}\n{extra}\n")).unwrap();
-    let mut cmd = Command::new(hilrig_bin());
-    cmd.args(["synth", "--scene"])
-        .arg(fixture("parking/scene.toml"))
-        .arg("--drive")
-        .arg(&d)
-        .arg("--truth")
-        .arg(fixture("parking/idealized.toml"))
-        .args(["--reps", "1", "--seed", "5", "-o"])
-        .arg(dir.path().join("out"));
-    if !errors {
-        cmd.arg("--no-errors");
-    }
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let rep = dir.path().join("out/rep-01");
-    let run = dir.path().join("run.mcap");
-    let rec = record_from(&demo_rig(), &[&rep.join("drive.pcapng")], &run);
-    assert!(
-        rec.status.success(),
-        "{}",
-        String::from_utf8_lossy(&rec.stderr)
-    );
-    Drive {
-        _dir: dir,
-        rep,
-        run,
-    }
-}
-
-fn resim(d: &Drive, out: &Path, extra: &[&str]) -> Output {
+fn resim(d: &SynthRun, out: &Path, extra: &[&str]) -> Output {
     Command::new(hilrig_bin())
         .arg("resim")
         .arg(&d.run)

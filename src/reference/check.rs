@@ -390,6 +390,28 @@ fn wrap(a: f64) -> f64 {
 /// Checks a run. `scene` gives the origin of the local frame and the objects' survey accuracy;
 /// without it the first GNSS epoch is the origin.
 pub fn check(run: &Run, rig: &Rig, scene: Option<&Scene>) -> Report {
+    check_with_trajectory(run, rig, scene).0
+}
+
+/// [`check`], and the ego trajectory it smoothed (RTK GNSS and CAN with the rig's lever arm, in
+/// the scene's local frame) when the run has one: what re-simulation casts from, without
+/// smoothing the run a second time.
+pub fn check_with_trajectory(
+    run: &Run,
+    rig: &Rig,
+    scene: Option<&Scene>,
+) -> (Report, Option<EgoTrajectory>) {
+    let mut trajectory = None;
+    let report = check_into(run, rig, scene, &mut trajectory);
+    (report, trajectory)
+}
+
+fn check_into(
+    run: &Run,
+    rig: &Rig,
+    scene: Option<&Scene>,
+    trajectory_out: &mut Option<EgoTrajectory>,
+) -> Report {
     let th: &Thresholds = &rig.thresholds;
     let unusable = |why: String, spatial: Spatial| Report {
         verdict: Verdict::Unusable,
@@ -986,6 +1008,7 @@ pub fn check(run: &Run, rig: &Rig, scene: Option<&Scene>) -> Report {
         }
         t = e;
     }
+    *trajectory_out = Some(traj);
     let verdict = if ctx.faults.is_empty() {
         Verdict::Pass
     } else {
@@ -1221,37 +1244,4 @@ fn observations(epochs: &[(UtcNanos, &hilrig_gnss::Fix)], enu: &Enu) -> Vec<Gnss
             }
         })
         .collect()
-}
-
-/// The ego trajectory of a run in the scene's local frame (smoothed RTK GNSS and CAN with the
-/// rig's lever arm), as re-simulation uses it.
-pub fn ego_trajectory(
-    run: &Run,
-    rig: &Rig,
-    scene: Option<&Scene>,
-) -> Result<EgoTrajectory, super::trajectory::TrajectoryError> {
-    let epochs = gnss_epochs(run);
-    if epochs.is_empty() {
-        return Err(super::trajectory::TrajectoryError::Insufficient(
-            "no GNSS epochs with a position".into(),
-        ));
-    }
-    let enu = Enu::new(&local_origin(&epochs, scene));
-    let lever = rig
-        .gnss
-        .as_ref()
-        .map_or(Vector2::zeros(), |g| Vector2::new(g.antenna.x, g.antenna.y));
-    let motion: Vec<(UtcNanos, f64, f64)> = run
-        .motion
-        .iter()
-        .map(|m| (m.t, m.speed, m.yaw_rate))
-        .collect();
-    EgoTrajectory::smooth(
-        &observations(&epochs, &enu),
-        &motion,
-        &Settings {
-            lever,
-            ..Settings::default()
-        },
-    )
 }

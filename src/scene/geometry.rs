@@ -366,22 +366,27 @@ mod tests {
             .is_none());
     }
 
+    /// Triangles facing x at x = 1..49, surface id = x.
+    fn stack() -> Vec<Primitive> {
+        (1..50u32)
+            .filter_map(|k| {
+                let x = f64::from(k);
+                Primitive::triangle(
+                    Point3::new(x, -1.0, -1.0),
+                    Point3::new(x, 1.0, -1.0),
+                    Point3::new(x, 0.0, 1.0),
+                    Material {
+                        reflectivity: 0.1,
+                        surface: SurfaceId(k),
+                    },
+                )
+            })
+            .collect()
+    }
+
     #[test]
     fn bvh_finds_the_nearest_of_many() {
-        let mut prims = Vec::new();
-        for k in 1..50 {
-            let x = f64::from(k);
-            prims.extend(Primitive::triangle(
-                Point3::new(x, -1.0, -1.0),
-                Point3::new(x, 1.0, -1.0),
-                Point3::new(x, 0.0, 1.0),
-                Material {
-                    reflectivity: 0.1,
-                    surface: SurfaceId(k as u32),
-                },
-            ));
-        }
-        let g = Geometry::build(prims);
+        let g = Geometry::build(stack());
         let h = g
             .cast(&Point3::new(7.5, 0.0, 0.0), &Vector3::x(), 0.0, 1e9)
             .unwrap();
@@ -398,17 +403,7 @@ mod tests {
 
     #[test]
     fn negative_zero_directions() {
-        let mut prims = Vec::new();
-        for k in 1..50 {
-            let x = f64::from(k);
-            prims.extend(Primitive::triangle(
-                Point3::new(x, -1.0, -1.0),
-                Point3::new(x, 1.0, -1.0),
-                Point3::new(x, 0.0, 1.0),
-                M,
-            ));
-        }
-        let g = Geometry::build(prims);
+        let g = Geometry::build(stack());
         for d in [
             Vector3::new(-1.0, -0.0, -0.0),
             Vector3::new(1.0, -0.0, -0.0),

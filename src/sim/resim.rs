@@ -17,7 +17,7 @@ use crate::bag::read::{read, Event};
 use crate::bag::{msgs, BagOptions, BagWriter};
 use crate::pose::Trajectory;
 use crate::record::topics;
-use crate::reference::check::{check, ego_trajectory, Report, Verdict};
+use crate::reference::check::{check_with_trajectory, Report, Verdict};
 use crate::reference::run::Run;
 use crate::rig::Rig;
 use crate::scene::Scene;
@@ -85,11 +85,12 @@ fn sensor_time(timestamp_us: u32, near: UtcNanos) -> UtcNanos {
     }
 }
 
-/// Re-simulates the run at `run_path` into `out`. `progress(done, total)` is called per scan.
+/// Re-simulates the run at `run_path` into `out` with `rig` (default: the rig file attached to
+/// the recording). `progress(done, total)` is called per scan.
 #[allow(clippy::too_many_arguments)]
 pub fn resim(
     run_path: &Path,
-    rig: &Rig,
+    rig: Option<&Rig>,
     scene: &Scene,
     scene_path: &Path,
     model: &ModelFile,
@@ -109,7 +110,22 @@ pub fn resim(
         )));
     }
     let run = Run::from_bytes(&bytes);
-    let report = check(&run, rig, Some(scene));
+    let attached;
+    let rig = match rig {
+        Some(r) => r,
+        None => {
+            let text = run.rig_toml.as_deref().ok_or_else(|| {
+                input(format!(
+                    "{}: no rig.toml attached to the recording: give the rig file",
+                    run_path.display()
+                ))
+            })?;
+            attached = Rig::from_toml(text, "rig.toml attached to the recording")
+                .map_err(|e| input(e.to_string()))?;
+            &attached
+        }
+    };
+    let (report, smoothed) = check_with_trajectory(&run, rig, Some(scene));
     let mut summary = ResimSummary {
         verdict: Some(report.verdict),
         ..ResimSummary::default()
@@ -120,9 +136,8 @@ pub fn resim(
     let (trajectory, source) = match poses {
         PoseSource::File(t, name) => (t, format!("file {name}")),
         PoseSource::Run => {
-            let smooth =
-                ego_trajectory(&run, rig, Some(scene)).map_err(|e| input(e.to_string()))?;
-            let t = smooth
+            let t = smoothed
+                .ok_or_else(|| input("the run has no RTK+CAN trajectory".into()))?
                 .sampled(10_000_000)
                 .ok_or_else(|| input("the run's trajectory is too short".into()))?;
             (

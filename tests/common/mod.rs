@@ -142,3 +142,55 @@ pub fn recover(cut: &std::path::Path, out: &std::path::Path) -> String {
     assert!(o.status.success(), "recover failed: {stderr}");
     stderr
 }
+
+/// A parking drive (fixtures/parking) synthesized here with `extra` appended to its drive file
+/// (a `[faults]` table, say), the idealized model, one repetition, then recorded with
+/// `record --from`. The files live as long as the value.
+#[allow(dead_code)]
+pub struct SynthRun {
+    pub dir: tempfile::TempDir,
+    /// The repetition's directory (capture, surveyed scene, truth).
+    pub rep: PathBuf,
+    /// The recorded MCAP.
+    pub run: PathBuf,
+}
+
+#[allow(dead_code)]
+pub fn synth_and_record(extra: &str, seed: u64, errors: bool) -> SynthRun {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(fixture("parking/drive.toml"))
+        .unwrap()
+        .replace(
+            "rig = \"../../rigs/demo.toml\"",
+            &format!("rig = {:?}", demo_rig().display().to_string()),
+        );
+    let drive = dir.path().join("drive.toml");
+    std::fs::write(&drive, format!("{text}\n{extra}\n")).unwrap();
+    let mut cmd = std::process::Command::new(hilrig_bin());
+    cmd.args(["synth", "--scene"])
+        .arg(fixture("parking/scene.toml"))
+        .arg("--drive")
+        .arg(&drive)
+        .arg("--truth")
+        .arg(fixture("parking/idealized.toml"))
+        .args(["--reps", "1", "--seed", &seed.to_string(), "-o"])
+        .arg(dir.path().join("out"));
+    if !errors {
+        cmd.arg("--no-errors");
+    }
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rep = dir.path().join("out/rep-01");
+    let run = dir.path().join("run.mcap");
+    let rec = record_from(&demo_rig(), &[&rep.join("drive.pcapng")], &run);
+    assert!(
+        rec.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rec.stderr)
+    );
+    SynthRun { dir, rep, run }
+}
