@@ -5,7 +5,7 @@
 //!
 //! `cargo bench --bench decode_throughput -- FILE [REPEATS]`
 
-use hilrig::lidar::{decode_capture, CountSink, LidarOptions};
+use hilrig::decode::lidar::{decode_capture, CountSink, LidarOptions};
 use std::time::Instant;
 
 fn main() {

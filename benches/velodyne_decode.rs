@@ -3,7 +3,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use hilrig::capture::{CaptureReader, Demux, Packet};
-use hilrig::lidar::{decode_capture, CountSink, LidarOptions};
+use hilrig::decode::lidar::{decode_capture, CountSink, LidarOptions};
 use hilrig::velodyne::{DataPacket, Decoder, Model};
 use std::hint::black_box;
 

@@ -1,20 +1,26 @@
 //! hilrig: a hardware-in-the-loop recorder and replay rig for validating lidar sensor models.
 //!
 //! The library holds the rig (DESIGN.md, `src/`): it knows the drivers only through their public
-//! types. The `hilrig` binary is a thin CLI over it.
+//! types. The `hilrig` binary is a thin command line over it (`src/cli/`, one module per
+//! command). Each folder is one step of DESIGN.md's flow:
+//!
+//! - [`decode`]: captures and logs to points, fixes and frames (`hilrig decode`);
+//! - [`record`]: captures and live sensors into one time-synchronised MCAP, with the per-source
+//!   clock models (`hilrig record`);
+//! - [`bag`]: MCAP in the ROS 2 profile: CDR, the contract's topics and message types, the
+//!   writer, a checked reader, `info` and `recover`;
+//! - [`replay`]: recordings and captures back out at the original pace (`hilrig replay`);
+//! - [`reference`]: the ego trajectory from RTK GNSS and CAN, and `check`;
+//! - [`scene`]: the digital twin (objects, actors, the WGS84/ENU frame, poses and trajectories);
+//! - [`sim`]: the lidar model and its effects, `synth` and `resim`;
+//! - [`rig`]: the rig file every step reads (sensors, mounting, ports, thresholds).
 
 #![warn(missing_docs)]
+#![warn(clippy::too_many_lines)]
 
 pub mod bag;
-pub mod can_log;
-pub mod clock;
-pub mod geodesy;
-pub mod gnss_log;
-pub mod lidar;
-pub mod points_out;
-pub mod pose;
+pub mod decode;
 pub mod record;
-pub mod record_live;
 pub mod reference;
 pub mod replay;
 pub mod rig;

@@ -7,7 +7,7 @@ mod common;
 use common::*;
 use hilrig::capture::writer::{ethernet_frame, udp_ethernet_frame, udp_ipv4_packets};
 use hilrig::capture::{LinkType, PcapngWriter, UtcNanos};
-use hilrig::lidar::{decode_capture, CountSink, LidarOptions};
+use hilrig::decode::lidar::{decode_capture, CountSink, LidarOptions};
 use proptest::prelude::*;
 use std::net::{Ipv4Addr, SocketAddrV4};
 use std::path::{Path, PathBuf};

@@ -229,7 +229,7 @@ fn serial_interface_of_a_pcapng_capture_gives_the_same_fixes() {
     }
     let capture = w.finish().unwrap();
     let mut from_capture = Vec::new();
-    let summary = hilrig::gnss_log::decode_gnss(std::io::Cursor::new(capture), &mut |f| {
+    let summary = hilrig::decode::gnss::decode_gnss(std::io::Cursor::new(capture), &mut |f| {
         from_capture.push(f.clone());
         Ok(())
     })

@@ -7,7 +7,7 @@ mod common;
 use common::*;
 use hilrig::can::dbc::Database;
 use hilrig::capture::{CaptureReader, Demux, Packet};
-use hilrig::pose::Trajectory;
+use hilrig::scene::pose::Trajectory;
 use hilrig::stamp::UtcNanos;
 use std::path::PathBuf;
 

@@ -18,7 +18,7 @@
 mod common;
 
 use common::*;
-use hilrig::lidar::LidarOptions;
+use hilrig::decode::lidar::LidarOptions;
 use std::collections::BTreeMap;
 use std::process::Command;
 

@@ -7,7 +7,7 @@ mod common;
 use common::*;
 use hilrig::capture::demux::Packet;
 use hilrig::capture::{CaptureReader, Demux, UtcNanos};
-use hilrig::lidar::{LidarOptions, PointTime};
+use hilrig::decode::lidar::{LidarOptions, PointTime};
 use hilrig::velodyne::{DataPacket, Decoder, Model, Point};
 
 fn capture(name: &str) -> std::path::PathBuf {
@@ -193,7 +193,7 @@ fn monterey_position_packets_give_pps_rmc_and_absolute_time() {
     let first = *rmc_times.iter().min().unwrap();
     let last = *rmc_times.iter().max().unwrap();
     for (t, p) in &points {
-        let PointTime::Utc(t) = hilrig::lidar::point_time(*t, p) else {
+        let PointTime::Utc(t) = hilrig::decode::lidar::point_time(*t, p) else {
             panic!("hour not resolved")
         };
         assert!(

@@ -2,7 +2,7 @@
 //! demultiplexer, Velodyne packet decoding, hour resolution and point geometry. It must end with
 //! points, counted skips or an error, never a panic (built with debug assertions: no overflow).
 #![no_main]
-use hilrig::lidar::{decode_capture, CountSink, LidarOptions};
+use hilrig::decode::lidar::{decode_capture, CountSink, LidarOptions};
 use hilrig::velodyne::Model;
 use libfuzzer_sys::fuzz_target;
 

@@ -7,6 +7,7 @@ pub mod info;
 pub mod msgs;
 pub mod read;
 pub mod recover;
+pub mod topics;
 pub mod writer;
 
 pub use writer::{BagError, BagOptions, BagWriter, Compression};

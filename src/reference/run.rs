@@ -4,7 +4,7 @@
 
 use crate::bag::cdr::CdrReader;
 use crate::bag::read::{read, Event};
-use crate::record::topics;
+use crate::bag::topics;
 use hilrig_gnss::{Fix, GnssStream};
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::{PositionPacket, PpsStatus, DATA_PACKET_SIZE};

@@ -14,7 +14,7 @@
 //! with the receiver's per-epoch sigmas), CAN speed and CAN yaw rate. Jacobians are taken
 //! numerically: five states, and the model stays readable.
 
-use crate::pose::{PoseSample, Trajectory};
+use crate::scene::pose::{PoseSample, Trajectory};
 use hilrig_stamp::UtcNanos;
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 

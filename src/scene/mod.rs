@@ -8,13 +8,15 @@
 //! metrics use), while instancing costs one transform per ray and actor.
 
 pub mod file;
+pub mod geodesy;
 pub mod geometry;
 pub mod mesh;
+pub mod pose;
 
 pub use file::{SceneFile, Shape};
 pub use geometry::{Geometry, Hit, Material, Primitive, SurfaceId};
 
-use crate::pose::Trajectory;
+use crate::scene::pose::Trajectory;
 use file::Placement;
 use hilrig_stamp::UtcNanos;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};

@@ -24,7 +24,7 @@
 //!
 //! The sensor, GNSS, CAN and survey error sections are documented on their structs.
 
-use crate::pose::{PoseSample, Trajectory};
+use crate::scene::pose::{PoseSample, Trajectory};
 use hilrig_stamp::UtcNanos;
 use nalgebra::{Vector2, Vector3};
 use rand::Rng;

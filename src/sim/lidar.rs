@@ -13,7 +13,7 @@
 //! that time too.
 
 use super::model::{Effect, ModelError, ModelFile};
-use crate::pose::{mounting_isometry, Trajectory};
+use crate::scene::pose::{mounting_isometry, Trajectory};
 use crate::rig::Mounting;
 use crate::scene::{ActorPoses, Scene};
 use hilrig_stamp::UtcNanos;

@@ -15,8 +15,8 @@ use super::model::ModelFile;
 use crate::bag::cdr::CdrReader;
 use crate::bag::read::{read, Event};
 use crate::bag::{msgs, BagOptions, BagWriter};
-use crate::pose::Trajectory;
-use crate::record::topics;
+use crate::scene::pose::Trajectory;
+use crate::bag::topics;
 use crate::reference::check::{check_with_trajectory, Report, Verdict};
 use crate::reference::run::Run;
 use crate::rig::Rig;
@@ -307,7 +307,7 @@ pub fn resim(
                 .collect();
             (
                 msgs::velodyne_scan(scan.stamp, &lidar.frame_id, &list),
-                crate::record::cloud_cdr(&decoder, scan.stamp, &lidar.frame_id, &list),
+                crate::record::messages::cloud_cdr(&decoder, scan.stamp, &lidar.frame_id, &list),
             )
         })
         .collect();

@@ -17,7 +17,7 @@ use super::drive::{DriveFile, Driven};
 use super::lidar::{LidarSim, SimStats};
 use super::model::ModelFile;
 use super::spin::Spin;
-use crate::geodesy::Enu;
+use crate::scene::geodesy::Enu;
 use crate::rig::Rig;
 use crate::scene::file::{ActorFile, SceneFile};
 use crate::scene::Scene;
@@ -195,7 +195,7 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
     // The truth is the file: everything below uses the trajectory as `truth.csv` holds it, so
     // that re-simulating from that file casts bit-identical rays.
     let truth_csv = driven.ego.to_csv();
-    driven.ego = crate::pose::Trajectory::from_csv(&truth_csv).map_err(input)?;
+    driven.ego = crate::scene::pose::Trajectory::from_csv(&truth_csv).map_err(input)?;
 
     // The true scene with this repetition's walkers.
     let mut truth_file = job.scene_file.clone();

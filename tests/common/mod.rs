@@ -2,7 +2,7 @@
 //! sink that keeps decoded points.
 #![allow(dead_code)]
 
-use hilrig::lidar::{decode_capture, LidarOptions, LidarSummary, PointSink, PointTime};
+use hilrig::decode::lidar::{decode_capture, LidarOptions, LidarSummary, PointSink, PointTime};
 use hilrig::velodyne::Point;
 use std::path::PathBuf;
 

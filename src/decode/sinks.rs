@@ -4,7 +4,7 @@
 //! scripts can rely on it. Times are written exactly (`seconds.nanoseconds`, from integers) rather
 //! than through a float, which would lose sub-microsecond digits at Unix-epoch magnitudes.
 
-use crate::lidar::{point_time, PointSink, PointTime};
+use crate::decode::lidar::{point_time, PointSink, PointTime};
 use hilrig_velodyne::Point;
 use std::io::{self, Write};
 

@@ -1,18 +1,12 @@
-//! `hilrig replay`: a recording, capture or re-simulation played back to a device under test at
-//! the original pace.
-//!
-//! The schedule is pure: every item has a time in the file; item `i` is due at
-//! `wall_start + (t_i - t_first) / speed`, an absolute deadline, so errors never accumulate over
-//! long runs. The sender sleeps until shortly before a deadline and spins the rest, which keeps
-//! the lag (send time minus deadline) in the microseconds; the lag of every send is kept and its
-//! p50, p99 and maximum are reported at the end.
+//! Loading what replay sends: a capture (pcap/pcapng, streamed in file order) or an MCAP
+//! recording (messages sorted by log time, the packets of a VelodyneScan at their own stamps) as
+//! one time-ordered schedule of [`ReplayItem`]s, and the `--start`/`--end` window on it.
 
 use crate::bag::cdr::CdrReader;
 use hilrig_capture::demux::{Demux, Packet};
 use hilrig_capture::{CanFrame, CaptureReader};
 use hilrig_stamp::UtcNanos;
 use std::path::Path;
-use std::time::{Duration, Instant};
 
 /// What to send.
 #[derive(Clone, Debug, PartialEq)]
@@ -138,7 +132,7 @@ fn message_into(
     let channel = m.channel;
     let bad = || format!("{}: a message does not decode as its type", channel.topic);
     match channel.topic.as_str() {
-        crate::record::topics::VELODYNE_PACKETS => {
+        crate::bag::topics::VELODYNE_PACKETS => {
             let mut c = CdrReader::new(data).ok_or_else(bad)?;
             c.header().ok_or_else(bad)?;
             let n = c.u32().ok_or_else(bad)?;
@@ -151,19 +145,19 @@ fn message_into(
                 });
             }
         }
-        crate::record::topics::VELODYNE_POSITION | crate::record::topics::GNSS_UBX => {
+        crate::bag::topics::VELODYNE_POSITION | crate::bag::topics::GNSS_UBX => {
             let mut c = CdrReader::new(data).ok_or_else(bad)?;
             c.header().ok_or_else(bad)?;
             let n = c.u32().ok_or_else(bad)? as usize;
             let data = c.bytes(n).ok_or_else(bad)?.to_vec();
-            let payload = if channel.topic == crate::record::topics::VELODYNE_POSITION {
+            let payload = if channel.topic == crate::bag::topics::VELODYNE_POSITION {
                 Payload::LidarPosition(data)
             } else {
                 Payload::Serial(data)
             };
             out.push(ReplayItem { time: t, payload });
         }
-        crate::record::topics::GNSS_NMEA => {
+        crate::bag::topics::GNSS_NMEA => {
             let mut c = CdrReader::new(data).ok_or_else(bad)?;
             c.header().ok_or_else(bad)?;
             let s = c.string().ok_or_else(bad)?;
@@ -172,7 +166,7 @@ fn message_into(
                 payload: Payload::Serial(format!("{s}\r\n").into_bytes()),
             });
         }
-        crate::record::topics::CAN_FRAMES
+        crate::bag::topics::CAN_FRAMES
             if channel
                 .schema
                 .as_ref()
@@ -214,49 +208,6 @@ pub fn window(items: Vec<ReplayItem>, start_s: Option<f64>, end_s: Option<f64>) 
         .into_iter()
         .filter(|i| i.time.0 >= from && i.time.0 <= to)
         .collect()
-}
-
-/// Lag statistics of a replay (send time minus deadline).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Pacing {
-    /// Items sent.
-    pub sent: u64,
-    /// Median lag, µs.
-    pub p50_us: f64,
-    /// 99th percentile lag, µs.
-    pub p99_us: f64,
-    /// Largest lag, µs.
-    pub max_us: f64,
-}
-
-impl Pacing {
-    /// From the lags of every send, nanoseconds.
-    pub fn from_lags(mut lags: Vec<i64>) -> Pacing {
-        if lags.is_empty() {
-            return Pacing::default();
-        }
-        lags.sort_unstable();
-        let q = |p: f64| lags[((lags.len() - 1) as f64 * p).round() as usize] as f64 * 1e-3;
-        Pacing {
-            sent: lags.len() as u64,
-            p50_us: q(0.5),
-            p99_us: q(0.99),
-            max_us: lags[lags.len() - 1] as f64 * 1e-3,
-        }
-    }
-}
-
-/// Waits until `deadline`: sleeps until shortly before it, then spins (sub-millisecond accuracy
-/// without burning a core between items).
-pub fn wait_until(deadline: Instant) {
-    const SPIN: Duration = Duration::from_micros(300);
-    let now = Instant::now();
-    if deadline > now + SPIN {
-        std::thread::sleep(deadline - now - SPIN);
-    }
-    while Instant::now() < deadline {
-        std::hint::spin_loop();
-    }
 }
 
 #[cfg(test)]
@@ -370,13 +321,5 @@ mod tests {
                 .collect::<Vec<_>>(),
             vec![2, 3, 4]
         );
-    }
-
-    #[test]
-    fn pacing_quantiles() {
-        let p = Pacing::from_lags((1..=100).map(|x| x * 1000).collect());
-        assert_eq!(p.sent, 100);
-        assert_eq!(p.max_us, 100.0);
-        assert!((p.p50_us - 51.0).abs() < 1.01 && (p.p99_us - 99.0).abs() < 1.01);
     }
 }

@@ -11,7 +11,7 @@
 
 use crate::bag::msgs::{self, MessageType};
 use crate::bag::{BagError, BagWriter};
-use crate::clock::ClockEstimator;
+use crate::record::clock::ClockEstimator;
 use crate::rig::Rig;
 use hilrig_gnss::epoch::{NmeaEpochs, UbxEpochs};
 use hilrig_gnss::framer::{Frame, Framer, Item};
@@ -21,7 +21,7 @@ use hilrig_velodyne::source::{LidarItem, LidarSource, DEFAULT_RECV_BUFFER};
 use hilrig_velodyne::{Model, RotationAssembler};
 use std::collections::BTreeMap;
 use std::net::SocketAddr;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
@@ -107,6 +107,18 @@ pub enum LiveError {
     /// Writing failed (disk full, unwritable). Everything written before is in the `.active` file.
     #[error("recording stopped; everything recorded before is in the .active file (run `hilrig recover` on it)")]
     Bag(#[from] BagError),
+    /// The output folder could not be created.
+    #[error("cannot create {path}")]
+    Folder {
+        /// The folder.
+        path: String,
+        /// Cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The async runtime could not be started.
+    #[error(transparent)]
+    Runtime(std::io::Error),
 }
 
 /// Maps an error opening `source_name` to the recorder's error that names the source.
@@ -115,6 +127,60 @@ fn source_error<E: std::fmt::Display>(source_name: &'static str) -> impl FnOnce(
         source_name,
         error: e.to_string(),
     }
+}
+
+impl LiveSummary {
+    /// Messages dropped because the writer could not keep up, over all sources.
+    pub fn dropped(&self) -> u64 {
+        self.health.values().map(|v| v[2]).sum()
+    }
+}
+
+/// Where a live recording goes when no output is given: the rig's `output_dir` (created if
+/// needed), named after the rig and the start time, `RIG-YYYYMMDDTHHMMSSZ.mcap`.
+pub fn default_output(rig: &Rig) -> Result<PathBuf, LiveError> {
+    let dir = rig.resolve(&rig.recording.output_dir);
+    std::fs::create_dir_all(&dir).map_err(|source| LiveError::Folder {
+        path: dir.display().to_string(),
+        source,
+    })?;
+    let now = hilrig_stamp::civil::iso8601_millis(UtcNanos::now());
+    let stamp: String = now[..19]
+        .chars()
+        .filter(|c| c.is_ascii_digit() || *c == 'T')
+        .collect();
+    Ok(dir.join(format!("{}-{stamp}Z.mcap", rig.name)))
+}
+
+/// [`record_live`] on a runtime of its own until Ctrl-C (SIGINT) or SIGTERM: the recorder as
+/// the command line runs it.
+pub fn record_until_signal(
+    rig: &Rig,
+    rig_text: &str,
+    output: &Path,
+) -> Result<LiveSummary, LiveError> {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .map_err(LiveError::Runtime)?;
+    rt.block_on(async {
+        let stop = async {
+            use tokio::signal::unix::{signal, SignalKind};
+            match signal(SignalKind::terminate()) {
+                Ok(mut term) => {
+                    tokio::select! {
+                        _ = tokio::signal::ctrl_c() => {}
+                        _ = term.recv() => {}
+                    }
+                }
+                // Without a SIGTERM handler, Ctrl-C still finishes the file.
+                Err(_) => {
+                    let _ = tokio::signal::ctrl_c().await;
+                }
+            }
+        };
+        record_live(rig, rig_text, output, stop).await
+    })
 }
 
 /// Runs the recorder until `stop` resolves; then finishes the file.
@@ -143,7 +209,7 @@ pub async fn record_live(
     )?;
     let now = UtcNanos::now();
     bag.write_static(
-        crate::record::topics::TF_STATIC,
+        crate::bag::topics::TF_STATIC,
         &msgs::tf_message_type(),
         now,
         &msgs::tf_message(now, &rig.transforms()),
@@ -266,7 +332,7 @@ pub async fn record_live(
     let clocks = clocks.lock().map(|c| c.clone()).unwrap_or_default();
     for (name, est) in &clocks {
         if let Some(m) = est.model() {
-            let mut meta = crate::clock::metadata(&m, &est.residuals(), est.pairs());
+            let mut meta = crate::record::clock::metadata(&m, &est.residuals(), est.pairs());
             if *name == "lidar" {
                 if let Some(b) = pps.lock().ok().and_then(|g| *g) {
                     let reports = lidar_model != Some(Model::Hdl32e);
@@ -339,7 +405,7 @@ fn send_scan(
         tx,
         h,
         Event {
-            topic: crate::record::topics::VELODYNE_PACKETS,
+            topic: crate::bag::topics::VELODYNE_PACKETS,
             ty: &types()["scan"],
             log_time: stamp,
             publish_time: publish,
@@ -347,12 +413,12 @@ fn send_scan(
         },
     );
     if let Some(d) = points {
-        let cdr = crate::record::cloud_cdr(d, stamp, frame, &list);
+        let cdr = crate::record::messages::cloud_cdr(d, stamp, frame, &list);
         send(
             tx,
             h,
             Event {
-                topic: crate::record::topics::POINTS,
+                topic: crate::bag::topics::POINTS,
                 ty: &types()["points"],
                 log_time: stamp,
                 publish_time: publish,
@@ -403,7 +469,7 @@ async fn lidar_task(
                     &tx,
                     &h,
                     Event {
-                        topic: crate::record::topics::VELODYNE_POSITION,
+                        topic: crate::bag::topics::VELODYNE_POSITION,
                         ty: &t["raw"],
                         log_time: p.host,
                         publish_time: p.host,
@@ -480,7 +546,7 @@ async fn gnss_task(
                         &tx,
                         &h,
                         Event {
-                            topic: crate::record::topics::GNSS_NMEA,
+                            topic: crate::bag::topics::GNSS_NMEA,
                             ty: &t["nmea"],
                             log_time: host,
                             publish_time: host,
@@ -500,7 +566,7 @@ async fn gnss_task(
                         &tx,
                         &h,
                         Event {
-                            topic: crate::record::topics::GNSS_UBX,
+                            topic: crate::bag::topics::GNSS_UBX,
                             ty: &t["raw"],
                             log_time: host,
                             publish_time: host,
@@ -521,12 +587,12 @@ async fn gnss_task(
                     est.handle(time, epoch_host);
                     est.model().map_or(time, |m| m.to_host(time))
                 };
-                if let Some(nav) = crate::record::nav_sat_fix(&fix) {
+                if let Some(nav) = crate::record::messages::nav_sat_fix(&fix) {
                     send(
                         &tx,
                         &h,
                         Event {
-                            topic: crate::record::topics::GNSS_FIX,
+                            topic: crate::bag::topics::GNSS_FIX,
                             ty: &t["fix"],
                             log_time: synced,
                             publish_time: epoch_host,
@@ -567,7 +633,7 @@ async fn can_task(
             &tx,
             &h,
             Event {
-                topic: crate::record::topics::CAN_FRAMES,
+                topic: crate::bag::topics::CAN_FRAMES,
                 ty,
                 log_time: host,
                 publish_time: host,

@@ -9,9 +9,11 @@
 //! raw byte streams), and `publish_time` = the host receive time. The models and their residuals
 //! go into the file's metadata for `check`.
 
-use crate::bag::msgs::{self, NavSatFix};
+use crate::bag::msgs;
+use crate::bag::topics;
+use crate::record::messages::{cloud_cdr, nav_sat_fix};
 use crate::bag::{BagError, BagWriter};
-use crate::clock::{ClockEstimator, ClockModel};
+use crate::record::clock::{ClockEstimator, ClockModel};
 use crate::rig::Rig;
 use hilrig_can::ego::{EgoSample, EgoTracker, Quantity};
 use hilrig_can::Database;
@@ -27,28 +29,6 @@ use hilrig_velodyne::{
 };
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-
-/// Topics of the MCAP contract.
-pub mod topics {
-    /// VelodyneScan per rotation.
-    pub const VELODYNE_PACKETS: &str = "/velodyne_packets";
-    /// Position packets.
-    pub const VELODYNE_POSITION: &str = "/velodyne_position";
-    /// NMEA sentences.
-    pub const GNSS_NMEA: &str = "/gnss/nmea";
-    /// UBX frames.
-    pub const GNSS_UBX: &str = "/gnss/ubx";
-    /// Fixes.
-    pub const GNSS_FIX: &str = "/gnss/fix";
-    /// CAN frames.
-    pub const CAN_FRAMES: &str = "/can/frames";
-    /// Ego speed and yaw rate.
-    pub const EGO_TWIST: &str = "/ego/twist";
-    /// Rig extrinsics.
-    pub const TF_STATIC: &str = "/tf_static";
-    /// Decoded lidar points per rotation, for viewing.
-    pub const POINTS: &str = "/points";
-}
 
 /// Why recording from captures failed.
 #[derive(Debug, thiserror::Error)]
@@ -84,7 +64,7 @@ pub struct RecordSummary {
     /// Messages per topic.
     pub counts: BTreeMap<String, u64>,
     /// Clock models per source (name, model, residual p50/p95/max in ns, pairs).
-    pub clocks: Vec<(String, ClockModel, crate::clock::Residuals, u64)>,
+    pub clocks: Vec<(String, ClockModel, crate::record::clock::Residuals, u64)>,
     /// Lidar packets lost (sensor timestamp gaps).
     pub lidar_lost: u64,
     /// Inputs that ended early (truncated), with the error.
@@ -156,31 +136,6 @@ struct Output<'a> {
 
 fn sync(model: Option<ClockModel>, sensor: UtcNanos) -> UtcNanos {
     model.map_or(sensor, |m| m.to_host(sensor))
-}
-
-/// The NavSatFix of a fix (covariance from the sigmas; altitude above the ellipsoid).
-pub fn nav_sat_fix(f: &Fix) -> Option<NavSatFix> {
-    let (lat, lon) = (f.lat?, f.lon?);
-    let status = match f.quality {
-        0 => -1,
-        2 | 9 => 1,
-        4 | 5 => 2,
-        _ => 0,
-    };
-    let (covariance, covariance_type) = match (f.sigma_lon_m, f.sigma_lat_m, f.sigma_alt_m) {
-        (Some(e), Some(n), Some(u)) => ([e * e, 0.0, 0.0, 0.0, n * n, 0.0, 0.0, 0.0, u * u], 2),
-        _ => ([0.0; 9], 0),
-    };
-    Some(NavSatFix {
-        status,
-        service: 1,
-        latitude: lat,
-        longitude: lon,
-        // NavSatFix wants height above the ellipsoid; MSL only when the geoid separation is unknown.
-        altitude: f.alt_ellipsoid.or(f.alt_msl).unwrap_or(f64::NAN),
-        covariance,
-        covariance_type,
-    })
 }
 
 impl Context<'_> {
@@ -523,38 +478,6 @@ fn write_scan(
     Ok(())
 }
 
-/// The decoded points of one rotation as a PointCloud2 (for viewing in Foxglove / RViz).
-pub fn cloud_cdr(
-    decoder: &Decoder,
-    stamp: UtcNanos,
-    frame: &str,
-    packets: &[(UtcNanos, &[u8; 1206])],
-) -> Vec<u8> {
-    let mut points = Vec::with_capacity(packets.len() * 384);
-    let mut buf = Vec::with_capacity(800);
-    for (t, bytes) in packets {
-        let Ok(p) = hilrig_velodyne::DataPacket::decode(&bytes[..]) else {
-            continue;
-        };
-        buf.clear();
-        if decoder.decode_into(&p, &mut buf).is_err() {
-            continue;
-        }
-        let base = (t.0 - stamp.0) as f64 * 1e-9;
-        points.extend(buf.iter().map(|q| {
-            (
-                q.x,
-                q.y,
-                q.z,
-                f32::from(q.intensity),
-                u16::from(q.ring),
-                (base + f64::from(q.time_offset_ns) * 1e-9) as f32,
-            )
-        }));
-    }
-    msgs::point_cloud2(stamp, frame, &points)
-}
-
 /// What an input file is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum InputKind {
@@ -771,7 +694,7 @@ pub fn record_from(
     );
     out.bag.metadata("hilrig", meta)?;
     for (name, m, r, pairs) in &summary.clocks {
-        let mut meta = crate::clock::metadata(m, r, *pairs);
+        let mut meta = crate::record::clock::metadata(m, r, *pairs);
         if name == "lidar" {
             if let Some(s) = pass1_hour_source {
                 meta.insert("hour_source".to_owned(), format!("{s:?}"));

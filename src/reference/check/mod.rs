@@ -21,7 +21,7 @@
 
 use super::run::Run;
 use super::trajectory::{EgoTrajectory, GnssObs, Settings};
-use crate::geodesy::Enu;
+use crate::scene::geodesy::Enu;
 use crate::rig::{Rig, Thresholds};
 use crate::scene::file::Wgs84;
 use crate::scene::Scene;

@@ -1,0 +1,21 @@
+//! Topics of the MCAP contract (DESIGN.md): what the recorders write and what replay, check
+//! and re-simulation read.
+
+/// VelodyneScan per rotation.
+pub const VELODYNE_PACKETS: &str = "/velodyne_packets";
+/// Position packets.
+pub const VELODYNE_POSITION: &str = "/velodyne_position";
+/// NMEA sentences.
+pub const GNSS_NMEA: &str = "/gnss/nmea";
+/// UBX frames.
+pub const GNSS_UBX: &str = "/gnss/ubx";
+/// Fixes.
+pub const GNSS_FIX: &str = "/gnss/fix";
+/// CAN frames.
+pub const CAN_FRAMES: &str = "/can/frames";
+/// Ego speed and yaw rate.
+pub const EGO_TWIST: &str = "/ego/twist";
+/// Rig extrinsics.
+pub const TF_STATIC: &str = "/tf_static";
+/// Decoded lidar points per rotation, for viewing.
+pub const POINTS: &str = "/points";

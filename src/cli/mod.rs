@@ -1,0 +1,27 @@
+//! One module per command: clap arguments, validation into typed settings, one call into the
+//! library, and printing. No engine lives here: decoding is in `hilrig::decode`, recording in
+//! `hilrig::record`, replay's pacing, sinks and `--now` in `hilrig::replay`, the check in
+//! `hilrig::reference`, synthesis and re-simulation in `hilrig::sim`.
+
+pub mod check;
+pub mod decode;
+pub mod info;
+pub mod record;
+pub mod recover;
+pub mod replay;
+pub mod resim;
+pub mod synth;
+
+use anyhow::{Context, Result};
+use std::fs::File;
+use std::io::{self, Write};
+
+/// The output file, or standard output.
+pub fn open_output(path: Option<&std::path::Path>) -> Result<Box<dyn Write>> {
+    Ok(match path {
+        Some(p) => {
+            Box::new(File::create(p).with_context(|| format!("cannot create {}", p.display()))?)
+        }
+        None => Box::new(io::stdout().lock()),
+    })
+}

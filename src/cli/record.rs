@@ -1,0 +1,72 @@
+//! `hilrig record`: live from the rig's sensors, or from captures and logs with `--from`.
+
+use anyhow::{bail, Context, Result};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(clap::Args)]
+pub struct RecordArgs {
+    /// The rig file.
+    #[arg(long)]
+    rig: PathBuf,
+    /// Capture files to record from instead of the live sensors.
+    #[arg(long, num_args = 1..)]
+    from: Vec<PathBuf>,
+    /// Output MCAP file (written as OUT.active until finished); live recordings default to
+    /// the rig's output_dir/RIG-YYYYMMDDTHHMMSSZ.mcap.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+pub fn run(args: RecordArgs) -> Result<ExitCode> {
+    let rig = hilrig::rig::Rig::load(&args.rig)?;
+    let text = std::fs::read_to_string(&args.rig)
+        .with_context(|| format!("cannot read {}", args.rig.display()))?;
+    if args.from.is_empty() {
+        return live(&rig, &text, args.output);
+    }
+    let Some(output) = args.output else {
+        bail!("record --from needs -o OUT.mcap");
+    };
+    let summary = hilrig::record::record_from(&rig, &text, &args.from, &output)?;
+    let out = output.display();
+    for (topic, n) in &summary.counts {
+        eprintln!("{out}: {topic}: {n} messages");
+    }
+    for (name, m, r, pairs) in &summary.clocks {
+        eprintln!(
+            "{out}: clock {name}: offset {:.3} ms, drift {:.2} ppm, residual p50 {:.0} us, p95 {:.0} us, max {:.0} us ({pairs} pairs)",
+            m.offset_ns * 1e-6,
+            m.drift * 1e6,
+            r.p50_ns * 1e-3,
+            r.p95_ns * 1e-3,
+            r.max_ns * 1e-3
+        );
+    }
+    eprintln!("{out}: lidar packets lost: {}", summary.lidar_lost);
+    for e in &summary.input_errors {
+        eprintln!("error: {e} (everything before it was recorded)");
+    }
+    Ok(if summary.input_errors.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+fn live(rig: &hilrig::rig::Rig, text: &str, output: Option<PathBuf>) -> Result<ExitCode> {
+    let output = match output {
+        Some(o) => o,
+        None => hilrig::record::live::default_output(rig)?,
+    };
+    eprintln!("recording to {} (Ctrl-C to finish)", output.display());
+    let summary = hilrig::record::live::record_until_signal(rig, text, &output)?;
+    for (topic, n) in &summary.counts {
+        eprintln!("{}: {topic}: {n} messages", output.display());
+    }
+    Ok(if summary.dropped() == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
