@@ -10,8 +10,8 @@
 //! interleaved rounds, so that both sides of a ratio see the same machine load.
 
 use criterion::{criterion_group, Criterion, Throughput};
-use hilrig::scene::pose::Trajectory;
 use hilrig::rig::Mounting;
+use hilrig::scene::pose::Trajectory;
 use hilrig::scene::Scene;
 use hilrig::sim::spin::{Skeleton, Spin};
 use hilrig::sim::{LidarSim, ModelFile, SimStats};

@@ -195,7 +195,8 @@ fn fixtures_are_reproducible() {
 fn fixture_points_match_the_analytic_room_and_packets_re_encode() {
     for (name, model, mode, packets) in FIXTURES {
         let path = fixture_path(name);
-        let (summary, points) = common::decode_file(&path, &hilrig::decode::lidar::LidarOptions::default());
+        let (summary, points) =
+            common::decode_file(&path, &hilrig::decode::lidar::LidarOptions::default());
         assert_eq!(summary.model, Some(model));
         assert_eq!(summary.data_packets, packets as u64);
         assert_eq!(summary.lost_packets, 0, "{name}");

@@ -1,9 +1,9 @@
 //! The lidar model against closed-form geometry, analytic motion and the statistics of each effect
 //! (issue 5, must-holds 1, 3 and 4).
 
-use hilrig::scene::pose::{PoseSample, Trajectory};
 use hilrig::rig::Mounting;
 use hilrig::scene::file::{Ground, ObjectFile, Placement, SceneFile, Wgs84};
+use hilrig::scene::pose::{PoseSample, Trajectory};
 use hilrig::scene::{Scene, Shape};
 use hilrig::sim::lidar::Returns;
 use hilrig::sim::spin::Spin;

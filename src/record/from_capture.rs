@@ -8,12 +8,16 @@
 //! jitter is gone and sources line up), or the host time where a source has no clock (CAN,
 //! raw byte streams), and `publish_time` = the host receive time. The models and their residuals
 //! go into the file's metadata for `check`.
+//!
+//! Long file: one `Context` reads four kinds of input (pcap/pcapng with lidar, serial and CAN
+//! interfaces; candump logs; raw serial logs) in both passes; its handlers share the pass state
+//! and are kept together so that the two passes cannot drift apart.
 
 use crate::bag::msgs;
 use crate::bag::topics;
-use crate::record::messages::{cloud_cdr, nav_sat_fix};
 use crate::bag::{BagError, BagWriter};
 use crate::record::clock::{ClockEstimator, ClockModel};
+use crate::record::messages::{cloud_cdr, nav_sat_fix};
 use crate::rig::Rig;
 use hilrig_can::ego::{EgoSample, EgoTracker, Quantity};
 use hilrig_can::Database;
@@ -569,6 +573,10 @@ impl Context<'_> {
 }
 
 /// Records captures into one MCAP at `output` (written as `output.active`, renamed at the end).
+#[allow(
+    clippy::too_many_lines,
+    reason = "the two passes over all inputs, the clock models estimated between them and the metadata written after them read as one sequence; the per-input work is in Context::run_input"
+)]
 pub fn record_from(
     rig: &Rig,
     rig_text: &str,

@@ -8,6 +8,10 @@
 //! `NAME.mcap.active` until a clean finish (SIGINT/SIGTERM), so a power cut loses at most the
 //! last chunk and `hilrig recover` salvages the rest. Per-source health (rate, drops, decode
 //! errors, reconnects) is printed every few seconds and at the end.
+//!
+//! Long file: the source tasks (lidar data, position packets, GNSS serial, CAN), the writer
+//! thread and the health counters share one queue and one message conversion; they are read
+//! together when a message goes missing on the vehicle.
 
 use crate::bag::msgs::{self, MessageType};
 use crate::bag::{BagError, BagWriter};
@@ -184,6 +188,10 @@ pub fn record_until_signal(
 }
 
 /// Runs the recorder until `stop` resolves; then finishes the file.
+#[allow(
+    clippy::too_many_lines,
+    reason = "starts every source task and the writer thread and finishes them in the reverse order; each source loop is a function of its own"
+)]
 pub async fn record_live(
     rig: &Rig,
     rig_text: &str,

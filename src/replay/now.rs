@@ -13,7 +13,8 @@ pub fn rewrite(payload: &Payload, at: UtcNanos) -> Payload {
         Payload::LidarData(b) => {
             let mut b = b.clone();
             if b.len() >= 1204 {
-                b[1200..1204].copy_from_slice(&((at.nanos_past_hour() / 1000) as u32).to_le_bytes());
+                b[1200..1204]
+                    .copy_from_slice(&((at.nanos_past_hour() / 1000) as u32).to_le_bytes());
             }
             Payload::LidarData(b)
         }
@@ -62,7 +63,10 @@ mod tests {
         let Payload::LidarData(b) = rewrite(&Payload::LidarData(vec![0; 1206]), at) else {
             panic!("a data packet stays a data packet");
         };
-        assert_eq!(u32::from_le_bytes([b[1200], b[1201], b[1202], b[1203]]), 1_234_567);
+        assert_eq!(
+            u32::from_le_bytes([b[1200], b[1201], b[1202], b[1203]]),
+            1_234_567
+        );
         assert!(b[..1200].iter().chain(&b[1204..]).all(|&x| x == 0));
     }
 
@@ -71,16 +75,18 @@ mod tests {
         let rmc = hilrig_gnss::framer::nmea_sentence(
             "GPRMC,101010,V,4807.038,N,01131.000,E,000.0,000.0,010120,,,A",
         );
-        let old =
-            hilrig_velodyne::PositionPacket::new(7, hilrig_velodyne::PpsStatus::Absent, &rmc)
-                .encode()
-                .to_vec();
+        let old = hilrig_velodyne::PositionPacket::new(7, hilrig_velodyne::PpsStatus::Absent, &rmc)
+            .encode()
+            .to_vec();
         // 2026-11-22T14:05:06.5Z
         let at = UtcNanos(1_795_356_306_500_000_000);
         let new = position_now(&old, at);
         let p = hilrig_velodyne::PositionPacket::decode(&new).unwrap();
         assert_eq!(p.pps_byte, 2);
-        assert_eq!(u64::from(p.timestamp_us), (at.nanos_past_hour() / 1000) as u64);
+        assert_eq!(
+            u64::from(p.timestamp_us),
+            (at.nanos_past_hour() / 1000) as u64
+        );
         let s = p.nmea().unwrap();
         assert!(s.contains(",140506,A,") && s.contains(",221126,"), "{s}");
     }

@@ -182,9 +182,8 @@ impl CanSink {
         let rt = tokio::runtime::Builder::new_current_thread()
             .enable_all()
             .build()?;
-        let socket = rt.block_on(async {
-            hilrig_can::socketcan_source::SocketCanSource::open(interface)
-        })?;
+        let socket =
+            rt.block_on(async { hilrig_can::socketcan_source::SocketCanSource::open(interface) })?;
         Ok(CanSink { rt, socket })
     }
 }

@@ -23,6 +23,10 @@
 //! ```
 //!
 //! The sensor, GNSS, CAN and survey error sections are documented on their structs.
+//!
+//! Long file: the drive file format (every table documented, as users read it) and the
+//! driver that turns it into a trajectory share their types; split, the format would be documented
+//! in one file and interpreted in another.
 
 use crate::scene::pose::{PoseSample, Trajectory};
 use hilrig_stamp::UtcNanos;
@@ -484,6 +488,10 @@ impl DriveFile {
     }
 
     /// Drives the path once, with human variation drawn from `rng` (none when `vary` is false).
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one time-stepping loop whose state (speed, position, yield phase, variation) every step shares"
+    )]
     pub fn drive(&self, rng: &mut impl Rng, vary: bool) -> Result<Driven, DriveError> {
         let bad = |what: String| DriveError::Invalid {
             name: self.name.clone(),

@@ -13,8 +13,8 @@
 //! that time too.
 
 use super::model::{Effect, ModelError, ModelFile};
-use crate::scene::pose::{mounting_isometry, Trajectory};
 use crate::rig::Mounting;
+use crate::scene::pose::{mounting_isometry, Trajectory};
 use crate::scene::{ActorPoses, Scene};
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::packet::{ReturnMode, BLOCKS, CHANNELS};

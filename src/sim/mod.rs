@@ -6,6 +6,7 @@ pub mod lidar;
 pub mod model;
 pub mod resim;
 pub mod spin;
+mod streams;
 pub mod synth;
 
 pub use lidar::{Echo, LidarSim, PacketTime, Returns, SimStats};

@@ -14,12 +14,12 @@ use super::lidar::{LidarSim, PacketTime, SimStats};
 use super::model::ModelFile;
 use crate::bag::cdr::CdrReader;
 use crate::bag::read::{read, Event};
-use crate::bag::{msgs, BagOptions, BagWriter};
-use crate::scene::pose::Trajectory;
 use crate::bag::topics;
+use crate::bag::{msgs, BagOptions, BagWriter};
 use crate::reference::check::{check_with_trajectory, Report, Verdict};
 use crate::reference::run::Run;
 use crate::rig::Rig;
+use crate::scene::pose::Trajectory;
 use crate::scene::Scene;
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::{Calibration, DataPacket, Decoder, Model, DATA_PACKET_SIZE};
@@ -88,6 +88,10 @@ fn sensor_time(timestamp_us: u32, near: UtcNanos) -> UtcNanos {
 /// Re-simulates the run at `run_path` into `out` with `rig` (default: the rig file attached to
 /// the recording). `progress(done, total)` is called per scan.
 #[allow(clippy::too_many_arguments)]
+#[allow(
+    clippy::too_many_lines,
+    reason = "read, check, pose source, parallel casting and writing hand large borrowed state on in order; the casting itself is LidarSim"
+)]
 pub fn resim(
     run_path: &Path,
     rig: Option<&Rig>,

@@ -17,18 +17,18 @@ use super::drive::{DriveFile, Driven};
 use super::lidar::{LidarSim, SimStats};
 use super::model::ModelFile;
 use super::spin::Spin;
-use crate::scene::geodesy::Enu;
+use super::streams::{hms, nmea_lat_lon, Streams};
 use crate::rig::Rig;
 use crate::scene::file::{ActorFile, SceneFile};
+use crate::scene::geodesy::Enu;
 use crate::scene::Scene;
 use hilrig_can::dbc::Database;
 use hilrig_capture::writer::udp_ethernet_frame;
-use hilrig_capture::{CanFrame, LinkType, PcapngWriter};
+use hilrig_capture::{LinkType, PcapngWriter};
 use hilrig_gnss::framer::nmea_sentence;
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::packet::ReturnMode;
 use hilrig_velodyne::{Calibration, Model, PositionPacket, PpsStatus};
-use nalgebra::{Point3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -108,38 +108,6 @@ fn stream_rng(seed: u64, rep: u32, purpose: u64) -> ChaCha8Rng {
     ChaCha8Rng::seed_from_u64(z ^ (z >> 31))
 }
 
-fn hms(t: UtcNanos) -> (String, String) {
-    let tod = t.0.rem_euclid(86_400_000_000_000);
-    let days = t.0.div_euclid(86_400_000_000_000);
-    let (y, m, d) = hilrig_stamp::civil::civil_from_days(days);
-    (
-        format!(
-            "{:02}{:02}{:02}.{:02}",
-            tod / 3_600_000_000_000,
-            tod / 60_000_000_000 % 60,
-            tod / 1_000_000_000 % 60,
-            tod / 10_000_000 % 100
-        ),
-        format!("{d:02}{m:02}{:02}", y.rem_euclid(100)),
-    )
-}
-
-fn nmea_lat_lon(lat: f64, lon: f64) -> String {
-    let f = |v: f64, width: usize| {
-        let a = v.abs();
-        let deg = a.floor();
-        let min = (a - deg) * 60.0;
-        format!("{:0width$}{:010.7}", deg as i64, min, width = width)
-    };
-    format!(
-        "{},{},{},{}",
-        f(lat, 2),
-        if lat >= 0.0 { 'N' } else { 'S' },
-        f(lon, 3),
-        if lon >= 0.0 { 'E' } else { 'W' }
-    )
-}
-
 fn write_file(path: &Path, bytes: &[u8]) -> Result<(), SynthError> {
     std::fs::write(path, bytes).map_err(|source| SynthError::Io {
         path: path.to_owned(),
@@ -148,40 +116,25 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), SynthError> {
 }
 
 /// Synthesizes repetition `rep` (1-based) into `dir`.
+#[allow(
+    clippy::too_many_lines,
+    reason = "the lidar stream (spin schedule, parallel casting, loss, position packets) in order; rig parts, scenes, GNSS/CAN streams and the capture are functions of their own"
+)]
 pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, SynthError> {
     let input = |e: String| SynthError::Input(e);
-    let rig_path = job.drive_base.join(&job.drive.rig);
-    let rig = Rig::load(&rig_path).map_err(|e| input(e.to_string()))?;
+    let RigParts {
+        rig,
+        model,
+        calibration,
+        dbc,
+        mode,
+    } = rig_parts(job)?;
     let lidar = rig
         .lidar
         .as_ref()
-        .ok_or_else(|| input(format!("{}: synth needs a [lidar]", rig_path.display())))?;
-    let model: Model = lidar.model.parse().map_err(input)?;
-    let calibration = match &lidar.calibration {
-        Some(p) => {
-            Calibration::from_file(&rig.resolve(p), model).map_err(|e| input(e.to_string()))?
-        }
-        None => Calibration::builtin(model),
-    };
-    let gnss_cfg = rig
-        .gnss
-        .as_ref()
-        .ok_or_else(|| input(format!("{}: synth needs a [gnss]", rig_path.display())))?;
-    let can_cfg = rig
-        .can
-        .as_ref()
-        .ok_or_else(|| input(format!("{}: synth needs a [can]", rig_path.display())))?;
-    let dbc = Database::from_file(&rig.resolve(&can_cfg.dbc)).map_err(|e| input(e.to_string()))?;
-    let mode = match job.drive.lidar.return_mode.as_str() {
-        "strongest" => ReturnMode::Strongest,
-        "last" => ReturnMode::Last,
-        "dual" => ReturnMode::Dual,
-        other => {
-            return Err(input(format!(
-                "lidar return_mode '{other}': expected strongest, last or dual"
-            )))
-        }
-    };
+        .ok_or_else(|| input("no [lidar]".into()))?;
+    let gnss_cfg = rig.gnss.as_ref().ok_or_else(|| input("no [gnss]".into()))?;
+    let can_cfg = rig.can.as_ref().ok_or_else(|| input("no [can]".into()))?;
 
     std::fs::create_dir_all(dir).map_err(|source| SynthError::Io {
         path: dir.to_owned(),
@@ -197,72 +150,7 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
     let truth_csv = driven.ego.to_csv();
     driven.ego = crate::scene::pose::Trajectory::from_csv(&truth_csv).map_err(input)?;
 
-    // The true scene with this repetition's walkers.
-    let mut truth_file = job.scene_file.clone();
-    let mut surveyed = job.scene_file.clone();
-    for (name, traj) in &driven.walkers {
-        let csv = dir.join(format!(
-            "{}.csv",
-            name.replace(|c: char| !c.is_alphanumeric(), "_")
-        ));
-        write_file(&csv, traj.to_csv().as_bytes())?;
-        let csv = std::path::absolute(&csv).map_err(|source| SynthError::Io {
-            path: csv.clone(),
-            source,
-        })?;
-        let mut found = false;
-        for (a, s) in truth_file.actors.iter_mut().zip(surveyed.actors.iter_mut()) {
-            if &a.name == name {
-                a.trajectory = csv.clone();
-                s.trajectory = PathBuf::from(csv.file_name().unwrap_or_default());
-                found = true;
-            }
-        }
-        if !found {
-            return Err(input(format!(
-                "drive walker '{name}' is not an actor of the scene"
-            )));
-        }
-    }
-    // Actors of the scene without a walk keep their trajectory files (resolved absolutely).
-    for a in truth_file.actors.iter_mut() {
-        if a.trajectory.is_relative() {
-            a.trajectory = job.scene_base.join(&a.trajectory);
-        }
-    }
-    let scene = Scene::from_file(truth_file, job.scene_base, Path::new("scene"))
-        .map_err(|e| input(e.to_string()))?;
-
-    // The surveyed scene: each static object displaced by the survey error.
-    let mut survey_rng = stream_rng(job.seed, rep, 2);
-    let sigma = if errors {
-        job.drive.survey.sigma_m
-    } else {
-        0.0
-    };
-    let survey_noise = Normal::new(0.0, sigma.max(0.0)).map_err(|e| input(e.to_string()))?;
-    for o in &mut surveyed.objects {
-        o.pose.x += survey_noise.sample(&mut survey_rng);
-        o.pose.y += survey_noise.sample(&mut survey_rng);
-        o.accuracy_m = o.accuracy_m.max(sigma);
-    }
-    for o in surveyed.objects.iter_mut().flat_map(|o| o.parts.iter_mut()) {
-        if let crate::scene::Shape::Mesh { file, .. } = o {
-            *file = std::path::absolute(job.scene_base.join(&*file)).unwrap_or(file.clone());
-        }
-    }
-    surveyed
-        .actors
-        .retain(|a: &ActorFile| driven.walkers.iter().any(|(n, _)| n == &a.name));
-    let text = toml::to_string(&surveyed).map_err(|e| input(e.to_string()))?;
-    write_file(
-        &dir.join("scene.toml"),
-        format!(
-            "# Scene as surveyed for repetition {rep} (static objects with survey error, sigma {sigma} m).\n{text}"
-        )
-        .as_bytes(),
-    )?;
-    write_file(&dir.join("truth.csv"), truth_csv.as_bytes())?;
+    let scene = write_scenes(job, rep, dir, &driven, &truth_csv)?;
 
     let sim = LidarSim::new(&scene, model, calibration, &lidar.mounting, job.truth)
         .map_err(|e| input(e.to_string()))?;
@@ -389,199 +277,127 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
     }
     summary.return_share = returns as f64 / firings.max(1) as f64;
 
-    // GNSS: fixes of the antenna (lever arm from the rig) with RTK noise (Gauss-Markov).
-    let gs = &job.drive.gnss;
-    let mut grng = stream_rng(job.seed, rep, 4);
-    let enu = Enu::new(&job.scene_file.origin);
-    let dt = 1.0 / gs.rate_hz;
-    let phi = (-dt / gs.correlation_s.max(1e-3)).exp();
-    let drive_h = (1.0 - phi * phi).sqrt() * gs.sigma_horizontal_m;
-    let drive_v = (1.0 - phi * phi).sqrt() * gs.sigma_vertical_m;
-    let unit = Normal::new(0.0, 1.0).map_err(|e| input(e.to_string()))?;
-    let mut noise = Vector3::new(
-        unit.sample(&mut grng) * gs.sigma_horizontal_m,
-        unit.sample(&mut grng) * gs.sigma_horizontal_m,
-        unit.sample(&mut grng) * gs.sigma_vertical_m,
-    );
-    // Where the antenna really is (the rig file's lever arm plus any injected error).
-    let lever = Vector3::new(
-        gnss_cfg.antenna.x + faults.antenna_error_m[0],
-        gnss_cfg.antenna.y + faults.antenna_error_m[1],
-        gnss_cfg.antenna.z + faults.antenna_error_m[2],
-    );
-    let offset_ns = (faults.gnss_time_offset_ms * 1e6).round() as i64;
-    let step_ns = (1e9 / gs.rate_hz).round() as i64;
-    let mut t = UtcNanos(start.0 + (step_ns - start.0.rem_euclid(step_ns)) % step_ns);
-    let mut hint = 0;
-    while t <= end {
-        // A fix labelled `t` describes the instant `t - offset` (a receiver time offset).
-        let Some(p) = driven.ego.sample_at(UtcNanos(t.0 - offset_ns), &mut hint) else {
-            t = UtcNanos(t.0 + step_ns);
-            continue;
-        };
-        let ts = since_start(t);
-        let rtk_fault = faults
-            .rtk
-            .iter()
-            .find(|f| ts >= f.from_s && ts < f.to_s)
-            .map(|f| f.quality);
-        let spike = faults
-            .sigma_spike
-            .iter()
-            .find(|f| ts >= f.from_s && ts < f.to_s)
-            .map(|f| f.sigma_m);
-        // Degraded solutions: float about 0.2 m, DGNSS 0.5 m, autonomous 1.5 m (1 sigma).
-        let (quality, sigma_h, sigma_v) = match (rtk_fault, spike) {
-            (Some(q), _) => {
-                let s = match q {
-                    5 => 0.20,
-                    2 => 0.50,
-                    _ => 1.50,
-                };
-                (q, s, 2.0 * s)
-            }
-            (None, Some(s)) => (4, s, 2.0 * s),
-            (None, None) => (4, gs.sigma_horizontal_m, gs.sigma_vertical_m),
-        };
-        let extra = if errors && sigma_h > gs.sigma_horizontal_m {
-            Vector3::new(
-                unit.sample(&mut grng) * sigma_h,
-                unit.sample(&mut grng) * sigma_h,
-                unit.sample(&mut grng) * sigma_v,
-            )
-        } else {
-            Vector3::zeros()
-        };
-        noise = Vector3::new(
-            phi * noise.x + drive_h * unit.sample(&mut grng),
-            phi * noise.y + drive_h * unit.sample(&mut grng),
-            phi * noise.z + drive_v * unit.sample(&mut grng),
-        );
-        let antenna = p.isometry().transform_point(&Point3::from(lever)).coords
-            + if errors { noise } else { Vector3::zeros() }
-            + extra;
-        let w = enu.to_wgs84(&antenna);
-        let (hms_s, date) = hms(t);
-        let ll = nmea_lat_lon(w.latitude_deg, w.longitude_deg);
-        let mut vh = 0;
-        let vel = driven.ego.velocity_at(t, &mut vh).unwrap_or_default();
-        let sog_kn = vel.xy().norm() / 0.514_444;
-        let cog = (90.0 - vel.y.atan2(vel.x).to_degrees()).rem_euclid(360.0);
-        let alt = w.height_m - gs.geoid_separation_m;
-        let body = [
-            format!(
-                "GNGGA,{hms_s},{ll},{quality},14,0.7,{alt:.3},M,{:.3},M,{},{}",
-                gs.geoid_separation_m,
-                if quality >= 4 { "1.0" } else { "" },
-                if quality >= 4 { "0042" } else { "" },
-            ),
-            format!("GNRMC,{hms_s},A,{ll},{sog_kn:.3},{cog:.2},{date},,,R"),
-            format!(
-                "GNGST,{hms_s},{:.3},{:.3},{:.3},0.0,{:.3},{:.3},{:.3}",
-                (2.0 * sigma_h.powi(2) + sigma_v.powi(2)).sqrt(),
-                sigma_h,
-                sigma_h,
-                sigma_h,
-                sigma_h,
-                sigma_v
-            ),
-        ];
-        let mut bytes = Vec::new();
-        for b in &body {
-            bytes.extend(nmea_sentence(b).bytes());
-            summary.sentences += 1;
-        }
-        let lat_ns = gs.latency_ms * 1e6
-            + if errors {
-                (unit.sample(&mut grng) * gs.jitter_ms * 1e6).abs()
-            } else {
-                0.0
-            };
-        events.push((t.0 + lat_ns as i64, SER, bytes));
-        t = UtcNanos(t.0 + step_ns);
-    }
+    let streams = Streams {
+        driven: &driven,
+        faults: &faults,
+        errors,
+        span: (start, end),
+        origin: &job.scene_file.origin,
+    };
+    let (gnss, sentences) = streams
+        .gnss(&job.drive.gnss, gnss_cfg, &mut stream_rng(job.seed, rep, 4))
+        .map_err(input)?;
+    summary.sentences += sentences;
+    events.extend(gnss.into_iter().map(|(t, b)| (t, SER, b)));
+    let can = streams
+        .can(
+            &job.drive.can,
+            can_cfg,
+            &dbc,
+            &mut stream_rng(job.seed, rep, 5),
+        )
+        .map_err(input)?;
+    summary.can_frames += can.len() as u64;
+    events.extend(can.into_iter().map(|(t, b)| (t, CAN, b)));
 
-    // CAN: ego motion from the rig's DBC mapping.
-    let cs = &job.drive.can;
-    let mut crng = stream_rng(job.seed, rep, 5);
-    let ego_map = &can_cfg.ego;
-    let speed_map = ego_map
-        .speed
-        .as_ref()
-        .ok_or_else(|| input("the rig's [can.ego] has no speed".into()))?;
-    let msg = dbc
-        .message_by_name(&speed_map.message)
-        .ok_or_else(|| input(format!("DBC has no message '{}'", speed_map.message)))?;
-    let index = |name: &str| msg.signals.iter().position(|s| s.name == name);
-    let step_ns = (1e9 / cs.rate_hz).round() as i64;
-    let mut t = UtcNanos(start.0 + step_ns / 2);
-    let mut counter = 0u32;
-    let mut hint = 0;
-    while t <= end {
-        let Some(seg) = driven.ego.segment(t, &mut hint) else {
-            break;
-        };
-        // Speed and yaw rate at `t` itself (between the 10 ms samples), so that CAN carries no
-        // timing error beyond its latency.
-        let samples = driven.ego.samples();
-        let f = if seg + 1 < samples.len() {
-            (t.0 - samples[seg].t.0) as f64 / (samples[seg + 1].t.0 - samples[seg].t.0) as f64
-        } else {
-            0.0
-        };
-        let (m0, m1) = (
-            driven.motion[seg],
-            driven.motion[(seg + 1).min(samples.len() - 1)],
-        );
-        let (v, w) = (m0.0 + (m1.0 - m0.0) * f, m0.1 + (m1.1 - m0.1) * f);
-        let noisy = |x: f64, s: f64, r: &mut ChaCha8Rng| {
-            if errors {
-                x + Normal::new(0.0, s).map_or(0.0, |n| n.sample(r))
-            } else {
-                x
-            }
-        };
-        let mut values = Vec::new();
-        let si_to = |m: &hilrig_can::ego::SignalMap, si: f64| m.unit.from_si(si / m.scale);
-        if let Some(i) = index(&speed_map.signal) {
-            let v_read = v * faults.can_speed_scale;
-            values.push((
-                i,
-                si_to(speed_map, noisy(v_read, cs.speed_sigma_mps, &mut crng)),
-            ));
-        }
-        if let Some(m) = ego_map.yaw_rate.as_ref().filter(|m| m.message == msg.name) {
-            if let Some(i) = index(&m.signal) {
-                values.push((i, si_to(m, noisy(w, cs.yaw_rate_sigma_rps, &mut crng))));
-            }
-        }
-        if let Some(m) = ego_map
-            .steering_wheel_angle
-            .as_ref()
-            .filter(|m| m.message == msg.name)
-        {
-            if let Some(i) = index(&m.signal) {
-                // Bicycle model: wheel angle atan(L κ), steering ratio 15, wheelbase 2.7 m.
-                let kappa = if v > 0.1 { w / v } else { 0.0 };
-                values.push((i, si_to(m, (2.7 * kappa).atan() * 15.0)));
-            }
-        }
-        if let Some(i) = index("Counter") {
-            values.push((i, f64::from(counter % 16)));
-        }
-        counter += 1;
-        let data = msg.encode(&values);
-        let frame = CanFrame::new(msg.id, msg.extended, &data)
-            .ok_or_else(|| input(format!("message {} does not fit a CAN frame", msg.name)))?;
-        events.push((
-            t.0 + (cs.latency_ms * 1e6) as i64,
-            CAN,
-            frame.encode_socketcan(),
+    summary.capture = write_capture(job, rep, dir, events, gnss_cfg, can_cfg, &summary)?;
+    Ok(summary)
+}
+
+/// The true scene of repetition `rep` with its walkers (what the lidar sees), and into `dir` the
+/// scene as surveyed (static objects displaced by the survey error), the walkers' CSVs and the
+/// truth trajectory.
+fn write_scenes(
+    job: &SynthJob,
+    rep: u32,
+    dir: &Path,
+    driven: &Driven,
+    truth_csv: &str,
+) -> Result<Scene, SynthError> {
+    let input = |e: String| SynthError::Input(e);
+    let errors = job.errors;
+    // The true scene with this repetition's walkers.
+    let mut truth_file = job.scene_file.clone();
+    let mut surveyed = job.scene_file.clone();
+    for (name, traj) in &driven.walkers {
+        let csv = dir.join(format!(
+            "{}.csv",
+            name.replace(|c: char| !c.is_alphanumeric(), "_")
         ));
-        summary.can_frames += 1;
-        t = UtcNanos(t.0 + step_ns);
+        write_file(&csv, traj.to_csv().as_bytes())?;
+        let csv = std::path::absolute(&csv).map_err(|source| SynthError::Io {
+            path: csv.clone(),
+            source,
+        })?;
+        let mut found = false;
+        for (a, s) in truth_file.actors.iter_mut().zip(surveyed.actors.iter_mut()) {
+            if &a.name == name {
+                a.trajectory = csv.clone();
+                s.trajectory = PathBuf::from(csv.file_name().unwrap_or_default());
+                found = true;
+            }
+        }
+        if !found {
+            return Err(input(format!(
+                "drive walker '{name}' is not an actor of the scene"
+            )));
+        }
     }
+    // Actors of the scene without a walk keep their trajectory files (resolved absolutely).
+    for a in truth_file.actors.iter_mut() {
+        if a.trajectory.is_relative() {
+            a.trajectory = job.scene_base.join(&a.trajectory);
+        }
+    }
+    let scene = Scene::from_file(truth_file, job.scene_base, Path::new("scene"))
+        .map_err(|e| input(e.to_string()))?;
 
+    // The surveyed scene: each static object displaced by the survey error.
+    let mut survey_rng = stream_rng(job.seed, rep, 2);
+    let sigma = if errors {
+        job.drive.survey.sigma_m
+    } else {
+        0.0
+    };
+    let survey_noise = Normal::new(0.0, sigma.max(0.0)).map_err(|e| input(e.to_string()))?;
+    for o in &mut surveyed.objects {
+        o.pose.x += survey_noise.sample(&mut survey_rng);
+        o.pose.y += survey_noise.sample(&mut survey_rng);
+        o.accuracy_m = o.accuracy_m.max(sigma);
+    }
+    for o in surveyed.objects.iter_mut().flat_map(|o| o.parts.iter_mut()) {
+        if let crate::scene::Shape::Mesh { file, .. } = o {
+            *file = std::path::absolute(job.scene_base.join(&*file)).unwrap_or(file.clone());
+        }
+    }
+    surveyed
+        .actors
+        .retain(|a: &ActorFile| driven.walkers.iter().any(|(n, _)| n == &a.name));
+    let text = toml::to_string(&surveyed).map_err(|e| input(e.to_string()))?;
+    write_file(
+        &dir.join("scene.toml"),
+        format!(
+            "# Scene as surveyed for repetition {rep} (static objects with survey error, sigma {sigma} m).\n{text}"
+        )
+        .as_bytes(),
+    )?;
+    write_file(&dir.join("truth.csv"), truth_csv.as_bytes())?;
+    Ok(scene)
+}
+
+/// Sorts the events by receive time and writes them as `drive.pcapng[.zst]` (interfaces:
+/// Ethernet, the GNSS serial port, CAN), with the manifest `truth.toml`; returns the capture's
+/// file name.
+fn write_capture(
+    job: &SynthJob,
+    rep: u32,
+    dir: &Path,
+    mut events: Vec<(i64, u32, Vec<u8>)>,
+    gnss_cfg: &crate::rig::GnssConfig,
+    can_cfg: &crate::rig::CanConfig,
+    summary: &RepSummary,
+) -> Result<PathBuf, SynthError> {
+    let errors = job.errors;
     events.sort_by_key(|e| e.0);
     let mut w = PcapngWriter::new(Vec::new(), "hilrig synth").map_err(|source| SynthError::Io {
         path: dir.to_owned(),
@@ -609,13 +425,65 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         ("drive.pcapng", bytes)
     };
     write_file(&dir.join(name), &bytes)?;
-    summary.capture = PathBuf::from(name);
     let manifest = format!(
         "# What only the synthesizer knows about repetition {rep}.\nseed = {}\nrepetition = {rep}\nmodel = {:?}\nerrors = {errors}\n\n[summary]\n{}",
         job.seed,
         job.truth.name,
-        toml::to_string(&summary).unwrap_or_default()
+        toml::to_string(&RepSummary { capture: PathBuf::from(name), ..summary.clone() }).unwrap_or_default()
     );
     write_file(&dir.join("truth.toml"), manifest.as_bytes())?;
-    Ok(summary)
+    Ok(PathBuf::from(name))
+}
+
+/// What synthesis needs of the drive's rig, each part checked.
+struct RigParts {
+    rig: Rig,
+    model: Model,
+    calibration: Calibration,
+    dbc: Database,
+    mode: ReturnMode,
+}
+
+/// The drive's rig with a lidar, a GNSS receiver and CAN, the lidar's calibration, the DBC and
+/// the return mode, or the input problem that prevents synthesis.
+fn rig_parts(job: &SynthJob) -> Result<RigParts, SynthError> {
+    let input = |e: String| SynthError::Input(e);
+    let rig_path = job.drive_base.join(&job.drive.rig);
+    let rig = Rig::load(&rig_path).map_err(|e| input(e.to_string()))?;
+    let lidar = rig
+        .lidar
+        .as_ref()
+        .ok_or_else(|| input(format!("{}: synth needs a [lidar]", rig_path.display())))?;
+    let model: Model = lidar.model.parse().map_err(input)?;
+    let calibration = match &lidar.calibration {
+        Some(p) => {
+            Calibration::from_file(&rig.resolve(p), model).map_err(|e| input(e.to_string()))?
+        }
+        None => Calibration::builtin(model),
+    };
+    rig.gnss
+        .as_ref()
+        .ok_or_else(|| input(format!("{}: synth needs a [gnss]", rig_path.display())))?;
+    let can_cfg = rig
+        .can
+        .as_ref()
+        .ok_or_else(|| input(format!("{}: synth needs a [can]", rig_path.display())))?;
+    let dbc = Database::from_file(&rig.resolve(&can_cfg.dbc)).map_err(|e| input(e.to_string()))?;
+    let mode = match job.drive.lidar.return_mode.as_str() {
+        "strongest" => ReturnMode::Strongest,
+        "last" => ReturnMode::Last,
+        "dual" => ReturnMode::Dual,
+        other => {
+            return Err(input(format!(
+                "lidar return_mode '{other}': expected strongest, last or dual"
+            )))
+        }
+    };
+    Ok(RigParts {
+        rig,
+        model,
+        calibration,
+        dbc,
+        mode,
+    })
 }

@@ -4,7 +4,7 @@
 //! EFF/RTR/ERR flags in its top bits), payload length, CAN FD flags, two reserved bytes; then the
 //! payload. Classic frames are padded to 8 bytes on the wire of the socket; we keep only `len`.
 
-use crate::demux::SkipReason;
+use crate::error::SkipReason;
 
 const EFF_FLAG: u32 = 0x8000_0000;
 const RTR_FLAG: u32 = 0x4000_0000;

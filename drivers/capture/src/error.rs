@@ -1,9 +1,10 @@
-//! Errors that end reading a capture file.
-//!
-//! Problems with a single packet (not IPv4, a bad UDP length, an unknown link type) are not
-//! errors: [`crate::demux`] counts them as skips and reading goes on. What is here stops the
-//! stream, and always says where in the file it happened and what to do.
+//! What can go wrong reading a capture: [`CaptureError`] ends the stream, and always says
+//! where in the file it happened and what to do; [`SkipReason`] is why a single record was not
+//! turned into a packet (not IPv4, a bad UDP length, an unknown link type): [`crate::demux`]
+//! counts those and reading goes on. Both live here, below every decoding layer, so that the
+//! layers (link, IPv4, CAN) and the demultiplexer over them import in one direction only.
 
+use std::fmt;
 use std::io;
 
 /// Why a capture file cannot be read (further).
@@ -68,4 +69,46 @@ pub enum CaptureError {
         /// How many interfaces the section declared.
         declared: usize,
     },
+}
+
+/// Why a record was not turned into a packet.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum SkipReason {
+    /// A link type this reader does not decode (number attached).
+    UnsupportedLinkType(u16),
+    /// The frame is shorter than its link-layer header.
+    TruncatedLinkHeader,
+    /// Not IPv4 (ARP, IPv6, LLDP, ...).
+    NotIpv4,
+    /// IPv4, but not UDP (protocol number attached).
+    NotUdp(u8),
+    /// Shorter than the IPv4 header or its total length.
+    TruncatedIpv4,
+    /// IPv4 header length fields are inconsistent.
+    BadIpv4Header,
+    /// Shorter than a UDP header.
+    TruncatedUdp,
+    /// UDP length field is beyond the datagram.
+    BadUdpLength,
+    /// The SocketCAN record is malformed.
+    BadCanFrame,
+    /// The capture's snap length cut the packet (caplen < original length).
+    CutBySnapLength,
+}
+
+impl fmt::Display for SkipReason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SkipReason::UnsupportedLinkType(l) => write!(f, "unsupported link type {l}"),
+            SkipReason::TruncatedLinkHeader => f.write_str("frame shorter than its link header"),
+            SkipReason::NotIpv4 => f.write_str("not IPv4"),
+            SkipReason::NotUdp(p) => write!(f, "IPv4 protocol {p}, not UDP"),
+            SkipReason::TruncatedIpv4 => f.write_str("truncated IPv4 packet"),
+            SkipReason::BadIpv4Header => f.write_str("inconsistent IPv4 header"),
+            SkipReason::TruncatedUdp => f.write_str("truncated UDP header"),
+            SkipReason::BadUdpLength => f.write_str("UDP length beyond the packet"),
+            SkipReason::BadCanFrame => f.write_str("malformed SocketCAN frame"),
+            SkipReason::CutBySnapLength => f.write_str("packet cut by the capture's snap length"),
+        }
+    }
 }

@@ -8,7 +8,7 @@
 //! UDP checksums are not verified: NIC checksum offload leaves them wrong in most captures taken on
 //! the sending host, so checking them would reject good data.
 
-use crate::demux::SkipReason;
+use crate::error::SkipReason;
 use hilrig_stamp::UtcNanos;
 use std::collections::BTreeMap;
 use std::net::{Ipv4Addr, SocketAddrV4};

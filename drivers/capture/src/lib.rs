@@ -30,8 +30,8 @@ pub mod reader;
 pub mod writer;
 
 pub use can::CanFrame;
-pub use demux::{Demux, Packet, SkipReason, Stats};
-pub use error::CaptureError;
+pub use demux::{Demux, Packet, Stats};
+pub use error::{CaptureError, SkipReason};
 pub use hilrig_stamp::UtcNanos;
 pub use link::LinkType;
 pub use reader::{CaptureReader, Interface, Record};

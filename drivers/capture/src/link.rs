@@ -5,7 +5,7 @@
 //! SLL2), raw IPv4, and BSD loopback (`NULL`). Anything else is reported as a skip with the
 //! reason, never silently dropped.
 
-use crate::demux::SkipReason;
+use crate::error::SkipReason;
 
 /// A pcap link-layer type number (LINKTYPE_*).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -1,0 +1,354 @@
+//! GNSS against CAN: what the antenna's track says about the other reference sources.
+//!
+//! - CAN speed scale: GNSS speed regressed on CAN speed (and acceleration, so that a time offset
+//!   does not bend the scale) on straight driving;
+//! - GNSS time offset and the antenna's forward lever arm, as constant states of the smoother: a
+//!   time offset misfits along track whenever the speed changes (v·δ: 11 cm for 50 ms at
+//!   8 km/h), a lever-arm error sideways in turns, which CAN (no side slip) cannot explain;
+//! - jumps: epochs the smoothed trajectory cannot explain once those errors are taken out;
+//! - yaw rate against the GNSS course rate over a second, speed residuals, travelled distance.
+
+use super::faults::{secs, FaultLog};
+use super::report::{Spatial, Stats};
+use crate::reference::run::{Motion, Run};
+use crate::reference::trajectory::{EgoTrajectory, GnssObs, Settings};
+use crate::rig::Thresholds;
+use hilrig_stamp::UtcNanos;
+use nalgebra::Vector2;
+
+/// What the GNSS-against-CAN measurements read.
+pub(super) struct Inputs<'a> {
+    /// The run (CAN motion).
+    pub run: &'a Run,
+    /// The rig's limits.
+    pub th: &'a Thresholds,
+    /// Antenna positions in the local frame.
+    pub obs: &'a [GnssObs],
+    /// Per epoch: RTK fixed.
+    pub fixed: &'a [bool],
+    /// Per epoch: fixed and within the sigma limits (good enough to differentiate).
+    pub good: &'a [bool],
+    /// CAN motion as (time, speed, yaw rate).
+    pub motion: &'a [(UtcNanos, f64, f64)],
+    /// The rig's antenna position (x forward, y left), m.
+    pub lever: Vector2<f64>,
+    /// The GNSS epoch period, ns.
+    pub gnss_period: i64,
+    /// The run's start and end.
+    pub span: (UtcNanos, UtcNanos),
+}
+
+/// An antenna velocity from a central difference of fixed epochs.
+struct Vel {
+    t: UtcNanos,
+    speed: f64,
+    course: f64,
+}
+
+/// Speed scale, time offset, lever arm, jumps, yaw-rate and speed residuals and distances into
+/// `sp`, with their faults. Returns the GNSS time offset in seconds (0 when not determinable),
+/// which the accuracy budget needs.
+pub(super) fn gnss_against_can(
+    inp: &Inputs<'_>,
+    traj: &EgoTrajectory,
+    sp: &mut Spatial,
+    log: &mut FaultLog,
+) -> f64 {
+    let vels = antenna_velocities(inp);
+    let moving_span = speed_scale(inp, &vels, sp, log);
+    let (fitted, delta_fit, lever_fit) = offset_and_lever(inp, sp.can_speed_scale.unwrap_or(1.0));
+    let traj_fit = fitted.as_ref().unwrap_or(traj);
+    jumps(inp, traj_fit, sp, log);
+
+    let (start, end) = inp.span;
+    let offset_s = delta_fit.unwrap_or(0.0);
+    sp.gnss_time_offset_ms = delta_fit.map(|d| d * 1e3);
+    if (offset_s * 1e3).abs() > inp.th.max_time_offset_ms {
+        log.fault(
+                "gnss_time_offset",
+                moving_span.unwrap_or((start, end)).0,
+                moving_span.unwrap_or((start, end)).1,
+                format!(
+                "GNSS time stamps are {:.1} ms {} the instants they describe, fitted against CAN motion (limit {:.0} ms)",
+                offset_s.abs() * 1e3,
+                if offset_s > 0.0 { "later than" } else { "earlier than" },
+                inp.th.max_time_offset_ms
+                ),
+            );
+    }
+    let scale = sp.can_speed_scale.unwrap_or(1.0);
+    let delay = (offset_s * 1e9) as i64;
+    // Residuals, distances, yaw rate and lever arm with the measured scale and offset applied.
+    let yaw_res = yaw_rate_residuals(inp, &vels, delay);
+    let (speed_res, n_turn, turn_span) = speed_residuals_and_turns(inp, &vels, delay, scale);
+    if let (Some(x), true) = (lever_fit, n_turn >= 10) {
+        sp.lever_arm_x_measured_m = Some(x);
+        if (x - sp.lever_arm_x_rig_m).abs() > inp.th.max_lever_arm_error_m {
+            let span = turn_span.unwrap_or((start, end));
+            log.fault(
+                "lever_arm",
+                span.0,
+                span.1,
+                format!(
+                    "GNSS against CAN in turns puts the antenna {x:.2} m ahead of the rear axle; the rig file says {:.2} m ({n_turn} turning epochs; limit {:.2} m)",
+                    sp.lever_arm_x_rig_m, inp.th.max_lever_arm_error_m
+                ),
+            );
+        }
+    }
+    sp.speed_residual_mps = Stats::of(speed_res);
+    sp.yaw_rate_residual_rps = Stats::of(yaw_res);
+    sp.distance_can_m = inp
+        .run
+        .motion
+        .windows(2)
+        .map(|w| 0.5 * (w[0].speed + w[1].speed) * secs(w[0].t, w[1].t))
+        .sum();
+    sp.distance_gnss_m = inp
+        .obs
+        .windows(2)
+        .zip(inp.good.windows(2))
+        .filter(|(_, f)| f[0] && f[1])
+        .map(|(o, _)| (o[1].position - o[0].position).norm())
+        .sum();
+    offset_s
+}
+
+/// Antenna velocities on good epochs, central differences.
+fn antenna_velocities(inp: &Inputs<'_>) -> Vec<Vel> {
+    let (obs, good) = (inp.obs, inp.good);
+    let mut vels = Vec::new();
+    for k in 1..obs.len().saturating_sub(1) {
+        if !(good[k - 1] && good[k] && good[k + 1]) {
+            continue;
+        }
+        let dt = secs(obs[k - 1].t, obs[k + 1].t);
+        if dt <= 0.0 || dt > 3.0 * inp.gnss_period as f64 * 1e-9 {
+            continue;
+        }
+        let d = (obs[k + 1].position - obs[k - 1].position) / dt;
+        vels.push(Vel {
+            t: obs[k].t,
+            speed: d.norm(),
+            course: d.y.atan2(d.x),
+        });
+    }
+    vels
+}
+
+/// The CAN speed scale from straight driving into `sp`, with its fault; returns the span in
+/// which the ego moves.
+fn speed_scale(
+    inp: &Inputs<'_>,
+    vels: &[Vel],
+    sp: &mut Spatial,
+    log: &mut FaultLog,
+) -> Option<(UtcNanos, UtcNanos)> {
+    let motion = &inp.run.motion;
+    let accel_at = |t: UtcNanos| -> Option<f64> {
+        let h = 100_000_000;
+        let (a, _) = motion_at(motion, UtcNanos(t.0 - h))?;
+        let (b, _) = motion_at(motion, UtcNanos(t.0 + h))?;
+        Some((b - a) / 0.2)
+    };
+    // Straight driving: v_gnss = b1 v_can + b2 a_can (scale 1/b1, time offset -b2/b1).
+    let (mut s11, mut s12, mut s22, mut r1, mut r2, mut n_straight) = (0.0, 0.0, 0.0, 0.0, 0.0, 0);
+    let mut moving_span: Option<(UtcNanos, UtcNanos)> = None;
+    for v in vels {
+        let (Some((vc, w)), Some(a)) = (motion_at(motion, v.t), accel_at(v.t)) else {
+            continue;
+        };
+        if vc > 0.3 {
+            moving_span = Some(moving_span.map_or((v.t, v.t), |(s, _)| (s, v.t)));
+        }
+        if vc > 0.3 && w.abs() < 0.05 {
+            s11 += vc * vc;
+            s12 += vc * a;
+            s22 += a * a;
+            r1 += vc * v.speed;
+            r2 += a * v.speed;
+            n_straight += 1;
+        }
+    }
+    let det = s11 * s22 - s12 * s12;
+    if n_straight >= 20 && s11 > 0.0 {
+        let (b1, b2) = if s22 > 5.0 && det.abs() > 1e-9 {
+            ((r1 * s22 - r2 * s12) / det, (s11 * r2 - s12 * r1) / det)
+        } else {
+            (r1 / s11, 0.0)
+        };
+        if b1 > 0.0 {
+            let scale = 1.0 / b1;
+            sp.can_speed_scale = Some(scale);
+            // b2 (= -δ/scale) is not used: the smoother fits the time offset far better than a
+            // regression on the few accelerating epochs; it is in the model so that a time
+            // offset does not bend the scale.
+            let _ = b2;
+            let span = moving_span.unwrap_or(inp.span);
+            if (scale - 1.0).abs() > inp.th.max_speed_scale_error {
+                log.fault(
+                    "can_speed_scale",
+                    span.0,
+                    span.1,
+                    format!(
+                        "CAN speed is {:.2} % {} than GNSS speed ({n_straight} straight-driving epochs; limit {:.1} %)",
+                        (scale - 1.0).abs() * 100.0,
+                        if scale > 1.0 { "higher" } else { "lower" },
+                        inp.th.max_speed_scale_error * 100.0
+                    ),
+                );
+            }
+        }
+    }
+    moving_span
+}
+
+/// The smoother with the time offset and the forward lever arm as constant states, on CAN speed
+/// corrected by `speed_scale` (so that a scale error is not taken for a time offset). Returns
+/// the fitted trajectory, and the offset (s) and lever arm (m) where the drive makes them
+/// determinable (moving, resp. turning, with a small enough sigma).
+fn offset_and_lever(
+    inp: &Inputs<'_>,
+    speed_scale: f64,
+) -> (Option<EgoTrajectory>, Option<f64>, Option<f64>) {
+    let motion_fit: Vec<(UtcNanos, f64, f64)> = inp
+        .motion
+        .iter()
+        .map(|&(t, v, w)| (t, v / speed_scale, w))
+        .collect();
+    let fitted = EgoTrajectory::smooth(
+        inp.obs,
+        &motion_fit,
+        &Settings {
+            lever: inp.lever,
+            estimate_offset_and_lever: true,
+            ..Settings::default()
+        },
+    )
+    .ok();
+    let motion = &inp.run.motion;
+    let moving = motion.iter().filter(|m| m.speed > 0.5).count() >= 50;
+    let turning = motion
+        .iter()
+        .filter(|m| m.yaw_rate.abs() > 0.1 && m.speed > 0.5)
+        .count()
+        >= 50;
+    let (delta_fit, lever_fit) = match &fitted {
+        Some(f) => {
+            let (d, sd, x, sx) = f.offset_and_lever();
+            (
+                (moving && sd < 0.02).then_some(d),
+                (turning && sx < 0.1).then_some(x),
+            )
+        }
+        None => (None, None),
+    };
+    (fitted, delta_fit, lever_fit)
+}
+
+/// Fixed epochs more than the jump limit off `traj` (normalised innovation), with their
+/// faults, and the residual statistics of fixed epochs.
+fn jumps(inp: &Inputs<'_>, traj: &EgoTrajectory, sp: &mut Spatial, log: &mut FaultLog) {
+    sp.residual_m = Stats::of(
+        traj.residuals
+            .iter()
+            .zip(inp.fixed)
+            .filter(|(_, &f)| f)
+            .flat_map(|(r, _)| [r.error.x, r.error.y])
+            .map(f64::abs)
+            .collect(),
+    );
+    let jump_limit = inp.th.max_jump_sigma.powi(2);
+    let jumps: Vec<(UtcNanos, f64)> = traj
+        .residuals
+        .iter()
+        .zip(inp.fixed)
+        .filter(|(r, &f)| f && r.nis > jump_limit)
+        .map(|(r, _)| (r.t, r.error.norm()))
+        .collect();
+    sp.jumps = jumps.len();
+    log.runs("jump", &jumps, inp.gnss_period, |n, worst| {
+        format!(
+            "{n} fixed epochs more than {:.0} sigma off the trajectory that CAN speed and yaw rate allow (worst {worst:.3} m)",
+            inp.th.max_jump_sigma
+        )
+    });
+}
+
+/// The GNSS course change over about a second against integrated CAN yaw rate (over one epoch
+/// the course noise of a few cm/s at walking pace would swamp it), CAN shifted by `delay` ns.
+fn yaw_rate_residuals(inp: &Inputs<'_>, vels: &[Vel], delay: i64) -> Vec<f64> {
+    let motion = &inp.run.motion;
+    let gnss_period = inp.gnss_period;
+    let mut yaw_res = Vec::new();
+    let span_epochs = (1_000_000_000 / gnss_period.max(1)).max(1) as usize;
+    for k in 0..vels.len().saturating_sub(span_epochs) {
+        let (a, b) = (&vels[k], &vels[k + span_epochs]);
+        let dt = secs(a.t, b.t);
+        if dt <= 0.0
+            || dt > 1.5 * span_epochs as f64 * gnss_period as f64 * 1e-9
+            || a.speed < 1.0
+            || b.speed < 1.0
+        {
+            continue;
+        }
+        let (ta, tb) = (UtcNanos(a.t.0 - delay), UtcNanos(b.t.0 - delay));
+        let k0 = motion.partition_point(|m| m.t < ta);
+        let k1 = motion.partition_point(|m| m.t <= tb);
+        if k1 <= k0 + 1 {
+            continue;
+        }
+        let turned: f64 = motion[k0..k1]
+            .windows(2)
+            .map(|w| 0.5 * (w[0].yaw_rate + w[1].yaw_rate) * secs(w[0].t, w[1].t))
+            .sum();
+        let covered = secs(motion[k0].t, motion[k1 - 1].t).max(1e-9);
+        yaw_res.push(wrap(b.course - a.course) / dt - turned / covered);
+    }
+    yaw_res
+}
+
+/// Speed residuals (GNSS minus scale-corrected CAN), and where the drive turns (where a
+/// lever-arm error shows): the number of turning epochs and their span.
+fn speed_residuals_and_turns(
+    inp: &Inputs<'_>,
+    vels: &[Vel],
+    delay: i64,
+    scale: f64,
+) -> (Vec<f64>, usize, Option<(UtcNanos, UtcNanos)>) {
+    let mut speed_res = Vec::new();
+    let mut n_turn = 0;
+    let mut turn_span: Option<(UtcNanos, UtcNanos)> = None;
+    for v in vels {
+        let tc = UtcNanos(v.t.0 - delay);
+        if let Some((vc, w)) = motion_at(&inp.run.motion, tc) {
+            if vc > 0.5 {
+                speed_res.push(v.speed - vc / scale);
+            }
+            if vc > 0.5 && w.abs() > 0.1 {
+                n_turn += 1;
+                turn_span = Some(turn_span.map_or((v.t, v.t), |(s, _)| (s, v.t)));
+            }
+        }
+    }
+    (speed_res, n_turn, turn_span)
+}
+
+/// Linear interpolation of CAN motion at `t`: (speed, yaw rate).
+fn motion_at(m: &[Motion], t: UtcNanos) -> Option<(f64, f64)> {
+    let k = m.partition_point(|x| x.t <= t);
+    if k == 0 || k >= m.len() {
+        return None;
+    }
+    let (a, b) = (&m[k - 1], &m[k]);
+    let f = secs(a.t, t) / secs(a.t, b.t).max(1e-9);
+    Some((
+        a.speed + (b.speed - a.speed) * f,
+        a.yaw_rate + (b.yaw_rate - a.yaw_rate) * f,
+    ))
+}
+
+/// An angle wrapped into [-π, π).
+fn wrap(a: f64) -> f64 {
+    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+}

@@ -1,0 +1,389 @@
+//! The check's report: what was measured (spatial, temporal), the accuracy budget, the faults
+//! and the segments, as JSON (serde) and as the text `hilrig check` prints.
+
+use hilrig_stamp::UtcNanos;
+use serde::Serialize;
+
+/// The overall verdict.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Verdict {
+    /// Accurate enough: re-simulate.
+    Pass,
+    /// Not accurate enough (see the faults).
+    Fail,
+    /// The input cannot be judged (no GNSS, no ego motion, unreadable).
+    Unusable,
+}
+
+impl Verdict {
+    /// The process exit code: 0 pass, 1 fail, 2 unusable.
+    pub fn exit_code(self) -> u8 {
+        match self {
+            Verdict::Pass => 0,
+            Verdict::Fail => 1,
+            Verdict::Unusable => 2,
+        }
+    }
+}
+
+/// One problem, located in time.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Fault {
+    /// What it is (`rtk_float`, `rtk_none`, `sigma_spike`, `correction_age`, `jump`,
+    /// `can_speed_scale`, `gnss_time_offset`, `lever_arm`, `lidar_not_pps_locked`,
+    /// `lidar_clock_residual`, `lidar_gap`, `gnss_gap`, `can_gap`).
+    pub name: &'static str,
+    /// Start (UTC).
+    pub from: String,
+    /// End (UTC).
+    pub to: String,
+    /// Start, seconds after the run's start.
+    pub from_s: f64,
+    /// End, seconds after the run's start.
+    pub to_s: f64,
+    /// What was measured, against which limit.
+    pub detail: String,
+    #[serde(skip)]
+    pub(super) window: (UtcNanos, UtcNanos),
+}
+
+/// Statistics of a series.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Stats {
+    /// Samples.
+    pub n: usize,
+    /// Median.
+    pub median: f64,
+    /// 95th percentile.
+    pub p95: f64,
+    /// Largest.
+    pub max: f64,
+    /// Root mean square.
+    pub rms: f64,
+}
+
+impl Stats {
+    /// The statistics of `v` (non-finite values left out; all zero when nothing is left).
+    pub(super) fn of(mut v: Vec<f64>) -> Stats {
+        v.retain(|x| x.is_finite());
+        if v.is_empty() {
+            return Stats::default();
+        }
+        let rms = (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        v.sort_by(f64::total_cmp);
+        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
+        Stats {
+            n: v.len(),
+            median: q(0.5),
+            p95: q(0.95),
+            max: v[v.len() - 1],
+            rms,
+        }
+    }
+}
+
+/// The RTK state of one GNSS epoch.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RtkEpoch {
+    /// Epoch time (UTC, ISO 8601 with milliseconds, as gpsd writes it).
+    pub time: String,
+    /// `fixed`, `float` or `none`.
+    pub state: &'static str,
+}
+
+/// Spatial measurements.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Spatial {
+    /// GNSS epochs.
+    pub epochs: usize,
+    /// RTK state per epoch.
+    pub rtk_epochs: Vec<RtkEpoch>,
+    /// Epochs per RTK state.
+    pub rtk_fixed: usize,
+    /// Float epochs.
+    pub rtk_float: usize,
+    /// Epochs without carrier-phase solution.
+    pub rtk_none: usize,
+    /// Share of RTK-fixed epochs.
+    pub rtk_fixed_share: f64,
+    /// Receiver 1-sigma horizontal error per axis (larger of lat/lon), m.
+    pub sigma_horizontal_m: Stats,
+    /// The three one-second windows with the largest horizontal sigma: (from s, to s, sigma m).
+    pub worst_sigma_windows: Vec<(f64, f64, f64)>,
+    /// Receiver 1-sigma vertical error, m.
+    pub sigma_vertical_m: Stats,
+    /// Correction age, s.
+    pub correction_age_s: Stats,
+    /// GNSS residuals against the smoothed trajectory, m (per axis).
+    pub residual_m: Stats,
+    /// Epochs that the trajectory cannot explain.
+    pub jumps: usize,
+    /// CAN speed / GNSS speed.
+    pub can_speed_scale: Option<f64>,
+    /// GNSS speed minus corrected CAN speed, m/s.
+    pub speed_residual_mps: Stats,
+    /// GNSS course rate minus CAN yaw rate, rad/s.
+    pub yaw_rate_residual_rps: Stats,
+    /// Distance by CAN speed, m.
+    pub distance_can_m: f64,
+    /// Distance along the GNSS antenna track, m.
+    pub distance_gnss_m: f64,
+    /// GNSS time stamps minus the instants they describe, measured against CAN, ms.
+    pub gnss_time_offset_ms: Option<f64>,
+    /// Antenna x (forward) from the data, m.
+    pub lever_arm_x_measured_m: Option<f64>,
+    /// Antenna x from the rig file, m.
+    pub lever_arm_x_rig_m: f64,
+    /// Worst survey accuracy of the scene's static objects, m (1 sigma).
+    pub scene_accuracy_m: Option<f64>,
+}
+
+/// One source's timing.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct SourceTiming {
+    /// Source.
+    pub source: &'static str,
+    /// Samples.
+    pub count: usize,
+    /// Mean rate, Hz.
+    pub rate_hz: f64,
+    /// Nominal period (median interval), ms.
+    pub period_ms: f64,
+    /// Interval jitter (standard deviation), ms.
+    pub jitter_ms: f64,
+    /// Gaps (intervals over the gap limit).
+    pub gaps: usize,
+    /// Longest interval, ms.
+    pub max_interval_ms: f64,
+}
+
+/// Temporal measurements.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Temporal {
+    /// Per source.
+    pub sources: Vec<SourceTiming>,
+    /// Position packets reporting PPS lock.
+    pub pps_locked_share: Option<f64>,
+    /// Clock-sync metadata of the recording, per source.
+    pub clock_sync: std::collections::BTreeMap<String, std::collections::BTreeMap<String, String>>,
+    /// Lidar minus GNSS clock offset (host latencies included), ms.
+    pub lidar_to_gnss_offset_ms: Option<f64>,
+    /// How far the ego moves between GNSS epochs (speed × interval), m.
+    pub motion_between_epochs_m: Stats,
+    /// Error of interpolating linearly between GNSS epochs, m.
+    pub interpolation_error_m: Stats,
+}
+
+/// The accuracy budget (1 sigma, metres).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Accuracy {
+    /// Ego position from RTK (receiver sigmas, inflated if the residuals say they are optimistic).
+    pub trajectory_m: f64,
+    /// Time errors times speed.
+    pub temporal_m: f64,
+    /// Interpolation between reference samples.
+    pub interpolation_m: f64,
+    /// Lever arm error, when one is found.
+    pub lever_arm_m: f64,
+    /// The ego reference (root sum of squares of the above).
+    pub ego_m: f64,
+    /// Static objects (scene survey).
+    pub scene_m: Option<f64>,
+    /// Everything combined.
+    pub reference_m: f64,
+    /// Smallest admissible grid cell: max(min cell, factor × reference), m.
+    pub grid_cell_m: f64,
+}
+
+/// A stretch of the run with one verdict.
+#[derive(Clone, Debug, Serialize)]
+pub struct Segment {
+    /// Start, s after the run's start.
+    pub from_s: f64,
+    /// End, s.
+    pub to_s: f64,
+    /// Pass or fail.
+    pub verdict: Verdict,
+    /// Names of the faults that make it fail.
+    pub reasons: Vec<&'static str>,
+}
+
+/// The whole report.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    /// Overall verdict.
+    pub verdict: Verdict,
+    /// Why unusable, if so.
+    pub unusable: Option<String>,
+    /// Run start (UTC).
+    pub start: String,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Spatial measurements.
+    pub spatial: Spatial,
+    /// Temporal measurements.
+    pub temporal: Temporal,
+    /// Accuracy budget.
+    pub accuracy: Accuracy,
+    /// Faults found.
+    pub faults: Vec<Fault>,
+    /// Usable and unusable stretches.
+    pub segments: Vec<Segment>,
+    /// Problems reading the recording.
+    pub damage: Option<String>,
+}
+
+impl Report {
+    /// The readable report.
+    pub fn text(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let v = match self.verdict {
+            Verdict::Pass => "PASS",
+            Verdict::Fail => "FAIL",
+            Verdict::Unusable => "UNUSABLE",
+        };
+        let _ = writeln!(s, "verdict: {v}");
+        if let Some(u) = &self.unusable {
+            let _ = writeln!(s, "  {u}");
+            if self.spatial.epochs > 0 {
+                let sp = &self.spatial;
+                let _ = writeln!(
+                    s,
+                    "GNSS only: {} epochs, {:.1} % RTK fixed ({} float, {} none)",
+                    sp.epochs,
+                    sp.rtk_fixed_share * 100.0,
+                    sp.rtk_float,
+                    sp.rtk_none
+                );
+            }
+            return s;
+        }
+        let _ = writeln!(s, "run: {} + {:.1} s", self.start, self.duration_s);
+        if let Some(d) = &self.damage {
+            let _ = writeln!(s, "recording damaged: {d}");
+        }
+        let a = &self.accuracy;
+        let _ = writeln!(
+            s,
+            "reference accuracy (1 sigma): {:.3} m = ego {:.3} m (RTK {:.3}, timing {:.3}, interpolation {:.4}, lever arm {:.3}){}",
+            a.reference_m,
+            a.ego_m,
+            a.trajectory_m,
+            a.temporal_m,
+            a.interpolation_m,
+            a.lever_arm_m,
+            a.scene_m
+                .map_or(String::new(), |m| format!(" and scene survey {m:.3} m"))
+        );
+        let _ = writeln!(
+            s,
+            "smallest admissible grid cell: {:.2} m (seed §6)",
+            a.grid_cell_m
+        );
+        let sp = &self.spatial;
+        let _ = writeln!(
+            s,
+            "spatial: {} epochs, {:.1} % RTK fixed ({} float, {} none); sigma h median {:.3} m, p95 {:.3} m, max {:.3} m; residual rms {:.3} m; {} jumps",
+            sp.epochs,
+            sp.rtk_fixed_share * 100.0,
+            sp.rtk_float,
+            sp.rtk_none,
+            sp.sigma_horizontal_m.median,
+            sp.sigma_horizontal_m.p95,
+            sp.sigma_horizontal_m.max,
+            sp.residual_m.rms,
+            sp.jumps
+        );
+        if !sp.worst_sigma_windows.is_empty() {
+            let w: Vec<String> = sp
+                .worst_sigma_windows
+                .iter()
+                .map(|(a, b, h)| format!("{a:.0}-{b:.0} s: {h:.3} m"))
+                .collect();
+            let _ = writeln!(s, "largest sigmas: {}", w.join(", "));
+        }
+        let _ = writeln!(
+            s,
+            "GNSS vs CAN: speed scale {}, time offset {}, lever arm x {} (rig {:.2} m), distance {:.1} m (CAN) vs {:.1} m (GNSS), speed residual rms {:.3} m/s, yaw-rate residual rms {:.4} rad/s",
+            sp.can_speed_scale.map_or("n/a".into(), |x| format!("{x:.4}")),
+            sp.gnss_time_offset_ms.map_or("n/a".into(), |x| format!("{x:+.1} ms")),
+            sp.lever_arm_x_measured_m.map_or("n/a".into(), |x| format!("{x:.2} m")),
+            sp.lever_arm_x_rig_m,
+            sp.distance_can_m,
+            sp.distance_gnss_m,
+            sp.speed_residual_mps.rms,
+            sp.yaw_rate_residual_rps.rms
+        );
+        let tm = &self.temporal;
+        for src in &tm.sources {
+            let _ = writeln!(
+                s,
+                "timing {}: {} samples, {:.1} Hz, period {:.3} ms, jitter {:.3} ms, {} gaps, longest interval {:.1} ms",
+                src.source, src.count, src.rate_hz, src.period_ms, src.jitter_ms, src.gaps, src.max_interval_ms
+            );
+        }
+        for (src, m) in &tm.clock_sync {
+            let get = |k: &str| m.get(k).and_then(|v| v.parse::<f64>().ok());
+            let _ = writeln!(
+                s,
+                "clock {src}: offset {} ms, drift {} ppm, residual p95 {} µs (transport jitter){}",
+                get("offset_ns").map_or("n/a".into(), |v| format!("{:.3}", v * 1e-6)),
+                get("drift_ppm").map_or("n/a".into(), |v| format!("{v:.2}")),
+                get("residual_p95_ns").map_or("n/a".into(), |v| format!("{:.0}", v * 1e-3)),
+                m.get("pps").map_or(String::new(), |p| format!(", PPS {p}"))
+            );
+        }
+        if let Some(p) = tm.pps_locked_share {
+            let _ = writeln!(
+                s,
+                "lidar PPS locked in {:.1} % of position packets",
+                p * 100.0
+            );
+        }
+        if let Some(o) = tm.lidar_to_gnss_offset_ms {
+            let _ = writeln!(
+                s,
+                "lidar-to-GNSS clock offset {o:.3} ms (host latencies included)"
+            );
+        }
+        let _ = writeln!(
+            s,
+            "ego moves {:.3} m between GNSS epochs (p95); linear interpolation error p95 {:.4} m",
+            tm.motion_between_epochs_m.p95, tm.interpolation_error_m.p95
+        );
+        if self.faults.is_empty() {
+            let _ = writeln!(s, "faults: none");
+        } else {
+            let _ = writeln!(s, "faults:");
+            for f in &self.faults {
+                let _ = writeln!(
+                    s,
+                    "  {:<22} {:>7.1} s .. {:>7.1} s  {}",
+                    f.name, f.from_s, f.to_s, f.detail
+                );
+            }
+        }
+        let _ = writeln!(s, "segments:");
+        for g in &self.segments {
+            let _ = writeln!(
+                s,
+                "  {:>7.1} s .. {:>7.1} s  {}{}",
+                g.from_s,
+                g.to_s,
+                if g.verdict == Verdict::Pass {
+                    "usable"
+                } else {
+                    "NOT usable"
+                },
+                if g.reasons.is_empty() {
+                    String::new()
+                } else {
+                    format!(": {}", g.reasons.join(", "))
+                }
+            );
+        }
+        s
+    }
+}
