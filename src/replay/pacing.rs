@@ -233,8 +233,9 @@ mod tests {
         }
     }
 
-    /// A serial line at 1200 baud carries 120 bytes a second: ten 10-byte pieces due 5 ms
-    /// apart cannot leave faster than one per 83 ms.
+    /// A serial line at 1200 baud carries 120 bytes a second: ten 10-byte pieces due 10 ms
+    /// apart cannot leave faster than one per 83 ms, so piece `k` leaves no earlier than
+    /// 5 ms + k × 83.3 ms after the start (a lower bound: a slow machine only sends later).
     #[test]
     fn the_serial_stream_is_paced_at_the_baud_rate() {
         let got = Arc::new(Mutex::new(Vec::new()));
@@ -248,11 +249,14 @@ mod tests {
             now: false,
             baud: 1200,
         };
+        let start = Instant::now();
         play(&items(), &mut dest, &options, &AtomicBool::new(false)).unwrap();
         let got = got.lock().unwrap();
         assert_eq!(got.len(), 10);
-        for w in got.windows(2) {
-            assert!(w[1].0.duration_since(w[0].0) >= Duration::from_micros(83_333));
+        let piece = Duration::from_secs_f64(10.0 * 10.0 / 1200.0);
+        for (k, (at, _)) in got.iter().enumerate() {
+            let due = Duration::from_millis(5) + piece * k as u32;
+            assert!(at.duration_since(start) >= due, "piece {k} left before the line was free");
         }
     }
 
