@@ -256,7 +256,10 @@ mod tests {
         let piece = Duration::from_secs_f64(10.0 * 10.0 / 1200.0);
         for (k, (at, _)) in got.iter().enumerate() {
             let due = Duration::from_millis(5) + piece * k as u32;
-            assert!(at.duration_since(start) >= due, "piece {k} left before the line was free");
+            assert!(
+                at.duration_since(start) >= due,
+                "piece {k} left before the line was free"
+            );
         }
     }
 
