@@ -22,10 +22,19 @@ fn main() {
     println!("cargo:rerun-if-env-changed=HILRIG_REAL_DATA");
     println!("cargo:rerun-if-env-changed=HILRIG_PYTHON");
     if let Ok(dir) = env::var("HILRIG_REAL_DATA") {
-        if Path::new(&dir).join("velodyne").is_dir() {
+        // The real-data tests read all three folders (lidar captures, GNSS logs with gpsd's
+        // output, DBC files): one missing and they do not run, rather than fail half-way.
+        let missing: Vec<&str> = ["velodyne", "gnss", "can"]
+            .into_iter()
+            .filter(|d| !Path::new(&dir).join(d).is_dir())
+            .collect();
+        if missing.is_empty() {
             println!("cargo:rustc-cfg=hilrig_real_data");
         } else {
-            println!("cargo:warning=HILRIG_REAL_DATA={dir} has no velodyne/ folder: real-data tests will not run");
+            println!(
+                "cargo:warning=HILRIG_REAL_DATA={dir} has no {} folder: real-data tests will not run",
+                missing.join(", ")
+            );
         }
     }
     if let Ok(py) = env::var("HILRIG_PYTHON") {

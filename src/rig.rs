@@ -139,6 +139,12 @@ pub struct RecordingConfig {
     /// packets already hold everything (`record --from` can add it in the office).
     #[serde(default)]
     pub points: bool,
+    /// Messages that may wait between the sources and the writer thread (at least 1). The
+    /// default, 8192, holds about two seconds of a VLP-32C plus everything else: a disk that
+    /// stalls for longer makes the sources drop messages (counted, reported, exit status 1)
+    /// rather than stall the sockets.
+    #[serde(default = "default_queue")]
+    pub queue_messages: usize,
 }
 
 impl RecordingConfig {
@@ -164,6 +170,7 @@ impl Default for RecordingConfig {
             split_size_mib: None,
             split_duration_s: None,
             points: false,
+            queue_messages: default_queue(),
         }
     }
 }
@@ -197,6 +204,9 @@ fn default_level() -> u32 {
 }
 fn default_chunk_mib() -> u64 {
     4
+}
+fn default_queue() -> usize {
+    8192
 }
 
 /// Limits for the reference-data check (seed §6: reference data must be an order of magnitude

@@ -15,7 +15,12 @@ use std::process::Command;
 /// Synthesizes the parking drive with `faults` (TOML lines of a `[faults]` table), records it
 /// and checks it; returns the check's exit code and JSON report.
 fn drive_and_check(faults: &str) -> (i32, Value) {
-    let d = synth_and_record(&format!("[faults]\n{faults}"), 11, true);
+    drive_edited_and_check(|t| t, faults)
+}
+
+/// [`drive_and_check`] with the drive file's text passed through `edit` first.
+fn drive_edited_and_check(edit: impl Fn(String) -> String, faults: &str) -> (i32, Value) {
+    let d = synth_and_record_edited(edit, &format!("[faults]\n{faults}"), 11, true);
     let (dir, rep, mcap) = (&d.dir, &d.rep, &d.run);
     let json = dir.path().join("check.json");
     let out = Command::new(hilrig_bin())
@@ -180,6 +185,56 @@ fn an_antenna_lever_arm_wrong_by_half_a_metre_is_found() {
     assert!(faults(&v, "gnss_time_offset").is_empty(), "{:?}", names(&v));
 }
 
+/// The faults no other test injects, each in its own stretch of one drive: epochs without RTK,
+/// old corrections, a silent receiver, a silent CAN bus and one epoch 15 cm off (15 receiver
+/// sigmas) that the receiver still calls fixed. Each is named and located where it was put.
+#[test]
+fn rtk_none_old_corrections_gaps_and_a_jump_are_found_and_located() {
+    let (code, v) = drive_and_check(
+        "rtk = [{ from_s = 9.0, to_s = 10.0, quality = 1 }]\n\
+         correction_age = [{ from_s = 4.0, to_s = 5.0, age_s = 8.0 }]\n\
+         gnss_gap = [{ from_s = 12.0, to_s = 13.0 }]\n\
+         can_gap = [{ from_s = 6.0, to_s = 6.5 }]\n\
+         position_jump = [{ at_s = 15.0, offset_m = [0.15, 0.0] }]",
+    );
+    assert_eq!(code, 1);
+    let n = names(&v);
+    let none = faults(&v, "rtk_none");
+    assert_eq!(none.len(), 1, "{n:?}");
+    located(none[0], 9.0, 10.0, 0.15);
+    assert!(none[0]["detail"].as_str().unwrap().contains("quality 1"));
+    let age = faults(&v, "correction_age");
+    assert_eq!(age.len(), 1, "{n:?}");
+    located(age[0], 4.0, 5.0, 0.15);
+    // A gap runs from the last sample before it to the first after it.
+    let gnss = faults(&v, "gnss_gap");
+    assert_eq!(gnss.len(), 1, "{n:?}");
+    located(gnss[0], 12.0, 13.0, 0.15);
+    let can = faults(&v, "can_gap");
+    assert_eq!(can.len(), 1, "{n:?}");
+    located(can[0], 6.0, 6.5, 0.05);
+    let jump = faults(&v, "jump");
+    assert_eq!(jump.len(), 1, "{n:?}");
+    located(jump[0], 15.0, 15.1, 0.15);
+    assert!(v["spatial"]["jumps"].as_u64().unwrap() >= 1);
+}
+
+/// A lidar clock that runs free behind a busy host (2 ms of receive jitter): without PPS its
+/// time is the host clock model's, whose residuals (p95 about 4 ms) exceed the 1 ms limit.
+#[test]
+fn a_free_running_lidar_clock_behind_a_jittery_host_fails_on_its_residuals() {
+    let (code, v) = drive_edited_and_check(
+        |t| t.replace("jitter_us = 60", "jitter_us = 2000"),
+        "lidar_free_running = { offset_ms = 3.0, drift_ppm = 20.0 }",
+    );
+    assert_eq!(code, 1);
+    let n = names(&v);
+    assert_eq!(faults(&v, "lidar_not_pps_locked").len(), 1, "{n:?}");
+    let r = faults(&v, "lidar_clock_residual");
+    assert_eq!(r.len(), 1, "{n:?}");
+    assert!(r[0]["detail"].as_str().unwrap().contains("above 1000 µs"));
+}
+
 /// Must-hold 3: the RTK states `check` reports for real receiver logs recorded with `record
 /// --from` are gpsd's (TPV status 3 fixed, 4 float, else none), epoch by epoch.
 fn gpsd_states(name: &str) {
@@ -288,9 +343,22 @@ fn damaged_recordings_give_a_report_not_a_panic() {
                         b[i] ^= v;
                     }
                 }
+                let cut_short = b.len() < bytes.len();
                 let run = hilrig::reference::run::Run::from_bytes(&b);
                 let report = hilrig::reference::check::check(&run, &rig, None);
-                prop_assert!(!report.text().is_empty());
+                // A cut-off file is reported as damaged, in the report and its text, and judged
+                // on what it holds: never more epochs or a longer run than the whole file.
+                if cut_short {
+                    prop_assert!(report.damage.is_some(), "cut at {cut}: no damage reported");
+                    let text = report.text();
+                    prop_assert!(
+                        report.verdict == hilrig::reference::check::Verdict::Unusable
+                            || text.contains("recording damaged"),
+                        "{text}"
+                    );
+                }
+                prop_assert!(report.spatial.epochs <= whole.spatial.epochs);
+                prop_assert!(report.duration_s <= whole.duration_s + 1e-9);
                 Ok(())
             },
         )

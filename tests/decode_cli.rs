@@ -30,7 +30,8 @@ fn a_ros_drivers_calibration_file_is_applied() {
     let same = dir.path().join("vlp16.yaml");
     let builtin = hilrig::velodyne::Calibration::builtin(hilrig::velodyne::Model::Vlp16);
     std::fs::write(&same, builtin.to_yaml()).unwrap();
-    let (_, reference, _) = decode(&[fx]);
+    let (code, reference, stderr) = decode(&[fx]);
+    assert_eq!(code, Some(0), "{stderr}");
     let (code, with_file, stderr) = decode(&[
         fx,
         "--model",
@@ -40,7 +41,17 @@ fn a_ros_drivers_calibration_file_is_applied() {
     ]);
     assert_eq!(code, Some(0), "{stderr}");
     let (a, b) = (parse(&reference), parse(&with_file));
-    assert_eq!(a.len(), b.len());
+    // One row per point: as many as the summary counts, and the same with the file.
+    let (code, _, summary) = decode(&[fx, "--format", "summary"]);
+    assert_eq!(code, Some(0), "{summary}");
+    let points: usize = summary
+        .lines()
+        .find_map(|l| l.split("points: ").nth(1))
+        .and_then(|n| n.trim().parse().ok())
+        .expect("the summary counts points");
+    assert!(points > 10_000, "{points} points");
+    assert_eq!(a.len(), points);
+    assert_eq!(b.len(), points);
     for (r, f) in a.iter().zip(&b) {
         assert_eq!(
             &r[..6],
@@ -60,14 +71,17 @@ fn a_ros_drivers_calibration_file_is_applied() {
     }
     let path = dir.path().join("turned.yaml");
     std::fs::write(&path, turned.to_yaml()).unwrap();
-    let (_, out, _) = decode(&[
+    let (code, out, stderr) = decode(&[
         fx,
         "--model",
         "vlp16",
         "--calibration",
         path.to_str().unwrap(),
     ]);
-    for (r, f) in a.iter().zip(parse(&out)) {
+    assert_eq!(code, Some(0), "{stderr}");
+    let turned_points = parse(&out);
+    assert_eq!(turned_points.len(), a.len());
+    for (r, f) in a.iter().zip(turned_points) {
         let (ar, af) = (r[7].atan2(r[6]), f[7].atan2(f[6]));
         let d = (af - ar).to_degrees().rem_euclid(360.0);
         if r[3] > 1.0 {

@@ -153,6 +153,32 @@ fn independent_counts(b: &[u8]) -> (usize, usize) {
     (nmea, pvt)
 }
 
+/// The RTCM3 frames gpsd decoded from the F9R log (its `.chk` file), per message type. gpsd
+/// prints 27 of its reports twice in a row, identical to the byte (all BeiDou MSM5, type 1125,
+/// each following the same frame); a CRC scan of the log finds each of those frames once, so a
+/// report that repeats the one before it is counted once. What remains is the oracle: 224 frames
+/// of 13 message types.
+fn gpsd_rtcm3_frames() -> std::collections::BTreeMap<u16, usize> {
+    let chk =
+        std::fs::read_to_string(common::real_data().join("gnss/ublox-zed-f9r.log.chk")).unwrap();
+    let reports: Vec<&str> = chk
+        .lines()
+        .filter(|l| l.contains("\"class\":\"RTCM3\""))
+        .collect();
+    let mut frames = std::collections::BTreeMap::new();
+    for (k, r) in reports.iter().enumerate() {
+        if k > 0 && reports[k - 1] == *r {
+            continue;
+        }
+        let v: serde_json::Value = serde_json::from_str(r).unwrap();
+        *frames
+            .entry(v["type"].as_u64().unwrap() as u16)
+            .or_default() += 1;
+    }
+    assert_eq!(reports.len(), 251, "gpsd's RTCM3 reports in the .chk file");
+    frames
+}
+
 #[test]
 #[cfg_attr(
     not(hilrig_real_data),
@@ -162,9 +188,11 @@ fn f9r_mixed_stream_loses_nothing() {
     use hilrig::gnss::framer::{Frame, Framer, Item};
     let log = std::fs::read(common::real_data().join("gnss/ublox-zed-f9r.log")).unwrap();
     let (nmea_expected, pvt_expected) = independent_counts(&log);
+    let rtcm_expected = gpsd_rtcm3_frames();
     for chunk in [1, 7, 64, 1000, log.len()] {
         let mut f = Framer::for_gpsd_log();
-        let (mut nmea, mut pvt, mut rtcm) = (0, 0, 0);
+        let (mut nmea, mut pvt) = (0, 0);
+        let mut rtcm = std::collections::BTreeMap::<u16, usize>::new();
         for c in log.chunks(chunk) {
             f.push(c);
             while let Some(item) = f.next_frame() {
@@ -181,18 +209,22 @@ fn f9r_mixed_stream_loses_nothing() {
                         ..
                     } => pvt += 1,
                     Item::Frame {
-                        frame: Frame::Rtcm3 { .. },
+                        frame: Frame::Rtcm3 { message, .. },
                         ..
-                    } => rtcm += 1,
+                    } => *rtcm.entry(message).or_default() += 1,
                     _ => {}
                 }
             }
         }
         f.finish();
         while f.next_frame().is_some() {}
-        println!("chunk {chunk}: NMEA {nmea}/{nmea_expected}, NAV-PVT {pvt}/{pvt_expected}, RTCM3 {rtcm}, rejected {}", f.stats.rejected);
+        println!("chunk {chunk}: NMEA {nmea}/{nmea_expected}, NAV-PVT {pvt}/{pvt_expected}, RTCM3 {}/{}, rejected {}", rtcm.values().sum::<usize>(), rtcm_expected.values().sum::<usize>(), f.stats.rejected);
         assert_eq!(nmea, nmea_expected, "NMEA sentences with a valid checksum");
         assert_eq!(pvt, pvt_expected, "NAV-PVT frames");
+        assert_eq!(
+            rtcm, rtcm_expected,
+            "RTCM3 frames per message type, as gpsd reports them"
+        );
     }
     assert!(pvt_expected >= 30 && nmea_expected > 600);
 }

@@ -426,14 +426,11 @@ fn an_unwritable_output_is_a_clear_error_at_start() {
     );
 }
 
-/// Splitting by duration: every file stands on its own (rig attachment, metadata, /tf_static),
-/// and together they hold every message of the unsplit recording.
-#[test]
-#[cfg_attr(
-    not(hilrig_python),
-    ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
-)]
-fn split_files_repeat_static_data_and_together_hold_everything() {
+/// Records a generated 10 s drive with `setting` added to the rig's `[recording]` table and
+/// checks that every file stands on its own (rig attachment, metadata, /tf_static, readable by
+/// the independent reader) and that together they hold every lidar packet, sentence and CAN
+/// frame the drive has. Returns the number of files.
+fn split_recording(setting: &str, edit: impl Fn(String) -> String) -> usize {
     let truth = generate(10);
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("drive.pcapng");
@@ -450,9 +447,10 @@ fn split_files_repeat_static_data_and_together_hold_everything() {
                 env!("CARGO_MANIFEST_DIR")
             ),
         )
-        .replace("[recording]\n", "[recording]\nsplit_duration_s = 3.0\n"),
+        .replace("[recording]\n", &format!("[recording]\n{setting}\n")),
     )
     .unwrap();
+    std::fs::write(&rig, edit(std::fs::read_to_string(&rig).unwrap())).unwrap();
     let out = dir.path().join("drive.mcap");
     let st = common::record_from(&rig, &[&input], &out);
     assert!(
@@ -466,10 +464,9 @@ fn split_files_repeat_static_data_and_together_hold_everything() {
         .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
         .collect();
     files.sort();
-    assert_eq!(files.len(), 4, "10 s in 3 s files: {files:?}");
-    let mut nmea = 0;
+    let (mut nmea, mut can, mut packets) = (0, 0, 0);
     for f in &files {
-        let v = common::mcap_json(f, &[]);
+        let v = common::mcap_json(f, &["--count-scan-packets"]);
         assert_eq!(v["channels"]["/tf_static"]["count"], 1, "{f:?}");
         assert_eq!(v["metadata"]["hilrig"]["rig"], "demo-vlp16", "{f:?}");
         assert!(
@@ -481,8 +478,50 @@ fn split_files_repeat_static_data_and_together_hold_everything() {
             "{f:?}"
         );
         nmea += v["channels"]["/gnss/nmea"]["count"].as_u64().unwrap_or(0);
+        can += v["channels"]["/can/frames"]["count"].as_u64().unwrap_or(0);
+        packets += v["scan_packets"].as_u64().unwrap();
     }
-    assert_eq!(nmea as usize, truth.sentences);
+    assert_eq!(nmea as usize, truth.sentences, "{setting}: sentences");
+    assert_eq!(can as usize, truth.can_frames, "{setting}: CAN frames");
+    assert_eq!(
+        packets as usize, truth.lidar_packets,
+        "{setting}: lidar packets"
+    );
+    files.len()
+}
+
+/// Splitting by duration: 10 s in 3 s files.
+#[test]
+#[cfg_attr(
+    not(hilrig_python),
+    ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
+)]
+fn split_files_by_duration_each_stand_alone_and_together_hold_everything() {
+    assert_eq!(
+        split_recording("split_duration_s = 3.0", |t| t),
+        4,
+        "10 s in 3 s files"
+    );
+}
+
+/// Splitting by size: about 9 MB of lidar packets (without the demo rig's /points clouds) in
+/// files of 2 MiB of messages (a file is closed once it holds 2 MiB, so each holds up to one
+/// scan more, and the last one the rest).
+#[test]
+#[cfg_attr(
+    not(hilrig_python),
+    ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
+)]
+fn split_files_by_size_each_stand_alone_and_together_hold_everything() {
+    let n = split_recording("split_size_mib = 2", |t| {
+        t.replace("points = true", "points = false")
+    });
+    let truth_bytes = generate(10).lidar_packets * 1206;
+    let expected = truth_bytes.div_ceil(2 * 1024 * 1024);
+    assert!(
+        (expected.saturating_sub(1)..=expected + 1).contains(&n),
+        "{n} files for {truth_bytes} bytes of lidar payload"
+    );
 }
 
 /// `--from` also reads candump logs (their times are the host times) and raw serial logs such
@@ -682,4 +721,72 @@ fn before(items: &[hilrig::replay::ReplayItem], cutoff: i64) -> Vec<hilrig::repl
         .filter(|i| i.time.0 < cutoff)
         .cloned()
         .collect()
+}
+
+/// `record --from` on real sensor captures (../shared/data): every data and position packet of
+/// the capture is in the recording, byte for byte and in order, and the lidar's clock model is
+/// in the metadata. The rig names the capture's model (HDL-32E from a 2012 drive in Monterey;
+/// a VLP-16 with early firmware).
+#[test]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
+fn real_velodyne_captures_record_every_packet() {
+    for (file, model) in [
+        ("hdl32e_monterey.pcap", "hdl32e"),
+        ("vlp16_dual.pcap", "vlp16"),
+    ] {
+        let capture = common::real_data().join("velodyne").join(file);
+        let dir = tempfile::tempdir().unwrap();
+        let rig = dir.path().join("rig.toml");
+        std::fs::write(
+            &rig,
+            format!("name = \"real\"\n[lidar]\nmodel = \"{model}\"\n"),
+        )
+        .unwrap();
+        let out = dir.path().join("real.mcap");
+        let st = common::record_from(&rig, &[&capture], &out);
+        let stderr = String::from_utf8_lossy(&st.stderr);
+        assert!(st.status.success(), "{file}: {stderr}");
+        // What the capture holds, read independently of the recorder's pipeline.
+        let (want, _) = hilrig::replay::load(&capture, 2368, 8308).unwrap();
+        let (got, damage) = hilrig::replay::load(&out, 2368, 8308).unwrap();
+        assert!(damage.is_none(), "{file}: {damage:?}");
+        let data = |items: &[hilrig::replay::ReplayItem]| -> Vec<Vec<u8>> {
+            items
+                .iter()
+                .filter_map(|i| match &i.payload {
+                    hilrig::replay::Payload::LidarData(b) => Some(b.clone()),
+                    _ => None,
+                })
+                .collect()
+        };
+        let positions = |items: &[hilrig::replay::ReplayItem]| {
+            items
+                .iter()
+                .filter(|i| matches!(i.payload, hilrig::replay::Payload::LidarPosition(_)))
+                .count()
+        };
+        let (want_data, got_data) = (data(&want), data(&got));
+        println!(
+            "{file}: {} data packets and {} position packets recorded\n{stderr}",
+            got_data.len(),
+            positions(&got)
+        );
+        assert!(!want_data.is_empty(), "{file}");
+        assert_eq!(got_data.len(), want_data.len(), "{file}: data packets");
+        assert!(got_data == want_data, "{file}: byte for byte, in order");
+        assert_eq!(
+            positions(&got),
+            positions(&want),
+            "{file}: position packets"
+        );
+        let info = hilrig::bag::info::info(&out).unwrap();
+        assert!(
+            info.metadata.contains_key("clock_sync/lidar"),
+            "{file}: {:?}",
+            info.metadata.keys().collect::<Vec<_>>()
+        );
+    }
 }

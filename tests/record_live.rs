@@ -32,13 +32,18 @@ struct Rig {
 }
 
 fn rig() -> Rig {
+    rig_with("")
+}
+
+/// A rig with `extra` TOML appended (e.g. a `[recording]` table).
+fn rig_with(extra: &str) -> Rig {
     let dir = tempfile::tempdir().unwrap();
     let (data, position) = (free_port(), free_port());
     let (master, tty) = common::pty();
     let path = dir.path().join("rig.toml");
     std::fs::write(
         &path,
-        format!("name = \"live-test\"\n[lidar]\nmodel = \"vlp16\"\nbind = \"127.0.0.1\"\ndata_port = {data}\nposition_port = {position}\n[gnss]\nport = \"{tty}\"\nbaud = 115200\n"),
+        format!("name = \"live-test\"\n[lidar]\nmodel = \"vlp16\"\nbind = \"127.0.0.1\"\ndata_port = {data}\nposition_port = {position}\n[gnss]\nport = \"{tty}\"\nbaud = 115200\n{extra}"),
     )
     .unwrap();
     let out = dir.path().join("live.mcap");
@@ -53,12 +58,18 @@ fn rig() -> Rig {
 }
 
 fn start(r: &Rig) -> Child {
+    start_with(r, std::process::Stdio::inherit())
+}
+
+/// [`start`] with the recorder's standard error going to `stderr`.
+fn start_with(r: &Rig, stderr: std::process::Stdio) -> Child {
     let child = Command::new(common::hilrig_bin())
         .arg("record")
         .arg("--rig")
         .arg(&r.path)
         .arg("-o")
         .arg(&r.out)
+        .stderr(stderr)
         .spawn()
         .unwrap();
     let active = PathBuf::from(format!("{}.active", r.out.display()));
@@ -172,14 +183,16 @@ fn kill_9_mid_recording_is_recovered_losing_at_most_one_and_a_half_seconds() {
     let period = Duration::from_micros(1327);
     let mut i = 0usize;
     let mut next_nmea = Instant::now();
-    // A random moment between 2 and 3 s (the clock's nanoseconds as the die).
+    // A moment between 2 and 3 s, drawn from a seed so that a failure can be reproduced:
+    // HILRIG_KILL_SEED=N picks another one (printed below).
+    let seed: u64 = std::env::var("HILRIG_KILL_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(2026);
     let run_for = Duration::from_millis(
-        2000 + u64::from(
-            std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .unwrap()
-                .subsec_nanos()
-                % 1000,
+        2000 + rand::Rng::random_range(
+            &mut <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(seed),
+            0..1000,
         ),
     );
     while start_t.elapsed() < run_for {
@@ -212,7 +225,7 @@ fn kill_9_mid_recording_is_recovered_losing_at_most_one_and_a_half_seconds() {
     let last = v["last_log_time"].as_u64().expect("messages recovered");
     let lost = (killed_at - last) as f64 * 1e-9;
     println!(
-        "killed after {run_for:?}, {i} packets sent; recovered up to {lost:.3} s before the kill"
+        "killed after {run_for:?} (HILRIG_KILL_SEED={seed}), {i} packets sent; recovered up to {lost:.3} s before the kill"
     );
     assert!(lost <= 1.5, "lost {lost} s");
     assert_eq!(v["metadata"]["hilrig"]["rig"], "live-test");
@@ -220,12 +233,8 @@ fn kill_9_mid_recording_is_recovered_losing_at_most_one_and_a_half_seconds() {
 
 /// A full disk, made real with a file-size limit on the recorder process (the kernel then fails
 /// writes with EFBIG, as with ENOSPC): the recorder stops with a clear error, and everything it
-/// wrote before is recovered.
+/// wrote before is recovered. Needs only `prlimit` (util-linux, part of every Debian system).
 #[test]
-#[cfg_attr(
-    not(hilrig_python),
-    ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
-)]
 fn a_full_disk_stops_the_recorder_with_a_clear_error_and_keeps_what_was_written() {
     let r = rig();
     let child = Command::new("prlimit")
@@ -283,14 +292,14 @@ fn a_full_disk_stops_the_recorder_with_a_clear_error_and_keeps_what_was_written(
     assert!(stderr.contains("run `hilrig recover`"), "{stderr}");
     let recovered = r.out.with_extension("recovered.mcap");
     common::recover(&active, &recovered);
-    let v = read(&recovered);
-    let packets: usize = v["messages"]["/velodyne_packets"]
-        .as_array()
-        .map_or(0, |a| {
-            a.iter()
-                .map(|s| s["packets"].as_array().unwrap().len())
-                .sum()
-        });
+    // Read back with the replay's checked reader (the independent readers are tested on whole
+    // recordings in bag_interop).
+    let (items, damage) = hilrig::replay::load(&recovered, 2368, 8308).unwrap();
+    assert!(damage.is_none(), "{damage:?}");
+    let packets = items
+        .iter()
+        .filter(|i| matches!(i.payload, hilrig::replay::Payload::LidarData(_)))
+        .count();
     println!("sent {sent} packets, {packets} recovered from the full disk's file\n{stderr}");
     assert!(
         packets > 100,
@@ -308,15 +317,19 @@ fn peak_rss_kib(pid: u32) -> Option<u64> {
         .ok()
 }
 
-/// Load (issue 4, item 5): 20,000 lidar packets/s over loopback UDP and NMEA at 20 Hz through a
-/// pty for 30 s. Counted, not timed: every packet and sentence sent is in the file, nothing was
-/// dropped, and the recorder's peak RSS stays below 200 MB.
+/// Load (issue 4, item 5): lidar packets over loopback UDP on a 20,000 packets/s schedule and
+/// NMEA at 20 Hz through a pty, for 5 s. Counted, not timed: every packet and sentence sent is in
+/// the file, nothing was dropped, and the recorder's peak RSS stays below 200 MB. The rate the
+/// sender reached on this machine is printed beside the result (a slow machine sends fewer
+/// packets per second; the claim holds for what it sent); the sustained 30 s figure is
+/// `benches/record_load.py`.
 #[test]
 #[cfg_attr(
     not(hilrig_python),
     ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
 )]
-fn thirty_seconds_at_20000_packets_per_second_lose_nothing() {
+fn a_sustained_load_loses_nothing() {
+    const SECONDS: u64 = 5;
     let mut r = rig();
     let mut child = start(&r);
     let pid = child.id();
@@ -331,7 +344,7 @@ fn thirty_seconds_at_20000_packets_per_second_lose_nothing() {
         let t0 = Instant::now();
         let mut sent = 0u64;
         // 20 packets every millisecond.
-        while t0.elapsed() < Duration::from_secs(30) {
+        while t0.elapsed() < Duration::from_secs(SECONDS) {
             for _ in 0..20 {
                 let mut p = payloads[(sent % payloads.len() as u64) as usize].clone();
                 let ts = ((1_000_000 + sent * 50) % 3_600_000_000) as u32;
@@ -344,12 +357,12 @@ fn thirty_seconds_at_20000_packets_per_second_lose_nothing() {
                 std::thread::sleep(w);
             }
         }
-        sent
+        (sent, t0.elapsed())
     });
     let mut sentences = 0u64;
     let t0 = Instant::now();
     let mut peak = 0;
-    while t0.elapsed() < Duration::from_secs(30) {
+    while t0.elapsed() < Duration::from_secs(SECONDS) {
         let body = format!("GNGGA,12{:02}{:02}.{:02},4807.0380000,N,01131.0000000,E,4,12,0.8,545.40,M,46.90,M,1.0,0042", sentences / 1200 % 60, sentences / 20 % 60, sentences % 20 * 5);
         r.gnss.write_all(nmea_sentence(&body).as_bytes()).unwrap();
         sentences += 1;
@@ -358,7 +371,7 @@ fn thirty_seconds_at_20000_packets_per_second_lose_nothing() {
             peak = peak.max(peak_rss_kib(pid).unwrap_or(0));
         }
     }
-    let sent = sender.join().unwrap();
+    let (sent, took) = sender.join().unwrap();
     std::thread::sleep(Duration::from_millis(500));
     peak = peak.max(peak_rss_kib(pid).unwrap_or(0));
     nix::sys::signal::kill(
@@ -369,7 +382,7 @@ fn thirty_seconds_at_20000_packets_per_second_lose_nothing() {
     let status = child.wait().unwrap();
     let v = common::mcap_json(&r.out, &["--count-scan-packets"]);
     let in_file = v["scan_packets"].as_u64().unwrap();
-    println!("sent {sent} packets and {sentences} sentences; file holds {in_file} packets and {} sentences; peak RSS {:.1} MB", v["channels"]["/gnss/nmea"]["count"], peak as f64 / 1024.0);
+    println!("sent {sent} packets ({:.0} packets/s reached) and {sentences} sentences; file holds {in_file} packets and {} sentences; peak RSS {:.1} MB", sent as f64 / took.as_secs_f64(), v["channels"]["/gnss/nmea"]["count"], peak as f64 / 1024.0);
     assert!(
         status.success(),
         "the recorder reports drops through its exit status: {status}"
@@ -382,4 +395,64 @@ fn thirty_seconds_at_20000_packets_per_second_lose_nothing() {
     );
     assert_eq!(v["metadata"]["hilrig/end"]["lidar_dropped"], "0");
     assert!(peak > 0 && peak < 200 * 1024, "peak RSS {peak} KiB");
+}
+
+/// A writer that falls behind drops messages rather than stall the sockets, and says so: with a
+/// queue of one message between the sources and the writer (`queue_messages = 1`), a burst of
+/// 20,000 packets and 2,000 sentences outruns it (each closed chunk is compressed while the
+/// sources go on). The drops are counted per source, printed, written into the file's
+/// `hilrig/end` metadata, and the exit status is 1; the file is complete and readable.
+#[test]
+fn a_writer_that_falls_behind_drops_counted_messages_and_exits_1() {
+    let mut r = rig_with("[recording]\nqueue_messages = 1\nchunk_size_mib = 1\n");
+    let child = start_with(&r, std::process::Stdio::piped());
+    let pid = child.id();
+    let payloads: Vec<Vec<u8>> = fixture_payloads()
+        .into_iter()
+        .filter(|(p, _)| *p == 2368)
+        .map(|(_, b)| b)
+        .collect();
+    let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
+    for k in 0..20_000u32 {
+        let mut p = payloads[k as usize % payloads.len()].clone();
+        p[1200..1204].copy_from_slice(&(1_000_000 + k * 50).to_le_bytes());
+        sock.send_to(&p, ("127.0.0.1", r.data)).unwrap();
+    }
+    let mut burst = Vec::new();
+    for k in 0..2000u32 {
+        burst.extend(nmea_sentence(&format!("GNGGA,12{:02}{:02}.{:02},4807.0380000,N,01131.0000000,E,4,12,0.8,545.40,M,46.90,M,1.0,0042", k / 1200 % 60, k / 20 % 60, k % 20 * 5)).bytes());
+    }
+    r.gnss.write_all(&burst).unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(pid as i32),
+        nix::sys::signal::Signal::SIGINT,
+    )
+    .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    println!("{stderr}");
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "drops give exit status 1: {stderr}"
+    );
+    let info = hilrig::bag::info::info(&r.out).expect("a complete file");
+    let end = &info.metadata["hilrig/end"];
+    let dropped: u64 = end
+        .iter()
+        .filter(|(k, _)| k.ends_with("_dropped"))
+        .map(|(_, v)| v.parse::<u64>().unwrap())
+        .sum();
+    assert!(dropped > 0, "drops counted in the file: {end:?}");
+    // The health lines say the same, source by source.
+    let printed: u64 = stderr
+        .lines()
+        .filter_map(|l| l.split("dropped ").nth(1))
+        .filter_map(|r| r.split(',').next()?.trim().parse::<u64>().ok())
+        .sum();
+    assert!(
+        printed >= dropped,
+        "printed {printed}, in the file {dropped}"
+    );
 }

@@ -155,6 +155,67 @@ fn every_packet_of_a_real_capture_arrives_byte_identical_and_in_order() {
     println!("{stderr}");
 }
 
+/// The largest pacing lag the replay reports for itself ("max X us" on standard error).
+fn reported_max_lag(stderr: &str) -> Duration {
+    let us: f64 = stderr
+        .split("max ")
+        .nth(1)
+        .and_then(|r| r.split(" us").next())
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no lag report in: {stderr}"));
+    Duration::from_secs_f64(us * 1e-6)
+}
+
+/// Replays `file` to a socket that takes the kernel's receive time of every datagram
+/// (`SO_TIMESTAMPNS`): on loopback that is the moment of sending, whatever the receiving thread
+/// is doing. Returns the payloads with those times, and the replay's standard error.
+fn receive_stamped(file: &Path, extra: &[&str]) -> (Vec<(Vec<u8>, Duration)>, String) {
+    use nix::sys::socket::{recvmsg, setsockopt, sockopt, ControlMessageOwned, MsgFlags};
+    use std::os::fd::AsRawFd;
+    let data = UdpSocket::bind("127.0.0.1:0").unwrap();
+    setsockopt(&data, sockopt::ReceiveTimestampns, &true).unwrap();
+    data.set_read_timeout(Some(Duration::from_millis(20)))
+        .unwrap();
+    let child = Command::new(common::hilrig_bin())
+        .arg("replay")
+        .arg(file)
+        .arg("--lidar-to")
+        .arg(data.local_addr().unwrap().to_string())
+        .args(extra)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut got = Vec::new();
+    let mut buf = [0u8; 2048];
+    let mut last = Instant::now();
+    let started = Instant::now();
+    while last.elapsed() < Duration::from_millis(300)
+        || started.elapsed() < Duration::from_millis(500)
+    {
+        let mut iov = [std::io::IoSliceMut::new(&mut buf)];
+        let mut cmsg = nix::cmsg_space!(nix::sys::time::TimeSpec);
+        let Ok(msg) = recvmsg::<()>(
+            data.as_raw_fd(),
+            &mut iov,
+            Some(&mut cmsg),
+            MsgFlags::empty(),
+        ) else {
+            continue;
+        };
+        let stamp = msg.cmsgs().unwrap().find_map(|c| match c {
+            ControlMessageOwned::ScmTimestampns(ts) => Some(Duration::from(ts)),
+            _ => None,
+        });
+        let n = msg.bytes;
+        got.push((buf[..n].to_vec(), stamp.expect("a kernel receive stamp")));
+        last = Instant::now();
+    }
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{stderr}");
+    (got, stderr)
+}
+
 #[test]
 fn speed_and_window_options() {
     let file = common::fixture("vlp16_room.pcapng");
@@ -174,15 +235,25 @@ fn speed_and_window_options() {
         .collect();
     assert_eq!(got.len(), want.len());
     assert!(got.iter().zip(&want).all(|(a, b)| a == *b));
-    // --speed 10: the same packets, ten times as fast (span measured on arrival, loosely).
-    let (got, _, at, _) = receive(&file, &["--speed", "10"], Duration::from_millis(300));
+    // --speed 10: the same packets, sent on a schedule ten times as fast as the file's. Item i
+    // is due (t_i - t_0) / 10 after the first and is sent between its deadline and the largest
+    // lag the replay reports, so the interval between any two sends is the scheduled one within
+    // that lag. Judged on the kernel's receive stamps (the send instants on loopback) and the
+    // replay's own lag report from the same run, it holds on a loaded machine as on an idle one;
+    // a replay that ignored --speed (or pacing) is off by up to the whole 0.2 s (or 21 ms).
+    let (got, stderr) = receive_stamped(&file, &["--speed", "10"]);
     assert_eq!(got.len(), data.len());
-    let span = at.last().unwrap().duration_since(at[0]);
-    let original = Duration::from_nanos((data.last().unwrap().0 .0 - data[0].0 .0) as u64);
-    assert!(
-        span < original / 4,
-        "span {span:?} for an original {original:?} at 10x"
-    );
+    assert!(got.iter().zip(&data).all(|(a, b)| a.0 == b.2), "in order");
+    let lag = reported_max_lag(&stderr);
+    let slack = lag + Duration::from_micros(100);
+    for (k, ((_, at), want)) in got.iter().zip(&data).enumerate() {
+        let sent = at.abs_diff(got[0].1);
+        let due = Duration::from_nanos((want.0 .0 - data[0].0 .0) as u64) / 10;
+        assert!(
+            sent + slack >= due && sent <= due + slack,
+            "packet {k} sent {sent:?} after the first, due {due:?} (replay's max lag {lag:?})"
+        );
+    }
 }
 
 #[test]
@@ -278,19 +349,22 @@ fn gnss_bytes_through_a_pty_arrive_identical_and_paced() {
     let out = child.wait_with_output().unwrap();
     assert!(out.status.success());
     assert_eq!(got, expected, "bytes identical");
-    // Sentences at their original times: the last one 1.5 s after the first (loosely).
+    // Sentences at their original times: the last is due 1.5 s after the first and is written no
+    // earlier (a replay that wrote the stream at once would deliver it in milliseconds). The
+    // first one may be read late if this reader wakes late, by far less than the 200 ms allowed;
+    // how late the replay itself was, it reports.
     let span = arrivals.last().unwrap().1.duration_since(arrivals[0].1);
+    let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
-        span > Duration::from_millis(1300) && span < Duration::from_millis(2500),
-        "span {span:?}"
+        span + Duration::from_millis(200) >= Duration::from_millis(1500),
+        "span {span:?}; {stderr}"
     );
+    // And it says how far behind its schedule it fell (printed, not judged: that is the
+    // machine's business, measured in benches/replay_pacing.py).
+    println!("replay's max lag: {:?}", reported_max_lag(&stderr));
 }
 
 #[test]
-#[cfg_attr(
-    not(hilrig_python),
-    ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
-)]
 fn a_replay_recorded_again_gives_the_same_payloads() {
     // The recorder listens; the replay plays the fixture into it.
     let dir = tempfile::tempdir().unwrap();
@@ -379,4 +453,170 @@ fn now_rewrites_sensor_time_pps_and_rmc_to_the_present() {
         resolved.0 >= before.0 - 1_000_000 && resolved.0 <= after.0,
         "packet time {resolved} is now"
     );
+}
+
+/// A capture of `n` VLP-16 data packets (the room fixture's, repeated) `every` apart.
+fn long_capture(n: usize, every: Duration) -> Vec<u8> {
+    use hilrig::capture::writer::udp_ethernet_frame;
+    use std::net::{Ipv4Addr, SocketAddrV4};
+    let payloads: Vec<Vec<u8>> = udp_payloads(&common::fixture("vlp16_room.pcapng"))
+        .into_iter()
+        .filter(|e| e.1 == 2368)
+        .map(|e| e.2)
+        .collect();
+    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
+    let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
+    let ep = |ip: u8| SocketAddrV4::new(Ipv4Addr::new(192, 168, 1, ip), 2368);
+    for k in 0..n {
+        let t = UtcNanos(1_700_000_000_000_000_000 + (every.as_nanos() * k as u128) as i64);
+        let frame = udp_ethernet_frame(ep(201), ep(77), &payloads[k % payloads.len()]);
+        w.write_packet(eth, t, &frame).unwrap();
+    }
+    w.finish().unwrap()
+}
+
+/// At 1x over 3 s and 1500 packets, every packet leaves at its time in the file, measured from
+/// the first, within the lag the replay reports: deadlines are absolute, so nothing drifts (a
+/// replay that slept from item to item would fall behind by its per-item overhead, 1500 times).
+#[test]
+fn one_x_replay_keeps_the_file_s_time_over_a_long_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("long.pcapng");
+    let every = Duration::from_millis(2);
+    std::fs::write(&file, long_capture(1500, every)).unwrap();
+    let (got, stderr) = receive_stamped(&file, &[]);
+    assert_eq!(got.len(), 1500, "{stderr}");
+    let lag = reported_max_lag(&stderr);
+    let slack = lag + Duration::from_micros(100);
+    let mut worst = Duration::ZERO;
+    for (k, (_, at)) in got.iter().enumerate() {
+        let sent = at.abs_diff(got[0].1);
+        let due = every * k as u32;
+        worst = worst.max(sent.abs_diff(due));
+        assert!(
+            sent + slack >= due && sent <= due + slack,
+            "packet {k} sent {sent:?} after the first, due {due:?} (replay's max lag {lag:?})"
+        );
+    }
+    println!("worst deviation from the file's time {worst:?}; replay's max lag {lag:?}");
+}
+
+/// `--gnss-to DEVICE --baud B` on a real serial device's stand-in (a pty's slave side): the
+/// bytes arrive identical, and no faster than the line carries them. 16 sentences of about
+/// 85 bytes every 100 ms at 4800 baud (480 bytes/s, 177 ms a sentence) are line-bound: the last
+/// byte cannot arrive before all bytes after the first sentence have crossed the line.
+#[test]
+fn gnss_to_a_serial_device_is_paced_at_its_baud_rate() {
+    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
+    let ser = w.add_interface(LinkType::USER0, "/dev/ttyACM0").unwrap();
+    let mut expected = Vec::new();
+    let mut first_len = 0;
+    for i in 0..16i64 {
+        let s = hilrig::gnss::framer::nmea_sentence(&format!(
+            "GNGGA,1200{:02}.{}0,4807.0380000,N,01131.0000000,E,4,12,0.8,545.40,M,46.90,M,1.0,0042",
+            i / 10,
+            i % 10
+        ));
+        if i == 0 {
+            first_len = s.len();
+        }
+        w.write_packet(
+            ser,
+            UtcNanos(1_700_000_000_000_000_000 + i * 100_000_000),
+            s.as_bytes(),
+        )
+        .unwrap();
+        expected.extend_from_slice(s.as_bytes());
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let cap = dir.path().join("gnss.pcapng");
+    std::fs::write(&cap, w.finish().unwrap()).unwrap();
+    let (mut master, device) = common::pty();
+    let mut child = Command::new(common::hilrig_bin())
+        .arg("replay")
+        .arg(&cap)
+        .args(["--gnss-to", &device, "--baud", "4800"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut got = Vec::new();
+    let mut arrivals = Vec::new();
+    let mut buf = [0u8; 256];
+    let t0 = Instant::now();
+    while got.len() < expected.len() && t0.elapsed() < Duration::from_secs(20) {
+        // The master reads EIO while no one has the device open: before the replay opens it
+        // and after it has closed it.
+        match master.read(&mut buf) {
+            Ok(n) if n > 0 => {
+                got.extend_from_slice(&buf[..n]);
+                arrivals.push(Instant::now());
+            }
+            _ => {
+                if child.try_wait().unwrap().is_some() {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(2));
+            }
+        }
+    }
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert_eq!(got, expected, "bytes identical");
+    let line = Duration::from_secs_f64((expected.len() - first_len) as f64 * 10.0 / 4800.0);
+    let span = arrivals.last().unwrap().duration_since(arrivals[0]);
+    // 200 ms for this reader waking late on the first bytes (see the pty test above).
+    assert!(
+        span + Duration::from_millis(200) >= line,
+        "span {span:?}, the line needs {line:?}; {stderr}"
+    );
+}
+
+/// `--can-to IFACE`: the frames of a capture's SocketCAN interface go out on a CAN interface,
+/// identical and in order. Needs `vcan0` (a kernel module this machine may lack).
+#[test]
+#[cfg_attr(
+    not(hilrig_vcan),
+    ignore = "no vcan0 interface on this machine (the vcan kernel module is missing): did not run"
+)]
+fn can_frames_go_out_on_a_can_interface() {
+    use hilrig::capture::CanFrame;
+    let frames: Vec<CanFrame> = (0..20u32)
+        .map(|i| CanFrame::new(0x100 + i, i % 2 == 1, &[i as u8; 8]).unwrap())
+        .collect();
+    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
+    let can = w.add_interface(LinkType::CAN_SOCKETCAN, "can0").unwrap();
+    for (i, f) in frames.iter().enumerate() {
+        w.write_packet(
+            can,
+            UtcNanos(1_700_000_000_000_000_000 + i as i64 * 10_000_000),
+            &f.encode_socketcan(),
+        )
+        .unwrap();
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let cap = dir.path().join("can.pcapng");
+    std::fs::write(&cap, w.finish().unwrap()).unwrap();
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let mut rx = hilrig::can::socketcan_source::SocketCanSource::open("vcan0").expect("vcan0");
+        let child = Command::new(common::hilrig_bin())
+            .arg("replay")
+            .arg(&cap)
+            .args(["--can-to", "vcan0"])
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        for f in &frames {
+            let got = tokio::time::timeout(Duration::from_secs(5), rx.next())
+                .await
+                .expect("a frame within 5 s")
+                .unwrap();
+            assert_eq!(&got.value, f);
+        }
+        assert!(child.wait_with_output().unwrap().status.success());
+    });
 }

@@ -127,10 +127,27 @@ fn compare_file(name: &str, path: &std::path::Path) {
                 "{name}: both decoders apply the manual's corrections"
             );
         }
-        _ => assert!(
-            hi - lo < 0.0015,
-            "{name}: the shift is one lever arm for all lasers"
-        ),
+        _ => {
+            assert!(
+                hi - lo < 0.0015,
+                "{name}: the shift is one lever arm for all lasers"
+            );
+            // velodyne-decoder 3.1.0 places every beam's origin at the "focal point where all
+            // laser beams intersect", a documented distance from the sensor's axis (its
+            // calibration.cpp: HDL-32E 28.83 mm, VLP-32A/C 42.4 mm), and so lowers each point by
+            // that distance times tan(ω); hilrig, like VeloView, casts from the axis. The lever
+            // fitted here must be that distance (half a millimetre covers the f32 z of its output
+            // divided by tan 3°).
+            let focal = match model {
+                hilrig::velodyne::Model::Hdl32e => 0.028_83,
+                hilrig::velodyne::Model::Vlp32c => 0.042_4,
+                other => panic!("{name}: no documented focal distance for {other}"),
+            };
+            assert!(
+                (lo - focal).abs() < 0.0005 && (hi - focal).abs() < 0.0005,
+                "{name}: lever [{lo}, {hi}] m, velodyne-decoder's focal distance {focal} m"
+            );
+        }
     }
 
     let (mut max_xy, mut max_z, mut max_d) = (0f64, 0f64, 0f64);

@@ -31,9 +31,6 @@ use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-/// Messages waiting for the writer (about 2 s of a VLP-32C plus everything else).
-const QUEUE: usize = 8192;
-
 /// One message for the writer.
 struct Event {
     topic: &'static str,
@@ -223,7 +220,7 @@ pub async fn record_live(
         &msgs::tf_message(now, &rig.transforms()),
     )?;
 
-    let (tx, rx) = sync_channel::<Event>(QUEUE);
+    let (tx, rx) = sync_channel::<Event>(rec.queue_messages.max(1));
     // Sources finish their pending state (the last partial rotation, the open GNSS epoch) when
     // this flips, instead of being aborted mid-message.
     let (shutdown_tx, shutdown) = tokio::sync::watch::channel(false);

@@ -335,18 +335,29 @@ mod tests {
     fn recovers_a_turning_drive_from_noisy_gnss_and_can() {
         let (v, w) = (3.0, 0.3);
         let lever = Vector2::new(0.6, 0.0);
-        let truth = |t: f64| -> S {
-            ctrv(
-                &S::from_column_slice(&[5.0, -2.0, 0.4, v, w, 0.0, 0.0, 0.6]),
-                t,
-            )
+        // The truth in closed form, independent of the module's motion and measurement models:
+        // a circle of radius v/w driven at constant speed from (5, -2) heading 0.4 rad; the
+        // antenna 0.6 m ahead of the rear axle along the heading.
+        let (x0, y0, psi0) = (5.0, -2.0, 0.4);
+        let truth = |t: f64| -> [f64; 3] {
+            let psi = psi0 + w * t;
+            let r = v / w;
+            [
+                x0 + r * (psi.sin() - psi0.sin()),
+                y0 - r * (psi.cos() - psi0.cos()),
+                psi,
+            ]
+        };
+        let antenna = |x: [f64; 3], l: &Vector2<f64>| -> Vector2<f64> {
+            let (s, c) = x[2].sin_cos();
+            Vector2::new(x[0] + l.x * c - l.y * s, x[1] + l.x * s + l.y * c)
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
         let n = Normal::new(0.0, 0.01).unwrap();
         let gnss: Vec<GnssObs> = (0..200)
             .map(|k| {
                 let t = k as f64 * 0.1;
-                let a = antenna(&truth(t), &lever);
+                let a = antenna(truth(t), &lever);
                 GnssObs {
                     t: UtcNanos((t * 1e9) as i64),
                     position: a + Vector2::new(n.sample(&mut rng), n.sample(&mut rng)),

@@ -130,6 +130,41 @@ mod tests {
         }
     }
 
+    /// The worked examples of IOGP Guidance Note 7-2 (Coordinate Conversions and
+    /// Transformations, §2.2.1 geographic/geocentric and §2.2.3 geocentric/topocentric, WGS 84):
+    /// published to the millimetre, so a spherical Earth, a wrong flattening or a swapped axis
+    /// fails by metres.
+    #[test]
+    fn iogp_worked_examples_to_the_millimetre() {
+        let dms = |d: f64, m: f64, s: f64| d + m / 60.0 + s / 3600.0;
+        let p = Wgs84 {
+            latitude_deg: dms(53.0, 48.0, 33.820),
+            longitude_deg: dms(2.0, 7.0, 46.380),
+            height_m: 73.0,
+        };
+        let x = to_ecef(&p);
+        let published = Vector3::new(3_771_793.968, 140_253.342, 5_124_304.349);
+        assert!((x - published).abs().max() < 0.0005, "{x} vs {published}");
+        // And back: the published geocentric coordinates give the geographic ones (1e-8° is
+        // 1 mm at the surface).
+        let q = from_ecef(&published);
+        assert!((q.latitude_deg - p.latitude_deg).abs() < 1e-8, "{q:?}");
+        assert!((q.longitude_deg - p.longitude_deg).abs() < 1e-8, "{q:?}");
+        assert!((q.height_m - 73.0).abs() < 0.001, "{q:?}");
+        // Topocentric: origin 55°N 5°E, 200 m.
+        let enu = Enu::new(&Wgs84 {
+            latitude_deg: 55.0,
+            longitude_deg: 5.0,
+            height_m: 200.0,
+        });
+        let local = enu.from_wgs84(&p);
+        let published = Vector3::new(-189_013.869, -128_642.040, -4_220.171);
+        assert!(
+            (local - published).abs().max() < 0.0005,
+            "{local} vs {published}"
+        );
+    }
+
     #[test]
     fn east_and_north_point_where_they_should() {
         let o = Wgs84 {
@@ -138,19 +173,29 @@ mod tests {
             height_m: 500.0,
         };
         let enu = Enu::new(&o);
+        // Along the meridian: the arc of 0.001° on the ellipse's meridional radius of curvature
+        // M = a (1 - e²) / (1 - e² sin²φ)^(3/2) (plus the height), 111.2 m; along the parallel:
+        // the chord of the circle of radius (N + h) cos φ, N = a / √(1 - e² sin²φ). Over 100 m
+        // both are exact to well under a millimetre.
+        let (phi, dang) = (48f64.to_radians(), 0.001f64.to_radians());
+        let w = 1.0 - E2 * phi.sin().powi(2);
+        let m = A * (1.0 - E2) / w.powf(1.5) + 500.0;
+        let n = A / w.sqrt() + 500.0;
         let north = enu.from_wgs84(&Wgs84 {
             latitude_deg: 48.001,
             ..o
         });
-        // One millidegree of latitude at 48° is about 111.2 m.
         assert!(
-            north.x.abs() < 1e-3 && (north.y - 111.2).abs() < 0.3,
+            north.x.abs() < 1e-6 && (north.y - m * dang.sin()).abs() < 0.001,
             "{north}"
         );
         let east = enu.from_wgs84(&Wgs84 {
             longitude_deg: 11.001,
             ..o
         });
-        assert!((east.x - 74.6).abs() < 0.3 && east.y.abs() < 0.01, "{east}");
+        assert!(
+            (east.x - n * phi.cos() * dang.sin()).abs() < 0.001 && east.y.abs() < 0.001,
+            "{east}"
+        );
     }
 }

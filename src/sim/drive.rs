@@ -295,6 +295,29 @@ pub struct FreeClock {
     pub drift_ppm: f64,
 }
 
+/// One GNSS epoch off by a displacement the receiver does not report (a multipath or
+/// wrong-ambiguity jump: still "fixed", with the usual sigmas).
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct JumpFault {
+    /// The epoch nearest this time, s after the drive's start.
+    pub at_s: f64,
+    /// Displacement east and north, m.
+    pub offset_m: [f64; 2],
+}
+
+/// Corrections reaching the receiver late in a window (GGA field 13).
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AgeFault {
+    /// Start, s after the drive's start.
+    pub from_s: f64,
+    /// End, s.
+    pub to_s: f64,
+    /// Age of the corrections, s.
+    pub age_s: f64,
+}
+
 /// Faults injected into the reference data (for testing `hilrig check`); none by default.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -320,6 +343,18 @@ pub struct Faults {
     /// The true antenna sits this far from where the rig file says, metres (x, y, z).
     #[serde(default)]
     pub antenna_error_m: [f64; 3],
+    /// Windows without GNSS output (the receiver or its serial line is silent).
+    #[serde(default)]
+    pub gnss_gap: Vec<Window>,
+    /// Windows without CAN frames (the bus or the logger's interface is silent).
+    #[serde(default)]
+    pub can_gap: Vec<Window>,
+    /// Single GNSS epochs displaced without the receiver knowing.
+    #[serde(default)]
+    pub position_jump: Vec<JumpFault>,
+    /// Windows with old corrections.
+    #[serde(default)]
+    pub correction_age: Vec<AgeFault>,
 }
 
 impl Default for Faults {

@@ -117,9 +117,19 @@ impl Streams<'_> {
                 phi * noise.y + drive_h * unit.sample(grng),
                 phi * noise.z + drive_v * unit.sample(grng),
             );
+            // A jump: the epoch nearest `at_s` displaced, unknown to the receiver.
+            let step_s = step_ns as f64 * 1e-9;
+            let jump = faults
+                .position_jump
+                .iter()
+                .filter(|j| (ts - j.at_s).abs() < step_s / 2.0)
+                .fold(Vector3::zeros(), |acc, j| {
+                    acc + Vector3::new(j.offset_m[0], j.offset_m[1], 0.0)
+                });
             let antenna = p.isometry().transform_point(&Point3::from(lever)).coords
                 + if errors { noise } else { Vector3::zeros() }
-                + extra;
+                + extra
+                + jump;
             let w = enu.to_wgs84(&antenna);
             let (hms_s, date) = hms(t);
             let ll = nmea_lat_lon(w.latitude_deg, w.longitude_deg);
@@ -128,11 +138,16 @@ impl Streams<'_> {
             let sog_kn = vel.xy().norm() / 0.514_444;
             let cog = (90.0 - vel.y.atan2(vel.x).to_degrees()).rem_euclid(360.0);
             let alt = w.height_m - gs.geoid_separation_m;
+            let age = faults
+                .correction_age
+                .iter()
+                .find(|f| ts >= f.from_s && ts < f.to_s)
+                .map_or("1.0".to_owned(), |f| format!("{:.1}", f.age_s));
             let body = [
                 format!(
                     "GNGGA,{hms_s},{ll},{quality},14,0.7,{alt:.3},M,{:.3},M,{},{}",
                     gs.geoid_separation_m,
-                    if quality >= 4 { "1.0" } else { "" },
+                    if quality >= 4 { age.as_str() } else { "" },
                     if quality >= 4 { "0042" } else { "" },
                 ),
                 format!("GNRMC,{hms_s},A,{ll},{sog_kn:.3},{cog:.2},{date},,,R"),
@@ -157,7 +172,12 @@ impl Streams<'_> {
                 } else {
                     0.0
                 };
-            events.push((t.0 + lat_ns as i64, bytes));
+            // A silent receiver: the epoch is computed (the noise goes on) but not sent.
+            if faults.gnss_gap.iter().any(|w| w.contains(ts)) {
+                sentences -= body.len() as u64;
+            } else {
+                events.push((t.0 + lat_ns as i64, bytes));
+            }
             t = UtcNanos(t.0 + step_ns);
         }
 
@@ -243,7 +263,13 @@ impl Streams<'_> {
             let data = msg.encode(&values);
             let frame = CanFrame::new(msg.id, msg.extended, &data)
                 .ok_or_else(|| format!("message {} does not fit a CAN frame", msg.name))?;
-            events.push((t.0 + (cs.latency_ms * 1e6) as i64, frame.encode_socketcan()));
+            if !faults
+                .can_gap
+                .iter()
+                .any(|w| w.contains(self.since_start(t)))
+            {
+                events.push((t.0 + (cs.latency_ms * 1e6) as i64, frame.encode_socketcan()));
+            }
             t = UtcNanos(t.0 + step_ns);
         }
 

@@ -157,13 +157,22 @@ pub struct SynthRun {
 
 #[allow(dead_code)]
 pub fn synth_and_record(extra: &str, seed: u64, errors: bool) -> SynthRun {
+    synth_and_record_edited(|text| text, extra, seed, errors)
+}
+
+/// [`synth_and_record`] with the parking drive file's text passed through `edit` first (to change
+/// a stream setting such as the lidar's host jitter).
+pub fn synth_and_record_edited(
+    edit: impl Fn(String) -> String,
+    extra: &str,
+    seed: u64,
+    errors: bool,
+) -> SynthRun {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(fixture("parking/drive.toml"))
-        .unwrap()
-        .replace(
-            "rig = \"../../rigs/demo.toml\"",
-            &format!("rig = {:?}", demo_rig().display().to_string()),
-        );
+    let text = edit(std::fs::read_to_string(fixture("parking/drive.toml")).unwrap()).replace(
+        "rig = \"../../rigs/demo.toml\"",
+        &format!("rig = {:?}", demo_rig().display().to_string()),
+    );
     let drive = dir.path().join("drive.toml");
     std::fs::write(&drive, format!("{text}\n{extra}\n")).unwrap();
     let mut cmd = std::process::Command::new(hilrig_bin());

@@ -99,8 +99,21 @@ mod tests {
         insert(&mut d, Order::Motorola, 7, 12, 0xABC);
         assert_eq!(&d[..2], &[0xAB, 0xC0]);
         assert_eq!(extract(&d, Order::Motorola, 7, 12), 0xABC);
+        // A 64-bit Motorola signal from bit 7 fills 8 bytes exactly: not 7, and not from bit 15.
         assert!(fits(Order::Motorola, 7, 64, 8));
-        assert!(!fits(Order::Motorola, 0, 2, 8) || fits(Order::Motorola, 0, 2, 16));
+        assert!(!fits(Order::Motorola, 7, 64, 7));
+        assert!(!fits(Order::Motorola, 15, 64, 8));
+        // Two bits from bit 0 (the last bit of byte 0) run on into bit 15 (the first of byte 1).
+        assert!(!fits(Order::Motorola, 0, 2, 1));
+        assert!(fits(Order::Motorola, 0, 2, 2));
+        let mut d = [0u8; 2];
+        insert(&mut d, Order::Motorola, 0, 2, 0b11);
+        assert_eq!(d, [0x01, 0x80]);
+        assert_eq!(extract(&d, Order::Motorola, 0, 2), 0b11);
+        // Intel counts upwards: 4 bits from bit 60 end at bit 63; from 61 they do not fit.
+        assert!(fits(Order::Intel, 60, 4, 8));
+        assert!(!fits(Order::Intel, 61, 4, 8));
+        assert!(!fits(Order::Intel, 0, 0, 8) && !fits(Order::Intel, 0, 65, 16));
     }
 
     #[test]

@@ -450,13 +450,25 @@ mod tests {
 
     #[test]
     fn crc24q_known_value() {
-        // RTCM 1005 frame from the RTCM standard's example, CRC 0x39F6E6... computed checks:
+        // The standard check value of CRC-24Q (poly 0x864CFB, init 0, no reflection, no xor
+        // out): the CRC of the nine ASCII digits "123456789" is 0xCDE703.
+        assert_eq!(crc24q(b"123456789"), 0xCD_E703);
         assert_eq!(crc24q(b""), 0);
+        // A frame built here carries that CRC over its header and payload, and the framer
+        // accepts it and rejects it with one bit flipped.
         let f = rtcm3_frame(&[0x3E, 0xD0, 0x00, 0x03]);
         assert_eq!(
             crc24q(&f[..f.len() - 3]),
             u32::from_be_bytes([0, f[f.len() - 3], f[f.len() - 2], f[f.len() - 1]])
         );
+        let mut bad = f.clone();
+        bad[4] ^= 0x01;
+        let (ok, rejected) = frames(&bad);
+        assert!(ok.is_empty());
+        assert_eq!(rejected, vec![RejectReason::Rtcm3Crc]);
+        let (ok, rejected) = frames(&f);
+        assert_eq!(ok.len(), 1);
+        assert!(rejected.is_empty());
     }
 
     #[test]
