@@ -438,15 +438,16 @@ fn time_offset_and_motion_distortion_shift_points_as_expected() {
         let expect = (30.0 - v * ts) / (w.cos() * a.cos());
         assert!((r - expect).abs() <= 0.001 + 1e-5, "{r} vs {expect}");
     }
-    // time_offset: firings happen 20 ms later than stamped, so 6 cm nearer.
+    // time_offset 20 ms: the stamps are 20 ms late, so each firing happened 20 ms earlier than
+    // stamped, 6 cm farther from the wall.
     let offset = forward_ranges(vec![Effect::TimeOffset { offset_ms: 20.0 }], v);
     assert_eq!(offset.len(), base.len());
     for (&(r0, w, a, ..), &(r1, ..)) in base.iter().zip(&offset) {
         let expect = v * 0.020 / (w.cos() * a.cos());
         assert!(
-            ((r0 - r1) - expect).abs() <= 0.002 + 1e-5,
+            ((r1 - r0) - expect).abs() <= 0.002 + 1e-5,
             "{} vs {expect}",
-            r0 - r1
+            r1 - r0
         );
     }
     // Without motion distortion every firing of a rotation is cast from the rotation's start.

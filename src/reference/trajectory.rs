@@ -129,6 +129,19 @@ fn antenna(x: &S, lever: &Vector2<f64>) -> Vector2<f64> {
     at - vel * x[DELTA]
 }
 
+/// The RTS gain `Pf Fᵀ Pp⁻¹` on the first `active` states (the rest have no variance and keep
+/// their value).
+fn rts_gain(pf: &P, f: &P, pp: &P, active: usize) -> Option<P> {
+    if active == 8 {
+        return Some(pf * f.transpose() * pp.try_inverse()?);
+    }
+    let inv = pp.fixed_view::<6, 6>(0, 0).into_owned().try_inverse()?;
+    let g = (pf * f.transpose()).fixed_view::<6, 6>(0, 0) * inv;
+    let mut c = P::zeros();
+    c.fixed_view_mut::<6, 6>(0, 0).copy_from(&g);
+    Some(c)
+}
+
 enum Meas {
     Gnss(GnssObs),
     Motion(f64, f64),
@@ -172,8 +185,11 @@ impl EgoTrajectory {
         let rear = p0 - (antenna(&x, &s.lever) - p0);
         x[0] = rear.x;
         x[1] = rear.y;
+        // When estimated, δ and the lever arm start from diffuse priors (σ 0.1 s and 10 m), so
+        // that what the drive says decides them and the rig file's value only seeds the
+        // linearisation.
         let (var_delta, var_lever) = if s.estimate_offset_and_lever {
-            (0.1f64.powi(2), 1.0)
+            (0.1f64.powi(2), 10f64.powi(2))
         } else {
             (0.0, 0.0)
         };
@@ -238,14 +254,17 @@ impl EgoTrajectory {
             xf.push(x);
             pf.push(p);
         }
-        // Rauch-Tung-Striebel.
+        // Rauch-Tung-Striebel. Constants that are not estimated have no variance at all, so the
+        // predicted covariance is singular in their rows and columns: the gain is taken on the
+        // states that vary (a failed inverse would silently leave the filter's estimate, which
+        // lags at the start of a drive and wherever the vehicle stands still).
+        let active = if s.estimate_offset_and_lever { 8 } else { 6 };
         let mut xs = xf.clone();
         let mut ps = pf.clone();
         for k in (0..n.saturating_sub(1)).rev() {
-            let Some(inv) = pp[k + 1].try_inverse() else {
+            let Some(c) = rts_gain(&pf[k], &fs[k + 1], &pp[k + 1], active) else {
                 continue;
             };
-            let c = pf[k] * fs[k + 1].transpose() * inv;
             xs[k] = xf[k] + c * (xs[k + 1] - xp[k + 1]);
             ps[k] = pf[k] + c * (ps[k + 1] - pp[k + 1]) * c.transpose();
         }
@@ -325,6 +344,60 @@ impl EgoTrajectory {
     }
 }
 
+/// How many times more uncertain an estimate from GNSS residuals is than the smoother's white-
+/// noise covariance says: the integrated autocorrelation time `1 + 2 Σ ρ_k` of the residuals
+/// (normalised by their sigmas, both axes), summed until the autocorrelation first drops to
+/// zero. RTK errors wander (multipath, atmosphere) over seconds, so ten epochs a second are far
+/// fewer independent measurements; the variance of anything fitted to them grows by this
+/// factor (Box, Jenkins and Reinsel, "Time Series Analysis", the variance of a mean of
+/// autocorrelated data). `use_epoch` picks the epochs that count (RTK-fixed ones); a run of
+/// them is only continued over consecutive epochs. At least 1.
+pub fn correlation_factor(
+    residuals: &[Residual],
+    sigmas: &[Vector2<f64>],
+    use_epoch: &[bool],
+) -> f64 {
+    let z: Vec<Option<Vector2<f64>>> = residuals
+        .iter()
+        .zip(sigmas)
+        .zip(use_epoch)
+        .map(|((r, s), &u)| u.then(|| r.error.component_div(s)))
+        .collect();
+    let n = z.iter().flatten().count();
+    if n < 10 {
+        return 1.0;
+    }
+    let mean = z.iter().flatten().fold(Vector2::zeros(), |a, v| a + v) / n as f64;
+    let var = z
+        .iter()
+        .flatten()
+        .map(|v| (v - mean).norm_squared())
+        .sum::<f64>()
+        / n as f64;
+    if var <= 0.0 {
+        return 1.0;
+    }
+    let mut tau = 1.0;
+    for lag in 1..n / 4 {
+        let (mut sum, mut pairs) = (0.0, 0usize);
+        for k in lag..z.len() {
+            if let (Some(a), Some(b)) = (z[k - lag], z[k]) {
+                sum += (a - mean).dot(&(b - mean));
+                pairs += 1;
+            }
+        }
+        if pairs < 5 {
+            break;
+        }
+        let rho = sum / pairs as f64 / var;
+        if rho <= 0.0 {
+            break;
+        }
+        tau += 2.0 * rho;
+    }
+    tau.max(1.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -397,5 +470,47 @@ mod tests {
             / 2.0)
             .sqrt();
         assert!((rms - 0.01).abs() < 0.003, "residual rms {rms}");
+    }
+
+    /// White residuals count once each; residuals that follow a first-order Gauss-Markov process
+    /// with correlation ρ per epoch count (1 - ρ) / (1 + ρ) times (the closed form of
+    /// 1 + 2 Σ ρ^k).
+    #[test]
+    fn correlation_factor_of_white_and_of_wandering_residuals() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let n = Normal::new(0.0, 1.0).unwrap();
+        let res = |e: Vec<Vector2<f64>>| -> Vec<Residual> {
+            e.into_iter()
+                .enumerate()
+                .map(|(k, e)| Residual {
+                    t: UtcNanos(k as i64 * 100_000_000),
+                    error: e,
+                    nis: e.norm_squared(),
+                })
+                .collect()
+        };
+        let count = 20_000;
+        let white: Vec<Vector2<f64>> = (0..count)
+            .map(|_| Vector2::new(n.sample(&mut rng), n.sample(&mut rng)))
+            .collect();
+        let sig = vec![Vector2::new(1.0, 1.0); count];
+        let all = vec![true; count];
+        let f = correlation_factor(&res(white), &sig, &all);
+        assert!((f - 1.0).abs() < 0.1, "white: {f}");
+        let rho: f64 = 0.9;
+        let mut e = Vector2::zeros();
+        let drive = (1.0 - rho * rho).sqrt();
+        let wander: Vec<Vector2<f64>> = (0..count)
+            .map(|_| {
+                e = e * rho + Vector2::new(n.sample(&mut rng), n.sample(&mut rng)) * drive;
+                e
+            })
+            .collect();
+        let f = correlation_factor(&res(wander), &sig, &all);
+        let expected = (1.0 + rho) / (1.0 - rho);
+        assert!(
+            (f - expected).abs() < 0.15 * expected,
+            "Gauss-Markov: {f} vs {expected}"
+        );
     }
 }

@@ -334,6 +334,10 @@ pub struct Faults {
     /// A free-running lidar clock.
     #[serde(default)]
     pub lidar_free_running: Option<FreeClock>,
+    /// A PPS-locked lidar whose stamps are late by this much, ms (a firing at t is stamped
+    /// t + offset: a misconfigured time source).
+    #[serde(default)]
+    pub lidar_time_offset_ms: f64,
     /// Windows without lidar data packets.
     #[serde(default)]
     pub lidar_gap: Vec<Window>,

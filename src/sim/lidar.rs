@@ -246,9 +246,11 @@ impl<'a> LidarSim<'a> {
         &self.mount
     }
 
-    /// The time a firing stamped `stamp` is cast at (the time_offset effect applied).
+    /// The time a firing stamped `stamp` is cast at: with the time_offset effect the stamps are
+    /// late by the offset, so the firing happened at `stamp - offset` (DESIGN.md's one sign
+    /// convention for time offsets).
     pub fn cast_time(&self, stamp: UtcNanos) -> UtcNanos {
-        UtcNanos(stamp.0 + self.fx.time_offset_ns)
+        UtcNanos(stamp.0 - self.fx.time_offset_ns)
     }
 
     /// Sensor-to-local transform at reference time `t` on `ego` (`None` outside it).

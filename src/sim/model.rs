@@ -98,15 +98,19 @@ pub enum Effect {
         /// Fire each laser at its own pose.
         enabled: bool,
     },
-    /// The lidar's timestamps are late against reference time: a firing stamped `t` happened at
-    /// `t + offset` (an unsynchronised or misconfigured clock). Source: seed §6 (temporal
-    /// accuracy of the reference data).
+    /// The lidar's timestamps are late against reference time by `offset_ms`: a firing stamped
+    /// `t` happened at `t - offset` (a negative offset: stamps early). The same convention as
+    /// `check`'s GNSS time offset and every time offset in hilrig. Source: an unsynchronised or
+    /// misconfigured clock; Rosenberger et al. 2019, §6 (temporal accuracy of the reference
+    /// data).
     TimeOffset {
         /// Offset, milliseconds.
         offset_ms: f64,
     },
     /// The sensor is mounted rotated from the rig file's extrinsics by these angles (applied as
-    /// yaw, pitch, roll in the sensor frame). Source: extrinsic calibration error; seed §6.
+    /// yaw, pitch, roll in the sensor frame; positive yaw turns the sensor counter-clockwise
+    /// seen from above, towards the vehicle's left). Source: extrinsic calibration error;
+    /// Rosenberger et al. 2019, §6.
     MountMisalignment {
         /// Roll error, degrees.
         #[serde(default)]

@@ -34,7 +34,7 @@ pub const SIM_POINTS: &str = "/sim/points";
 #[derive(Debug, thiserror::Error)]
 pub enum ResimError {
     /// The run failed `check` (and `--force` was not given).
-    #[error("the run's reference data fail the check ({}): re-simulating it would measure the reference errors, not the model; see `hilrig check`, or force it", .0.faults.iter().map(|f| f.name).collect::<Vec<_>>().join(", "))]
+    #[error("the run's reference data fail the check ({}): re-simulating it would measure the reference errors, not the model; see `hilrig check`, or give --force to re-simulate it anyway", .0.faults.iter().map(|f| f.name).collect::<Vec<_>>().join(", "))]
     Refused(Box<Report>),
     /// The input cannot be used.
     #[error("{0}")]

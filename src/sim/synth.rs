@@ -177,13 +177,15 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
     let seed = job.seed;
     let faults = job.drive.faults.clone().unwrap_or_default();
     let since_start = |t: UtcNanos| (t.0 - start.0) as f64 * 1e-9;
-    // The lidar's clock: UTC when PPS-locked, else free-running with an offset and a drift.
+    // The lidar's clock: UTC when PPS-locked (late by `lidar_time_offset_ms` if so injected),
+    // else free-running with an offset and a drift.
     let free = faults.lidar_free_running;
+    let late_ns = (faults.lidar_time_offset_ms * 1e6).round() as i64;
     let sensor_clock = move |t: UtcNanos| match free {
         Some(c) => UtcNanos(
             t.0 + (c.offset_ms * 1e6) as i64 + ((t.0 - start.0) as f64 * c.drift_ppm * 1e-6) as i64,
         ),
-        None => t,
+        None => UtcNanos(t.0 + late_ns),
     };
     let pps = if free.is_some() {
         PpsStatus::Absent

@@ -471,6 +471,103 @@ mod tests {
         assert!(rejected.is_empty());
     }
 
+    /// Polls from the u-blox protocol specification, checksums as printed there: CFG-RATE
+    /// (`B5 62 06 08 00 00 0E 30`) and MON-VER (`B5 62 0A 04 00 00 0E 34`). A frame with a
+    /// wrong checksum is rejected, not passed on.
+    #[test]
+    fn ubx_checksums_are_the_specification_s() {
+        assert_eq!(
+            ubx_frame(0x06, 0x08, &[]),
+            [0xB5, 0x62, 0x06, 0x08, 0, 0, 0x0E, 0x30]
+        );
+        assert_eq!(
+            ubx_frame(0x0A, 0x04, &[]),
+            [0xB5, 0x62, 0x0A, 0x04, 0, 0, 0x0E, 0x34]
+        );
+        let (ok, bad) = frames(&[0xB5, 0x62, 0x06, 0x08, 0, 0, 0x0E, 0x30]);
+        assert_eq!(ok.len(), 1);
+        assert!(bad.is_empty());
+        let (ok, bad) = frames(&[0xB5, 0x62, 0x06, 0x08, 0, 0, 0x0E, 0x31]);
+        assert!(ok.is_empty());
+        assert_eq!(bad, vec![RejectReason::UbxChecksum]);
+    }
+
+    /// The counters `decode --kind gnss` prints: every accepted frame by kind, every rejected
+    /// candidate, and every byte that belonged to no frame.
+    #[test]
+    fn counters_add_up_over_a_mixed_stream() {
+        let good = nmea_sentence("GPGGA,1,2,3");
+        let bad = "$GPGGA,1,2,3*00\r\n";
+        let mut s = b"xx\xff".to_vec();
+        s.extend(good.bytes());
+        s.extend(ubx_frame(1, 7, &[1, 2, 3]));
+        s.extend(rtcm3_frame(&[0x3E, 0xD0, 0x00, 0x03]));
+        s.extend(bad.bytes());
+        s.extend(good.bytes());
+        let mut f = Framer::new();
+        f.push(&s);
+        f.finish();
+        while f.next_frame().is_some() {}
+        let st = &f.stats;
+        assert_eq!(st.bytes, s.len() as u64);
+        assert_eq!((st.nmea, st.ubx, st.rtcm3, st.rejected), (2, 1, 1, 1));
+        assert_eq!(st.skipped_bytes, 3 + bad.len() as u64);
+        assert_eq!(st.comment_lines, 0);
+    }
+
+    /// NMEA sentences end with CR LF, which belongs to the sentence: back-to-back sentences
+    /// leave no byte over, and each starts where the one before ended.
+    #[test]
+    fn a_sentence_s_line_end_is_part_of_it() {
+        let a = nmea_sentence("GPGGA,1,2,3");
+        let b = nmea_sentence("GPRMC,4,5,6");
+        let mut f = Framer::new();
+        f.push(format!("{a}{b}").as_bytes());
+        f.finish();
+        let mut offsets = Vec::new();
+        while let Some(Item::Frame { offset, .. }) = f.next_frame() {
+            offsets.push(offset);
+        }
+        assert_eq!(offsets, vec![0, a.len() as u64]);
+        assert_eq!(f.stats.skipped_bytes, 0);
+    }
+
+    /// A `#` line is a comment only in gpsd's logs; in a receiver's own stream it is bytes
+    /// outside any frame. Either way its bytes are counted as skipped, and an empty comment
+    /// line (`#` alone, as gpsd's logs have them) is skipped too.
+    #[test]
+    fn hash_lines_are_comments_only_in_gpsd_logs() {
+        let text = format!("# a comment\n#\n{}", nmea_sentence("GPGGA,1,2,3"));
+        for (mut f, comments) in [(Framer::new(), 0), (Framer::for_gpsd_log(), 2)] {
+            f.push(text.as_bytes());
+            f.finish();
+            let mut n = 0;
+            while let Some(item) = f.next_frame() {
+                n += usize::from(matches!(item, Item::Frame { .. }));
+            }
+            assert_eq!(n, 1);
+            assert_eq!(f.stats.comment_lines, comments);
+            assert_eq!(f.stats.skipped_bytes, "# a comment\n#\n".len() as u64);
+            assert_eq!(f.stats.rejected, 0);
+        }
+    }
+
+    /// Large UBX frames (MON and ESF messages run to kilobytes) pass: up to 8 KiB.
+    #[test]
+    fn a_two_kilobyte_ubx_frame_passes() {
+        let payload: Vec<u8> = (0..2000u32).map(|i| i as u8).collect();
+        let (ok, bad) = frames(&ubx_frame(0x0A, 0x31, &payload));
+        assert!(bad.is_empty());
+        assert_eq!(
+            ok,
+            vec![Frame::Ubx {
+                class: 0x0A,
+                id: 0x31,
+                payload
+            }]
+        );
+    }
+
     #[test]
     fn mixed_stream_with_garbage() {
         let mut s = b"xx\xff".to_vec();

@@ -9,9 +9,9 @@
 //! - yaw rate against the GNSS course rate over a second, speed residuals, travelled distance.
 
 use super::faults::{secs, FaultLog};
-use super::report::{Spatial, Stats};
+use super::report::{Spatial, Stats, Warning};
 use crate::reference::run::{Motion, Run};
-use crate::reference::trajectory::{EgoTrajectory, GnssObs, Settings};
+use crate::reference::trajectory::{correlation_factor, EgoTrajectory, GnssObs, Settings};
 use crate::rig::Thresholds;
 use hilrig_stamp::UtcNanos;
 use nalgebra::Vector2;
@@ -45,56 +45,119 @@ struct Vel {
     course: f64,
 }
 
+/// How an estimate compares with its limit, given its standard uncertainty: beyond it with
+/// confidence (|e| - 2σ > limit: a fault), within it with confidence (|e| + 2σ ≤ limit), or
+/// undecided (the 2σ interval straddles the limit: a warning, not a fault).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Decision {
+    Beyond,
+    Within,
+    Undecided,
+}
+
+fn decide(error: f64, sigma: f64, limit: f64) -> Decision {
+    if error.abs() - 2.0 * sigma > limit {
+        Decision::Beyond
+    } else if error.abs() + 2.0 * sigma <= limit {
+        Decision::Within
+    } else {
+        Decision::Undecided
+    }
+}
+
 /// Speed scale, time offset, lever arm, jumps, yaw-rate and speed residuals and distances into
-/// `sp`, with their faults. Returns the GNSS time offset in seconds (0 when not determinable),
-/// which the accuracy budget needs.
+/// `sp`, with their faults, and warnings for what this drive cannot decide. Returns the GNSS
+/// time offset in seconds (0 when not determinable), which the accuracy budget needs.
 pub(super) fn gnss_against_can(
     inp: &Inputs<'_>,
     traj: &EgoTrajectory,
     sp: &mut Spatial,
     log: &mut FaultLog,
+    warnings: &mut Vec<Warning>,
 ) -> f64 {
     let vels = antenna_velocities(inp);
-    let moving_span = speed_scale(inp, &vels, sp, log);
-    let (fitted, delta_fit, lever_fit) = offset_and_lever(inp, sp.can_speed_scale.unwrap_or(1.0));
-    let traj_fit = fitted.as_ref().unwrap_or(traj);
+    let moving_span = speed_scale(inp, &vels, sp, log, warnings);
+    let fit = offset_and_lever(inp, sp.can_speed_scale.unwrap_or(1.0));
+    sp.gnss_noise_correlation = fit.correlation;
+    let traj_fit = fit.trajectory.as_ref().unwrap_or(traj);
     jumps(inp, traj_fit, sp, log);
 
     let (start, end) = inp.span;
-    let offset_s = delta_fit.unwrap_or(0.0);
-    sp.gnss_time_offset_ms = delta_fit.map(|d| d * 1e3);
-    if (offset_s * 1e3).abs() > inp.th.max_time_offset_ms {
-        log.fault(
+    let offset_s = fit.delta.map_or(0.0, |d| d.0);
+    sp.gnss_time_offset_ms = fit.delta.map(|d| d.0 * 1e3);
+    sp.gnss_time_offset_sigma_ms = fit.delta.map(|d| d.1 * 1e3);
+    let limit = inp.th.max_time_offset_ms;
+    let span = moving_span.unwrap_or((start, end));
+    match fit.delta {
+        None => warnings.push(Warning {
+            name: "gnss_time_offset",
+            detail: "not determinable on this drive: it needs at least a second of driving \
+                     with speed changes (starting, braking) on RTK-fixed epochs"
+                .into(),
+        }),
+        Some((d, sd)) => match decide(d * 1e3, sd * 1e3, limit) {
+            Decision::Beyond => log.fault(
                 "gnss_time_offset",
-                moving_span.unwrap_or((start, end)).0,
-                moving_span.unwrap_or((start, end)).1,
+                span.0,
+                span.1,
                 format!(
-                "GNSS time stamps are {:.1} ms {} the instants they describe, fitted against CAN motion (limit {:.0} ms)",
-                offset_s.abs() * 1e3,
-                if offset_s > 0.0 { "later than" } else { "earlier than" },
-                inp.th.max_time_offset_ms
+                    "GNSS time stamps are {:.1} ± {:.1} ms (1 sigma) {} the instants they describe, fitted against CAN motion (limit {limit:.0} ms, exceeded by more than 2 sigma)",
+                    d.abs() * 1e3,
+                    sd * 1e3,
+                    if d > 0.0 { "later than" } else { "earlier than" },
                 ),
-            );
+            ),
+            Decision::Undecided => warnings.push(Warning {
+                name: "gnss_time_offset",
+                detail: format!(
+                    "{:+.1} ± {:.1} ms (1 sigma): not determinable against the {limit:.0} ms limit on this drive; more speed changes (starting, braking) on RTK-fixed epochs would decide it",
+                    d * 1e3,
+                    sd * 1e3
+                ),
+            }),
+            Decision::Within => {}
+        },
     }
     let scale = sp.can_speed_scale.unwrap_or(1.0);
     let delay = (offset_s * 1e9) as i64;
     // Residuals, distances, yaw rate and lever arm with the measured scale and offset applied.
     let yaw_res = yaw_rate_residuals(inp, &vels, delay);
     let (speed_res, n_turn, turn_span) = speed_residuals_and_turns(inp, &vels, delay, scale);
-    if let (Some(x), true) = (lever_fit, n_turn >= 10) {
-        sp.lever_arm_x_measured_m = Some(x);
-        if (x - sp.lever_arm_x_rig_m).abs() > inp.th.max_lever_arm_error_m {
-            let span = turn_span.unwrap_or((start, end));
-            log.fault(
-                "lever_arm",
-                span.0,
-                span.1,
-                format!(
-                    "GNSS against CAN in turns puts the antenna {x:.2} m ahead of the rear axle; the rig file says {:.2} m ({n_turn} turning epochs; limit {:.2} m)",
-                    sp.lever_arm_x_rig_m, inp.th.max_lever_arm_error_m
-                ),
-            );
+    sp.lever_arm_turning_epochs = n_turn;
+    let limit = inp.th.max_lever_arm_error_m;
+    match (fit.lever, n_turn >= 10) {
+        (Some((x, sx)), true) => {
+            sp.lever_arm_x_measured_m = Some(x);
+            sp.lever_arm_x_sigma_m = Some(sx);
+            match decide(x - sp.lever_arm_x_rig_m, sx, limit) {
+                Decision::Beyond => {
+                    let span = turn_span.unwrap_or((start, end));
+                    log.fault(
+                        "lever_arm",
+                        span.0,
+                        span.1,
+                        format!(
+                            "GNSS against CAN in turns puts the antenna {x:.2} ± {sx:.2} m (1 sigma) ahead of the rear axle; the rig file says {:.2} m ({n_turn} turning epochs; limit {limit:.2} m, exceeded by more than 2 sigma)",
+                            sp.lever_arm_x_rig_m
+                        ),
+                    );
+                }
+                Decision::Undecided => warnings.push(Warning {
+                    name: "lever_arm",
+                    detail: format!(
+                        "antenna x {x:.2} ± {sx:.2} m (1 sigma) against {:.2} m in the rig file: not determinable against the {limit:.2} m limit from {n_turn} turning epochs; longer turns at speed (yaw rate above 0.1 rad/s) would decide it",
+                        sp.lever_arm_x_rig_m
+                    ),
+                }),
+                Decision::Within => {}
+            }
         }
+        _ => warnings.push(Warning {
+            name: "lever_arm",
+            detail: format!(
+                "not determinable on this drive ({n_turn} RTK-fixed epochs in turns): it needs turns at speed (yaw rate above 0.1 rad/s, above 0.5 m/s) for at least a second"
+            ),
+        }),
     }
     sp.speed_residual_mps = Stats::of(speed_res);
     sp.yaw_rate_residual_rps = Stats::of(yaw_res);
@@ -136,13 +199,14 @@ fn antenna_velocities(inp: &Inputs<'_>) -> Vec<Vel> {
     vels
 }
 
-/// The CAN speed scale from straight driving into `sp`, with its fault; returns the span in
-/// which the ego moves.
+/// The CAN speed scale from straight driving into `sp`, with its uncertainty and its fault (or
+/// a warning when this drive cannot decide it); returns the span in which the ego moves.
 fn speed_scale(
     inp: &Inputs<'_>,
     vels: &[Vel],
     sp: &mut Spatial,
     log: &mut FaultLog,
+    warnings: &mut Vec<Warning>,
 ) -> Option<(UtcNanos, UtcNanos)> {
     let motion = &inp.run.motion;
     let accel_at = |t: UtcNanos| -> Option<f64> {
@@ -154,6 +218,7 @@ fn speed_scale(
     // Straight driving: v_gnss = b1 v_can + b2 a_can (scale 1/b1, time offset -b2/b1).
     let (mut s11, mut s12, mut s22, mut r1, mut r2, mut n_straight) = (0.0, 0.0, 0.0, 0.0, 0.0, 0);
     let mut moving_span: Option<(UtcNanos, UtcNanos)> = None;
+    let mut samples = Vec::new();
     for v in vels {
         let (Some((vc, w)), Some(a)) = (motion_at(motion, v.t), accel_at(v.t)) else {
             continue;
@@ -168,6 +233,7 @@ fn speed_scale(
             r1 += vc * v.speed;
             r2 += a * v.speed;
             n_straight += 1;
+            samples.push((vc, a, v.speed));
         }
     }
     let det = s11 * s22 - s12 * s12;
@@ -183,41 +249,89 @@ fn speed_scale(
             // b2 (= -δ/scale) is not used: the smoother fits the time offset far better than a
             // regression on the few accelerating epochs; it is in the model so that a time
             // offset does not bend the scale.
-            let _ = b2;
+            // The slope's variance from the residuals (σ² (XᵀX)⁻¹), inflated by their
+            // correlation in time; the scale's by the derivative of 1/b1.
+            let two = s22 > 5.0 && det.abs() > 1e-9;
+            let res: Vec<f64> = samples
+                .iter()
+                .map(|&(vc, a, vg)| vg - b1 * vc - if two { b2 * a } else { 0.0 })
+                .collect();
+            let dof = (res.len() as f64 - if two { 2.0 } else { 1.0 }).max(1.0);
+            let var_res = res.iter().map(|r| r * r).sum::<f64>() / dof;
+            let var_b1 = var_res * if two { s22 / det } else { 1.0 / s11 };
+            let sigma = (var_b1 * series_correlation(&res)).sqrt() / (b1 * b1);
+            sp.can_speed_scale_sigma = Some(sigma);
             let span = moving_span.unwrap_or(inp.span);
-            if (scale - 1.0).abs() > inp.th.max_speed_scale_error {
-                log.fault(
+            let limit = inp.th.max_speed_scale_error;
+            match decide(scale - 1.0, sigma, limit) {
+                Decision::Beyond => log.fault(
                     "can_speed_scale",
                     span.0,
                     span.1,
                     format!(
-                        "CAN speed is {:.2} % {} than GNSS speed ({n_straight} straight-driving epochs; limit {:.1} %)",
+                        "CAN speed is {:.2} ± {:.2} % (1 sigma) {} than GNSS speed ({n_straight} straight-driving epochs; limit {:.1} %, exceeded by more than 2 sigma)",
                         (scale - 1.0).abs() * 100.0,
+                        sigma * 100.0,
                         if scale > 1.0 { "higher" } else { "lower" },
-                        inp.th.max_speed_scale_error * 100.0
+                        limit * 100.0
                     ),
-                );
+                ),
+                Decision::Undecided => warnings.push(Warning {
+                    name: "can_speed_scale",
+                    detail: format!(
+                        "{scale:.4} ± {sigma:.4} (1 sigma) from {n_straight} straight-driving epochs: not determinable against the {:.1} % limit; longer straight driving at a steady speed would decide it",
+                        limit * 100.0
+                    ),
+                }),
+                Decision::Within => {}
             }
         }
+    } else {
+        warnings.push(Warning {
+            name: "can_speed_scale",
+            detail: format!(
+                "not determinable on this drive ({n_straight} straight-driving epochs, 20 needed): it needs a few seconds of straight driving above 0.3 m/s on RTK-fixed epochs"
+            ),
+        });
     }
     moving_span
 }
 
+/// What the smoother with the time offset and lever arm as states found.
+struct Fit {
+    /// The fitted trajectory.
+    trajectory: Option<EgoTrajectory>,
+    /// Time offset and its standard uncertainty, s (when the drive makes it determinable).
+    delta: Option<(f64, f64)>,
+    /// Antenna x and its standard uncertainty, m (when the drive turns).
+    lever: Option<(f64, f64)>,
+    /// The GNSS residuals' correlation factor the uncertainties include.
+    correlation: f64,
+}
+
 /// The smoother with the time offset and the forward lever arm as constant states, on CAN speed
-/// corrected by `speed_scale` (so that a scale error is not taken for a time offset). Returns
-/// the fitted trajectory, and the offset (s) and lever arm (m) where the drive makes them
-/// determinable (moving, resp. turning, with a small enough sigma).
-fn offset_and_lever(
-    inp: &Inputs<'_>,
-    speed_scale: f64,
-) -> (Option<EgoTrajectory>, Option<f64>, Option<f64>) {
+/// corrected by `speed_scale` (so that a scale error is not taken for a time offset) and on
+/// RTK-fixed epochs only (a float epoch's error need not match the sigma it reports). Their
+/// uncertainties are the smoother's, inflated by the correlation of the GNSS residuals (see
+/// [`correlation_factor`]); the offset is reported when the ego moves, the lever arm when it
+/// turns.
+fn offset_and_lever(inp: &Inputs<'_>, speed_scale: f64) -> Fit {
     let motion_fit: Vec<(UtcNanos, f64, f64)> = inp
         .motion
         .iter()
         .map(|&(t, v, w)| (t, v / speed_scale, w))
         .collect();
+    let fixed_only: Vec<GnssObs> = inp
+        .obs
+        .iter()
+        .zip(inp.fixed)
+        .map(|(o, &f)| GnssObs {
+            sigma: if f { o.sigma } else { o.sigma * 1e3 },
+            ..*o
+        })
+        .collect();
     let fitted = EgoTrajectory::smooth(
-        inp.obs,
+        &fixed_only,
         &motion_fit,
         &Settings {
             lever: inp.lever,
@@ -233,17 +347,54 @@ fn offset_and_lever(
         .filter(|m| m.yaw_rate.abs() > 0.1 && m.speed > 0.5)
         .count()
         >= 50;
-    let (delta_fit, lever_fit) = match &fitted {
+    let sigmas: Vec<Vector2<f64>> = inp.obs.iter().map(|o| o.sigma).collect();
+    let correlation = fitted.as_ref().map_or(1.0, |f| {
+        correlation_factor(&f.residuals, &sigmas, inp.fixed)
+    });
+    let (delta, lever) = match &fitted {
         Some(f) => {
             let (d, sd, x, sx) = f.offset_and_lever();
+            let k = correlation.sqrt();
             (
-                (moving && sd < 0.02).then_some(d),
-                (turning && sx < 0.1).then_some(x),
+                moving.then_some((d, sd * k)),
+                turning.then_some((x, sx * k)),
             )
         }
         None => (None, None),
     };
-    (fitted, delta_fit, lever_fit)
+    Fit {
+        trajectory: fitted,
+        delta,
+        lever,
+        correlation,
+    }
+}
+
+/// The integrated autocorrelation time of a series (1 + 2 Σ ρ_k until ρ first drops to zero),
+/// the factor by which its correlation inflates the variance of anything fitted to it.
+fn series_correlation(x: &[f64]) -> f64 {
+    let n = x.len();
+    if n < 10 {
+        return 1.0;
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64;
+    if var <= 0.0 {
+        return 1.0;
+    }
+    let mut tau = 1.0;
+    for lag in 1..n / 4 {
+        let rho = (lag..n)
+            .map(|k| (x[k] - mean) * (x[k - lag] - mean))
+            .sum::<f64>()
+            / (n - lag) as f64
+            / var;
+        if rho <= 0.0 {
+            break;
+        }
+        tau += 2.0 * rho;
+    }
+    tau
 }
 
 /// Fixed epochs more than the jump limit off `traj` (normalised innovation), with their

@@ -16,6 +16,12 @@ pub(super) fn secs(a: UtcNanos, b: UtcNanos) -> f64 {
     (b.0 - a.0) as f64 * 1e-9
 }
 
+/// Seconds from `a` to `b` to the millisecond, for the report (a time in a fault or segment
+/// means nothing finer, and 19.900000000000002 helps nobody reading the JSON).
+pub(super) fn secs_ms(a: UtcNanos, b: UtcNanos) -> f64 {
+    ((b.0 - a.0) as f64 * 1e-6).round() / 1e3
+}
+
 /// The faults found so far, located relative to the run's start.
 pub(super) struct FaultLog {
     start: UtcNanos,
@@ -48,8 +54,8 @@ impl FaultLog {
             name,
             from: iso(from),
             to: iso(to),
-            from_s: secs(self.start, from),
-            to_s: secs(self.start, to),
+            from_s: secs_ms(self.start, from),
+            to_s: secs_ms(self.start, to),
             detail,
             window: (from, to),
         });
@@ -77,34 +83,167 @@ impl FaultLog {
     }
 }
 
-/// One-second segments from `start` to `end`, merged while verdict and reasons stay the same.
+/// One-second segments from `start` to `end` (a last piece under 50 ms joins the one before
+/// it), each failing with the faults that overlap it, merged while verdict and reasons stay the
+/// same. Computed by sweeping over the faults' edges rather than second by second, so that a
+/// damaged recording whose stamps span years is judged as quickly as a sound one.
 pub(super) fn segments(faults: &[Fault], start: UtcNanos, end: UtcNanos) -> Vec<Segment> {
+    const S: i64 = 1_000_000_000;
+    let total = end.0 - start.0;
+    if total <= 0 {
+        return Vec::new();
+    }
+    // Cells of one second; the last one runs to the end (it absorbs a remainder under 50 ms).
+    let full = total / S;
+    let rem = total - full * S;
+    let n = if rem == 0 || (rem < 50_000_000 && full >= 1) {
+        full
+    } else {
+        full + 1
+    };
+    let cell_start = |k: i64| UtcNanos(start.0 + k * S);
+    let cell_end = |k: i64| {
+        if k == n - 1 {
+            end
+        } else {
+            UtcNanos(start.0 + (k + 1) * S)
+        }
+    };
+    // A fault covers the cells from the one its start falls in to the one its end falls in.
+    let mut edges: std::collections::BTreeMap<i64, Vec<(&'static str, i32)>> =
+        std::collections::BTreeMap::new();
+    for f in faults {
+        let (a, b) = f.window;
+        if a >= end || b < start {
+            continue;
+        }
+        let first = (a.0 - start.0).div_euclid(S).clamp(0, n - 1);
+        let last = (b.0 - start.0).div_euclid(S).clamp(0, n - 1);
+        if first > last {
+            continue;
+        }
+        edges.entry(first).or_default().push((f.name, 1));
+        edges.entry(last + 1).or_default().push((f.name, -1));
+    }
+    edges.entry(0).or_default();
+    edges.entry(n).or_default();
+    let mut active: std::collections::BTreeMap<&'static str, i32> = Default::default();
     let mut segments: Vec<Segment> = Vec::new();
-    let mut t = start;
-    while t < end {
-        let e = UtcNanos((t.0 + 1_000_000_000).min(end.0));
-        let mut reasons: Vec<&'static str> = faults
-            .iter()
-            .filter(|f| f.window.0 < e && f.window.1 >= t)
-            .map(|f| f.name)
-            .collect();
-        reasons.sort_unstable();
-        reasons.dedup();
+    let points: Vec<(i64, Vec<(&'static str, i32)>)> = edges.into_iter().collect();
+    for w in points.windows(2) {
+        let ((k, changes), (next, _)) = (&w[0], &w[1]);
+        for &(name, d) in changes {
+            *active.entry(name).or_default() += d;
+        }
+        active.retain(|_, c| *c > 0);
+        let (k, next) = (*k, (*next).min(n));
+        if k >= next {
+            continue;
+        }
+        let reasons: Vec<&'static str> = active.keys().copied().collect();
         let verdict = if reasons.is_empty() {
             Verdict::Pass
         } else {
             Verdict::Fail
         };
+        let (from, to) = (cell_start(k), cell_end(next - 1));
         match segments.last_mut() {
-            Some(s) if s.verdict == verdict && s.reasons == reasons => s.to_s = secs(start, e),
+            Some(s) if s.verdict == verdict && s.reasons == reasons => s.to_s = secs_ms(start, to),
             _ => segments.push(Segment {
-                from_s: secs(start, t),
-                to_s: secs(start, e),
+                from_s: secs_ms(start, from),
+                to_s: secs_ms(start, to),
                 verdict,
                 reasons,
             }),
         }
-        t = e;
     }
     segments
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fault(name: &'static str, a: i64, b: i64) -> Fault {
+        Fault {
+            name,
+            from: String::new(),
+            to: String::new(),
+            from_s: 0.0,
+            to_s: 0.0,
+            detail: String::new(),
+            window: (UtcNanos(a), UtcNanos(b)),
+        }
+    }
+
+    /// The second-by-second rule, spelled out as the reference for the sweep.
+    fn by_the_second(
+        faults: &[Fault],
+        start: UtcNanos,
+        end: UtcNanos,
+    ) -> Vec<(f64, f64, Vec<&'static str>)> {
+        let mut out: Vec<(f64, f64, Vec<&'static str>)> = Vec::new();
+        let mut t = start;
+        while t < end {
+            let mut e = UtcNanos((t.0 + 1_000_000_000).min(end.0));
+            if end.0 - e.0 < 50_000_000 {
+                e = end;
+            }
+            let mut r: Vec<&'static str> = faults
+                .iter()
+                .filter(|f| f.window.0 < e && f.window.1 >= t)
+                .map(|f| f.name)
+                .collect();
+            r.sort_unstable();
+            r.dedup();
+            match out.last_mut() {
+                Some(s) if s.2 == r => s.1 = secs_ms(start, e),
+                _ => out.push((secs_ms(start, t), secs_ms(start, e), r)),
+            }
+            t = e;
+        }
+        out
+    }
+
+    #[test]
+    fn the_sweep_gives_the_second_by_second_segments() {
+        let s = 1_000_000_000i64;
+        let cases: Vec<(i64, Vec<Fault>)> = vec![
+            (20 * s + 30_000_000, vec![]),
+            (
+                20 * s + 300_000_000,
+                vec![fault("a", 3 * s + 400_000_000, 5 * s)],
+            ),
+            (
+                12 * s,
+                vec![
+                    fault("a", 2 * s, 4 * s),
+                    fault("b", 3 * s + 1, 9 * s + 999_999_999),
+                    fault("a", 6 * s, 6 * s),
+                    fault("c", -5 * s, 0),
+                    fault("d", 11 * s + 999_000_000, 30 * s),
+                ],
+            ),
+            (40_000_000, vec![fault("e", 0, 1)]),
+        ];
+        for (len, faults) in cases {
+            let (a, b) = (UtcNanos(0), UtcNanos(len));
+            let got: Vec<(f64, f64, Vec<&'static str>)> = segments(&faults, a, b)
+                .into_iter()
+                .map(|g| (g.from_s, g.to_s, g.reasons))
+                .collect();
+            assert_eq!(got, by_the_second(&faults, a, b), "{len} ns");
+        }
+    }
+
+    /// A recording whose stamps span fifty years (a flipped bit in a log time) is segmented at
+    /// once.
+    #[test]
+    fn fifty_years_are_segmented_at_once() {
+        let s = 1_000_000_000i64;
+        let end = UtcNanos(50 * 365 * 86_400 * s);
+        let segs = segments(&[fault("a", 10 * s, 20 * s)], UtcNanos(0), end);
+        assert_eq!(segs.len(), 3);
+        assert_eq!(segs[1].reasons, vec!["a"]);
+    }
 }

@@ -34,10 +34,11 @@ mod temporal;
 
 pub use report::{
     Accuracy, Fault, Report, RtkEpoch, Segment, SourceTiming, Spatial, Stats, Temporal, Verdict,
+    Warning,
 };
 
 use super::run::Run;
-use super::trajectory::{EgoTrajectory, GnssObs, Settings};
+use super::trajectory::{correlation_factor, EgoTrajectory, GnssObs, Settings};
 use crate::rig::Rig;
 use crate::scene::file::Wgs84;
 use crate::scene::geodesy::Enu;
@@ -77,6 +78,7 @@ fn unusable(run: &Run, why: String, spatial: Spatial) -> Report {
         temporal: Temporal::default(),
         accuracy: Accuracy::default(),
         faults: Vec::new(),
+        warnings: Vec::new(),
         segments: Vec::new(),
         damage: run.damage.clone(),
     }
@@ -142,14 +144,11 @@ fn check_into(
         .iter()
         .map(|m| (m.t, m.speed, m.yaw_rate))
         .collect();
-    let traj = match EgoTrajectory::smooth(
-        &obs,
-        &motion,
-        &Settings {
-            lever,
-            ..Settings::default()
-        },
-    ) {
+    let settings = Settings {
+        lever,
+        ..Settings::default()
+    };
+    let first = match EgoTrajectory::smooth(&obs, &motion, &settings) {
         Ok(t) => t,
         Err(e) => return unusable(run, e.to_string(), sp),
     };
@@ -157,6 +156,20 @@ fn check_into(
         .iter()
         .map(|(_, f)| f.rtk == RtkState::Fixed)
         .collect();
+    // RTK errors wander over seconds: weighted as if independent, ten epochs a second would pull
+    // the trajectory (and its heading) along their wander. The smoothing is repeated with each
+    // epoch's sigma scaled by the square root of the residuals' correlation time, so that CAN
+    // motion carries the short term and GNSS the long term.
+    let sigmas: Vec<Vector2<f64>> = obs.iter().map(|o| o.sigma).collect();
+    let k = correlation_factor(&first.residuals, &sigmas, &fixed).sqrt();
+    let decorrelated: Vec<GnssObs> = obs
+        .iter()
+        .map(|o| GnssObs {
+            sigma: o.sigma * k,
+            ..*o
+        })
+        .collect();
+    let traj = EgoTrajectory::smooth(&decorrelated, &motion, &settings).unwrap_or(first);
     // Epochs good enough to differentiate: fixed and within the sigma limits.
     let good: Vec<bool> = epochs
         .iter()
@@ -178,7 +191,8 @@ fn check_into(
         gnss_period,
         span: (start, end),
     };
-    let offset_s = consistency::gnss_against_can(&inputs, &traj, &mut sp, &mut log);
+    let mut warnings = Vec::new();
+    let offset_s = consistency::gnss_against_can(&inputs, &traj, &mut sp, &mut log, &mut warnings);
     sp.scene_accuracy_m = scene.map(|s| {
         s.file
             .objects
@@ -211,6 +225,7 @@ fn check_into(
         temporal: tm,
         accuracy: acc,
         faults: log.faults,
+        warnings,
         segments,
         damage: run.damage.clone(),
     }

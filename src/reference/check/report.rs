@@ -48,6 +48,39 @@ pub struct Fault {
     pub(super) window: (UtcNanos, UtcNanos),
 }
 
+/// Something the check could not decide on this drive: a quantity whose uncertainty is too
+/// large to say whether it is within its limit. Not a fault: the verdict does not change.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Warning {
+    /// What (`gnss_time_offset`, `lever_arm`, `can_speed_scale`).
+    pub name: &'static str,
+    /// The estimate and its uncertainty, and the manoeuvre that would make it determinable.
+    pub detail: String,
+}
+
+/// Metadata values that are numbers written as JSON numbers, the rest as strings.
+fn numbers_as_numbers<S: serde::Serializer>(
+    map: &std::collections::BTreeMap<String, std::collections::BTreeMap<String, String>>,
+    ser: S,
+) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeMap;
+    let mut outer = ser.serialize_map(Some(map.len()))?;
+    for (source, values) in map {
+        let inner: std::collections::BTreeMap<&str, serde_json::Value> = values
+            .iter()
+            .map(|(k, v)| {
+                let value = match v.parse::<f64>() {
+                    Ok(x) if x.is_finite() => serde_json::Value::from(x),
+                    _ => serde_json::Value::from(v.as_str()),
+                };
+                (k.as_str(), value)
+            })
+            .collect();
+        outer.serialize_entry(source, &inner)?;
+    }
+    outer.end()
+}
+
 /// Statistics of a series.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct Stats {
@@ -121,6 +154,8 @@ pub struct Spatial {
     pub jumps: usize,
     /// CAN speed / GNSS speed.
     pub can_speed_scale: Option<f64>,
+    /// Standard uncertainty (1 sigma) of the speed scale, correlation of the residuals included.
+    pub can_speed_scale_sigma: Option<f64>,
     /// GNSS speed minus corrected CAN speed, m/s.
     pub speed_residual_mps: Stats,
     /// GNSS course rate minus CAN yaw rate, rad/s.
@@ -129,10 +164,20 @@ pub struct Spatial {
     pub distance_can_m: f64,
     /// Distance along the GNSS antenna track, m.
     pub distance_gnss_m: f64,
-    /// GNSS time stamps minus the instants they describe, measured against CAN, ms.
+    /// GNSS time stamps minus the instants they describe, measured against CAN, ms: positive
+    /// means the stamps are late (a fix stamped t describes t - offset).
     pub gnss_time_offset_ms: Option<f64>,
+    /// Standard uncertainty (1 sigma) of the time offset, ms.
+    pub gnss_time_offset_sigma_ms: Option<f64>,
     /// Antenna x (forward) from the data, m.
     pub lever_arm_x_measured_m: Option<f64>,
+    /// Standard uncertainty (1 sigma) of the measured antenna x, m.
+    pub lever_arm_x_sigma_m: Option<f64>,
+    /// GNSS epochs in turns that the lever arm was measured in.
+    pub lever_arm_turning_epochs: usize,
+    /// How many times the smoother's white-noise variances are inflated because the GNSS
+    /// residuals are correlated in time (integrated autocorrelation time, in epochs).
+    pub gnss_noise_correlation: f64,
     /// Antenna x from the rig file, m.
     pub lever_arm_x_rig_m: f64,
     /// Worst survey accuracy of the scene's static objects, m (1 sigma).
@@ -166,6 +211,8 @@ pub struct Temporal {
     /// Position packets reporting PPS lock.
     pub pps_locked_share: Option<f64>,
     /// Clock-sync metadata of the recording, per source.
+    /// (MCAP metadata holds strings; the JSON gives numbers as numbers.)
+    #[serde(serialize_with = "numbers_as_numbers")]
     pub clock_sync: std::collections::BTreeMap<String, std::collections::BTreeMap<String, String>>,
     /// Lidar minus GNSS clock offset (host latencies included), ms.
     pub lidar_to_gnss_offset_ms: Option<f64>,
@@ -228,6 +275,8 @@ pub struct Report {
     pub accuracy: Accuracy,
     /// Faults found.
     pub faults: Vec<Fault>,
+    /// What could not be decided on this drive, and what would decide it.
+    pub warnings: Vec<Warning>,
     /// Usable and unusable stretches.
     pub segments: Vec<Segment>,
     /// Problems reading the recording.
@@ -304,12 +353,17 @@ impl Report {
                 .collect();
             let _ = writeln!(s, "largest sigmas: {}", w.join(", "));
         }
+        let pm = |v: Option<f64>, sd: Option<f64>, digits: usize, unit: &str| match (v, sd) {
+            (Some(v), Some(sd)) => format!("{v:.digits$} ± {sd:.digits$}{unit}"),
+            (Some(v), None) => format!("{v:.digits$}{unit}"),
+            _ => "n/a".into(),
+        };
         let _ = writeln!(
             s,
-            "GNSS vs CAN: speed scale {}, time offset {}, lever arm x {} (rig {:.2} m), distance {:.1} m (CAN) vs {:.1} m (GNSS), speed residual rms {:.3} m/s, yaw-rate residual rms {:.4} rad/s",
-            sp.can_speed_scale.map_or("n/a".into(), |x| format!("{x:.4}")),
-            sp.gnss_time_offset_ms.map_or("n/a".into(), |x| format!("{x:+.1} ms")),
-            sp.lever_arm_x_measured_m.map_or("n/a".into(), |x| format!("{x:.2} m")),
+            "GNSS vs CAN (± 1 sigma): speed scale {}, time offset {} (stamps late if positive), lever arm x {} (rig {:.2} m), distance {:.1} m (CAN) vs {:.1} m (GNSS, fixed epochs), speed residual rms {:.3} m/s, yaw-rate residual rms {:.4} rad/s",
+            pm(sp.can_speed_scale, sp.can_speed_scale_sigma, 4, ""),
+            pm(sp.gnss_time_offset_ms, sp.gnss_time_offset_sigma_ms, 1, " ms"),
+            pm(sp.lever_arm_x_measured_m, sp.lever_arm_x_sigma_m, 2, " m"),
             sp.lever_arm_x_rig_m,
             sp.distance_can_m,
             sp.distance_gnss_m,
@@ -353,10 +407,20 @@ impl Report {
             "ego moves {:.3} m between GNSS epochs (p95); linear interpolation error p95 {:.4} m",
             tm.motion_between_epochs_m.p95, tm.interpolation_error_m.p95
         );
+        self.findings_text(&mut s);
+        s
+    }
+
+    /// Warnings, faults and segments, as `text` ends.
+    fn findings_text(&self, s: &mut String) {
+        use std::fmt::Write;
+        for w in &self.warnings {
+            let _ = writeln!(*s, "warning: {}: {}", w.name, w.detail);
+        }
         if self.faults.is_empty() {
-            let _ = writeln!(s, "faults: none");
+            let _ = writeln!(*s, "faults: none");
         } else {
-            let _ = writeln!(s, "faults:");
+            let _ = writeln!(*s, "faults:");
             for f in &self.faults {
                 let _ = writeln!(
                     s,
@@ -365,7 +429,7 @@ impl Report {
                 );
             }
         }
-        let _ = writeln!(s, "segments:");
+        let _ = writeln!(*s, "segments:");
         for g in &self.segments {
             let _ = writeln!(
                 s,
@@ -384,6 +448,5 @@ impl Report {
                 }
             );
         }
-        s
     }
 }
