@@ -145,7 +145,8 @@ fn rtk_float_sigma_spike_lidar_gap_and_free_running_lidar_clock_are_found_and_lo
     let pps = faults(&v, "lidar_not_pps_locked");
     assert_eq!(pps.len(), 1, "{n:?}");
     assert!(
-        pps[0]["detail"].as_str().unwrap().contains("60."),
+        pps[0]["detail"].as_str().unwrap().contains("60.")
+            && pps[0]["detail"].as_str().unwrap().contains("faster"),
         "{}",
         pps[0]["detail"]
     );

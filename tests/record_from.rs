@@ -790,3 +790,26 @@ fn real_velodyne_captures_record_every_packet() {
         );
     }
 }
+
+/// A rig whose lidar ports match nothing in the capture: the recording has no lidar, and
+/// `record --from` says so, naming the ports the capture's UDP traffic uses, and exits 1.
+#[test]
+fn lidar_ports_that_match_nothing_are_an_error_naming_the_capture_s_ports() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = dir.path().join("rig.toml");
+    std::fs::write(
+        &rig,
+        "name = \"wrong-ports\"\n[lidar]\nmodel = \"vlp16\"\ndata_port = 2370\nposition_port = 8310\n",
+    )
+    .unwrap();
+    let out = dir.path().join("out.mcap");
+    let st = common::record_from(&rig, &[&common::fixture("vlp16_room.pcapng")], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("no lidar data packets to port 2370")
+            && stderr.contains("2368 (160 datagrams)")
+            && stderr.contains("8308 (1 datagrams)"),
+        "{stderr}"
+    );
+}

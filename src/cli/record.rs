@@ -47,7 +47,29 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
     for e in &summary.input_errors {
         eprintln!("error: {e} (everything before it was recorded)");
     }
-    Ok(if summary.input_errors.is_empty() {
+    // A rig with a lidar whose ports match nothing in the captures records no lidar at all:
+    // say where the captures' UDP traffic went instead of reporting nothing lost.
+    // (Inputs without any UDP traffic, such as CAN and GNSS logs, have no lidar to miss.)
+    let no_lidar = rig.lidar.as_ref().filter(|_| {
+        !summary.other_udp_ports.is_empty()
+            && summary
+                .counts
+                .get(hilrig::bag::topics::VELODYNE_PACKETS)
+                .is_none_or(|&n| n == 0)
+    });
+    if let Some(l) = no_lidar {
+        let ports: Vec<String> = summary
+            .other_udp_ports
+            .iter()
+            .map(|(p, n)| format!("{p} ({n} datagrams)"))
+            .collect();
+        eprintln!(
+            "error: no lidar data packets to port {} in the input; its UDP traffic goes to port {}: set [lidar] data_port and position_port in the rig file to the capture's ports",
+            l.data_port,
+            ports.join(", ")
+        );
+    }
+    Ok(if summary.input_errors.is_empty() && no_lidar.is_none() {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)

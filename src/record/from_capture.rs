@@ -73,6 +73,8 @@ pub struct RecordSummary {
     pub lidar_lost: u64,
     /// Inputs that ended early (truncated), with the error.
     pub input_errors: Vec<String>,
+    /// UDP datagrams that went to no lidar port of the rig, by destination port.
+    pub other_udp_ports: BTreeMap<u16, u64>,
 }
 
 struct Context<'a> {
@@ -232,6 +234,10 @@ impl Context<'_> {
                                 }
                             }
                         }
+                    } else if out.is_none() {
+                        // Counted once (in the first pass), to say where the traffic went when
+                        // the rig's ports match nothing.
+                        *summary.other_udp_ports.entry(dst.port()).or_default() += 1;
                     }
                 }
                 Packet::Serial(bytes) => {

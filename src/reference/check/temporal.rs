@@ -113,9 +113,13 @@ fn pps(
                 "{} of {} position packets report no PPS lock; the lidar clock runs free{}",
                 unlocked.len(),
                 run.pps.len(),
+                // The clock model's drift is the change of host - sensor time per second of
+                // sensor time: negative when the lidar's clock runs ahead of the host's.
                 match drift {
                     Some(d) => format!(
-                        ", drifting {d:.1} ppm against host time ({:.2} ms over {dur:.1} s)",
+                        ", running {:.1} ppm {} than host time ({:.2} ms over {dur:.1} s)",
+                        d.abs(),
+                        if d < 0.0 { "faster" } else { "slower" },
                         d.abs() * 1e-6 * dur * 1e3
                     ),
                     None => String::new(),
