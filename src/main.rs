@@ -42,7 +42,7 @@ enum Command {
     /// the vehicle (lidar, GNSS serial, CAN) with realistic reference errors, the surveyed scene
     /// and the truth.
     Synth(cli::synth::SynthArgs),
-    /// Check a recording's reference data (seed §6): spatial and temporal accuracy, faults located
+    /// Check a recording's reference data (Rosenberger et al. 2019, §6): spatial and temporal accuracy, faults located
     /// in time, the smallest admissible grid cell. Exit 0 pass, 1 fail, 2 unusable input.
     Check(cli::check::CheckArgs),
     /// Re-simulate a recording: the same sensor on the same trajectory through the scene with a

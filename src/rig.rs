@@ -209,7 +209,7 @@ fn default_queue() -> usize {
     8192
 }
 
-/// Limits for the reference-data check (seed §6: reference data must be an order of magnitude
+/// Limits for the reference-data check (Rosenberger et al. 2019, §6: reference data must be an order of magnitude
 /// more accurate than the smallest structure the metrics resolve). Each default says where it
 /// comes from; override them per rig.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -233,9 +233,9 @@ pub struct Thresholds {
     /// Largest 95th percentile of clock-model residuals (transport jitter), µs. Default 1000:
     /// at 10 km/h the ego moves 2.8 mm in 1 ms, well inside a 10 cm cell.
     pub max_clock_residual_p95_us: f64,
-    /// Smallest grid cell the metrics may use, m (seed §6: 10 cm).
+    /// Smallest grid cell the metrics may use, m (Rosenberger et al. 2019, §6: 10 cm).
     pub min_grid_cell_m: f64,
-    /// The grid cell must be at least this many times the reference accuracy (seed §6: 10).
+    /// The grid cell must be at least this many times the reference accuracy (Rosenberger et al. 2019, §6: 10).
     pub grid_cell_accuracy_factor: f64,
     /// Largest relative error of the CAN speed against GNSS. Default 0.01: the tolerance of a
     /// wheel-speed calibration (tyre wear and pressure change the rolling radius by about 1 %).

@@ -1,4 +1,4 @@
-//! The committed parking-lot drives (fixtures/parking, issue 5): the seed's Fig. 4 scenario as
+//! The committed parking-lot drives (fixtures/parking, issue 5): the scenario of Fig. 4 of Rosenberger et al. 2019 as
 //! `hilrig synth` made it, checked for what the scenario promises and for being exactly what the
 //! code makes.
 

@@ -1,4 +1,4 @@
-//! Simulation: the lidar model (seed Table 1: idealized ray casting plus named effects), the
+//! Simulation: the lidar model (Rosenberger et al. 2019, Table 1: idealized ray casting plus named effects), the
 //! spinning-sensor schedule, and the synthesis of whole measured drives.
 
 pub mod drive;

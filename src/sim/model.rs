@@ -1,4 +1,4 @@
-//! The lidar model file (`model.toml`): the idealized model of seed Table 1 plus a list of named
+//! The lidar model file (`model.toml`): the idealized model of Rosenberger et al. 2019, Table 1 plus a list of named
 //! effects, each with its parameters. The gap workflow adds effects to this list one at a time.
 //!
 //! ```toml
@@ -40,8 +40,8 @@ pub struct Limits {
 #[serde(tag = "name", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Effect {
     /// Zero-mean Gaussian noise on every range. Source: the range accuracy of the Velodyne
-    /// specification sheets ("±3 cm typical" for VLP-16/VLP-32C, taken as about 2σ); seed
-    /// Table 1 lists noise as the first phenomenological effect.
+    /// specification sheets ("±3 cm typical" for VLP-16/VLP-32C, taken as about 2σ);
+    /// Rosenberger et al. 2019, Table 1 lists noise as the first phenomenological effect.
     RangeNoise {
         /// Standard deviation, metres.
         sigma_m: f64,
@@ -53,7 +53,7 @@ pub enum Effect {
         bias_m: f64,
     },
     /// Each firing is lost with a fixed probability, independent of the target (random
-    /// detection failures). Source: seed Table 1 (detection probability), Rosenberger et al. 2019.
+    /// detection failures). Source: Rosenberger et al. 2019, Table 1 (detection probability).
     RandomDropout {
         /// Probability that a firing reports nothing.
         probability: f64,
@@ -92,7 +92,7 @@ pub enum Effect {
     /// Whether each laser fires at its own time and pose (`enabled = true`, the default of every
     /// model: a rotating sensor on a moving vehicle always sees this) or the whole rotation is
     /// placed at the pose of its first firing (`false`: what a frame-based simulator does, kept so
-    /// the gap workflow can show what the distortion costs). Source: seed §3 on time
+    /// the gap workflow can show what the distortion costs). Source: Rosenberger et al. 2019, §3 on time
     /// synchronisation; the VLP-16 manual's firing timing.
     MotionDistortion {
         /// Fire each laser at its own pose.
@@ -243,7 +243,7 @@ impl ModelFile {
     pub fn idealized() -> ModelFile {
         ModelFile {
             name: "idealized".into(),
-            description: "seed Table 1: ray casting with a perfect beam".into(),
+            description: "Rosenberger et al. 2019, Table 1: ray casting with a perfect beam".into(),
             ..ModelFile::default()
         }
     }

@@ -1,4 +1,4 @@
-//! `hilrig check`: the post-drive gate (seed §6). Reference data that are not accurate enough
+//! `hilrig check`: the post-drive gate (Rosenberger et al. 2019, §6). Reference data that are not accurate enough
 //! make every later metric meaningless, so before anything is re-simulated the run's spatial and
 //! temporal accuracy are measured, combined into one reference accuracy, and turned into the
 //! smallest admissible grid cell: max(10 cm, 10 × accuracy).

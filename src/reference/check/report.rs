@@ -328,7 +328,7 @@ impl Report {
         );
         let _ = writeln!(
             s,
-            "smallest admissible grid cell: {:.2} m (seed §6)",
+            "smallest admissible grid cell: {:.2} m (Rosenberger et al. 2019, §6)",
             a.grid_cell_m
         );
         let sp = &self.spatial;
