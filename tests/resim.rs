@@ -17,18 +17,34 @@ fn drive(extra: &str, errors: bool) -> SynthRun {
 }
 
 fn resim(d: &SynthRun, out: &Path, extra: &[&str]) -> Output {
+    resim_with(d, &fixture("parking/idealized.toml"), out, extra)
+}
+
+/// `hilrig resim` of the drive with `model`.
+fn resim_with(d: &SynthRun, model: &Path, out: &Path, extra: &[&str]) -> Output {
     Command::new(hilrig_bin())
         .arg("resim")
         .arg(&d.run)
         .arg("--scene")
         .arg(d.rep.join("scene.toml"))
         .arg("--model")
-        .arg(fixture("parking/idealized.toml"))
+        .arg(model)
         .arg("-o")
         .arg(out)
         .args(extra)
         .output()
         .unwrap()
+}
+
+/// [`resim_with`] along the drive's true trajectory; it must succeed.
+fn resim_on_truth(d: &SynthRun, model: &Path, out: &Path) {
+    let truth = d.rep.join("truth.csv");
+    let st = resim_with(d, model, out, &["--trajectory", truth.to_str().unwrap()]);
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
 }
 
 fn data_packets(path: &Path) -> Vec<(i64, Vec<u8>)> {
@@ -252,24 +268,7 @@ fn effects_of_the_model_show_in_every_re_simulated_firing() {
     )
     .unwrap();
     let out = dir.path().join("biased.mcap");
-    let st = Command::new(hilrig_bin())
-        .arg("resim")
-        .arg(&d.run)
-        .arg("--scene")
-        .arg(d.rep.join("scene.toml"))
-        .arg("--model")
-        .arg(&model)
-        .arg("-o")
-        .arg(&out)
-        .arg("--trajectory")
-        .arg(d.rep.join("truth.csv"))
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    resim_on_truth(&d, &model, &out);
     let info = hilrig::bag::info::info(&out).unwrap();
     assert_eq!(info.metadata["sim"]["model"], "biased");
     let (a, b) = (data_packets(&d.run), data_packets(&out));
@@ -334,24 +333,7 @@ fn a_lidar_late_by_20_ms_is_matched_by_time_offset_plus_20_ms() {
         )
         .unwrap();
         let out = dir.path().join(format!("s{offset}.mcap"));
-        let st = Command::new(hilrig_bin())
-            .arg("resim")
-            .arg(&d.run)
-            .arg("--scene")
-            .arg(d.rep.join("scene.toml"))
-            .arg("--model")
-            .arg(&model)
-            .arg("-o")
-            .arg(&out)
-            .arg("--trajectory")
-            .arg(d.rep.join("truth.csv"))
-            .output()
-            .unwrap();
-        assert!(
-            st.status.success(),
-            "{}",
-            String::from_utf8_lossy(&st.stderr)
-        );
+        resim_on_truth(&d, &model, &out);
         let sim = data_packets(&out);
         let (mut sum, mut n) = (0.0, 0u64);
         for ((_, x), (_, y)) in measured.iter().zip(&sim) {

@@ -203,6 +203,16 @@ mod tests {
             .collect()
     }
 
+    /// Play options at 1x without `--now`.
+    fn at_1x(repeat: bool, baud: u32) -> PlayOptions {
+        PlayOptions {
+            speed: 1.0,
+            repeat,
+            now: false,
+            baud,
+        }
+    }
+
     /// Every item reaches its sink in order, none before its deadline; items of a kind without
     /// a destination are counted.
     #[test]
@@ -212,12 +222,7 @@ mod tests {
             lidar_data: Some(Box::new(Recorder(got.clone()))),
             ..Destinations::default()
         };
-        let options = PlayOptions {
-            speed: 1.0,
-            repeat: false,
-            now: false,
-            baud: 115_200,
-        };
+        let options = at_1x(false, 115_200);
         let items = items();
         let start = Instant::now();
         let played = play(&items, &mut dest, &options, &AtomicBool::new(false)).unwrap();
@@ -243,12 +248,7 @@ mod tests {
             serial: Some(Box::new(Recorder(got.clone()))),
             ..Destinations::default()
         };
-        let options = PlayOptions {
-            speed: 1.0,
-            repeat: false,
-            now: false,
-            baud: 1200,
-        };
+        let options = at_1x(false, 1200);
         let start = Instant::now();
         play(&items(), &mut dest, &options, &AtomicBool::new(false)).unwrap();
         let got = got.lock().unwrap();
@@ -271,12 +271,7 @@ mod tests {
             lidar_data: Some(Box::new(Recorder(got.clone()))),
             ..Destinations::default()
         };
-        let options = PlayOptions {
-            speed: 1.0,
-            repeat: true,
-            now: false,
-            baud: 115_200,
-        };
+        let options = at_1x(true, 115_200);
         let played = play(&items(), &mut dest, &options, &AtomicBool::new(true)).unwrap();
         assert_eq!(played.pacing.sent, 0);
         assert!(got.lock().unwrap().is_empty());
