@@ -620,3 +620,46 @@ fn can_frames_go_out_on_a_can_interface() {
         assert!(child.wait_with_output().unwrap().status.success());
     });
 }
+
+/// CAN frames recorded into an MCAP come back out of it as they were: standard and extended
+/// ids, remote frames, data (what `--can-to` then sends).
+#[test]
+fn can_frames_replayed_from_a_recording_are_the_captured_ones() {
+    use hilrig::capture::CanFrame;
+    let frames = vec![
+        CanFrame::new(0x123, false, &[1, 2, 3]).unwrap(),
+        CanFrame::new(0x18DA_F110, true, &[0xAA; 8]).unwrap(),
+        CanFrame::new_remote(0x321, false, 4).unwrap(),
+        CanFrame::new(0x7FF, false, &[]).unwrap(),
+    ];
+    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
+    let can = w.add_interface(LinkType::CAN_SOCKETCAN, "can0").unwrap();
+    for (i, f) in frames.iter().enumerate() {
+        w.write_packet(
+            can,
+            UtcNanos(1_700_000_000_000_000_000 + i as i64 * 10_000_000),
+            &f.encode_socketcan(),
+        )
+        .unwrap();
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let cap = dir.path().join("can.pcapng");
+    std::fs::write(&cap, w.finish().unwrap()).unwrap();
+    let out = dir.path().join("can.mcap");
+    let st = common::record_from(&common::demo_rig(), &[&cap], &out);
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let (items, damage) = hilrig::replay::load(&out, 2368, 8308).unwrap();
+    assert!(damage.is_none());
+    let got: Vec<CanFrame> = items
+        .into_iter()
+        .filter_map(|i| match i.payload {
+            hilrig::replay::Payload::Can(f) => Some(f),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(got, frames);
+}

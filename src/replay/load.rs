@@ -306,6 +306,37 @@ mod tests {
         assert!(damage.contains("but holds 25"), "{damage}");
     }
 
+    /// Only datagrams of the lidar's ports and sizes are replayed: other UDP traffic in a
+    /// capture (here a 100-byte datagram to port 9999 and a 1206-byte one to the position port)
+    /// is left out.
+    #[test]
+    fn other_udp_traffic_in_a_capture_is_not_replayed() {
+        use hilrig_capture::writer::udp_ethernet_frame;
+        use hilrig_capture::{LinkType, PcapngWriter};
+        use std::net::{Ipv4Addr, SocketAddrV4};
+        let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
+        let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
+        let to = |port| SocketAddrV4::new(Ipv4Addr::new(192, 168, 1, 77), port);
+        let from = SocketAddrV4::new(Ipv4Addr::new(192, 168, 1, 201), 2368);
+        let datagrams: [(u16, usize); 4] = [(2368, 1206), (8308, 512), (9999, 100), (8308, 1206)];
+        for (k, (port, len)) in datagrams.iter().enumerate() {
+            let frame = udp_ethernet_frame(from, to(*port), &vec![k as u8; *len]);
+            w.write_packet(eth, UtcNanos(1_000 + k as i64), &frame)
+                .unwrap();
+        }
+        let (items, damage) = schedule(w.finish().unwrap(), 2368, 8308).unwrap();
+        assert!(damage.is_none());
+        let kinds: Vec<&str> = items
+            .iter()
+            .map(|i| match i.payload {
+                Payload::LidarData(_) => "data",
+                Payload::LidarPosition(_) => "position",
+                _ => "other",
+            })
+            .collect();
+        assert_eq!(kinds, vec!["data", "position"]);
+    }
+
     #[test]
     fn window_keeps_the_requested_seconds() {
         let items: Vec<ReplayItem> = (0..10)

@@ -90,4 +90,20 @@ mod tests {
         let s = p.nmea().unwrap();
         assert!(s.contains(",140506,A,") && s.contains(",221126,"), "{s}");
     }
+
+    /// Only an RMC is rewritten; another sentence in a position packet (some firmware sends
+    /// GGA) keeps its fields, and the packet still gets the time and PPS of now.
+    #[test]
+    fn a_gga_in_a_position_packet_is_left_as_it_is() {
+        let gga = hilrig_gnss::framer::nmea_sentence(
+            "GPGGA,101010.00,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,",
+        );
+        let old = hilrig_velodyne::PositionPacket::new(7, hilrig_velodyne::PpsStatus::Absent, &gga)
+            .encode()
+            .to_vec();
+        let at = UtcNanos(1_795_356_306_500_000_000);
+        let p = hilrig_velodyne::PositionPacket::decode(&position_now(&old, at)).unwrap();
+        assert_eq!(p.pps_byte, 2);
+        assert_eq!(p.nmea().unwrap().trim_end(), gga.trim_end());
+    }
 }
