@@ -344,3 +344,26 @@ pub fn resim(
         .map_err(|e| ResimError::Output(e.to_string()))?;
     Ok(summary)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A drive across the full hour: a packet stamped 0.1 s past the hour but recorded (scan
+    /// time) 0.1 s before it belongs to the new hour, and the other way round; both directions
+    /// are needed, or the packets after the hour are cast an hour away from the trajectory.
+    #[test]
+    fn sensor_times_follow_the_recording_across_the_full_hour() {
+        let s = 1_000_000_000i64;
+        let ten = UtcNanos(1_795_356_000 * s - 1_795_356_000 * s % (3600 * s) + 3600 * s);
+        // 0.1 s past ten, recorded at 9:59:59.9.
+        let near = UtcNanos(ten.0 - s / 10);
+        assert_eq!(sensor_time(100_000, near), UtcNanos(ten.0 + s / 10));
+        // 0.1 s before ten (3599.9 s past nine), recorded at 10:00:00.1.
+        let near = UtcNanos(ten.0 + s / 10);
+        assert_eq!(sensor_time(3_599_900_000, near), UtcNanos(ten.0 - s / 10));
+        // Within the hour: as stamped.
+        let near = UtcNanos(ten.0 + 1800 * s);
+        assert_eq!(sensor_time(1_800_000_000, near), UtcNanos(ten.0 + 1800 * s));
+    }
+}
