@@ -552,6 +552,18 @@ mod tests {
         }
     }
 
+    /// A stream that ends inside a sentence: the unfinished candidate's bytes are counted as
+    /// skipped (one by one, since a corrupted length could have swallowed frames behind it).
+    #[test]
+    fn an_unfinished_sentence_at_the_end_is_skipped_bytes() {
+        let mut f = Framer::new();
+        f.push(b"$GPGGA,1,2");
+        f.finish();
+        while f.next_frame().is_some() {}
+        assert_eq!(f.stats.skipped_bytes, 10);
+        assert_eq!((f.stats.nmea, f.stats.rejected), (0, 0));
+    }
+
     /// Large UBX frames (MON and ESF messages run to kilobytes) pass: up to 8 KiB.
     #[test]
     fn a_two_kilobyte_ubx_frame_passes() {
