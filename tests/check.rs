@@ -366,7 +366,7 @@ fn damaged_recordings_give_a_report_not_a_panic() {
             ),
             |(cut, flips)| {
                 let mut b = bytes[..(bytes.len() as f64 * cut) as usize].to_vec();
-                for (at, v) in flips {
+                for &(at, v) in &flips {
                     if !b.is_empty() {
                         let i = (b.len() as f64 * at) as usize % b.len();
                         b[i] ^= v;
@@ -391,7 +391,11 @@ fn damaged_recordings_give_a_report_not_a_panic() {
                     );
                 }
                 prop_assert!(report.spatial.epochs <= whole.spatial.epochs);
-                prop_assert!(report.duration_s <= whole.duration_s + 1e-9);
+                // A cut file spans no longer than the whole; a flipped byte may move a log time
+                // (MCAP chunks carry no checksum here), and the run is then judged on that.
+                if flips.is_empty() {
+                    prop_assert!(report.duration_s <= whole.duration_s + 1e-9);
+                }
                 Ok(())
             },
         )
