@@ -5,6 +5,10 @@ its limit. For every drive: the faults raised, and for the estimated quantities 
 2-sigma interval the check reports contains the injected truth. Prints one line per drive and a
 summary: false faults on clean drives, detection rate and interval coverage per fault kind.
 
+Then the lever-arm grid: the true antenna at 0.0, 0.4, 0.8 and 1.2 m ahead of the rear axle, the
+rig file given to `check` saying 0.0, 0.3, 0.6 or 1.0 m: the estimate must be within 10 cm of the
+truth, or the check must say it cannot determine it.
+
 usage: python3 benches/check_campaign.py [CLEAN_DRIVES] [SEEDS_PER_FAULT]   (default 10 3)
 """
 import json
@@ -37,7 +41,7 @@ FAULTS = [
 ]
 
 
-def drive(tmp, name, faults, seed, speed=2.2):
+def drive(tmp, name, faults, seed, speed=2.2, rig_antenna_x=None):
     text = base.replace("cruise_speed_mps = 2.2", f"cruise_speed_mps = {speed}")
     d = os.path.join(tmp, name)
     os.makedirs(d, exist_ok=True)
@@ -51,9 +55,21 @@ def drive(tmp, name, faults, seed, speed=2.2):
     subprocess.run([exe, "record", "--rig", os.path.join(root, "rigs/demo.toml"), "--from",
                     os.path.join(d, "rep-01/drive.pcapng"), "-o", run], check=True,
                    stderr=subprocess.DEVNULL)
+    return check(d, run, rig_antenna_x)
+
+
+def check(d, run, rig_antenna_x=None):
     out = os.path.join(d, "check.json")
+    extra = []
+    if rig_antenna_x is not None:
+        rig = open(os.path.join(root, "rigs/demo.toml")).read().replace(
+            "antenna = { x = 0.60,", f"antenna = {{ x = {rig_antenna_x:.2f},").replace(
+            'dbc = "hilrig-ego.dbc"', f'dbc = "{os.path.join(root, "rigs/hilrig-ego.dbc")}"')
+        path = os.path.join(d, f"rig-{rig_antenna_x}.toml")
+        open(path, "w").write(rig)
+        extra = ["--rig", path]
     subprocess.run([exe, "check", run, "--scene", os.path.join(d, "rep-01/scene.toml"),
-                    "--json", out], stdout=subprocess.DEVNULL)
+                    "--json", out] + extra, stdout=subprocess.DEVNULL)
     return json.load(open(out))
 
 
@@ -91,3 +107,21 @@ with tempfile.TemporaryDirectory() as tmp:
             print(f"{name} seed {200 + s}: faults {names}")
         extra = f", interval contains the truth {inside}/{n_fault}" if est else ""
         print(f"{name}: detected {found}/{n_fault}{extra}")
+    ok = total = 0
+    for true_x in [0.0, 0.4, 0.8, 1.2]:
+        name = f"lever{true_x}"
+        drive(tmp, name, f"antenna_error_m = [{true_x - 0.6:.2f}, 0.0, 0.0]", 300)
+        d = os.path.join(tmp, name)
+        for prior in [0.0, 0.3, 0.6, 1.0]:
+            v = check(d, os.path.join(d, "run.mcap"), prior)
+            sp = v["spatial"]
+            est, sig = sp.get("lever_arm_x_measured_m"), sp.get("lever_arm_x_sigma_m")
+            undecided = est is None or any(w["name"] == "lever_arm" and "not determinable" in
+                                           w["detail"] for w in v["warnings"])
+            good = (est is not None and abs(est - true_x) <= 0.10) or (est is None and undecided)
+            ok += good
+            total += 1
+            print(f"antenna {true_x:.1f} m, rig says {prior:.1f} m: estimate "
+                  f"{'n/a' if est is None else f'{est:.3f} ± {sig:.3f}'} m"
+                  f"{' (not determinable)' if undecided else ''}")
+    print(f"lever arm: {ok}/{total} within 10 cm of the truth or reported not determinable")

@@ -330,16 +330,24 @@ fn offset_and_lever(inp: &Inputs<'_>, speed_scale: f64) -> Fit {
             ..*o
         })
         .collect();
-    let fitted = EgoTrajectory::smooth(
-        &fixed_only,
-        &motion_fit,
-        &Settings {
-            lever: inp.lever,
-            estimate_offset_and_lever: true,
-            ..Settings::default()
-        },
-    )
-    .ok();
+    // Fitted twice: the second fit starts from the first one's lever arm, so that the rig
+    // file's value (which only seeds the linearisation) leaves no trace in the estimate.
+    let fit = |lever: Vector2<f64>| {
+        EgoTrajectory::smooth(
+            &fixed_only,
+            &motion_fit,
+            &Settings {
+                lever,
+                estimate_offset_and_lever: true,
+                ..Settings::default()
+            },
+        )
+        .ok()
+    };
+    let fitted = fit(inp.lever).and_then(|first| {
+        let (_, _, x, _) = first.offset_and_lever();
+        fit(Vector2::new(x, inp.lever.y)).or(Some(first))
+    });
     let motion = &inp.run.motion;
     let moving = motion.iter().filter(|m| m.speed > 0.5).count() >= 50;
     let turning = motion
