@@ -94,6 +94,15 @@ fn fixture_payloads() -> Vec<(u16, Vec<u8>)> {
     out
 }
 
+/// The fixture's data packets (port 2368) only.
+fn data_payloads() -> Vec<Vec<u8>> {
+    fixture_payloads()
+        .into_iter()
+        .filter(|(p, _)| *p == 2368)
+        .map(|(_, b)| b)
+        .collect()
+}
+
 fn read(path: &Path) -> serde_json::Value {
     common::mcap_json(path, &["--decode", "/velodyne_packets"])
 }
@@ -173,11 +182,7 @@ fn kill_9_mid_recording_is_recovered_losing_at_most_one_and_a_half_seconds() {
     let mut r = rig();
     let mut child = start(&r);
     let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
-    let payloads: Vec<Vec<u8>> = fixture_payloads()
-        .into_iter()
-        .filter(|(p, _)| *p == 2368)
-        .map(|(_, b)| b)
-        .collect();
+    let payloads = data_payloads();
     // Stream at the VLP-16 pace, with NMEA at 10 Hz, then pull the plug.
     let start_t = Instant::now();
     let period = Duration::from_micros(1327);
@@ -255,11 +260,7 @@ fn a_full_disk_stops_the_recorder_with_a_clear_error_and_keeps_what_was_written(
     }
     std::thread::sleep(Duration::from_millis(300));
     let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
-    let payloads: Vec<Vec<u8>> = fixture_payloads()
-        .into_iter()
-        .filter(|(p, _)| *p == 2368)
-        .map(|(_, b)| b)
-        .collect();
+    let payloads = data_payloads();
     // Random-looking payloads so compression cannot hide them; far more than 400 kB.
     let mut sent = 0u32;
     let start = Instant::now();
@@ -333,11 +334,7 @@ fn a_sustained_load_loses_nothing() {
     let mut r = rig();
     let mut child = start(&r);
     let pid = child.id();
-    let payloads: Vec<Vec<u8>> = fixture_payloads()
-        .into_iter()
-        .filter(|(p, _)| *p == 2368)
-        .map(|(_, b)| b)
-        .collect();
+    let payloads = data_payloads();
     let data_port = r.data;
     let sender = std::thread::spawn(move || {
         let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -407,11 +404,7 @@ fn a_writer_that_falls_behind_drops_counted_messages_and_exits_1() {
     let mut r = rig_with("[recording]\nqueue_messages = 1\nchunk_size_mib = 1\n");
     let child = start_with(&r, std::process::Stdio::piped());
     let pid = child.id();
-    let payloads: Vec<Vec<u8>> = fixture_payloads()
-        .into_iter()
-        .filter(|(p, _)| *p == 2368)
-        .map(|(_, b)| b)
-        .collect();
+    let payloads = data_payloads();
     let sock = UdpSocket::bind("127.0.0.1:0").unwrap();
     for k in 0..20_000u32 {
         let mut p = payloads[k as usize % payloads.len()].clone();

@@ -26,6 +26,48 @@ fn udp_payloads(path: &Path) -> Vec<(UtcNanos, u16, Vec<u8>)> {
     out
 }
 
+/// A capture in `dir` with a 10 Hz stream of 16 NMEA sentences on a serial interface (1.5 s),
+/// and the sentences.
+fn nmea_capture(dir: &Path) -> (std::path::PathBuf, Vec<String>) {
+    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
+    let ser = w.add_interface(LinkType::USER0, "/dev/ttyACM0").unwrap();
+    let mut sentences = Vec::new();
+    for i in 0..16i64 {
+        let s = hilrig::gnss::framer::nmea_sentence(&format!(
+            "GNGGA,1200{:02}.{}0,4807.0380000,N,01131.0000000,E,4,12,0.8,545.40,M,46.90,M,1.0,0042",
+            i / 10,
+            i % 10
+        ));
+        w.write_packet(
+            ser,
+            UtcNanos(1_700_000_000_000_000_000 + i * 100_000_000),
+            s.as_bytes(),
+        )
+        .unwrap();
+        sentences.push(s);
+    }
+    let cap = dir.join("gnss.pcapng");
+    std::fs::write(&cap, w.finish().unwrap()).unwrap();
+    (cap, sentences)
+}
+
+/// A capture in `dir` with `frames` on a SocketCAN interface, 10 ms apart.
+fn can_capture(dir: &Path, frames: &[hilrig::capture::CanFrame]) -> std::path::PathBuf {
+    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
+    let can = w.add_interface(LinkType::CAN_SOCKETCAN, "can0").unwrap();
+    for (i, f) in frames.iter().enumerate() {
+        w.write_packet(
+            can,
+            UtcNanos(1_700_000_000_000_000_000 + i as i64 * 10_000_000),
+            &f.encode_socketcan(),
+        )
+        .unwrap();
+    }
+    let cap = dir.join("can.pcapng");
+    std::fs::write(&cap, w.finish().unwrap()).unwrap();
+    cap
+}
+
 /// What a receiver got: data payloads, position payloads, data arrival instants, replay stderr.
 type Received = (Vec<Vec<u8>>, Vec<Vec<u8>>, Vec<Instant>, String);
 
@@ -296,26 +338,9 @@ fn loop_runs_until_sigint_and_then_finishes_cleanly() {
 #[test]
 fn gnss_bytes_through_a_pty_arrive_identical_and_paced() {
     // A 10 Hz NMEA stream on a serial interface of a capture, 1.5 s long.
-    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
-    let ser = w.add_interface(LinkType::USER0, "/dev/ttyACM0").unwrap();
-    let mut expected = Vec::new();
-    for i in 0..16i64 {
-        let s = hilrig::gnss::framer::nmea_sentence(&format!(
-            "GNGGA,1200{:02}.{}0,4807.0380000,N,01131.0000000,E,4,12,0.8,545.40,M,46.90,M,1.0,0042",
-            i / 10,
-            i % 10
-        ));
-        w.write_packet(
-            ser,
-            UtcNanos(1_700_000_000_000_000_000 + i * 100_000_000),
-            s.as_bytes(),
-        )
-        .unwrap();
-        expected.extend_from_slice(s.as_bytes());
-    }
     let dir = tempfile::tempdir().unwrap();
-    let cap = dir.path().join("gnss.pcapng");
-    std::fs::write(&cap, w.finish().unwrap()).unwrap();
+    let (cap, sentences) = nmea_capture(dir.path());
+    let expected = sentences.concat().into_bytes();
     let mut child = Command::new(common::hilrig_bin())
         .arg("replay")
         .arg(&cap)
@@ -507,30 +532,10 @@ fn one_x_replay_keeps_the_file_s_time_over_a_long_file() {
 /// byte cannot arrive before all bytes after the first sentence have crossed the line.
 #[test]
 fn gnss_to_a_serial_device_is_paced_at_its_baud_rate() {
-    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
-    let ser = w.add_interface(LinkType::USER0, "/dev/ttyACM0").unwrap();
-    let mut expected = Vec::new();
-    let mut first_len = 0;
-    for i in 0..16i64 {
-        let s = hilrig::gnss::framer::nmea_sentence(&format!(
-            "GNGGA,1200{:02}.{}0,4807.0380000,N,01131.0000000,E,4,12,0.8,545.40,M,46.90,M,1.0,0042",
-            i / 10,
-            i % 10
-        ));
-        if i == 0 {
-            first_len = s.len();
-        }
-        w.write_packet(
-            ser,
-            UtcNanos(1_700_000_000_000_000_000 + i * 100_000_000),
-            s.as_bytes(),
-        )
-        .unwrap();
-        expected.extend_from_slice(s.as_bytes());
-    }
     let dir = tempfile::tempdir().unwrap();
-    let cap = dir.path().join("gnss.pcapng");
-    std::fs::write(&cap, w.finish().unwrap()).unwrap();
+    let (cap, sentences) = nmea_capture(dir.path());
+    let expected = sentences.concat().into_bytes();
+    let first_len = sentences[0].len();
     let (mut master, device) = common::pty();
     let mut child = Command::new(common::hilrig_bin())
         .arg("replay")
@@ -584,19 +589,8 @@ fn can_frames_go_out_on_a_can_interface() {
     let frames: Vec<CanFrame> = (0..20u32)
         .map(|i| CanFrame::new(0x100 + i, i % 2 == 1, &[i as u8; 8]).unwrap())
         .collect();
-    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
-    let can = w.add_interface(LinkType::CAN_SOCKETCAN, "can0").unwrap();
-    for (i, f) in frames.iter().enumerate() {
-        w.write_packet(
-            can,
-            UtcNanos(1_700_000_000_000_000_000 + i as i64 * 10_000_000),
-            &f.encode_socketcan(),
-        )
-        .unwrap();
-    }
     let dir = tempfile::tempdir().unwrap();
-    let cap = dir.path().join("can.pcapng");
-    std::fs::write(&cap, w.finish().unwrap()).unwrap();
+    let cap = can_capture(dir.path(), &frames);
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -632,19 +626,8 @@ fn can_frames_replayed_from_a_recording_are_the_captured_ones() {
         CanFrame::new_remote(0x321, false, 4).unwrap(),
         CanFrame::new(0x7FF, false, &[]).unwrap(),
     ];
-    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
-    let can = w.add_interface(LinkType::CAN_SOCKETCAN, "can0").unwrap();
-    for (i, f) in frames.iter().enumerate() {
-        w.write_packet(
-            can,
-            UtcNanos(1_700_000_000_000_000_000 + i as i64 * 10_000_000),
-            &f.encode_socketcan(),
-        )
-        .unwrap();
-    }
     let dir = tempfile::tempdir().unwrap();
-    let cap = dir.path().join("can.pcapng");
-    std::fs::write(&cap, w.finish().unwrap()).unwrap();
+    let cap = can_capture(dir.path(), &frames);
     let out = dir.path().join("can.mcap");
     let st = common::record_from(&common::demo_rig(), &[&cap], &out);
     assert!(

@@ -363,6 +363,13 @@ pub fn correlation_factor(
         .zip(use_epoch)
         .map(|((r, s), &u)| u.then(|| r.error.component_div(s)))
         .collect();
+    integrated_autocorrelation(&z)
+}
+
+/// The integrated autocorrelation time `1 + 2 Σ ρ_k` of a series (gaps as `None`: a lag is
+/// only taken between present samples), summed until ρ first drops to zero; at least 1, and 1
+/// for fewer than ten samples.
+pub fn integrated_autocorrelation(z: &[Option<Vector2<f64>>]) -> f64 {
     let n = z.iter().flatten().count();
     if n < 10 {
         return 1.0;

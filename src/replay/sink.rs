@@ -103,7 +103,7 @@ impl UdpSink {
 
 impl Sink for UdpSink {
     fn send(&mut self, payload: &Payload) -> Result<(), SinkError> {
-        if let Payload::LidarData(b) | Payload::LidarPosition(b) | Payload::Serial(b) = payload {
+        if let Payload::LidarData(b) | Payload::LidarPosition(b) = payload {
             self.socket.send_to(b, self.to)?;
         }
         Ok(())

@@ -11,7 +11,9 @@
 use super::faults::{secs, FaultLog};
 use super::report::{Spatial, Stats, Warning};
 use crate::reference::run::{Motion, Run};
-use crate::reference::trajectory::{correlation_factor, EgoTrajectory, GnssObs, Settings};
+use crate::reference::trajectory::{
+    correlation_factor, integrated_autocorrelation, EgoTrajectory, GnssObs, Settings,
+};
 use crate::rig::Thresholds;
 use hilrig_stamp::UtcNanos;
 use nalgebra::Vector2;
@@ -259,7 +261,9 @@ fn speed_scale(
             let dof = (res.len() as f64 - if two { 2.0 } else { 1.0 }).max(1.0);
             let var_res = res.iter().map(|r| r * r).sum::<f64>() / dof;
             let var_b1 = var_res * if two { s22 / det } else { 1.0 / s11 };
-            let sigma = (var_b1 * series_correlation(&res)).sqrt() / (b1 * b1);
+            let series: Vec<Option<Vector2<f64>>> =
+                res.iter().map(|&r| Some(Vector2::new(r, 0.0))).collect();
+            let sigma = (var_b1 * integrated_autocorrelation(&series)).sqrt() / (b1 * b1);
             sp.can_speed_scale_sigma = Some(sigma);
             let span = moving_span.unwrap_or(inp.span);
             let limit = inp.th.max_speed_scale_error;
@@ -376,33 +380,6 @@ fn offset_and_lever(inp: &Inputs<'_>, speed_scale: f64) -> Fit {
         lever,
         correlation,
     }
-}
-
-/// The integrated autocorrelation time of a series (1 + 2 Σ ρ_k until ρ first drops to zero),
-/// the factor by which its correlation inflates the variance of anything fitted to it.
-fn series_correlation(x: &[f64]) -> f64 {
-    let n = x.len();
-    if n < 10 {
-        return 1.0;
-    }
-    let mean = x.iter().sum::<f64>() / n as f64;
-    let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64;
-    if var <= 0.0 {
-        return 1.0;
-    }
-    let mut tau = 1.0;
-    for lag in 1..n / 4 {
-        let rho = (lag..n)
-            .map(|k| (x[k] - mean) * (x[k - lag] - mean))
-            .sum::<f64>()
-            / (n - lag) as f64
-            / var;
-        if rho <= 0.0 {
-            break;
-        }
-        tau += 2.0 * rho;
-    }
-    tau
 }
 
 /// Fixed epochs more than the jump limit off `traj` (normalised innovation), with their

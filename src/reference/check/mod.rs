@@ -162,14 +162,19 @@ fn check_into(
     // motion carries the short term and GNSS the long term.
     let sigmas: Vec<Vector2<f64>> = obs.iter().map(|o| o.sigma).collect();
     let k = correlation_factor(&first.residuals, &sigmas, &fixed).sqrt();
-    let decorrelated: Vec<GnssObs> = obs
-        .iter()
-        .map(|o| GnssObs {
-            sigma: o.sigma * k,
-            ..*o
-        })
-        .collect();
-    let traj = EgoTrajectory::smooth(&decorrelated, &motion, &settings).unwrap_or(first);
+    let traj = if k > 1.0 {
+        let decorrelated: Vec<GnssObs> = obs
+            .iter()
+            .map(|o| GnssObs {
+                sigma: o.sigma * k,
+                ..*o
+            })
+            .collect();
+        EgoTrajectory::smooth(&decorrelated, &motion, &settings).unwrap_or(first)
+    } else {
+        // White residuals: the second pass would repeat the first.
+        first
+    };
     // Epochs good enough to differentiate: fixed and within the sigma limits.
     let good: Vec<bool> = epochs
         .iter()
