@@ -1,48 +1,83 @@
 #!/usr/bin/env python3
-"""`hilrig check` over many synthesized parking drives (issue 12's campaigns): clean drives with
-different seeds and cruise speeds, and each `[faults]` kind with several seeds at a size above
-its limit. For every drive: the faults raised, and for the estimated quantities whether the
-2-sigma interval the check reports contains the injected truth. Prints one line per drive and a
-summary: false faults on clean drives, detection rate and interval coverage per fault kind.
+"""`hilrig check` over many synthesized parking drives (issue 12's campaigns).
 
-Then the lever-arm grid: the true antenna at 0.0, 0.4, 0.8 and 1.2 m ahead of the rear axle, the
-rig file given to `check` saying 0.0, 0.3, 0.6 or 1.0 m: the estimate must be within 10 cm of the
-truth, or the check must say it cannot determine it.
+1. Clean drives with different seeds, cruise speeds and start conditions (standing still, already
+   moving, starting in a turn): the faults raised (there must be none), whether each estimate's
+   2-sigma interval contains the truth, and the heading of the smoothed trajectory
+   (`check --trajectory`) against the synthesizer's truth (`truth.csv`): the 95th percentile of
+   the heading error in the usable segments and over the whole drive, the share of the drive
+   marked `heading_uncertain`, and the error in units of the smoother's own sigma.
+2. Every `[faults]` kind at a size just above its limit, several seeds each: detection, location
+   (the fault's window overlaps the injected one) and whether the estimate's 2-sigma interval
+   contains the injected value.
+3. The lever-arm grid: the true antenna at 0.0, 0.4, 0.8 and 1.2 m ahead of the rear axle, the
+   rig file given to `check` saying 0.0, 0.3, 0.6 or 1.0 m: the estimate must be within 10 cm of
+   the truth, or the check must say it cannot determine it.
 
-usage: python3 benches/check_campaign.py [CLEAN_DRIVES] [SEEDS_PER_FAULT]   (default 10 3)
+usage: python3 benches/check_campaign.py [CLEAN_DRIVES] [SEEDS_PER_FAULT]   (default 30 10)
 """
+import bisect
+import csv
+import datetime
 import json
+import math
 import os
 import subprocess
 import sys
 import tempfile
 
 root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-n_clean = int(sys.argv[1]) if len(sys.argv) > 1 else 10
-n_fault = int(sys.argv[2]) if len(sys.argv) > 2 else 3
+n_clean = int(sys.argv[1]) if len(sys.argv) > 1 else 30
+n_fault = int(sys.argv[2]) if len(sys.argv) > 2 else 10
 subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=root, check=True)
 exe = os.path.join(root, "target", "release", "hilrig")
 base = open(os.path.join(root, "fixtures/parking/drive.toml")).read().replace(
     'rig = "../../rigs/demo.toml"', f'rig = "{os.path.join(root, "rigs/demo.toml")}"')
 CAN_LATENCY_MS = 1.0
-# name, [faults] lines, fault expected, (estimate key, sigma key, truth) or None
+STARTS = ["standing", "moving", "turning"]
+
+
+def start_condition(text, how, speed):
+    """The parking drive, starting as `how` says."""
+    if how == "standing":
+        return text
+    text = text.replace("lead_in_s = 0.8", f"lead_in_s = 0.8\nstart_speed_mps = {speed}")
+    if how == "turning":
+        # A left curve into the aisle: the recording begins mid-turn.
+        text = text.replace("waypoints = [[-16.0, 0.0],",
+                            "waypoints = [[-21.0, -5.0], [-19.0, -1.5], [-16.0, 0.0],")
+    return text
+
+
+# name, [faults] lines, fault expected, injected window (s) or None,
+# (estimate key, sigma key, truth) or None. Sizes just above the limits of rigs/demo.toml.
 FAULTS = [
-    ("rtk_float", 'rtk = [{ from_s = 8.0, to_s = 12.0, quality = 5 }]', "rtk_float", None),
-    ("sigma_spike", 'sigma_spike = [{ from_s = 6.0, to_s = 7.0, sigma_m = 0.05 }]', "sigma_spike", None),
-    ("gnss_time_offset", "gnss_time_offset_ms = 30.0", "gnss_time_offset",
+    ("rtk_float", 'rtk = [{ from_s = 8.0, to_s = 12.0, quality = 5 }]', "rtk_float", (8, 12), None),
+    ("rtk_none", 'rtk = [{ from_s = 8.0, to_s = 9.0, quality = 1 }]', "rtk_none", (8, 9), None),
+    ("sigma_spike", 'sigma_spike = [{ from_s = 6.0, to_s = 7.0, sigma_m = 0.03 }]',
+     "sigma_spike", (6, 7), None),
+    ("correction_age", 'correction_age = [{ from_s = 10.0, to_s = 12.0, age_s = 7.0 }]',
+     "correction_age", (10, 12), None),
+    ("gnss_gap", 'gnss_gap = [{ from_s = 9.0, to_s = 9.5 }]', "gnss_gap", (9, 9.5), None),
+    ("can_gap", 'can_gap = [{ from_s = 9.0, to_s = 9.2 }]', "can_gap", (9, 9.2), None),
+    ("position_jump", 'position_jump = [{ at_s = 15.0, offset_m = [0.08, 0.0] }]', "jump",
+     (14.9, 15.1), None),
+    # The offset's sigma on a parking drive is about 5 ms: a fault needs |e| - 2 sigma > 10 ms.
+    ("gnss_time_offset", "gnss_time_offset_ms = 30.0", "gnss_time_offset", None,
      ("gnss_time_offset_ms", "gnss_time_offset_sigma_ms", 30.0 - CAN_LATENCY_MS)),
     ("lidar_free_running", "lidar_free_running = { offset_ms = 5.0, drift_ppm = 300.0 }",
-     "lidar_not_pps_locked", None),
-    ("lidar_gap", "lidar_gap = [{ from_s = 5.0, to_s = 6.0 }]", "lidar_gap", None),
-    ("can_speed_scale", "can_speed_scale = 1.03", "can_speed_scale",
-     ("can_speed_scale", "can_speed_scale_sigma", 1.03)),
-    ("antenna", "antenna_error_m = [0.4, 0.0, 0.0]", "lever_arm",
-     ("lever_arm_x_measured_m", "lever_arm_x_sigma_m", 1.0)),
+     "lidar_not_pps_locked", None, None),
+    ("lidar_gap", "lidar_gap = [{ from_s = 5.0, to_s = 5.2 }]", "lidar_gap", (5, 5.2), None),
+    ("can_speed_scale", "can_speed_scale = 1.025", "can_speed_scale", None,
+     ("can_speed_scale", "can_speed_scale_sigma", 1.025)),
+    ("antenna", "antenna_error_m = [0.25, 0.0, 0.0]", "lever_arm", None,
+     ("lever_arm_x_measured_m", "lever_arm_x_sigma_m", 0.85)),
 ]
 
 
-def drive(tmp, name, faults, seed, speed=2.2, rig_antenna_x=None):
-    text = base.replace("cruise_speed_mps = 2.2", f"cruise_speed_mps = {speed}")
+def drive(tmp, name, faults, seed, speed=2.2, start="standing"):
+    text = start_condition(base.replace("cruise_speed_mps = 2.2", f"cruise_speed_mps = {speed}"),
+                           start, speed)
     d = os.path.join(tmp, name)
     os.makedirs(d, exist_ok=True)
     path = os.path.join(d, "drive.toml")
@@ -55,7 +90,7 @@ def drive(tmp, name, faults, seed, speed=2.2, rig_antenna_x=None):
     subprocess.run([exe, "record", "--rig", os.path.join(root, "rigs/demo.toml"), "--from",
                     os.path.join(d, "rep-01/drive.pcapng"), "-o", run], check=True,
                    stderr=subprocess.DEVNULL)
-    return check(d, run, rig_antenna_x)
+    return d, check(d, run)
 
 
 def check(d, run, rig_antenna_x=None):
@@ -69,8 +104,39 @@ def check(d, run, rig_antenna_x=None):
         open(path, "w").write(rig)
         extra = ["--rig", path]
     subprocess.run([exe, "check", run, "--scene", os.path.join(d, "rep-01/scene.toml"),
-                    "--json", out] + extra, stdout=subprocess.DEVNULL)
+                    "--json", out, "--trajectory", os.path.join(d, "trajectory.csv")] + extra,
+                   stdout=subprocess.DEVNULL)
     return json.load(open(out))
+
+
+def heading_errors(d, report):
+    """(error deg, sigma deg, usable) every 10 ms of the smoothed trajectory against the truth."""
+    truth = [(float(r["t"]), float(r["yaw_deg"]))
+             for r in csv.DictReader(open(os.path.join(d, "rep-01/truth.csv")))]
+    tt = [t for t, _ in truth]
+    est = list(csv.DictReader(open(os.path.join(d, "trajectory.csv"))))
+    # Segments are counted from the run's start (the first sample of any source).
+    run_start = datetime.datetime.fromisoformat(report["start"].replace("Z", "+00:00")).timestamp()
+    segs = [(s["from_s"], s["to_s"], s["verdict"] == "pass") for s in report["segments"]]
+    out = []
+    for r in est:
+        t = float(r["t"])
+        i = bisect.bisect_left(tt, t)
+        if i <= 0 or i >= len(tt):
+            continue
+        (ta, ya), (tb, yb) = truth[i - 1], truth[i]
+        w = (t - ta) / (tb - ta)
+        ty = ya + w * ((yb - ya + 180) % 360 - 180)
+        e = (float(r["yaw_deg"]) - ty + 180) % 360 - 180
+        rel = t - run_start
+        usable = any(a <= rel <= b and ok for a, b, ok in segs)
+        out.append((e, float(r["sigma_yaw_deg"]), usable))
+    return out
+
+
+def p95(xs):
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(0.95 * len(xs)))] if xs else float("nan")
 
 
 def covered(v, est):
@@ -79,39 +145,61 @@ def covered(v, est):
     return e is not None and s is not None and abs(e - truth) <= 2 * s
 
 
+def located(v, expected, window):
+    if window is None:
+        return True
+    return any(f["name"] == expected and f["from_s"] <= window[1] + 0.2 and
+               f["to_s"] >= window[0] - 0.2 for f in v["faults"])
+
+
 with tempfile.TemporaryDirectory() as tmp:
     false = 0
     truths = [("can_speed_scale", "can_speed_scale_sigma", 1.0),
               ("gnss_time_offset_ms", "gnss_time_offset_sigma_ms", -CAN_LATENCY_MS),
               ("lever_arm_x_measured_m", "lever_arm_x_sigma_m", 0.60)]
     cover = {t[0]: 0 for t in truths}
+    worst_usable = 0.0
+    pooled = []
     for k in range(n_clean):
-        speed = 1.6 + 0.2 * (k % 5)
-        v = drive(tmp, f"clean{k}", "", 100 + k, speed)
+        speed = 1.4 + 0.3 * (k % 5)
+        start = STARTS[k % 3]
+        d, v = drive(tmp, f"clean{k}", "", 100 + k, speed, start)
         names = [f["name"] for f in v["faults"]]
         false += bool(names)
         for t in truths:
             cover[t[0]] += covered(v, t)
-        print(f"clean seed {100 + k} at {speed:.1f} m/s: faults {names}, warnings "
-              f"{[w['name'] for w in v['warnings']]}")
+        h = heading_errors(d, v)
+        pooled += h
+        usable = [abs(e) for e, _, u in h if u]
+        worst_usable = max(worst_usable, p95(usable) if usable else 0.0)
+        z = math.sqrt(sum((e / s) ** 2 for e, s, _ in h) / len(h))
+        print(f"clean seed {100 + k} {start} at {speed:.1f} m/s: faults {names}; heading error "
+              f"p95 {p95(usable):.3f}° in usable ({len(usable) / len(h):.0%} of the drive), "
+              f"{p95([abs(e) for e, _, _ in h]):.3f}° overall, rms error/sigma {z:.2f}; "
+              f"warnings {[w['name'] for w in v['warnings']]}")
     print(f"clean: {false} of {n_clean} drives with a fault; 2-sigma intervals containing the "
           f"truth: " + ", ".join(f"{k} {c}/{n_clean}" for k, c in cover.items()))
-    for name, lines, expected, est in FAULTS:
-        found = inside = 0
+    usable = [abs(e) for e, _, u in pooled if u]
+    print(f"heading: p95 error {p95(usable):.3f}° over the usable segments of all drives "
+          f"({len(usable) / len(pooled):.0%} usable), worst drive {worst_usable:.3f}°; "
+          f"{p95([abs(e) for e, _, _ in pooled]):.3f}° over everything; rms error/sigma "
+          f"{math.sqrt(sum((e / s) ** 2 for e, s, _ in pooled) / len(pooled)):.2f}")
+    for name, lines, expected, window, est in FAULTS:
+        found = inside = where = 0
         for s in range(n_fault):
-            v = drive(tmp, f"{name}{s}", lines, 200 + s)
+            _, v = drive(tmp, f"{name}{s}", lines, 200 + s)
             names = [f["name"] for f in v["faults"]]
             found += expected in names
+            where += expected in names and located(v, expected, window)
             if est:
                 inside += covered(v, est)
             print(f"{name} seed {200 + s}: faults {names}")
         extra = f", interval contains the truth {inside}/{n_fault}" if est else ""
-        print(f"{name}: detected {found}/{n_fault}{extra}")
+        print(f"{name}: detected {found}/{n_fault}, located {where}/{n_fault}{extra}")
     ok = total = 0
     for true_x in [0.0, 0.4, 0.8, 1.2]:
         name = f"lever{true_x}"
-        drive(tmp, name, f"antenna_error_m = [{true_x - 0.6:.2f}, 0.0, 0.0]", 300)
-        d = os.path.join(tmp, name)
+        d, _ = drive(tmp, name, f"antenna_error_m = [{true_x - 0.6:.2f}, 0.0, 0.0]", 300)
         for prior in [0.0, 0.3, 0.6, 1.0]:
             v = check(d, os.path.join(d, "run.mcap"), prior)
             sp = v["spatial"]

@@ -252,6 +252,17 @@ pub struct Thresholds {
     /// A GNSS epoch further than this many sigmas from the smoothed trajectory is a jump that
     /// CAN speed and yaw rate cannot explain. Default 5 (a false alarm once in 270 000 epochs).
     pub max_jump_sigma: f64,
+    /// Largest 1-sigma heading error of the smoothed trajectory, degrees; stretches above it
+    /// are marked not usable. A heading error turns the whole scene about the ego: at 30 m,
+    /// 0.2° moves a point by 10 cm, the smallest grid cell (Rosenberger et al. 2019, §6).
+    /// Default 0.2: RTK with CAN gives about 0.1° while the vehicle drives
+    /// (`benches/check_campaign.py`), and more before it has moved far enough to show its
+    /// heading, or in slow turns.
+    pub max_heading_sigma_deg: f64,
+    /// The range at which a heading error is counted in the accuracy budget, m. Default 30:
+    /// beyond it a VLP-16's rings are more than half a metre apart and carry little of what the
+    /// metrics compare.
+    pub heading_range_m: f64,
 }
 
 impl Default for Thresholds {
@@ -270,6 +281,8 @@ impl Default for Thresholds {
             max_lever_arm_error_m: 0.10,
             require_pps: true,
             max_jump_sigma: 5.0,
+            max_heading_sigma_deg: 0.2,
+            heading_range_m: 30.0,
         }
     }
 }

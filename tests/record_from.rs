@@ -813,3 +813,52 @@ fn lidar_ports_that_match_nothing_are_an_error_naming_the_capture_s_ports() {
         "{stderr}"
     );
 }
+
+/// A rig whose `gnss.port` names another device than the capture's serial interface: the
+/// capture's GNSS is recorded all the same, and `record --from` says which interface it read
+/// and that the rig's port is the live one.
+#[test]
+fn a_gnss_port_the_capture_does_not_have_is_named_in_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("rigs/demo.toml")).unwrap();
+    let dbc = root.join("rigs/hilrig-ego.dbc");
+    let moved: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("port = ") {
+                "port = \"/dev/ttyACM7\"".to_owned()
+            } else {
+                l.replace(
+                    "\"hilrig-ego.dbc\"",
+                    &format!("{:?}", dbc.display().to_string()),
+                )
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert!(
+        moved.contains("/dev/ttyACM7"),
+        "the demo rig has no gnss port line"
+    );
+    let rig = dir.path().join("rig.toml");
+    std::fs::write(&rig, moved).unwrap();
+    let out = dir.path().join("out.mcap");
+    let st = common::record_from(
+        &rig,
+        &[&common::fixture("parking/rep-01/drive.pcapng.zst")],
+        &out,
+    );
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains("note: GNSS read from the capture's serial interface /dev/serial/by-id/")
+            && stderr.contains("gnss.port /dev/ttyACM7 is the live port"),
+        "{stderr}"
+    );
+    let info = hilrig::bag::info::info(&out).unwrap();
+    assert!(info
+        .channels
+        .iter()
+        .any(|c| c.topic == "/gnss/nmea" && c.count > 0));
+}

@@ -17,6 +17,10 @@ pub struct CheckArgs {
     /// Also write the report as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Also write the smoothed ego trajectory as CSV here (every 10 ms: time, rear-axle east and
+    /// north, heading, and their 1-sigma errors).
+    #[arg(long)]
+    trajectory: Option<PathBuf>,
 }
 
 pub fn run(args: CheckArgs) -> Result<ExitCode> {
@@ -43,10 +47,21 @@ pub fn run(args: CheckArgs) -> Result<ExitCode> {
         .as_ref()
         .map(|p| hilrig::scene::Scene::load(p))
         .transpose()?;
-    let report = check::check(&run, &rig, scene.as_ref());
+    let (report, trajectory) = check::check_with_trajectory(&run, &rig, scene.as_ref());
     print!("{}", report.text());
     if let Some(p) = &args.json {
         std::fs::write(p, serde_json::to_string_pretty(&report)?)
+            .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    if let Some(p) = &args.trajectory {
+        let Some(t) = &trajectory else {
+            anyhow::bail!(
+                "no trajectory to write to {}: {}",
+                p.display(),
+                report.text()
+            );
+        };
+        std::fs::write(p, t.to_csv(10_000_000))
             .with_context(|| format!("cannot write {}", p.display()))?;
     }
     Ok(ExitCode::from(report.verdict.exit_code()))

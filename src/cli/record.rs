@@ -47,6 +47,27 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
     for e in &summary.input_errors {
         eprintln!("error: {e} (everything before it was recorded)");
     }
+    // The rig's GNSS port is where the live receiver is; a capture brings its own serial
+    // interfaces, which are read whatever their names. Say so when they differ.
+    if let Some(g) = &rig.gnss {
+        let port_name = std::path::Path::new(&g.port).file_name();
+        let matches = summary
+            .serial_interfaces
+            .iter()
+            .any(|n| std::path::Path::new(n).file_name() == port_name);
+        if !summary.serial_interfaces.is_empty() && !matches {
+            let names: Vec<&str> = summary
+                .serial_interfaces
+                .iter()
+                .map(String::as_str)
+                .collect();
+            eprintln!(
+                "note: GNSS read from the capture's serial interface {}; the rig's gnss.port {} is the live port and is not used with --from",
+                names.join(", "),
+                g.port
+            );
+        }
+    }
     // A rig with a lidar whose ports match nothing in the captures records no lidar at all:
     // say where the captures' UDP traffic went instead of reporting nothing lost.
     // (Inputs without any UDP traffic, such as CAN and GNSS logs, have no lidar to miss.)

@@ -75,6 +75,9 @@ pub struct RecordSummary {
     pub input_errors: Vec<String>,
     /// UDP datagrams that went to no lidar port of the rig, by destination port.
     pub other_udp_ports: BTreeMap<u16, u64>,
+    /// Names of the captures' serial interfaces that carried bytes (read as the GNSS stream,
+    /// whatever the rig's `gnss.port` says: that is the live port).
+    pub serial_interfaces: std::collections::BTreeSet<String>,
 }
 
 struct Context<'a> {
@@ -169,6 +172,7 @@ impl Context<'_> {
             })?;
         let mut demux = Demux::new(reader);
         let lidar = self.rig.lidar.as_ref();
+        let mut serial_seen = std::collections::BTreeSet::new();
         loop {
             let item = match demux.next_item() {
                 None => break,
@@ -241,6 +245,7 @@ impl Context<'_> {
                     }
                 }
                 Packet::Serial(bytes) => {
+                    serial_seen.insert(item.interface);
                     self.serial(src, out.as_deref_mut(), item.interface, bytes, Some(host))?;
                 }
                 Packet::Can(frame) => {
@@ -248,6 +253,17 @@ impl Context<'_> {
                         self.can(o, &frame, host)?;
                     }
                 }
+            }
+        }
+        if out.is_none() {
+            for i in serial_seen {
+                let name = demux
+                    .interfaces()
+                    .get(i as usize)
+                    .and_then(|f| f.name.clone());
+                summary
+                    .serial_interfaces
+                    .insert(name.unwrap_or_else(|| format!("interface {i}")));
             }
         }
         self.finish_serial(src, out)

@@ -2,5 +2,6 @@
 //! validator that judges spatial and temporal accuracy before anything is re-simulated.
 
 pub mod check;
+pub mod noise;
 pub mod run;
 pub mod trajectory;

@@ -38,6 +38,8 @@ pub struct Run {
     pub fixes: Vec<(UtcNanos, Fix)>,
     /// Ego motion.
     pub motion: Vec<Motion>,
+    /// Classic CAN frames: host time and identifier.
+    pub can_frames: Vec<(UtcNanos, u32)>,
     /// Lidar data packets.
     pub packets: Vec<PacketTime>,
     /// Position packets: log time and PPS state.
@@ -118,6 +120,16 @@ impl Run {
                                     ubx.push(b, &mut fixes);
                                     run.fixes.extend(fixes.drain(..).map(|f| (host, f)));
                                 }
+                            }
+                        }
+                        topics::CAN_FRAMES
+                            if m.channel
+                                .schema
+                                .as_ref()
+                                .is_some_and(|s| s.name == "can_msgs/msg/Frame") =>
+                        {
+                            if let Some(id) = c.u32() {
+                                run.can_frames.push((host, id));
                             }
                         }
                         topics::EGO_TWIST => {

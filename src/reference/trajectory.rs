@@ -6,25 +6,35 @@
 //! counter-clockwise, speed v along the heading (no side slip at parking speeds), yaw rate ω and
 //! longitudinal acceleration a; and two constants that `check` wants to know: the GNSS time
 //! offset δ (a fix stamped t describes the instant t - δ) and the antenna's forward lever arm,
-//! both fixed at their configured values unless [`Settings::estimate_offset_and_lever`] is on.
+//! both fixed at their configured values unless [`Settings::estimate_offset_and_lever`] is on;
+//! and the slowly wandering part of the GNSS error, east and north (see [`GnssNoise`]).
 //! The acceleration matters: with speed held constant between CAN
 //! frames, the integrated position lags by half a frame interval (10 ms at 50 Hz) whenever the
 //! vehicle accelerates, which would read as a GNSS time offset.
 //! Measurements: the antenna's horizontal position (state position plus the rotated lever arm,
 //! with the receiver's per-epoch sigmas), CAN speed and CAN yaw rate. Jacobians are taken
-//! numerically: five states, and the model stays readable.
+//! numerically: ten states, and the model stays readable.
+//!
+//! Long file: the filter, the smoother, the choice of the GNSS noise model and the sampling of
+//! the result share one private state layout (the index constants, the state and covariance
+//! types); split, each part would have to expose it.
 
+use super::noise::standstill;
 use crate::scene::pose::{PoseSample, Trajectory};
 use hilrig_stamp::UtcNanos;
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 
-type S = SVector<f64, 8>;
-type P = SMatrix<f64, 8, 8>;
+/// Number of states.
+const N: usize = 10;
+type S = SVector<f64, N>;
+type P = SMatrix<f64, N, N>;
 
 /// Index of the GNSS time offset δ (s) in the state: a fix stamped t describes t - δ.
 const DELTA: usize = 6;
 /// Index of the antenna's forward lever arm (m) in the state.
 const LEVER_X: usize = 7;
+/// Index of the GNSS error's slowly wandering east part (m); north follows it.
+const BIAS_E: usize = 8;
 
 /// One GNSS antenna position in the local frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -53,6 +63,36 @@ pub struct Settings {
     /// Estimate the GNSS time offset and the antenna's forward lever arm as constant states
     /// (starting from 0 s and `lever.x`) instead of taking them as given.
     pub estimate_offset_and_lever: bool,
+    /// How the GNSS error wanders (white by default).
+    pub gnss_noise: GnssNoise,
+}
+
+/// The GNSS error as the smoother models it: a share of each epoch's variance wanders as a
+/// first-order Gauss-Markov process with correlation time `correlation_s` (multipath and the
+/// atmosphere change over seconds, so consecutive RTK fixes err alike), the rest is white.
+/// Modelled as two states, the wandering part is told apart from motion by CAN: over a few
+/// seconds the wheels and the yaw rate say how the vehicle moved, so a common drift of the
+/// fixes is the receiver's, not the vehicle's. That keeps the heading, which hangs on
+/// differences between nearby fixes, from inheriting an error that those differences cancel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GnssNoise {
+    /// Correlation time of the wandering part, s (0: all white).
+    pub correlation_s: f64,
+    /// Share of each epoch's variance that wanders, 0..1.
+    pub correlated_share: f64,
+}
+
+impl GnssNoise {
+    /// Independent errors from epoch to epoch.
+    pub const WHITE: GnssNoise = GnssNoise {
+        correlation_s: 0.0,
+        correlated_share: 0.0,
+    };
+
+    /// Whether any of the error wanders.
+    pub fn wanders(&self) -> bool {
+        self.correlation_s > 0.0 && self.correlated_share > 0.0
+    }
 }
 
 impl Default for Settings {
@@ -60,10 +100,11 @@ impl Default for Settings {
         Settings {
             lever: Vector2::zeros(),
             accel_noise: 3.0,
-            yaw_accel_noise: 1.0,
+            yaw_accel_noise: 0.2,
             speed_sigma: 0.03,
             yaw_rate_sigma: 0.005,
             estimate_offset_and_lever: false,
+            gnss_noise: GnssNoise::WHITE,
         }
     }
 }
@@ -75,7 +116,8 @@ pub struct Residual {
     pub t: UtcNanos,
     /// Measured minus smoothed antenna position (east, north), m.
     pub error: Vector2<f64>,
-    /// Normalised by the receiver's sigmas: |e/σ|² (χ² with 2 degrees of freedom).
+    /// Normalised by the receiver's sigmas and the trajectory's own uncertainty at that epoch:
+    /// eᵀ (Σ_fix + Σ_trajectory)⁻¹ e (χ² with 2 degrees of freedom).
     pub nis: f64,
 }
 
@@ -101,12 +143,17 @@ fn ctrv(x: &S, dt: f64) -> S {
     } else {
         (px + vm * dt * psi.cos(), py + vm * dt * psi.sin())
     };
-    S::from_column_slice(&[nx, ny, psi + w * dt, v + a * dt, w, a, x[DELTA], x[LEVER_X]])
+    let mut out = *x;
+    out[0] = nx;
+    out[1] = ny;
+    out[2] = psi + w * dt;
+    out[3] = v + a * dt;
+    out
 }
 
-fn jacobian<const M: usize>(f: impl Fn(&S) -> SVector<f64, M>, x: &S) -> SMatrix<f64, M, 8> {
-    let mut j = SMatrix::<f64, M, 8>::zeros();
-    for i in 0..8 {
+fn jacobian<const M: usize>(f: impl Fn(&S) -> SVector<f64, M>, x: &S) -> SMatrix<f64, M, N> {
+    let mut j = SMatrix::<f64, M, N>::zeros();
+    for i in 0..N {
         let h = 1e-6 * (1.0 + x[i].abs());
         let (mut a, mut b) = (*x, *x);
         a[i] += h;
@@ -117,35 +164,46 @@ fn jacobian<const M: usize>(f: impl Fn(&S) -> SVector<f64, M>, x: &S) -> SMatrix
     j
 }
 
-/// Where the antenna was at the instant a fix stamped now describes: the state's position plus
-/// the rotated lever arm (forward part from the state), moved back by δ along the antenna's
-/// velocity.
+/// Where the receiver puts the antenna in a fix stamped now: the state's position plus the
+/// rotated lever arm (forward part from the state), moved back by δ along the antenna's
+/// velocity, plus the wandering part of the GNSS error (zero when it is not modelled).
 fn antenna(x: &S, lever: &Vector2<f64>) -> Vector2<f64> {
     let (s, c) = x[2].sin_cos();
     let (lx, ly) = (x[LEVER_X], lever.y);
     let at = Vector2::new(x[0] + c * lx - s * ly, x[1] + s * lx + c * ly);
     let (v, w) = (x[3], x[4]);
     let vel = Vector2::new(v * c - w * (s * lx + c * ly), v * s + w * (c * lx - s * ly));
-    at - vel * x[DELTA]
+    at - vel * x[DELTA] + Vector2::new(x[BIAS_E], x[BIAS_E + 1])
 }
 
-/// The RTS gain `Pf Fᵀ Pp⁻¹` on the first `active` states (the rest have no variance and keep
-/// their value).
-fn rts_gain(pf: &P, f: &P, pp: &P, active: usize) -> Option<P> {
-    if active == 8 {
-        return Some(pf * f.transpose() * pp.try_inverse()?);
-    }
-    let inv = pp.fixed_view::<6, 6>(0, 0).into_owned().try_inverse()?;
-    let g = (pf * f.transpose()).fixed_view::<6, 6>(0, 0) * inv;
+/// The RTS gain `Pf Fᵀ Pp⁻¹` on the `active` states (the rest have no variance and keep their
+/// value).
+fn rts_gain(pf: &P, f: &P, pp: &P, active: &[usize]) -> Option<P> {
+    let m = active.len();
+    let pfft = pf * f.transpose();
+    let sub = nalgebra::DMatrix::from_fn(m, m, |i, j| pp[(active[i], active[j])]);
+    let inv = sub.try_inverse()?;
     let mut c = P::zeros();
-    c.fixed_view_mut::<6, 6>(0, 0).copy_from(&g);
+    for &ai in active {
+        for (j, _) in active.iter().enumerate() {
+            let mut acc = 0.0;
+            for (k, &ak) in active.iter().enumerate() {
+                acc += pfft[(ai, ak)] * inv[(k, j)];
+            }
+            c[(ai, active[j])] = acc;
+        }
+    }
     Some(c)
 }
 
 enum Meas {
     Gnss(GnssObs),
-    Motion(f64, f64),
+    /// CAN speed and yaw rate, and whether the vehicle stands still then.
+    Motion(f64, f64, bool),
 }
+
+/// The yaw rate of a car standing still: zero, to within 1e-4 rad/s (0.3° in a minute).
+const STILL_YAW_SIGMA: f64 = 1e-4;
 
 /// Why no trajectory can be made.
 #[derive(Debug, thiserror::Error)]
@@ -155,6 +213,273 @@ pub enum TrajectoryError {
     Insufficient(String),
 }
 
+/// The forward pass: what the smoother runs backwards over.
+struct Filtered {
+    times: Vec<UtcNanos>,
+    /// Predicted and filtered states and covariances, and the transition Jacobians.
+    xp: Vec<S>,
+    pp: Vec<P>,
+    xf: Vec<S>,
+    pf: Vec<P>,
+    fs: Vec<P>,
+    /// Which events are GNSS fixes (with the fix).
+    gnss: Vec<Option<GnssObs>>,
+    /// Log-likelihood of the GNSS innovations (up to a constant).
+    log_likelihood: f64,
+    /// States that carry variance.
+    active: Vec<usize>,
+}
+
+/// The filter's first state, its covariance and the states that carry variance. `share` is the
+/// wandering part of the GNSS variance (0 when the GNSS error is white).
+fn initial_state(
+    gnss: &[GnssObs],
+    motion: &[(UtcNanos, f64, f64)],
+    s: &Settings,
+    share: f64,
+    start: Option<&S>,
+) -> (S, P, Vec<usize>) {
+    // Initial heading: the course of the first metre the antenna travels.
+    let psi0 = gnss
+        .iter()
+        .find(|g| (g.position - gnss[0].position).norm() > 1.0)
+        .map_or(0.0, |g| {
+            let d = g.position - gnss[0].position;
+            d.y.atan2(d.x)
+        });
+    let p0 = gnss[0].position;
+    let mut x = S::zeros();
+    x[0] = p0.x;
+    x[1] = p0.y;
+    x[2] = psi0;
+    x[LEVER_X] = s.lever.x;
+    let rear = p0 - (antenna(&x, &s.lever) - p0);
+    x[0] = rear.x;
+    x[1] = rear.y;
+    // Speed and yaw rate from the first CAN sample (a drive may begin moving, even turning).
+    if let Some(&(_, v, w)) = motion.first() {
+        x[3] = v;
+        x[4] = w;
+    }
+    // Or the whole first state from a previous pass: the linearisation then starts where the
+    // drive's data put it (the course of the first metre is off by half the turn when the
+    // recording begins in a curve). The prior stays as wide as before.
+    if let Some(x0) = start {
+        x.fixed_rows_mut::<6>(0).copy_from(&x0.fixed_rows::<6>(0));
+    }
+    // When estimated, δ and the lever arm start from diffuse priors (σ 0.1 s and 10 m), so
+    // that what the drive says decides them and the rig file's value only seeds the
+    // linearisation.
+    let (var_delta, var_lever) = if s.estimate_offset_and_lever {
+        (0.1f64.powi(2), 10f64.powi(2))
+    } else {
+        (0.0, 0.0)
+    };
+    let b0 = share * gnss[0].sigma.component_mul(&gnss[0].sigma);
+    let p = P::from_diagonal(&S::from_column_slice(&[
+        1.0, 1.0, 0.5, 1.0, 0.1, 1.0, var_delta, var_lever, b0.x, b0.y,
+    ]));
+    let mut active: Vec<usize> = (0..6).collect();
+    if s.estimate_offset_and_lever {
+        active.extend([DELTA, LEVER_X]);
+    }
+    if share > 0.0 {
+        active.extend([BIAS_E, BIAS_E + 1]);
+    }
+    (x, p, active)
+}
+
+/// The process noise of a step of `dt` seconds (the GNSS wander's is added by the caller).
+/// White noise on the yaw acceleration and on the jerk, integrated over the step: the heading
+/// (speed) takes up what the yaw rate (acceleration) may have done within it, and no more
+/// (dt³/3, dt²/2, dt). Adding the noise to the rate alone would let a GNSS fix between two CAN
+/// samples turn the heading by what the rate might have become since the last sample, a leak
+/// that makes the heading follow the GNSS noise. Standing (`still`), the car cannot turn.
+fn process_noise(dt: f64, still: bool, s: &Settings) -> P {
+    let mut q = P::zeros();
+    q[(0, 0)] = 1e-6 * dt;
+    q[(1, 1)] = 1e-6 * dt;
+    q[(3, 3)] = 1e-4 * dt;
+    let (dt2, dt3) = (dt * dt / 2.0, dt * dt * dt / 3.0);
+    if still {
+        q[(4, 4)] = STILL_YAW_SIGMA.powi(2) * dt;
+    } else {
+        let qy = s.yaw_accel_noise.powi(2);
+        // The CTRV model's error while the yaw rate changes within a step.
+        q[(2, 2)] = 1e-7 * dt + qy * dt3;
+        q[(2, 4)] = qy * dt2;
+        q[(4, 2)] = qy * dt2;
+        q[(4, 4)] = qy * dt;
+    }
+    let qa = s.accel_noise.powi(2);
+    q[(3, 3)] += qa * dt3;
+    q[(3, 5)] = qa * dt2;
+    q[(5, 3)] = qa * dt2;
+    q[(5, 5)] = qa * dt;
+    q
+}
+
+/// The extended Kalman filter over GNSS fixes and CAN motion in time order.
+fn filter(
+    gnss: &[GnssObs],
+    motion: &[(UtcNanos, f64, f64)],
+    s: &Settings,
+    start: Option<&S>,
+) -> Result<Filtered, TrajectoryError> {
+    if gnss.len() < 2 {
+        return Err(TrajectoryError::Insufficient(format!(
+            "{} usable GNSS epochs (at least 2 needed)",
+            gnss.len()
+        )));
+    }
+    let mut events: Vec<(UtcNanos, Meas)> = gnss.iter().map(|g| (g.t, Meas::Gnss(*g))).collect();
+    events.extend(
+        motion
+            .iter()
+            .zip(standstill(motion))
+            .map(|(&(t, v, w), still)| (t, Meas::Motion(v, w, still))),
+    );
+    events.sort_by_key(|e| e.0);
+    let wander = s.gnss_noise.wanders();
+    let share = if wander {
+        s.gnss_noise.correlated_share.clamp(0.0, 0.99)
+    } else {
+        0.0
+    };
+    let (mut x, mut p, active) = initial_state(gnss, motion, s, share, start);
+    let b0 = Vector2::new(p[(BIAS_E, BIAS_E)], p[(BIAS_E + 1, BIAS_E + 1)]);
+    let var_bias = |g: &GnssObs| share * g.sigma.component_mul(&g.sigma);
+    let n = events.len();
+    let mut out = Filtered {
+        times: events.iter().map(|e| e.0).collect(),
+        xp: Vec::with_capacity(n),
+        pp: Vec::with_capacity(n),
+        xf: Vec::with_capacity(n),
+        pf: Vec::with_capacity(n),
+        fs: Vec::with_capacity(n),
+        gnss: Vec::with_capacity(n),
+        log_likelihood: 0.0,
+        active,
+    };
+    let mut t_prev = events[0].0;
+    // Whether the vehicle stands still since the last CAN sample. Standing, it cannot turn:
+    // the heading and yaw rate get no process noise (the yaw-acceleration noise of a moving
+    // car, leaking into the heading between CAN samples, would let the heading wander with
+    // the GNSS noise seen through the lever arm while the vehicle waits).
+    let mut still_now = false;
+    // The wandering error's steady variance, from the latest fix's sigmas.
+    let mut bias_var = b0;
+    for (t, m) in &events {
+        let dt = ((t.0 - t_prev.0) as f64 * 1e-9).max(0.0);
+        t_prev = *t;
+        let mut f = jacobian(|y| ctrv(y, dt), &x);
+        x = ctrv(&x, dt);
+        let mut q = process_noise(dt, still_now, s);
+        if wander {
+            let phi = (-dt / s.gnss_noise.correlation_s).exp();
+            for (i, var) in [(BIAS_E, bias_var.x), (BIAS_E + 1, bias_var.y)] {
+                x[i] *= phi;
+                f[(i, i)] = phi;
+                q[(i, i)] = var * (1.0 - phi * phi);
+            }
+        }
+        p = f * p * f.transpose() + q;
+        out.xp.push(x);
+        out.pp.push(p);
+        out.fs.push(f);
+        match m {
+            Meas::Gnss(g) => {
+                let h = jacobian(|y| antenna(y, &s.lever), &x);
+                let white = (1.0 - share) * g.sigma.component_mul(&g.sigma);
+                let r = SMatrix::<f64, 2, 2>::from_diagonal(&white);
+                let y = g.position - antenna(&x, &s.lever);
+                let sm = h * p * h.transpose() + r;
+                if let Some(si) = sm.try_inverse() {
+                    out.log_likelihood -=
+                        0.5 * (sm.determinant().max(1e-300).ln() + (y.transpose() * si * y)[0]);
+                    let k = p * h.transpose() * si;
+                    x += k * y;
+                    p = (P::identity() - k * h) * p;
+                }
+                bias_var = var_bias(g);
+            }
+            Meas::Motion(v, w, still) => {
+                still_now = *still;
+                let mut h = SMatrix::<f64, 2, N>::zeros();
+                h[(0, 3)] = 1.0;
+                h[(1, 4)] = 1.0;
+                // Standing still, the car does not turn, whatever the yaw-rate sensor's noise
+                // says.
+                let (w, sw) = if *still {
+                    (0.0, STILL_YAW_SIGMA)
+                } else {
+                    (*w, s.yaw_rate_sigma)
+                };
+                let r = SMatrix::<f64, 2, 2>::from_diagonal(&Vector2::new(
+                    s.speed_sigma.powi(2),
+                    sw.powi(2),
+                ));
+                let y = Vector2::new(v - x[3], w - x[4]);
+                let sm = h * p * h.transpose() + r;
+                if let Some(si) = sm.try_inverse() {
+                    let k = p * h.transpose() * si;
+                    x += k * y;
+                    p = (P::identity() - k * h) * p;
+                }
+            }
+        }
+        p = (p + p.transpose()) * 0.5;
+        out.xf.push(x);
+        out.pf.push(p);
+        out.gnss.push(match m {
+            Meas::Gnss(g) => Some(*g),
+            Meas::Motion(..) => None,
+        });
+    }
+    Ok(out)
+}
+
+/// The correlation times the GNSS error model is chosen from, s (0: white).
+const CORRELATION_TIMES_S: [f64; 8] = [0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 60.0];
+/// The shares of the variance that wander.
+const CORRELATED_SHARES: [f64; 2] = [0.6, 0.95];
+
+/// The GNSS error model the drive itself supports best: among white noise and Gauss-Markov
+/// wander with correlation times from 0.5 s to a minute (holding 60 % or 95 % of each epoch's
+/// variance), the one under which the filter's GNSS innovations are most likely (maximum
+/// likelihood noise identification, Mehra 1970). No correlation time is assumed: a receiver
+/// whose errors are white gets the white model.
+pub fn fit_gnss_noise(
+    gnss: &[GnssObs],
+    motion: &[(UtcNanos, f64, f64)],
+    s: &Settings,
+) -> GnssNoise {
+    let mut best = (f64::NEG_INFINITY, GnssNoise::WHITE);
+    for &tau in &CORRELATION_TIMES_S {
+        let shares: &[f64] = if tau == 0.0 {
+            &[0.0]
+        } else {
+            &CORRELATED_SHARES
+        };
+        for &share in shares {
+            let model = GnssNoise {
+                correlation_s: tau,
+                correlated_share: share,
+            };
+            let settings = Settings {
+                gnss_noise: model,
+                ..*s
+            };
+            if let Ok(f) = filter(gnss, motion, &settings, None) {
+                if f.log_likelihood > best.0 {
+                    best = (f.log_likelihood, model);
+                }
+            }
+        }
+    }
+    best.1
+}
+
 impl EgoTrajectory {
     /// Smooths GNSS positions and CAN motion (time, speed, yaw rate) into a trajectory.
     pub fn smooth(
@@ -162,125 +487,61 @@ impl EgoTrajectory {
         motion: &[(UtcNanos, f64, f64)],
         s: &Settings,
     ) -> Result<EgoTrajectory, TrajectoryError> {
-        if gnss.len() < 2 {
-            return Err(TrajectoryError::Insufficient(format!(
-                "{} usable GNSS epochs (at least 2 needed)",
-                gnss.len()
-            )));
-        }
-        let mut events: Vec<(UtcNanos, Meas)> =
-            gnss.iter().map(|g| (g.t, Meas::Gnss(*g))).collect();
-        events.extend(motion.iter().map(|&(t, v, w)| (t, Meas::Motion(v, w))));
-        events.sort_by_key(|e| e.0);
-        // Initial heading: the course of the first metre the antenna travels.
-        let psi0 = gnss
-            .iter()
-            .find(|g| (g.position - gnss[0].position).norm() > 1.0)
-            .map_or(0.0, |g| {
-                let d = g.position - gnss[0].position;
-                d.y.atan2(d.x)
-            });
-        let p0 = gnss[0].position;
-        let mut x = S::from_column_slice(&[p0.x, p0.y, psi0, 0.0, 0.0, 0.0, 0.0, s.lever.x]);
-        let rear = p0 - (antenna(&x, &s.lever) - p0);
-        x[0] = rear.x;
-        x[1] = rear.y;
-        // When estimated, δ and the lever arm start from diffuse priors (σ 0.1 s and 10 m), so
-        // that what the drive says decides them and the rig file's value only seeds the
-        // linearisation.
-        let (var_delta, var_lever) = if s.estimate_offset_and_lever {
-            (0.1f64.powi(2), 10f64.powi(2))
-        } else {
-            (0.0, 0.0)
-        };
-        let mut p = P::from_diagonal(&S::from_column_slice(&[
-            1.0, 1.0, 0.5, 1.0, 0.1, 1.0, var_delta, var_lever,
-        ]));
-        let n = events.len();
-        let (mut xp, mut pp, mut xf, mut pf, mut fs) = (
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-        );
-        let mut t_prev = events[0].0;
-        for (t, m) in &events {
-            let dt = ((t.0 - t_prev.0) as f64 * 1e-9).max(0.0);
-            t_prev = *t;
-            let f = jacobian(|y| ctrv(y, dt), &x);
-            x = ctrv(&x, dt);
-            let mut q = P::zeros();
-            q[(0, 0)] = 1e-6 * dt;
-            q[(1, 1)] = 1e-6 * dt;
-            q[(2, 2)] = 1e-7 * dt;
-            q[(3, 3)] = 1e-4 * dt;
-            q[(4, 4)] = s.yaw_accel_noise.powi(2) * dt;
-            q[(5, 5)] = s.accel_noise.powi(2) * dt;
-            p = f * p * f.transpose() + q;
-            xp.push(x);
-            pp.push(p);
-            fs.push(f);
-            match m {
-                Meas::Gnss(g) => {
-                    let h = jacobian(|y| antenna(y, &s.lever), &x);
-                    let r = SMatrix::<f64, 2, 2>::from_diagonal(&g.sigma.component_mul(&g.sigma));
-                    let y = g.position - antenna(&x, &s.lever);
-                    let sm = h * p * h.transpose() + r;
-                    if let Some(si) = sm.try_inverse() {
-                        let k = p * h.transpose() * si;
-                        x += k * y;
-                        p = (P::identity() - k * h) * p;
-                    }
-                }
-                Meas::Motion(v, w) => {
-                    let mut h = SMatrix::<f64, 2, 8>::zeros();
-                    h[(0, 3)] = 1.0;
-                    h[(1, 4)] = 1.0;
-                    let r = SMatrix::<f64, 2, 2>::from_diagonal(&Vector2::new(
-                        s.speed_sigma.powi(2),
-                        s.yaw_rate_sigma.powi(2),
-                    ));
-                    let y = Vector2::new(v - x[3], w - x[4]);
-                    let sm = h * p * h.transpose() + r;
-                    if let Some(si) = sm.try_inverse() {
-                        let k = p * h.transpose() * si;
-                        x += k * y;
-                        p = (P::identity() - k * h) * p;
-                    }
-                }
-            }
-            p = (p + p.transpose()) * 0.5;
-            xf.push(x);
-            pf.push(p);
-        }
+        let first = Self::smooth_from(gnss, motion, s, None)?;
+        // Once more from the first pass's start (see [`filter`]).
+        Self::smooth_from(gnss, motion, s, Some(&first.states[0]))
+    }
+
+    fn smooth_from(
+        gnss: &[GnssObs],
+        motion: &[(UtcNanos, f64, f64)],
+        s: &Settings,
+        start: Option<&S>,
+    ) -> Result<EgoTrajectory, TrajectoryError> {
+        let fl = filter(gnss, motion, s, start)?;
         // Rauch-Tung-Striebel. Constants that are not estimated have no variance at all, so the
         // predicted covariance is singular in their rows and columns: the gain is taken on the
         // states that vary (a failed inverse would silently leave the filter's estimate, which
         // lags at the start of a drive and wherever the vehicle stands still).
-        let active = if s.estimate_offset_and_lever { 8 } else { 6 };
-        let mut xs = xf.clone();
-        let mut ps = pf.clone();
+        let n = fl.xf.len();
+        let mut xs = fl.xf.clone();
+        let mut ps = fl.pf.clone();
         for k in (0..n.saturating_sub(1)).rev() {
-            let Some(c) = rts_gain(&pf[k], &fs[k + 1], &pp[k + 1], active) else {
+            let Some(c) = rts_gain(&fl.pf[k], &fl.fs[k + 1], &fl.pp[k + 1], &fl.active) else {
                 continue;
             };
-            xs[k] = xf[k] + c * (xs[k + 1] - xp[k + 1]);
-            ps[k] = pf[k] + c * (ps[k + 1] - pp[k + 1]) * c.transpose();
+            xs[k] = fl.xf[k] + c * (xs[k + 1] - fl.xp[k + 1]);
+            ps[k] = fl.pf[k] + c * (ps[k + 1] - fl.pp[k + 1]) * c.transpose();
         }
         let mut residuals = Vec::new();
-        for (k, (_, m)) in events.iter().enumerate() {
-            if let Meas::Gnss(g) = m {
-                let e = g.position - antenna(&xs[k], &s.lever);
+        for (k, g) in fl.gnss.iter().enumerate() {
+            if let Some(g) = g {
+                // Measured minus the antenna without the wandering error: the whole GNSS error.
+                let mut truth = xs[k];
+                truth[BIAS_E] = 0.0;
+                truth[BIAS_E + 1] = 0.0;
+                let e = g.position - antenna(&truth, &s.lever);
+                // Normalised by the fix's own variance plus the trajectory's at that epoch (as
+                // a fix left out would be predicted): where the trajectory is itself uncertain,
+                // at the start of a drive or after a gap, a fix may lie further off it.
+                let mut h = jacobian(|y| antenna(y, &s.lever), &truth);
+                h.fixed_view_mut::<2, 2>(0, BIAS_E).fill(0.0);
+                let hp = h * ps[k] * h.transpose();
+                let cov =
+                    SMatrix::<f64, 2, 2>::from_diagonal(&g.sigma.component_mul(&g.sigma)) + hp;
+                let nis = cov.try_inverse().map_or(
+                    (e.x / g.sigma.x).powi(2) + (e.y / g.sigma.y).powi(2),
+                    |ci| (e.transpose() * ci * e)[0],
+                );
                 residuals.push(Residual {
                     t: g.t,
                     error: e,
-                    nis: (e.x / g.sigma.x).powi(2) + (e.y / g.sigma.y).powi(2),
+                    nis,
                 });
             }
         }
         Ok(EgoTrajectory {
-            times: events.iter().map(|e| e.0).collect(),
+            times: fl.times,
             states: xs,
             covs: ps,
             residuals,
@@ -304,9 +565,9 @@ impl EgoTrajectory {
         )
     }
 
-    /// State `[x, y, ψ, v, ω, a, δ, lever x]` and its covariance at `t` (propagated from the
+    /// State `[x, y, ψ, v, ω, a, δ, lever x, GNSS wander east, north]` and its covariance at `t` (propagated from the
     /// smoothed state before it).
-    pub fn state_at(&self, t: UtcNanos) -> Option<(SVector<f64, 8>, SMatrix<f64, 8, 8>)> {
+    pub fn state_at(&self, t: UtcNanos) -> Option<(S, P)> {
         let (a, b) = self.span();
         if t < a || t > b {
             return None;
@@ -331,6 +592,37 @@ impl EgoTrajectory {
         ))
     }
 
+    /// The smoother's 1-sigma heading error at `t`, rad.
+    pub fn heading_sigma_at(&self, t: UtcNanos) -> Option<f64> {
+        let (_, p) = self.state_at(t)?;
+        Some(p[(2, 2)].max(0.0).sqrt())
+    }
+
+    /// The smoothed trajectory as CSV, one row every `step_ns`: time (s, nine decimals), rear-axle
+    /// east and north (m), heading (deg, from east counter-clockwise) and the smoother's 1-sigma
+    /// position and heading errors. What `check --trajectory` writes, so that an engineer can
+    /// hold the reference against their own tools.
+    pub fn to_csv(&self, step_ns: i64) -> String {
+        let mut out = String::from("t,x,y,yaw_deg,sigma_xy_m,sigma_yaw_deg\n");
+        let (a, b) = self.span();
+        let mut t = a;
+        while t <= b {
+            if let (Some((pose, sxy)), Some(spsi)) = (self.pose_at(t), self.heading_sigma_at(t)) {
+                let (secs, nanos) = t.secs_nanos();
+                out.push_str(&format!(
+                    "{secs}.{nanos:09},{:.4},{:.4},{:.4},{:.4},{:.4}\n",
+                    pose.position.x,
+                    pose.position.y,
+                    pose.yaw.to_degrees(),
+                    sxy,
+                    spsi.to_degrees()
+                ));
+            }
+            t = UtcNanos(t.0 + step_ns);
+        }
+        out
+    }
+
     /// The trajectory sampled every `step_ns` (for re-simulation, which interpolates it).
     pub fn sampled(&self, step_ns: i64) -> Option<Trajectory> {
         let (a, b) = self.span();
@@ -342,67 +634,6 @@ impl EgoTrajectory {
         }
         Trajectory::new(v).ok()
     }
-}
-
-/// How many times more uncertain an estimate from GNSS residuals is than the smoother's white-
-/// noise covariance says: the integrated autocorrelation time `1 + 2 Σ ρ_k` of the residuals
-/// (normalised by their sigmas, both axes), summed until the autocorrelation first drops to
-/// zero. RTK errors wander (multipath, atmosphere) over seconds, so ten epochs a second are far
-/// fewer independent measurements; the variance of anything fitted to them grows by this
-/// factor (Box, Jenkins and Reinsel, "Time Series Analysis", the variance of a mean of
-/// autocorrelated data). `use_epoch` picks the epochs that count (RTK-fixed ones); a run of
-/// them is only continued over consecutive epochs. At least 1.
-pub fn correlation_factor(
-    residuals: &[Residual],
-    sigmas: &[Vector2<f64>],
-    use_epoch: &[bool],
-) -> f64 {
-    let z: Vec<Option<Vector2<f64>>> = residuals
-        .iter()
-        .zip(sigmas)
-        .zip(use_epoch)
-        .map(|((r, s), &u)| u.then(|| r.error.component_div(s)))
-        .collect();
-    integrated_autocorrelation(&z)
-}
-
-/// The integrated autocorrelation time `1 + 2 Σ ρ_k` of a series (gaps as `None`: a lag is
-/// only taken between present samples), summed until ρ first drops to zero; at least 1, and 1
-/// for fewer than ten samples.
-pub fn integrated_autocorrelation(z: &[Option<Vector2<f64>>]) -> f64 {
-    let n = z.iter().flatten().count();
-    if n < 10 {
-        return 1.0;
-    }
-    let mean = z.iter().flatten().fold(Vector2::zeros(), |a, v| a + v) / n as f64;
-    let var = z
-        .iter()
-        .flatten()
-        .map(|v| (v - mean).norm_squared())
-        .sum::<f64>()
-        / n as f64;
-    if var <= 0.0 {
-        return 1.0;
-    }
-    let mut tau = 1.0;
-    for lag in 1..n / 4 {
-        let (mut sum, mut pairs) = (0.0, 0usize);
-        for k in lag..z.len() {
-            if let (Some(a), Some(b)) = (z[k - lag], z[k]) {
-                sum += (a - mean).dot(&(b - mean));
-                pairs += 1;
-            }
-        }
-        if pairs < 5 {
-            break;
-        }
-        let rho = sum / pairs as f64 / var;
-        if rho <= 0.0 {
-            break;
-        }
-        tau += 2.0 * rho;
-    }
-    tau.max(1.0)
 }
 
 #[cfg(test)]
@@ -477,47 +708,5 @@ mod tests {
             / 2.0)
             .sqrt();
         assert!((rms - 0.01).abs() < 0.003, "residual rms {rms}");
-    }
-
-    /// White residuals count once each; residuals that follow a first-order Gauss-Markov process
-    /// with correlation ρ per epoch count (1 - ρ) / (1 + ρ) times (the closed form of
-    /// 1 + 2 Σ ρ^k).
-    #[test]
-    fn correlation_factor_of_white_and_of_wandering_residuals() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let n = Normal::new(0.0, 1.0).unwrap();
-        let res = |e: Vec<Vector2<f64>>| -> Vec<Residual> {
-            e.into_iter()
-                .enumerate()
-                .map(|(k, e)| Residual {
-                    t: UtcNanos(k as i64 * 100_000_000),
-                    error: e,
-                    nis: e.norm_squared(),
-                })
-                .collect()
-        };
-        let count = 20_000;
-        let white: Vec<Vector2<f64>> = (0..count)
-            .map(|_| Vector2::new(n.sample(&mut rng), n.sample(&mut rng)))
-            .collect();
-        let sig = vec![Vector2::new(1.0, 1.0); count];
-        let all = vec![true; count];
-        let f = correlation_factor(&res(white), &sig, &all);
-        assert!((f - 1.0).abs() < 0.1, "white: {f}");
-        let rho: f64 = 0.9;
-        let mut e = Vector2::zeros();
-        let drive = (1.0 - rho * rho).sqrt();
-        let wander: Vec<Vector2<f64>> = (0..count)
-            .map(|_| {
-                e = e * rho + Vector2::new(n.sample(&mut rng), n.sample(&mut rng)) * drive;
-                e
-            })
-            .collect();
-        let f = correlation_factor(&res(wander), &sig, &all);
-        let expected = (1.0 + rho) / (1.0 - rho);
-        assert!(
-            (f - expected).abs() < 0.15 * expected,
-            "Gauss-Markov: {f} vs {expected}"
-        );
     }
 }

@@ -49,9 +49,14 @@ pub struct PathSpec {
     /// Deceleration, m/s².
     #[serde(default = "d_dec")]
     pub deceleration_mps2: f64,
-    /// Standing before moving off, s.
+    /// Standing before moving off, s (ignored when the drive starts moving).
     #[serde(default = "one")]
     pub lead_in_s: f64,
+    /// Speed at the first waypoint, m/s: 0 starts from standstill; above 0 the recording
+    /// begins with the vehicle already moving (and, where the path starts in a curve, already
+    /// turning).
+    #[serde(default)]
+    pub start_speed_mps: f64,
     /// Standing after arriving, s.
     #[serde(default = "one")]
     pub lead_out_s: f64,
@@ -479,6 +484,55 @@ fn catmull_rom(points: &[Vector2<f64>], per_segment: usize) -> Vec<Vector2<f64>>
     out
 }
 
+/// Arc length over which a driver turns the steering wheel from one curvature to the next, m.
+/// A car's curvature follows its steering wheel, which takes time to turn: about a second at
+/// parking speed, a metre or so of path. A spline through waypoints is only smooth in its
+/// direction, and its curvature jumps at every waypoint (the yaw rate would step from 10 to
+/// 50 °/s in 20 ms, which no car does and which no 50 Hz yaw-rate sensor could follow).
+const STEER_TRANSITION_M: f64 = 1.0;
+
+/// The path a car can drive along `pts` (evenly spaced): its heading, as a function of arc
+/// length, averaged twice over `transition` (so the curvature ramps instead of stepping), and
+/// the points integrated again from the first one along that heading.
+fn steered(pts: &[Vector2<f64>], transition: f64) -> Vec<Vector2<f64>> {
+    if pts.len() < 3 {
+        return pts.to_vec();
+    }
+    let steps: Vec<f64> = pts.windows(2).map(|w| (w[1] - w[0]).norm()).collect();
+    let mut heading: Vec<f64> = Vec::with_capacity(steps.len());
+    for w in pts.windows(2) {
+        let d = w[1] - w[0];
+        let mut h = d.y.atan2(d.x);
+        if let Some(&prev) = heading.last() {
+            h = prev + (h - prev + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+        }
+        heading.push(h);
+    }
+    let mean_step = steps.iter().sum::<f64>() / steps.len() as f64;
+    let half = ((transition / mean_step / 2.0).round() as usize).max(1);
+    for _ in 0..2 {
+        let n = heading.len();
+        let mut sum = vec![0.0; n + 1];
+        for (k, h) in heading.iter().enumerate() {
+            sum[k + 1] = sum[k] + h;
+        }
+        heading = (0..n)
+            .map(|k| {
+                let (a, b) = (k.saturating_sub(half), (k + half + 1).min(n));
+                (sum[b] - sum[a]) / (b - a) as f64
+            })
+            .collect();
+    }
+    let mut out = Vec::with_capacity(pts.len());
+    out.push(pts[0]);
+    for (h, ds) in heading.iter().zip(&steps) {
+        let last = out[out.len() - 1];
+        out.push(last + Vector2::new(h.cos(), h.sin()) * *ds);
+    }
+    out
+}
+
 /// A polyline with its cumulative arc length.
 struct Polyline {
     pts: Vec<Vector2<f64>>,
@@ -496,7 +550,11 @@ impl Polyline {
     fn length(&self) -> f64 {
         self.s[self.s.len() - 1]
     }
-    /// Position and unit tangent at arc length `s`.
+    /// Position and unit tangent at arc length `s`. The tangent turns continuously: at each
+    /// vertex it is the direction of the chord between its neighbours, and along a segment it
+    /// is blended between the two vertices' tangents. A real vehicle's heading has no steps;
+    /// the segments' own directions would make one step per vertex (0.4° per 2 cm in a 3 m
+    /// turn), a staircase that no heading estimate should be asked to follow.
     fn at(&self, s: f64) -> (Vector2<f64>, Vector2<f64>) {
         let s = s.clamp(0.0, self.length());
         let i = self
@@ -507,7 +565,22 @@ impl Polyline {
         let seg = self.pts[i + 1] - self.pts[i];
         let len = seg.norm().max(1e-12);
         let f = ((s - self.s[i]) / len).clamp(0.0, 1.0);
-        (self.pts[i] + seg * f, seg / len)
+        let tangent = |k: usize| {
+            let (a, b) = (k.saturating_sub(1), (k + 1).min(self.pts.len() - 1));
+            let d = self.pts[b] - self.pts[a];
+            if d.norm() > 1e-12 {
+                d.normalize()
+            } else {
+                seg / len
+            }
+        };
+        let blended = tangent(i) * (1.0 - f) + tangent(i + 1) * f;
+        let tan = if blended.norm() > 1e-9 {
+            blended.normalize()
+        } else {
+            seg / len
+        };
+        (self.pts[i] + seg * f, tan)
     }
 }
 
@@ -542,6 +615,12 @@ impl DriveFile {
         }
         if !(p.cruise_speed_mps > 0.0 && p.acceleration_mps2 > 0.0 && p.deceleration_mps2 > 0.0) {
             return Err(bad("speeds and accelerations must be positive".into()));
+        }
+        if !(p.start_speed_mps >= 0.0 && p.start_speed_mps.is_finite()) {
+            return Err(bad(format!(
+                "start_speed_mps = {} (must be 0 or more)",
+                p.start_speed_mps
+            )));
         }
         let start = parse_utc(&self.start_utc).ok_or_else(|| {
             bad(format!(
@@ -583,7 +662,7 @@ impl DriveFile {
                 pos + normal * off
             })
             .collect();
-        let path = Polyline::new(driven_pts);
+        let path = Polyline::new(steered(&driven_pts, STEER_TRANSITION_M));
         let length = path.length();
         let cruise = p.cruise_speed_mps * (1.0 + gauss(v.speed_factor)).max(0.5);
 
@@ -658,7 +737,11 @@ impl DriveFile {
         let mut samples: Vec<(f64, f64, f64)> = Vec::new(); // t, s, v
         let mut stop: Option<(f64, f64)> = None;
         let mut step = 0u64;
-        while t < p.lead_in_s {
+        if p.start_speed_mps > 0.0 {
+            vel = p.start_speed_mps;
+            samples.push((0.0, 0.0, vel));
+        }
+        while p.start_speed_mps <= 0.0 && t < p.lead_in_s {
             if step.is_multiple_of(10) {
                 samples.push((t, 0.0, 0.0));
             }
@@ -777,6 +860,32 @@ start_s = 3.0
 walker = "ped"
 stop_at_m = 4.0
 "#;
+
+    /// A drive that starts moving in a curve: the first sample already has the start speed and
+    /// a yaw rate, and the curvature ramps (no yaw-rate step anywhere larger than a steering
+    /// wheel allows).
+    #[test]
+    fn starts_moving_in_a_curve_with_a_steered_yaw_rate() {
+        let text = DRIVE
+            .replace(
+                "waypoints = [[-10.0, 0.0], [0.0, 0.0], [5.0, 3.0], [6.0, 8.0]]",
+                "waypoints = [[-14.0, -6.0], [-10.0, 0.0], [0.0, 0.0], [5.0, 3.0], [6.0, 8.0]]\nstart_speed_mps = 2.0",
+            );
+        let f: DriveFile = toml::from_str(&text).unwrap();
+        let d = f
+            .drive(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), false)
+            .unwrap();
+        assert!((d.motion[0].0 - 2.0).abs() < 1e-9, "{:?}", d.motion[0]);
+        assert!(d.motion[1].1.abs() > 0.05, "not turning: {:?}", d.motion[1]);
+        // Yaw acceleration between 10 ms samples: a steering wheel turned over a second gives
+        // a few rad/s², a curvature step would give tens.
+        let worst = d
+            .motion
+            .windows(2)
+            .map(|w| (w[1].1 - w[0].1).abs() / 0.01)
+            .fold(0.0, f64::max);
+        assert!(worst < 5.0, "yaw acceleration {worst} rad/s²");
+    }
 
     #[test]
     fn stops_for_the_walker_and_arrives_at_rest() {

@@ -8,6 +8,7 @@ use super::report::{Accuracy, Spatial, Stats, Temporal};
 use crate::reference::run::Run;
 use crate::reference::trajectory::EgoTrajectory;
 use crate::rig::Thresholds;
+use crate::scene::Scene;
 
 /// What the budget combines besides the measurements.
 pub(super) struct Errors<'a> {
@@ -17,6 +18,91 @@ pub(super) struct Errors<'a> {
     pub lidar_time_error_s: f64,
     /// Per GNSS epoch: RTK-fixed.
     pub fixed: &'a [bool],
+    /// The heading's 1-sigma error over the usable stretches (see [`heading`]), deg.
+    pub heading_sigma_deg: f64,
+    /// The range it counts at (see [`heading_range`]), m.
+    pub heading_range_m: f64,
+}
+
+/// Marks the stretches where the smoothed heading's 1-sigma error exceeds the limit (sampled
+/// every 100 ms), and returns the 95th percentile of that sigma over the rest, deg. The sigma
+/// is the smoother's own (its covariance, with the GNSS sigmas scaled for their correlation):
+/// large where the heading is not yet or no longer shown by the motion (standing at the start,
+/// slow turns), small while the vehicle drives.
+pub(super) fn heading(
+    traj: &EgoTrajectory,
+    th: &Thresholds,
+    range_m: f64,
+    log: &mut FaultLog,
+) -> f64 {
+    const STEP: i64 = 100_000_000;
+    let (a, b) = traj.span();
+    let mut flagged = Vec::new();
+    let mut kept = Vec::new();
+    let mut t = a;
+    while t <= b {
+        if let Some(s) = traj.heading_sigma_at(t) {
+            let deg = s.to_degrees();
+            if deg > th.max_heading_sigma_deg {
+                flagged.push((t, deg));
+            } else {
+                kept.push(deg);
+            }
+        }
+        t = hilrig_stamp::UtcNanos(t.0 + STEP);
+    }
+    let mut i = 0;
+    while i < flagged.len() {
+        let mut j = i + 1;
+        while j < flagged.len() && flagged[j].0 .0 - flagged[j - 1].0 .0 <= STEP * 3 / 2 {
+            j += 1;
+        }
+        let worst = flagged[i..j].iter().map(|f| f.1).fold(0.0, f64::max);
+        log.mark(
+            "heading_uncertain",
+            flagged[i].0,
+            hilrig_stamp::UtcNanos(flagged[j - 1].0 .0 + STEP),
+            format!(
+                "heading sigma up to {worst:.2}° (limit {:.2}°): {:.3} m at {:.0} m range; the heading shows once the vehicle drives a few metres",
+                th.max_heading_sigma_deg,
+                worst.to_radians() * range_m,
+                range_m
+            ),
+        );
+        i = j;
+    }
+    if kept.is_empty() {
+        // Nothing usable: the budget says how bad the heading is everywhere.
+        kept = flagged.iter().map(|f| f.1).collect();
+    }
+    if kept.is_empty() {
+        return 0.0;
+    }
+    Stats::of(kept).p95
+}
+
+/// The range at which the heading error counts: the 95th percentile of the distances from the
+/// ego (every second) to the scene's objects, at most `heading_range_m`; without a scene,
+/// `heading_range_m`.
+pub(super) fn heading_range(traj: &EgoTrajectory, th: &Thresholds, scene: Option<&Scene>) -> f64 {
+    let Some(scene) = scene.filter(|s| !s.file.objects.is_empty()) else {
+        return th.heading_range_m;
+    };
+    let (a, b) = traj.span();
+    let mut d = Vec::new();
+    let mut t = a;
+    while t <= b {
+        if let Some((pose, _)) = traj.pose_at(t) {
+            for o in &scene.file.objects {
+                d.push((nalgebra::Vector2::new(o.pose.x, o.pose.y) - pose.position.xy()).norm());
+            }
+        }
+        t = hilrig_stamp::UtcNanos(t.0 + 1_000_000_000);
+    }
+    if d.is_empty() {
+        return th.heading_range_m;
+    }
+    Stats::of(d).p95.min(th.heading_range_m)
 }
 
 /// The budget of a checked run. `traj` is the smoothed trajectory with the rig's lever arm;
@@ -55,6 +141,9 @@ pub(super) fn accuracy(
             .sqrt(),
         interpolation_m: tm.interpolation_error_m.p95,
         lever_arm_m: 0.0,
+        heading_sigma_deg: errors.heading_sigma_deg,
+        heading_m: errors.heading_sigma_deg.to_radians() * errors.heading_range_m,
+        heading_range_m: errors.heading_range_m,
         ..Accuracy::default()
     };
     if sp.sigma_horizontal_m.n == 0 {
@@ -66,7 +155,8 @@ pub(super) fn accuracy(
     acc.ego_m = (acc.trajectory_m.powi(2)
         + acc.temporal_m.powi(2)
         + acc.interpolation_m.powi(2)
-        + acc.lever_arm_m.powi(2))
+        + acc.lever_arm_m.powi(2)
+        + acc.heading_m.powi(2))
     .sqrt();
     acc.scene_m = sp.scene_accuracy_m;
     acc.reference_m = (acc.ego_m.powi(2) + acc.scene_m.unwrap_or(0.0).powi(2)).sqrt();

@@ -10,10 +10,9 @@
 
 use super::faults::{secs, FaultLog};
 use super::report::{Spatial, Stats, Warning};
+use crate::reference::noise::{correlation_factor, integrated_autocorrelation};
 use crate::reference::run::{Motion, Run};
-use crate::reference::trajectory::{
-    correlation_factor, integrated_autocorrelation, EgoTrajectory, GnssObs, Settings,
-};
+use crate::reference::trajectory::{EgoTrajectory, GnssObs, Settings};
 use crate::rig::Thresholds;
 use hilrig_stamp::UtcNanos;
 use nalgebra::Vector2;
@@ -32,6 +31,8 @@ pub(super) struct Inputs<'a> {
     pub good: &'a [bool],
     /// CAN motion as (time, speed, yaw rate).
     pub motion: &'a [(UtcNanos, f64, f64)],
+    /// The CAN yaw-rate noise the smoother assumes, rad/s.
+    pub yaw_rate_sigma: f64,
     /// The rig's antenna position (x forward, y left), m.
     pub lever: Vector2<f64>,
     /// The GNSS epoch period, ns.
@@ -343,6 +344,7 @@ fn offset_and_lever(inp: &Inputs<'_>, speed_scale: f64) -> Fit {
             &Settings {
                 lever,
                 estimate_offset_and_lever: true,
+                yaw_rate_sigma: inp.yaw_rate_sigma,
                 ..Settings::default()
             },
         )
@@ -361,7 +363,8 @@ fn offset_and_lever(inp: &Inputs<'_>, speed_scale: f64) -> Fit {
         >= 50;
     let sigmas: Vec<Vector2<f64>> = inp.obs.iter().map(|o| o.sigma).collect();
     let correlation = fitted.as_ref().map_or(1.0, |f| {
-        correlation_factor(&f.residuals, &sigmas, inp.fixed)
+        let errors: Vec<Vector2<f64>> = f.residuals.iter().map(|r| r.error).collect();
+        correlation_factor(&errors, &sigmas, inp.fixed)
     });
     let (delta, lever) = match &fitted {
         Some(f) => {

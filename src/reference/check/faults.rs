@@ -22,10 +22,13 @@ pub(super) fn secs_ms(a: UtcNanos, b: UtcNanos) -> f64 {
     ((b.0 - a.0) as f64 * 1e-6).round() / 1e3
 }
 
-/// The faults found so far, located relative to the run's start.
+/// The faults found so far, located relative to the run's start, and the stretches marked not
+/// usable although nothing is wrong with the data (the reference is too uncertain there: a
+/// heading not yet determined, say). A fault fails the run; a mark only takes its stretch out.
 pub(super) struct FaultLog {
     start: UtcNanos,
     pub(super) faults: Vec<Fault>,
+    pub(super) marks: Vec<Fault>,
 }
 
 impl FaultLog {
@@ -34,6 +37,7 @@ impl FaultLog {
         FaultLog {
             start,
             faults: Vec::new(),
+            marks: Vec::new(),
         }
     }
 
@@ -51,6 +55,25 @@ impl FaultLog {
         detail: String,
     ) {
         self.faults.push(Fault {
+            name,
+            from: iso(from),
+            to: iso(to),
+            from_s: secs_ms(self.start, from),
+            to_s: secs_ms(self.start, to),
+            detail,
+            window: (from, to),
+        });
+    }
+
+    /// Marks one stretch not usable (not a fault: the run's verdict stays).
+    pub(super) fn mark(
+        &mut self,
+        name: &'static str,
+        from: UtcNanos,
+        to: UtcNanos,
+        detail: String,
+    ) {
+        self.marks.push(Fault {
             name,
             from: iso(from),
             to: iso(to),
@@ -83,11 +106,19 @@ impl FaultLog {
     }
 }
 
+/// A fault (`true`) or mark (`false`) of some name entering (+1) or leaving (-1) the cells.
+type Edge = ((bool, &'static str), i32);
+
 /// One-second segments from `start` to `end` (a last piece under 50 ms joins the one before
-/// it), each failing with the faults that overlap it, merged while verdict and reasons stay the
-/// same. Computed by sweeping over the faults' edges rather than second by second, so that a
+/// it), each failing with the faults that overlap it (or not usable with the marks that overlap
+/// it, when no fault does), merged while verdict and reasons stay the same. Computed by sweeping over the faults' edges rather than second by second, so that a
 /// damaged recording whose stamps span years is judged as quickly as a sound one.
-pub(super) fn segments(faults: &[Fault], start: UtcNanos, end: UtcNanos) -> Vec<Segment> {
+pub(super) fn segments(
+    faults: &[Fault],
+    marks: &[Fault],
+    start: UtcNanos,
+    end: UtcNanos,
+) -> Vec<Segment> {
     const S: i64 = 1_000_000_000;
     let total = end.0 - start.0;
     if total <= 0 {
@@ -110,9 +141,12 @@ pub(super) fn segments(faults: &[Fault], start: UtcNanos, end: UtcNanos) -> Vec<
         }
     };
     // A fault covers the cells from the one its start falls in to the one its end falls in.
-    let mut edges: std::collections::BTreeMap<i64, Vec<(&'static str, i32)>> =
-        std::collections::BTreeMap::new();
-    for f in faults {
+    let mut edges: std::collections::BTreeMap<i64, Vec<Edge>> = std::collections::BTreeMap::new();
+    let tagged = faults
+        .iter()
+        .map(|f| (true, f))
+        .chain(marks.iter().map(|m| (false, m)));
+    for (is_fault, f) in tagged {
         let (a, b) = f.window;
         if a >= end || b < start {
             continue;
@@ -122,14 +156,20 @@ pub(super) fn segments(faults: &[Fault], start: UtcNanos, end: UtcNanos) -> Vec<
         if first > last {
             continue;
         }
-        edges.entry(first).or_default().push((f.name, 1));
-        edges.entry(last + 1).or_default().push((f.name, -1));
+        edges
+            .entry(first)
+            .or_default()
+            .push(((is_fault, f.name), 1));
+        edges
+            .entry(last + 1)
+            .or_default()
+            .push(((is_fault, f.name), -1));
     }
     edges.entry(0).or_default();
     edges.entry(n).or_default();
-    let mut active: std::collections::BTreeMap<&'static str, i32> = Default::default();
+    let mut active: std::collections::BTreeMap<(bool, &'static str), i32> = Default::default();
     let mut segments: Vec<Segment> = Vec::new();
-    let points: Vec<(i64, Vec<(&'static str, i32)>)> = edges.into_iter().collect();
+    let points: Vec<(i64, Vec<Edge>)> = edges.into_iter().collect();
     for w in points.windows(2) {
         let ((k, changes), (next, _)) = (&w[0], &w[1]);
         for &(name, d) in changes {
@@ -140,11 +180,16 @@ pub(super) fn segments(faults: &[Fault], start: UtcNanos, end: UtcNanos) -> Vec<
         if k >= next {
             continue;
         }
-        let reasons: Vec<&'static str> = active.keys().copied().collect();
+        let faulty = active.keys().any(|k| k.0);
+        let mut reasons: Vec<&'static str> = active.keys().map(|k| k.1).collect();
+        reasons.sort_unstable();
+        reasons.dedup();
         let verdict = if reasons.is_empty() {
             Verdict::Pass
-        } else {
+        } else if faulty {
             Verdict::Fail
+        } else {
+            Verdict::Unusable
         };
         let (from, to) = (cell_start(k), cell_end(next - 1));
         match segments.last_mut() {
@@ -228,7 +273,7 @@ mod tests {
         ];
         for (len, faults) in cases {
             let (a, b) = (UtcNanos(0), UtcNanos(len));
-            let got: Vec<(f64, f64, Vec<&'static str>)> = segments(&faults, a, b)
+            let got: Vec<(f64, f64, Vec<&'static str>)> = segments(&faults, &[], a, b)
                 .into_iter()
                 .map(|g| (g.from_s, g.to_s, g.reasons))
                 .collect();
@@ -242,7 +287,7 @@ mod tests {
     fn fifty_years_are_segmented_at_once() {
         let s = 1_000_000_000i64;
         let end = UtcNanos(50 * 365 * 86_400 * s);
-        let segs = segments(&[fault("a", 10 * s, 20 * s)], UtcNanos(0), end);
+        let segs = segments(&[fault("a", 10 * s, 20 * s)], &[], UtcNanos(0), end);
         assert_eq!(segs.len(), 3);
         assert_eq!(segs[1].reasons, vec!["a"]);
     }

@@ -37,8 +37,9 @@ pub use report::{
     Warning,
 };
 
+use super::noise::yaw_rate_noise;
 use super::run::Run;
-use super::trajectory::{correlation_factor, EgoTrajectory, GnssObs, Settings};
+use super::trajectory::{fit_gnss_noise, EgoTrajectory, GnssObs, Settings};
 use crate::rig::Rig;
 use crate::scene::file::Wgs84;
 use crate::scene::geodesy::Enu;
@@ -78,6 +79,7 @@ fn unusable(run: &Run, why: String, spatial: Spatial) -> Report {
         temporal: Temporal::default(),
         accuracy: Accuracy::default(),
         faults: Vec::new(),
+        marks: Vec::new(),
         warnings: Vec::new(),
         segments: Vec::new(),
         damage: run.damage.clone(),
@@ -144,8 +146,12 @@ fn check_into(
         .iter()
         .map(|m| (m.t, m.speed, m.yaw_rate))
         .collect();
+    // The yaw-rate sensor's noise as the drive shows it while standing (the default where the
+    // vehicle never stands), never below 0.5 mrad/s: a quiet sensor still has a bias.
     let settings = Settings {
         lever,
+        yaw_rate_sigma: yaw_rate_noise(&motion)
+            .map_or(Settings::default().yaw_rate_sigma, |s| s.max(5e-4)),
         ..Settings::default()
     };
     let first = match EgoTrajectory::smooth(&obs, &motion, &settings) {
@@ -157,22 +163,22 @@ fn check_into(
         .map(|(_, f)| f.rtk == RtkState::Fixed)
         .collect();
     // RTK errors wander over seconds: weighted as if independent, ten epochs a second would pull
-    // the trajectory (and its heading) along their wander. The smoothing is repeated with each
-    // epoch's sigma scaled by the square root of the residuals' correlation time, so that CAN
-    // motion carries the short term and GNSS the long term.
-    let sigmas: Vec<Vector2<f64>> = obs.iter().map(|o| o.sigma).collect();
-    let k = correlation_factor(&first.residuals, &sigmas, &fixed).sqrt();
-    let traj = if k > 1.0 {
-        let decorrelated: Vec<GnssObs> = obs
-            .iter()
-            .map(|o| GnssObs {
-                sigma: o.sigma * k,
-                ..*o
-            })
-            .collect();
-        EgoTrajectory::smooth(&decorrelated, &motion, &settings).unwrap_or(first)
+    // the trajectory (and its heading) along their wander. The final smoothing models the
+    // wander as states, with the correlation time and share that the drive's own GNSS
+    // innovations make most likely (white, if that is what they are), so that CAN motion
+    // carries the short term and GNSS the long term.
+    let noise = fit_gnss_noise(&obs, &motion, &settings);
+    let traj = if noise.wanders() {
+        EgoTrajectory::smooth(
+            &obs,
+            &motion,
+            &Settings {
+                gnss_noise: noise,
+                ..settings
+            },
+        )
+        .unwrap_or(first)
     } else {
-        // White residuals: the second pass would repeat the first.
         first
     };
     // Epochs good enough to differentiate: fixed and within the sigma limits.
@@ -192,6 +198,7 @@ fn check_into(
         fixed: &fixed,
         good: &good,
         motion: &motion,
+        yaw_rate_sigma: settings.yaw_rate_sigma,
         lever,
         gnss_period,
         span: (start, end),
@@ -208,13 +215,17 @@ fn check_into(
     });
 
     let (tm, lidar_time_error_s) = temporal::measure(run, &epochs, &traj, th, &mut log);
+    let heading_range_m = budget::heading_range(&traj, th, scene);
+    let heading_sigma_deg = budget::heading(&traj, th, heading_range_m, &mut log);
     let errors = budget::Errors {
+        heading_sigma_deg,
+        heading_range_m,
         gnss_time_offset_s: offset_s,
         lidar_time_error_s,
         fixed: &fixed,
     };
     let acc = budget::accuracy(run, th, &sp, &tm, &traj, &errors, &log);
-    let segments = faults::segments(&log.faults, start, end);
+    let segments = faults::segments(&log.faults, &log.marks, start, end);
     *trajectory_out = Some(traj);
     let verdict = if log.faults.is_empty() {
         Verdict::Pass
@@ -230,6 +241,7 @@ fn check_into(
         temporal: tm,
         accuracy: acc,
         faults: log.faults,
+        marks: log.marks,
         warnings,
         segments,
         damage: run.damage.clone(),

@@ -187,8 +187,8 @@ pub struct Spatial {
 /// One source's timing.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct SourceTiming {
-    /// Source.
-    pub source: &'static str,
+    /// Source (`gnss`, `lidar`, or one CAN message that carries ego motion, `can 0x123`).
+    pub source: String,
     /// Samples.
     pub count: usize,
     /// Mean rate, Hz.
@@ -233,6 +233,13 @@ pub struct Accuracy {
     pub interpolation_m: f64,
     /// Lever arm error, when one is found.
     pub lever_arm_m: f64,
+    /// The smoothed heading's 1-sigma error (95th percentile over the usable stretches), deg.
+    pub heading_sigma_deg: f64,
+    /// That heading error as a position error at `heading_range_m`, m.
+    pub heading_m: f64,
+    /// The range the heading error is counted at: how far the scene's objects are from the ego
+    /// (95th percentile), at most the rig's `heading_range_m`, m.
+    pub heading_range_m: f64,
     /// The ego reference (root sum of squares of the above).
     pub ego_m: f64,
     /// Static objects (scene survey).
@@ -252,7 +259,8 @@ pub struct Segment {
     pub to_s: f64,
     /// Pass or fail.
     pub verdict: Verdict,
-    /// Names of the faults that make it fail.
+    /// Names of the faults that make it fail, and of the marks that take it out (`verdict`
+    /// `unusable` when there are only marks).
     pub reasons: Vec<&'static str>,
 }
 
@@ -275,6 +283,10 @@ pub struct Report {
     pub accuracy: Accuracy,
     /// Faults found.
     pub faults: Vec<Fault>,
+    /// Stretches taken out although nothing is wrong with the data: the reference is too
+    /// uncertain there (`heading_uncertain`: the smoother's heading sigma above the limit, as at
+    /// the start of a drive before the vehicle has moved far enough to show its heading).
+    pub marks: Vec<Fault>,
     /// What could not be decided on this drive, and what would decide it.
     pub warnings: Vec<Warning>,
     /// Usable and unusable stretches.
@@ -316,13 +328,16 @@ impl Report {
         let a = &self.accuracy;
         let _ = writeln!(
             s,
-            "reference accuracy (1 sigma): {:.3} m = ego {:.3} m (RTK {:.3}, timing {:.3}, interpolation {:.4}, lever arm {:.3}){}",
+            "reference accuracy (1 sigma): {:.3} m = ego {:.3} m (RTK {:.3}, timing {:.3}, interpolation {:.4}, lever arm {:.3}, heading {:.3}° = {:.3} m at {:.0} m){}",
             a.reference_m,
             a.ego_m,
             a.trajectory_m,
             a.temporal_m,
             a.interpolation_m,
             a.lever_arm_m,
+            a.heading_sigma_deg,
+            a.heading_m,
+            a.heading_range_m,
             a.scene_m
                 .map_or(String::new(), |m| format!(" and scene survey {m:.3} m"))
         );
@@ -428,6 +443,13 @@ impl Report {
                     f.name, f.from_s, f.to_s, f.detail
                 );
             }
+        }
+        for m in &self.marks {
+            let _ = writeln!(
+                s,
+                "not usable: {:<18} {:>7.1} s .. {:>7.1} s  {}",
+                m.name, m.from_s, m.to_s, m.detail
+            );
         }
         let _ = writeln!(*s, "segments:");
         for g in &self.segments {

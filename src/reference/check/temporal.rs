@@ -39,9 +39,17 @@ pub(super) fn measure(
     let gnss_times: Vec<UtcNanos> = epochs.iter().map(|e| e.0).collect();
     tm.sources
         .push(timing(log, "gnss", "gnss_gap", &gnss_times, th.gap_periods));
-    let can_times: Vec<UtcNanos> = run.motion.iter().map(|m| m.t).collect();
-    tm.sources
-        .push(timing(log, "can", "can_gap", &can_times, th.gap_periods));
+    // CAN per message: two messages at 50 Hz (speed in one, yaw rate in the other) are two
+    // sources, not one at 100 Hz with a jitter of half its period.
+    for (id, times) in ego_messages(run) {
+        tm.sources.push(timing(
+            log,
+            &format!("can 0x{id:x}"),
+            "can_gap",
+            &times,
+            th.gap_periods,
+        ));
+    }
     if !run.packets.is_empty() {
         let lidar_times: Vec<UtcNanos> = run.packets.iter().map(|p| p.host).collect();
         tm.sources.push(timing(
@@ -79,6 +87,25 @@ pub(super) fn measure(
     tm.motion_between_epochs_m = Stats::of(between);
     tm.interpolation_error_m = Stats::of(interp);
     (tm, lidar_time_error_s)
+}
+
+/// The CAN messages that carry ego motion, with their times: those whose frames arrive at the
+/// instants the recorder wrote ego motion. A recording without raw frames counts its ego
+/// motion as one source (id 0).
+fn ego_messages(run: &Run) -> Vec<(u32, Vec<UtcNanos>)> {
+    let motion: std::collections::HashSet<UtcNanos> = run.motion.iter().map(|m| m.t).collect();
+    let mut by_id: std::collections::BTreeMap<u32, Vec<UtcNanos>> = Default::default();
+    for &(t, id) in &run.can_frames {
+        by_id.entry(id).or_default().push(t);
+    }
+    let ego: Vec<(u32, Vec<UtcNanos>)> = by_id
+        .into_iter()
+        .filter(|(_, times)| times.iter().any(|t| motion.contains(t)))
+        .collect();
+    if ego.is_empty() {
+        return vec![(0, run.motion.iter().map(|m| m.t).collect())];
+    }
+    ego
 }
 
 /// The PPS state of the position packets: the locked share, and when the rig requires PPS, the
@@ -147,14 +174,14 @@ fn pps(
 /// Rate, period, jitter and gaps of one source; a gap over `gap_periods` periods is a fault.
 fn timing(
     log: &mut FaultLog,
-    source: &'static str,
+    source: &str,
     gap_name: &'static str,
     times: &[UtcNanos],
     gap_periods: f64,
 ) -> SourceTiming {
     let Some(period) = median_interval(times) else {
         return SourceTiming {
-            source,
+            source: source.to_owned(),
             count: times.len(),
             ..SourceTiming::default()
         };
@@ -183,7 +210,7 @@ fn timing(
         }
     }
     SourceTiming {
-        source,
+        source: source.to_owned(),
         count: times.len(),
         rate_hz: (times.len() - 1) as f64 / secs(times[0], times[times.len() - 1]).max(1e-9),
         period_ms: period as f64 * 1e-6,
