@@ -13,6 +13,8 @@
 //! - [`reference`]: the ego trajectory from RTK GNSS and CAN, and `check`;
 //! - [`scene`]: the digital twin (objects, actors, the WGS84/ENU frame, poses and trajectories);
 //! - [`sim`]: the lidar model and its effects, `synth` and `resim`;
+//! - [`metrics`]: a run against its re-simulation, scan by scan (`hilrig compare`);
+//! - [`stats`]: over repetitions: area validation metric, traffic lights, rank correlation;
 //! - [`rig`]: the rig file every step reads (sensors, mounting, ports, thresholds).
 
 #![warn(missing_docs)]
@@ -20,12 +22,14 @@
 
 pub mod bag;
 pub mod decode;
+pub mod metrics;
 pub mod record;
 pub mod reference;
 pub mod replay;
 pub mod rig;
 pub mod scene;
 pub mod sim;
+pub mod stats;
 
 pub use hilrig_can as can;
 pub use hilrig_capture as capture;

@@ -49,6 +49,11 @@ enum Command {
     /// lidar model; writes simulated VelodyneScans and /sim/points. Refuses runs that fail
     /// `check` unless --force.
     Resim(cli::resim::ResimArgs),
+    /// Compare a recording with its re-simulation scan by scan (Rosenberger et al. 2019, §5):
+    /// OCR^K and other grid and point metrics at a cell the reference data admit, the
+    /// calibration curve over cell sizes, and OCR against the distance to the objects (Fig. 5).
+    /// Exit 2 when the two cannot be compared.
+    Compare(cli::compare::CompareArgs),
 }
 
 fn init_logging(verbose: u8) {
@@ -88,6 +93,7 @@ fn main() -> ExitCode {
         Command::Synth(args) => cli::synth::run(args),
         Command::Check(args) => cli::check::run(args),
         Command::Resim(args) => cli::resim::run(args),
+        Command::Compare(args) => cli::compare::run(args),
     };
     match result {
         Ok(code) => code,

@@ -7,6 +7,7 @@ pub mod info;
 pub mod msgs;
 pub mod read;
 pub mod recover;
+pub mod scans;
 pub mod topics;
 pub mod writer;
 

@@ -1,9 +1,10 @@
 //! One module per command: clap arguments, validation into typed settings, one call into the
 //! library, and printing. No engine lives here: decoding is in `hilrig::decode`, recording in
 //! `hilrig::record`, replay's pacing, sinks and `--now` in `hilrig::replay`, the check in
-//! `hilrig::reference`, synthesis and re-simulation in `hilrig::sim`.
+//! `hilrig::reference`, synthesis and re-simulation in `hilrig::sim`, the metrics in `hilrig::metrics`.
 
 pub mod check;
+pub mod compare;
 pub mod decode;
 pub mod info;
 pub mod record;

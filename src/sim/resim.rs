@@ -12,8 +12,7 @@
 
 use super::lidar::{LidarSim, PacketTime, SimStats};
 use super::model::ModelFile;
-use crate::bag::cdr::CdrReader;
-use crate::bag::read::{read, Event};
+use crate::bag::scans::sensor_time;
 use crate::bag::topics;
 use crate::bag::{msgs, BagOptions, BagWriter};
 use crate::reference::check::{check_with_trajectory, Report, Verdict};
@@ -63,26 +62,6 @@ pub struct ResimSummary {
     pub stats: SimStats,
     /// The check's verdict on the run.
     pub verdict: Option<Verdict>,
-}
-
-struct Scan {
-    log_time: u64,
-    publish_time: u64,
-    stamp: UtcNanos,
-    packets: Vec<(UtcNanos, [u8; DATA_PACKET_SIZE])>,
-}
-
-/// The sensor time of a packet stamp (µs past the hour) near `near` (the recorder's time of it).
-fn sensor_time(timestamp_us: u32, near: UtcNanos) -> UtcNanos {
-    let hour = 3_600_000_000_000i64;
-    let t = near.hour_floor().0 + i64::from(timestamp_us) * 1000;
-    if t - near.0 > hour / 2 {
-        UtcNanos(t - hour)
-    } else if near.0 - t > hour / 2 {
-        UtcNanos(t + hour)
-    } else {
-        UtcNanos(t)
-    }
 }
 
 /// Re-simulates the run at `run_path` into `out` with `rig` (default: the rig file attached to
@@ -170,34 +149,7 @@ pub fn resim(
         .is_some_and(|p| p == "Locked");
 
     // The recorded scans.
-    let mut scans = Vec::new();
-    let damage = read(&bytes, &mut |e| {
-        if let Event::Message(m) = e {
-            if m.channel.topic != topics::VELODYNE_PACKETS {
-                return Ok(());
-            }
-            let bad = || format!("{}: a scan does not decode", m.channel.topic);
-            let mut c = CdrReader::new(m.data).ok_or_else(bad)?;
-            let stamp = c.header().ok_or_else(bad)?;
-            let n = c.u32().ok_or_else(bad)?;
-            let mut packets = Vec::with_capacity(n as usize);
-            for _ in 0..n {
-                let t = c.time().ok_or_else(bad)?;
-                let b = c.bytes(DATA_PACKET_SIZE).ok_or_else(bad)?;
-                let mut a = [0u8; DATA_PACKET_SIZE];
-                a.copy_from_slice(b);
-                packets.push((t, a));
-            }
-            scans.push(Scan {
-                log_time: m.log_time,
-                publish_time: m.publish_time,
-                stamp,
-                packets,
-            });
-        }
-        Ok(())
-    })
-    .err();
+    let (scans, damage) = crate::bag::scans::read_scans(&bytes);
     if scans.is_empty() {
         return Err(input(format!(
             "{}: no /velodyne_packets to re-simulate{}",
@@ -343,27 +295,4 @@ pub fn resim(
     bag.finish()
         .map_err(|e| ResimError::Output(e.to_string()))?;
     Ok(summary)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A drive across the full hour: a packet stamped 0.1 s past the hour but recorded (scan
-    /// time) 0.1 s before it belongs to the new hour, and the other way round; both directions
-    /// are needed, or the packets after the hour are cast an hour away from the trajectory.
-    #[test]
-    fn sensor_times_follow_the_recording_across_the_full_hour() {
-        let s = 1_000_000_000i64;
-        let ten = UtcNanos(1_795_356_000 * s - 1_795_356_000 * s % (3600 * s) + 3600 * s);
-        // 0.1 s past ten, recorded at 9:59:59.9.
-        let near = UtcNanos(ten.0 - s / 10);
-        assert_eq!(sensor_time(100_000, near), UtcNanos(ten.0 + s / 10));
-        // 0.1 s before ten (3599.9 s past nine), recorded at 10:00:00.1.
-        let near = UtcNanos(ten.0 + s / 10);
-        assert_eq!(sensor_time(3_599_900_000, near), UtcNanos(ten.0 - s / 10));
-        // Within the hour: as stamped.
-        let near = UtcNanos(ten.0 + 1800 * s);
-        assert_eq!(sensor_time(1_800_000_000, near), UtcNanos(ten.0 + 1800 * s));
-    }
 }

@@ -1,0 +1,518 @@
+//! `hilrig compare`: a measured run against its re-simulation, scan by scan.
+//!
+//! Scans are paired by their stamp (re-simulation keeps every measured scan's stamp, packet
+//! stamps and azimuths, so each simulated firing has a measured twin). Both are decoded with the
+//! rig's calibration and put into the scene frame at each firing's pose: the trajectory `check`
+//! smooths from the run (or a trajectory file), the lidar's mounting from the rig. Then per scan:
+//! the grid metrics over the last K scans ([`super::grid`]), the point metrics
+//! ([`super::points`]), the per-firing range residuals (same packet, block and laser), what the
+//! sensor sees of the scene's objects, and the ego's speed; over the drive: the calibration
+//! curve of OCR over cell sizes (Rosenberger et al. 2019, §5: a grid metric's cell size "has to
+//! be evaluated in any case") and the Fig. 5 trend of OCR against the mean distance to the
+//! objects (Spearman's ρ with a bootstrap interval).
+//!
+//! The cell must not be smaller than the admissible cell `check` derives from the reference
+//! accuracy (§6): below it the metric measures the reference's errors, not the model's.
+
+use super::grid::{compare as grid_compare, Dims, GridScores, GridSpec, Occupancy};
+use super::points::distances;
+pub use super::report::{Comparison, CurvePoint, ObjectSeen, ScanRow, Summary};
+use super::roi::{Region, Roi};
+use crate::bag::scans::{read_scans, sensor_time, Scan};
+use crate::reference::check::{check_with_trajectory, Verdict};
+use crate::reference::run::Run;
+use crate::rig::Rig;
+use crate::scene::pose::{mounting_isometry, Trajectory};
+use crate::scene::Scene;
+use crate::stats::rank::spearman_with_interval;
+use hilrig_stamp::UtcNanos;
+use hilrig_velodyne::{Calibration, DataPacket, Decoder, Model, Point as LidarPoint};
+use nalgebra::{Isometry3, Point3};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::path::Path;
+
+/// Why two files cannot be compared.
+#[derive(Debug, thiserror::Error)]
+pub enum CompareError {
+    /// An input is unusable, or the two do not belong together.
+    #[error("{0}")]
+    Input(String),
+    /// The cell is smaller than the reference data support.
+    #[error("a {cell:.3} m cell is smaller than the {admissible:.3} m the reference accuracy admits (Rosenberger et al. 2019, §6: the cell must be at least ten times the reference accuracy); the metric would measure the reference's errors: use --cell {admissible:.3} or more, or --allow-small-cell to compute it anyway")]
+    CellTooSmall {
+        /// Asked for, m.
+        cell: f64,
+        /// What `check` admits, m.
+        admissible: f64,
+    },
+}
+
+/// What to compute.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Cell size, m (default: the admissible one from `check`).
+    pub cell_m: Option<f64>,
+    /// Scans per occupancy grid.
+    pub k: usize,
+    /// 2D or 3D cells.
+    pub dims: Dims,
+    /// Which points count.
+    pub region: Region,
+    /// Leave the ground out.
+    pub exclude_ground: bool,
+    /// Compute below the admissible cell.
+    pub allow_small_cell: bool,
+    /// Poses from this trajectory instead of the run's smoothed one.
+    pub trajectory: Option<Trajectory>,
+}
+
+/// An object counts as seen with this many measured points in a scan.
+pub const MIN_POINTS_SEEN: usize = 10;
+
+/// Cell sizes of the calibration curve, m.
+pub const CURVE_CELLS_M: [f64; 9] = [0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0];
+
+/// A decoded scan in the scene frame, with the firings for the residuals.
+struct Cloud {
+    /// Points in the region (scene frame) and their range, m.
+    points: Vec<Point3<f64>>,
+    /// Per (packet, block, laser, return type): the range, m.
+    firings: HashMap<(u32, u8, u8, u8), f32>,
+    /// All points (scene frame) and range, for the objects.
+    all: Vec<(Point3<f64>, f32)>,
+    /// Sensor position at the scan's middle.
+    origin: Option<Point3<f64>>,
+    /// The scan's middle.
+    middle: UtcNanos,
+}
+
+struct Frame<'a> {
+    decoder: &'a Decoder,
+    mount: Isometry3<f64>,
+    trajectory: &'a Trajectory,
+    pps_locked: bool,
+    roi: &'a Roi,
+}
+
+impl Frame<'_> {
+    fn cloud(&self, scan: &Scan) -> Cloud {
+        let mut out = Cloud {
+            points: Vec::new(),
+            firings: HashMap::new(),
+            all: Vec::new(),
+            origin: None,
+            middle: scan.stamp,
+        };
+        let mut hint = 0;
+        let mut decoded: Vec<LidarPoint> = Vec::new();
+        let mut times = Vec::new();
+        for (k, (t, bytes)) in scan.packets.iter().enumerate() {
+            let Ok(p) = DataPacket::decode(&bytes[..]) else {
+                continue;
+            };
+            let first = if self.pps_locked {
+                sensor_time(p.timestamp_us, *t)
+            } else {
+                *t
+            };
+            times.push(first);
+            decoded.clear();
+            if self.decoder.decode_into(&p, &mut decoded).is_err() {
+                continue;
+            }
+            for q in &decoded {
+                let at = UtcNanos(first.0 + i64::from(q.time_offset_ns));
+                let Some(body) = self.trajectory.pose_at(at, &mut hint) else {
+                    continue;
+                };
+                let world =
+                    body * self.mount * Point3::new(f64::from(q.x), f64::from(q.y), f64::from(q.z));
+                out.firings.insert(
+                    (k as u32, q.block, q.laser.0, q.return_type as u8),
+                    q.distance_m,
+                );
+                out.all.push((world, q.distance_m));
+                if self.roi.keeps(&world) {
+                    out.points.push(world);
+                }
+            }
+        }
+        if let (Some(a), Some(b)) = (times.first(), times.last()) {
+            out.middle = UtcNanos((a.0 + b.0) / 2);
+            let mut h = 0;
+            out.origin = self
+                .trajectory
+                .pose_at(out.middle, &mut h)
+                .map(|body| Point3::from((body * self.mount).translation.vector));
+        }
+        out
+    }
+}
+
+fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    (n > 0).then(|| s / n as f64)
+}
+
+fn extent(points: &[Point3<f64>]) -> f64 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (points[0], points[0]);
+    for p in points {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    (hi - lo).norm()
+}
+
+/// What the sensor saw of the objects in one scan pair.
+fn objects_seen(roi: &Roi, real: &Cloud, sim: &Cloud) -> Vec<ObjectSeen> {
+    let margin = 0.2;
+    roi.boxes()
+        .iter()
+        .filter_map(|(name, b)| {
+            let r: Vec<&(Point3<f64>, f32)> = real
+                .all
+                .iter()
+                .filter(|(p, _)| b.contains(p, margin))
+                .collect();
+            if r.len() < MIN_POINTS_SEEN {
+                return None;
+            }
+            let s: Vec<Point3<f64>> = sim
+                .all
+                .iter()
+                .filter(|(p, _)| b.contains(p, margin))
+                .map(|(p, _)| *p)
+                .collect();
+            let rp: Vec<Point3<f64>> = r.iter().map(|(p, _)| *p).collect();
+            Some(ObjectSeen {
+                name: name.clone(),
+                real_points: r.len(),
+                sim_points: s.len(),
+                range_m: r.iter().map(|(_, d)| f64::from(*d)).sum::<f64>() / r.len() as f64,
+                real_extent_m: extent(&rp),
+                sim_extent_m: extent(&s),
+            })
+        })
+        .collect()
+}
+
+/// Range residuals of the firings both have, and the returns only one has.
+fn residuals(real: &Cloud, sim: &Cloud) -> (Vec<f64>, usize, usize) {
+    let mut diffs = Vec::new();
+    let mut only_real = 0;
+    for (key, d) in &real.firings {
+        match sim.firings.get(key) {
+            Some(s) => diffs.push(f64::from(*s) - f64::from(*d)),
+            None => only_real += 1,
+        }
+    }
+    let only_sim = sim
+        .firings
+        .keys()
+        .filter(|k| !real.firings.contains_key(k))
+        .count();
+    (diffs, only_real, only_sim)
+}
+
+/// The occupancy grids' scores of every window of K scans ending at each scan.
+fn windows(spec: &GridSpec, k: usize, real: &[Cloud], sim: &[Cloud]) -> Vec<Option<GridScores>> {
+    (0..real.len())
+        .into_par_iter()
+        .map(|i| {
+            if i + 1 < k {
+                return None;
+            }
+            let r: Vec<&[Point3<f64>]> = real[i + 1 - k..=i]
+                .iter()
+                .map(|c| c.points.as_slice())
+                .collect();
+            let s: Vec<&[Point3<f64>]> = sim[i + 1 - k..=i]
+                .iter()
+                .map(|c| c.points.as_slice())
+                .collect();
+            Some(grid_compare(
+                &Occupancy::of(spec, &r).ok()?,
+                &Occupancy::of(spec, &s).ok()?,
+            ))
+        })
+        .collect()
+}
+
+/// The run, its rig, trajectory and admissible cell, as `compare` needs them.
+fn reference(
+    run_path: &Path,
+    rig: Option<&Rig>,
+    scene: Option<&Scene>,
+    trajectory: Option<Trajectory>,
+) -> Result<(Vec<u8>, Run, Rig, Trajectory, f64), CompareError> {
+    let input = CompareError::Input;
+    let bytes = std::fs::read(run_path)
+        .map_err(|e| input(format!("cannot read {}: {e}", run_path.display())))?;
+    if !bytes.starts_with(mcap::MAGIC) {
+        return Err(input(format!(
+            "{}: not an MCAP recording",
+            run_path.display()
+        )));
+    }
+    let run = Run::from_bytes(&bytes);
+    let rig = match (rig, &run.rig_toml) {
+        (Some(r), _) => r.clone(),
+        (None, Some(text)) => Rig::from_toml(text, "rig.toml attached to the recording")
+            .map_err(|e| input(e.to_string()))?,
+        (None, None) => {
+            return Err(input(format!(
+                "{}: no rig.toml attached to the recording: give --rig",
+                run_path.display()
+            )))
+        }
+    };
+    let (report, smoothed) = check_with_trajectory(&run, &rig, scene);
+    if report.verdict == Verdict::Unusable {
+        return Err(input(format!(
+            "{}: the reference data cannot be judged ({}): see `hilrig check`",
+            run_path.display(),
+            report.unusable.unwrap_or_default()
+        )));
+    }
+    let admissible = report.accuracy.grid_cell_m;
+    let trajectory = match trajectory {
+        Some(t) => t,
+        None => smoothed
+            .and_then(|t| t.sampled(10_000_000))
+            .ok_or_else(|| input(format!("{}: no RTK+CAN trajectory", run_path.display())))?,
+    };
+    Ok((bytes, run, rig, trajectory, admissible))
+}
+
+/// Compares the run at `run_path` with its re-simulation at `sim_path`. `progress(done, total)`
+/// is called as scans are decoded.
+pub fn compare(
+    run_path: &Path,
+    sim_path: &Path,
+    rig: Option<&Rig>,
+    scene: Option<&Scene>,
+    opts: Options,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Comparison, CompareError> {
+    let input = CompareError::Input;
+    let (bytes, run, rig, trajectory, admissible) =
+        reference(run_path, rig, scene, opts.trajectory.clone())?;
+    let cell = opts.cell_m.unwrap_or(admissible);
+    let spec = GridSpec::new(cell, opts.dims).map_err(|e| input(e.to_string()))?;
+    if opts.k == 0 {
+        return Err(input("-K 0: a grid needs at least one scan".into()));
+    }
+    if cell < admissible - 1e-9 && !opts.allow_small_cell {
+        return Err(CompareError::CellTooSmall { cell, admissible });
+    }
+    let sim_bytes = std::fs::read(sim_path)
+        .map_err(|e| input(format!("cannot read {}: {e}", sim_path.display())))?;
+    if !sim_bytes.starts_with(mcap::MAGIC) {
+        return Err(input(format!("{}: not an MCAP file", sim_path.display())));
+    }
+    let (real_scans, _) = read_scans(&bytes);
+    let (sim_scans, _) = read_scans(&sim_bytes);
+    if real_scans.is_empty() || sim_scans.is_empty() {
+        return Err(input(format!(
+            "no lidar scans (/velodyne_packets) in {}",
+            if real_scans.is_empty() {
+                run_path
+            } else {
+                sim_path
+            }
+            .display()
+        )));
+    }
+    let by_stamp: HashMap<i64, usize> = sim_scans
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (s.stamp.0, i))
+        .collect();
+    let pairs: Vec<(&Scan, &Scan)> = real_scans
+        .iter()
+        .filter_map(|r| by_stamp.get(&r.stamp.0).map(|&i| (r, &sim_scans[i])))
+        .collect();
+    if pairs.is_empty() {
+        let span = |s: &[Scan]| {
+            format!(
+                "{} .. {}",
+                hilrig_stamp::civil::iso8601_millis(s[0].stamp),
+                hilrig_stamp::civil::iso8601_millis(s[s.len() - 1].stamp)
+            )
+        };
+        return Err(input(format!(
+            "{} and {} share no scan (scan stamps {} and {}): the simulation is not a re-simulation of this run",
+            run_path.display(),
+            sim_path.display(),
+            span(&real_scans),
+            span(&sim_scans)
+        )));
+    }
+    let lidar = rig
+        .lidar
+        .as_ref()
+        .ok_or_else(|| input("the rig has no [lidar]".into()))?;
+    let model: Model = lidar.model.parse().map_err(input)?;
+    let calibration = match &lidar.calibration {
+        Some(p) => {
+            Calibration::from_file(&rig.resolve(p), model).map_err(|e| input(e.to_string()))?
+        }
+        None => Calibration::builtin(model),
+    };
+    let decoder = Decoder::with_calibration(model, calibration);
+    let roi = Roi::new(opts.region.clone(), scene, opts.exclude_ground, 0.2).map_err(input)?;
+    let frame = Frame {
+        decoder: &decoder,
+        mount: mounting_isometry(&lidar.mounting),
+        trajectory: &trajectory,
+        pps_locked: run
+            .metadata
+            .get("clock_sync/lidar")
+            .and_then(|m| m.get("pps"))
+            .is_some_and(|p| p == "Locked"),
+        roi: &roi,
+    };
+    let total = pairs.len() as u64;
+    let done = std::sync::atomic::AtomicU64::new(0);
+    let clouds: Vec<(Cloud, Cloud)> = pairs
+        .par_iter()
+        .map(|(r, s)| {
+            let c = (frame.cloud(r), frame.cloud(s));
+            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(n, total);
+            c
+        })
+        .collect();
+    let (real, sim): (Vec<Cloud>, Vec<Cloud>) = clouds.into_iter().unzip();
+    if real.iter().all(|c| c.points.is_empty()) {
+        return Err(input(format!(
+            "{}: no measured point lies in the region {:?} on the trajectory",
+            run_path.display(),
+            opts.region
+        )));
+    }
+    let grids = windows(&spec, opts.k, &real, &sim);
+    let t0 = real[0].middle;
+    let rows: Vec<ScanRow> = (0..real.len())
+        .into_par_iter()
+        .map(|i| {
+            let (r, s) = (&real[i], &sim[i]);
+            let objects = objects_seen(&roi, r, s);
+            let (diffs, only_real, only_sim) = residuals(r, s);
+            let mut hint = 0;
+            let speed = trajectory
+                .velocity_at(r.middle, &mut hint)
+                .map_or(0.0, |v| v.xy().norm());
+            ScanRow {
+                t_s: (r.middle.0 - t0.0) as f64 * 1e-9,
+                stamp_ns: pairs[i].0.stamp.0,
+                ego_speed_mps: speed,
+                objects_in_view: objects.len(),
+                mean_distance_m: mean(objects.iter().map(|o| o.range_m)),
+                real_points: r.points.len(),
+                sim_points: s.points.len(),
+                grid: grids[i],
+                points: distances(&r.points, &s.points),
+                range_diff_mean_m: mean(diffs.iter().copied()),
+                range_diff_rms_m: mean(diffs.iter().map(|d| d * d)).map(f64::sqrt),
+                only_real,
+                only_sim,
+                objects,
+            }
+        })
+        .collect();
+    let calibration = curve(&real, &sim, &opts, cell, admissible);
+    let summary = summarise(&rows, &real, &sim, real_scans.len() - pairs.len());
+    Ok(Comparison {
+        cell_m: cell,
+        admissible_cell_m: admissible,
+        k: opts.k,
+        dims: opts.dims,
+        region: match &opts.region {
+            Region::All => "all".into(),
+            Region::Objects => "objects".into(),
+            Region::Object(n) => format!("object:{n}"),
+        },
+        ground_excluded: opts.exclude_ground,
+        scans: rows,
+        calibration,
+        summary,
+    })
+}
+
+/// Mean OCR^K over the scans at each cell size of [`CURVE_CELLS_M`], the admissible and the
+/// chosen cell.
+fn curve(
+    real: &[Cloud],
+    sim: &[Cloud],
+    opts: &Options,
+    cell: f64,
+    admissible: f64,
+) -> Vec<CurvePoint> {
+    let mut cells: Vec<f64> = CURVE_CELLS_M.to_vec();
+    cells.extend([cell, admissible]);
+    cells.sort_by(f64::total_cmp);
+    cells.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    cells
+        .into_iter()
+        .filter_map(|c| {
+            let spec = GridSpec::new(c, opts.dims).ok()?;
+            let w = windows(&spec, opts.k, real, sim);
+            Some(CurvePoint {
+                cell_m: c,
+                ocr_mean: mean(w.iter().flatten().filter_map(|g| g.ocr)),
+                admissible: c >= admissible - 1e-9,
+            })
+        })
+        .collect()
+}
+
+fn summarise(rows: &[ScanRow], real: &[Cloud], sim: &[Cloud], unpaired: usize) -> Summary {
+    let grid = |f: fn(&GridScores) -> Option<f64>| {
+        mean(rows.iter().filter_map(|r| r.grid.as_ref().and_then(f)))
+    };
+    let mut ocr: Vec<f64> = rows
+        .iter()
+        .filter_map(|r| r.grid.and_then(|g| g.ocr))
+        .collect();
+    ocr.sort_by(f64::total_cmp);
+    let (mut sum, mut sum2, mut n) = (0.0, 0.0, 0usize);
+    let (mut only_r, mut only_s) = (0usize, 0usize);
+    for (r, s) in real.iter().zip(sim) {
+        let (d, a, b) = residuals(r, s);
+        sum += d.iter().sum::<f64>();
+        sum2 += d.iter().map(|x| x * x).sum::<f64>();
+        n += d.len();
+        only_r += a;
+        only_s += b;
+    }
+    let (real_returns, sim_returns): (usize, usize) = real
+        .iter()
+        .zip(sim)
+        .map(|(r, s)| (r.firings.len(), s.firings.len()))
+        .fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let trend: (Vec<f64>, Vec<f64>) = rows
+        .iter()
+        .filter_map(|r| Some((r.grid?.ocr?, r.mean_distance_m?)))
+        .unzip();
+    Summary {
+        scans: rows.len(),
+        unpaired_run_scans: unpaired,
+        ocr_mean: grid(|g| g.ocr),
+        ocr_median: (!ocr.is_empty()).then(|| ocr[ocr.len() / 2]),
+        precision_mean: grid(|g| g.precision),
+        iou_mean: grid(|g| g.iou),
+        cosine_mean: grid(|g| g.cosine),
+        chamfer_mean_m: mean(rows.iter().filter_map(|r| r.points.map(|p| p.chamfer_m))),
+        hausdorff_mean_m: mean(rows.iter().filter_map(|r| r.points.map(|p| p.hausdorff_m))),
+        range_diff_mean_m: (n > 0).then(|| sum / n as f64),
+        range_diff_rms_m: (n > 0).then(|| (sum2 / n as f64).sqrt()),
+        only_real_share: (real_returns > 0).then(|| only_r as f64 / real_returns as f64),
+        only_sim_share: (sim_returns > 0).then(|| only_s as f64 / sim_returns as f64),
+        ocr_vs_distance: spearman_with_interval(&trend.1, &trend.0, 2000, 2019),
+    }
+}

@@ -1,0 +1,10 @@
+//! Metrics between a measured run and its re-simulation (Rosenberger et al. 2019, §5): grid
+//! metrics ([`grid`]: OCR^K, precision, IoU, cosine), point metrics ([`points`]: Chamfer,
+//! Hausdorff), regions of interest ([`roi`]) and the scan-by-scan comparison that `hilrig
+//! compare` runs ([`compare`]) and what it reports ([`report`]).
+
+pub mod compare;
+pub mod grid;
+pub mod points;
+pub mod report;
+pub mod roi;

@@ -1,0 +1,123 @@
+//! What `hilrig compare` reports: per scan, the calibration curve and the summary (the JSON of
+//! `compare --json`; the CSV columns are the per-scan fields).
+
+use super::grid::{Dims, GridScores};
+use super::points::PointScores;
+use crate::stats::rank::Correlation;
+
+/// An object's points in one scan.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ObjectSeen {
+    /// Name.
+    pub name: String,
+    /// Measured points on it.
+    pub real_points: usize,
+    /// Simulated points on it.
+    pub sim_points: usize,
+    /// Mean range of its measured points, m.
+    pub range_m: f64,
+    /// Diagonal of the box its measured (simulated) points span, m.
+    pub real_extent_m: f64,
+    /// Diagonal of the box its simulated points span, m.
+    pub sim_extent_m: f64,
+}
+
+/// One scan pair.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ScanRow {
+    /// Seconds after the first paired scan.
+    pub t_s: f64,
+    /// The scan's stamp, ns since the Unix epoch.
+    pub stamp_ns: i64,
+    /// Ego speed, m/s.
+    pub ego_speed_mps: f64,
+    /// Objects with at least [`super::compare::MIN_POINTS_SEEN`] measured points (the paper's "objects in FoV").
+    pub objects_in_view: usize,
+    /// Mean over those objects of their measured points' mean range, m.
+    pub mean_distance_m: Option<f64>,
+    /// Points in the region: measured, simulated.
+    pub real_points: usize,
+    /// Simulated points in the region.
+    pub sim_points: usize,
+    /// Grid metrics over the K scans ending here (`None` for the first K - 1).
+    pub grid: Option<GridScores>,
+    /// Chamfer and Hausdorff distances.
+    pub points: Option<PointScores>,
+    /// Firings with a return in both: mean and rms of simulated minus measured range, m.
+    pub range_diff_mean_m: Option<f64>,
+    /// Their rms, m.
+    pub range_diff_rms_m: Option<f64>,
+    /// Returns only the measurement has.
+    pub only_real: usize,
+    /// Returns only the simulation has.
+    pub only_sim: usize,
+    /// The objects in view.
+    pub objects: Vec<ObjectSeen>,
+}
+
+/// One point of the calibration curve.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct CurvePoint {
+    /// Cell size, m.
+    pub cell_m: f64,
+    /// Mean OCR^K over the scans.
+    pub ocr_mean: Option<f64>,
+    /// At least the admissible cell.
+    pub admissible: bool,
+}
+
+/// The summary over all scans.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Summary {
+    /// Paired scans.
+    pub scans: usize,
+    /// Scans of the run without a twin in the simulation.
+    pub unpaired_run_scans: usize,
+    /// Mean and median OCR^K.
+    pub ocr_mean: Option<f64>,
+    /// Median OCR^K.
+    pub ocr_median: Option<f64>,
+    /// Mean precision.
+    pub precision_mean: Option<f64>,
+    /// Mean IoU.
+    pub iou_mean: Option<f64>,
+    /// Mean cosine similarity.
+    pub cosine_mean: Option<f64>,
+    /// Mean Chamfer distance, m.
+    pub chamfer_mean_m: Option<f64>,
+    /// Mean Hausdorff distance, m.
+    pub hausdorff_mean_m: Option<f64>,
+    /// Range residuals over all firings: mean, rms, m.
+    pub range_diff_mean_m: Option<f64>,
+    /// Their rms, m.
+    pub range_diff_rms_m: Option<f64>,
+    /// Returns only in the measurement, as a share of its returns.
+    pub only_real_share: Option<f64>,
+    /// Returns only in the simulation, as a share of its returns.
+    pub only_sim_share: Option<f64>,
+    /// Spearman's ρ of OCR against the mean distance to the objects (Fig. 5).
+    pub ocr_vs_distance: Option<Correlation>,
+}
+
+/// Everything `compare` found.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Comparison {
+    /// Cell used, m.
+    pub cell_m: f64,
+    /// The admissible cell from `check`, m.
+    pub admissible_cell_m: f64,
+    /// Scans per grid.
+    pub k: usize,
+    /// 2D or 3D.
+    pub dims: Dims,
+    /// The region, as given.
+    pub region: String,
+    /// Ground left out.
+    pub ground_excluded: bool,
+    /// Per scan.
+    pub scans: Vec<ScanRow>,
+    /// OCR over cell sizes.
+    pub calibration: Vec<CurvePoint>,
+    /// Over the drive.
+    pub summary: Summary,
+}

@@ -1,0 +1,6 @@
+//! Statistics over repetitions (Rosenberger et al. 2019, §8): the area validation metric, the
+//! traffic-light comparison of real and simulated metric ranges (Fig. 7), and rank correlation
+//! with a bootstrap interval (the Fig. 5 trend of a metric against distance).
+
+pub mod avm;
+pub mod rank;

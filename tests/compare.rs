@@ -1,0 +1,170 @@
+//! `hilrig compare` on the parking fixtures: a run against itself scores perfectly, against its
+//! re-simulation it gives the per-scan series, the calibration curve and the Fig. 5 trend; runs
+//! and simulations that do not belong together, and cells that are bad or too small, are
+//! refused with exit 2 and nothing written.
+
+mod common;
+
+use common::*;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Records fixture repetition `rep` and re-simulates it with the idealized model.
+fn run_and_sim(dir: &Path, rep: u32) -> (PathBuf, PathBuf, PathBuf) {
+    let src = fixture(&format!("parking/rep-{rep:02}"));
+    let run = dir.join(format!("run{rep}.mcap"));
+    let out = Command::new(hilrig_bin())
+        .args(["record", "--rig"])
+        .arg(demo_rig())
+        .arg("--from")
+        .arg(src.join("drive.pcapng.zst"))
+        .arg("-o")
+        .arg(&run)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let sim = dir.join(format!("sim{rep}.mcap"));
+    let scene = src.join("scene.toml");
+    let out = Command::new(hilrig_bin())
+        .arg("resim")
+        .arg(&run)
+        .arg("--scene")
+        .arg(&scene)
+        .arg("--model")
+        .arg(fixture("parking/idealized.toml"))
+        .arg("-o")
+        .arg(&sim)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (run, sim, scene)
+}
+
+fn compare(run: &Path, sim: &Path, scene: &Path, extra: &[&str], json: &Path) -> Output {
+    Command::new(hilrig_bin())
+        .arg("compare")
+        .arg(run)
+        .arg(sim)
+        .arg("--scene")
+        .arg(scene)
+        .arg("--json")
+        .arg(json)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+fn read(p: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+#[test]
+fn a_run_against_itself_and_against_its_re_simulation() {
+    let dir = tempfile::tempdir().unwrap();
+    let (run, sim, scene) = run_and_sim(dir.path(), 1);
+
+    // Against itself: every cell, point and firing agrees.
+    let json = dir.path().join("self.json");
+    let out = compare(
+        &run,
+        &run,
+        &scene,
+        &["--cell", "0.1", "--allow-small-cell", "-K", "3"],
+        &json,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = read(&json);
+    let s = &v["summary"];
+    assert_eq!(s["ocr_mean"], 1.0);
+    assert_eq!(s["iou_mean"], 1.0);
+    assert_eq!(s["chamfer_mean_m"], 0.0);
+    assert_eq!(s["range_diff_rms_m"], 0.0);
+    assert_eq!(s["only_real_share"], 0.0);
+    // K = 3: the first two scans have no grid.
+    let scans = v["scans"].as_array().unwrap();
+    assert!(
+        scans[0]["grid"].is_null() && scans[1]["grid"].is_null() && !scans[2]["grid"].is_null()
+    );
+
+    // Against the idealized re-simulation, at the admissible cell.
+    let json = dir.path().join("sim.json");
+    let csv = dir.path().join("sim.csv");
+    let out = compare(&run, &sim, &scene, &["--csv", csv.to_str().unwrap()], &json);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("Fig. 5"), "{stdout}");
+    let v = read(&json);
+    let s = &v["summary"];
+    let ocr = s["ocr_mean"].as_f64().unwrap();
+    assert!(ocr > 0.5 && ocr < 1.0, "OCR {ocr}");
+    assert_eq!(v["cell_m"], v["admissible_cell_m"]);
+    assert_eq!(s["scans"].as_u64().unwrap() as usize, scans.len());
+    assert_eq!(s["unpaired_run_scans"], 0);
+    // The calibration curve: every size from 5 cm to 2 m, the admissible ones marked, OCR
+    // higher at 2 m than at 5 cm.
+    let curve = v["calibration"].as_array().unwrap();
+    let at = |c: f64| {
+        curve
+            .iter()
+            .find(|p| (p["cell_m"].as_f64().unwrap() - c).abs() < 1e-9)
+            .unwrap()
+    };
+    assert!(at(2.0)["ocr_mean"].as_f64() > at(0.05)["ocr_mean"].as_f64());
+    let admissible = v["admissible_cell_m"].as_f64().unwrap();
+    for p in curve {
+        assert_eq!(
+            p["admissible"].as_bool().unwrap(),
+            p["cell_m"].as_f64().unwrap() >= admissible - 1e-9
+        );
+    }
+    // The Fig. 5 columns: one CSV row per scan; objects in view and their distance where any.
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert_eq!(text.lines().count(), scans.len() + 1);
+    assert!(text.starts_with("t_s,stamp_ns,ego_speed_mps,objects_in_view,mean_distance_m,ocr,"));
+    let r = &s["ocr_vs_distance"];
+    assert!(r["low"].as_f64() <= r["rho"].as_f64() && r["rho"].as_f64() <= r["high"].as_f64());
+}
+
+#[test]
+fn inputs_that_do_not_belong_together_and_bad_cells_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let (run1, _, scene) = run_and_sim(dir.path(), 1);
+    let (_, sim2, _) = run_and_sim(dir.path(), 2);
+    let json = dir.path().join("out.json");
+    let cases: Vec<(PathBuf, Vec<&str>, &str)> = vec![
+        (sim2.clone(), vec![], "share no scan"),
+        (run1.clone(), vec!["--cell", "0"], "positive finite"),
+        (run1.clone(), vec!["--cell", "NaN"], "positive finite"),
+        (run1.clone(), vec!["--cell", "0.1"], "--allow-small-cell"),
+        (run1.clone(), vec!["-K", "0"], "at least one scan"),
+        (
+            run1.clone(),
+            vec!["--roi", "object:unicorn"],
+            "no object of that name",
+        ),
+    ];
+    for (sim, extra, says) in cases {
+        let out = compare(&run1, &sim, &scene, &extra, &json);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}: {err}");
+        assert!(err.contains(says), "{extra:?}: {err}");
+        assert!(!json.exists(), "{extra:?}: wrote {}", json.display());
+    }
+}
