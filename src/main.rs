@@ -54,6 +54,12 @@ enum Command {
     /// calibration curve over cell sizes, and OCR against the distance to the objects (Fig. 5).
     /// Exit 2 when the two cannot be compared.
     Compare(cli::compare::CompareArgs),
+    /// eFAST sensitivity (Rosenberger et al. 2019, §4; SALib's semantics): `sample` the
+    /// parameter sets, `analyze` one output per set into first-order and total indices.
+    Efast(cli::efast::EfastArgs),
+    /// Scenario coverage (Rosenberger et al. 2019, §4): validation samples that share a cell of
+    /// the parameter space with parameterization samples. Exit 1 when any does.
+    Coverage(cli::coverage::CoverageArgs),
 }
 
 fn init_logging(verbose: u8) {
@@ -94,6 +100,8 @@ fn main() -> ExitCode {
         Command::Check(args) => cli::check::run(args),
         Command::Resim(args) => cli::resim::run(args),
         Command::Compare(args) => cli::compare::run(args),
+        Command::Efast(args) => cli::efast::run(args),
+        Command::Coverage(args) => cli::coverage::run(args),
     };
     match result {
         Ok(code) => code,

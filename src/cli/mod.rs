@@ -5,7 +5,9 @@
 
 pub mod check;
 pub mod compare;
+pub mod coverage;
 pub mod decode;
+pub mod efast;
 pub mod info;
 pub mod record;
 pub mod recover;
