@@ -60,6 +60,9 @@ enum Command {
     /// Scenario coverage (Rosenberger et al. 2019, §4): validation samples that share a cell of
     /// the parameter space with parameterization samples. Exit 1 when any does.
     Coverage(cli::coverage::CoverageArgs),
+    /// Statistical validation over repetitions (Rosenberger et al. 2019, §8, Fig. 7): traffic
+    /// lights and the area validation metric per phase and metric, and one verdict.
+    Validate(cli::validate::ValidateArgs),
 }
 
 fn init_logging(verbose: u8) {
@@ -102,6 +105,7 @@ fn main() -> ExitCode {
         Command::Compare(args) => cli::compare::run(args),
         Command::Efast(args) => cli::efast::run(args),
         Command::Coverage(args) => cli::coverage::run(args),
+        Command::Validate(args) => cli::validate::run(args),
     };
     match result {
         Ok(code) => code,

@@ -14,6 +14,7 @@ pub mod recover;
 pub mod replay;
 pub mod resim;
 pub mod synth;
+pub mod validate;
 
 use anyhow::{Context, Result};
 use std::fs::File;

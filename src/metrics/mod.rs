@@ -4,6 +4,7 @@
 //! compare` runs ([`compare`]) and what it reports ([`report`]).
 
 pub mod compare;
+pub mod features;
 pub mod grid;
 pub mod points;
 pub mod report;

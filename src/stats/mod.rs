@@ -7,3 +7,5 @@ pub mod avm;
 pub mod coverage;
 pub mod efast;
 pub mod rank;
+pub mod repetitions;
+pub mod validate;
