@@ -140,6 +140,64 @@ fn a_run_against_itself_and_against_its_re_simulation() {
     assert!(text.starts_with("t_s,stamp_ns,ego_speed_mps,objects_in_view,mean_distance_m,ocr,"));
     let r = &s["ocr_vs_distance"];
     assert!(r["low"].as_f64() <= r["rho"].as_f64() && r["rho"].as_f64() <= r["high"].as_f64());
+
+    // The region and the ground change what they should: keeping the ground adds points to
+    // every scan, the objects' region keeps a part of them, one object a part of that; in the
+    // sensor frame the scans are the same points, so the run against itself still scores 1.
+    let points = |extra: &[&str]| -> Vec<u64> {
+        let json = dir.path().join("roi.json");
+        let out = compare(&run, &sim, &scene, extra, &json);
+        assert!(
+            out.status.success(),
+            "{extra:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        read(&json)["scans"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["real_points"].as_u64().unwrap())
+            .collect()
+    };
+    let all = points(&[]);
+    let ground = points(&["--keep-ground"]);
+    let objects = points(&["--roi", "objects"]);
+    let one = points(&["--roi", "object:wall"]);
+    let total = |v: &[u64]| v.iter().sum::<u64>();
+    assert!(
+        ground.iter().zip(&all).all(|(g, a)| g > a),
+        "ground adds points"
+    );
+    assert!(objects.iter().zip(&all).all(|(o, a)| o <= a) && total(&objects) < total(&all));
+    assert!(
+        one.iter().zip(&objects).all(|(x, o)| x <= o)
+            && total(&one) > 0
+            && total(&one) < total(&objects)
+    );
+    let json = dir.path().join("sensor.json");
+    let out = compare(
+        &run,
+        &run,
+        &scene,
+        &[
+            "--sensor-frame",
+            "--keep-ground",
+            "--cell",
+            "0.1",
+            "--allow-small-cell",
+        ],
+        &json,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = read(&json);
+    assert_eq!(
+        (v["frame"].as_str(), v["summary"]["ocr_mean"].as_f64()),
+        (Some("sensor"), Some(1.0))
+    );
 }
 
 #[test]

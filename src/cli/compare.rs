@@ -43,6 +43,10 @@ pub struct CompareArgs {
     /// Poses from this trajectory file (t, x, y, z, yaw_deg) instead of the run's.
     #[arg(long)]
     trajectory: Option<PathBuf>,
+    /// Compare each scan in the sensor frame instead of the scene frame (no region, no ground
+    /// exclusion: give --keep-ground).
+    #[arg(long)]
+    sensor_frame: bool,
     /// Write everything as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -92,9 +96,10 @@ fn text(c: &Comparison) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "compared {} scans ({} of the run without a twin); cell {:.3} m ({}, admissible {:.3} m), K = {}, region {}{}",
+        "compared {} scans ({} of the run without a twin) in the {} frame; cell {:.3} m ({}, admissible {:.3} m), K = {}, region {}{}",
         s.scans,
         s.unpaired_run_scans,
+        c.frame,
         c.cell_m,
         if c.dims == Dims::Bev { "2D" } else { "3D" },
         c.admissible_cell_m,
@@ -180,6 +185,7 @@ pub fn run(args: CompareArgs) -> Result<ExitCode> {
             && scene.as_ref().is_some_and(|s| s.file.ground.is_some()),
         allow_small_cell: args.allow_small_cell,
         trajectory,
+        sensor_frame: args.sensor_frame,
     };
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(

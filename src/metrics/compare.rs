@@ -65,6 +65,9 @@ pub struct Options {
     pub allow_small_cell: bool,
     /// Poses from this trajectory instead of the run's smoothed one.
     pub trajectory: Option<Trajectory>,
+    /// Compare in the sensor frame (each scan as the sensor saw it, no ego motion) instead of
+    /// the scene frame. The region and the ground then cannot be applied: all points count.
+    pub sensor_frame: bool,
 }
 
 /// An object counts as seen with this many measured points in a scan.
@@ -93,6 +96,7 @@ struct Frame<'a> {
     trajectory: &'a Trajectory,
     pps_locked: bool,
     roi: &'a Roi,
+    sensor_frame: bool,
 }
 
 impl Frame<'_> {
@@ -133,7 +137,10 @@ impl Frame<'_> {
                     q.distance_m,
                 );
                 out.all.push((world, q.distance_m));
-                if self.roi.keeps(&world) {
+                if self.sensor_frame {
+                    out.points
+                        .push(Point3::new(f64::from(q.x), f64::from(q.y), f64::from(q.z)));
+                } else if self.roi.keeps(&world) {
                     out.points.push(world);
                 }
             }
@@ -364,6 +371,11 @@ pub fn compare(
         None => Calibration::builtin(model),
     };
     let decoder = Decoder::with_calibration(model, calibration);
+    if opts.sensor_frame && (opts.region != Region::All || opts.exclude_ground) {
+        return Err(input(
+            "the sensor frame has no scene: --roi and ground exclusion need the scene frame (use --roi all --keep-ground)".into(),
+        ));
+    }
     let roi = Roi::new(opts.region.clone(), scene, opts.exclude_ground, 0.2).map_err(input)?;
     let frame = Frame {
         decoder: &decoder,
@@ -375,6 +387,7 @@ pub fn compare(
             .and_then(|m| m.get("pps"))
             .is_some_and(|p| p == "Locked"),
         roi: &roi,
+        sensor_frame: opts.sensor_frame,
     };
     let total = pairs.len() as u64;
     let done = std::sync::atomic::AtomicU64::new(0);
@@ -438,6 +451,7 @@ pub fn compare(
             Region::Object(n) => format!("object:{n}"),
         },
         ground_excluded: opts.exclude_ground,
+        frame: if opts.sensor_frame { "sensor" } else { "scene" },
         scans: rows,
         calibration,
         summary,

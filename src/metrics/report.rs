@@ -114,6 +114,8 @@ pub struct Comparison {
     pub region: String,
     /// Ground left out.
     pub ground_excluded: bool,
+    /// The frame the points were compared in: "scene" or "sensor".
+    pub frame: &'static str,
     /// Per scan.
     pub scans: Vec<ScanRow>,
     /// OCR over cell sizes.

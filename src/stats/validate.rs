@@ -130,7 +130,10 @@ mod tests {
             Verdict::PartlyValid
         );
         assert_eq!(verdict(&[c.clone(), yellow, red], true), Verdict::Invalid);
-        assert_eq!(verdict(std::slice::from_ref(&black), true), Verdict::NotEvaluable);
+        assert_eq!(
+            verdict(std::slice::from_ref(&black), true),
+            Verdict::NotEvaluable
+        );
         assert_eq!(verdict(&[c], false), Verdict::NotEvaluable);
     }
 }
