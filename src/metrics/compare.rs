@@ -295,6 +295,43 @@ fn reference(
     Ok((bytes, run, rig, trajectory, admissible))
 }
 
+/// The measured scans with their simulated twins (same stamp); an error naming both files and
+/// their spans when there are none.
+fn pair_scans<'a>(
+    real_scans: &'a [Scan],
+    sim_scans: &'a [Scan],
+    run_path: &Path,
+    sim_path: &Path,
+) -> Result<Vec<(&'a Scan, &'a Scan)>, CompareError> {
+    let input = CompareError::Input;
+    let by_stamp: HashMap<i64, usize> = sim_scans
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (s.stamp.0, i))
+        .collect();
+    let pairs: Vec<(&Scan, &Scan)> = real_scans
+        .iter()
+        .filter_map(|r| by_stamp.get(&r.stamp.0).map(|&i| (r, &sim_scans[i])))
+        .collect();
+    if pairs.is_empty() {
+        let span = |s: &[Scan]| {
+            format!(
+                "{} .. {}",
+                hilrig_stamp::civil::iso8601_millis(s[0].stamp),
+                hilrig_stamp::civil::iso8601_millis(s[s.len() - 1].stamp)
+            )
+        };
+        return Err(input(format!(
+            "{} and {} share no scan (scan stamps {} and {}): the simulation is not a re-simulation of this run",
+            run_path.display(),
+            sim_path.display(),
+            span(real_scans),
+            span(sim_scans)
+        )));
+    }
+    Ok(pairs)
+}
+
 /// Compares the run at `run_path` with its re-simulation at `sim_path`. `progress(done, total)`
 /// is called as scans are decoded.
 pub fn compare(
@@ -334,31 +371,7 @@ pub fn compare(
             .display()
         )));
     }
-    let by_stamp: HashMap<i64, usize> = sim_scans
-        .iter()
-        .enumerate()
-        .map(|(i, s)| (s.stamp.0, i))
-        .collect();
-    let pairs: Vec<(&Scan, &Scan)> = real_scans
-        .iter()
-        .filter_map(|r| by_stamp.get(&r.stamp.0).map(|&i| (r, &sim_scans[i])))
-        .collect();
-    if pairs.is_empty() {
-        let span = |s: &[Scan]| {
-            format!(
-                "{} .. {}",
-                hilrig_stamp::civil::iso8601_millis(s[0].stamp),
-                hilrig_stamp::civil::iso8601_millis(s[s.len() - 1].stamp)
-            )
-        };
-        return Err(input(format!(
-            "{} and {} share no scan (scan stamps {} and {}): the simulation is not a re-simulation of this run",
-            run_path.display(),
-            sim_path.display(),
-            span(&real_scans),
-            span(&sim_scans)
-        )));
-    }
+    let pairs = pair_scans(&real_scans, &sim_scans, run_path, sim_path)?;
     let lidar = rig
         .lidar
         .as_ref()
