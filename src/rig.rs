@@ -310,6 +310,29 @@ pub enum RigError {
 }
 
 impl Rig {
+    /// The lidar's model and calibration (the rig's calibration file, else the model's built-in
+    /// geometry), with its settings: what every step that decodes or simulates its packets
+    /// needs. An error says what is missing or wrong.
+    pub fn lidar_sensor(
+        &self,
+    ) -> Result<
+        (
+            &LidarConfig,
+            hilrig_velodyne::Model,
+            hilrig_velodyne::Calibration,
+        ),
+        String,
+    > {
+        let lidar = self.lidar.as_ref().ok_or("the rig has no [lidar]")?;
+        let model: hilrig_velodyne::Model = lidar.model.parse()?;
+        let calibration = match &lidar.calibration {
+            Some(p) => hilrig_velodyne::Calibration::from_file(&self.resolve(p), model)
+                .map_err(|e| e.to_string())?,
+            None => hilrig_velodyne::Calibration::builtin(model),
+        };
+        Ok((lidar, model, calibration))
+    }
+
     /// Parses a rig file's text (`name` says where it came from in errors).
     pub fn from_toml(text: &str, name: &str) -> Result<Rig, RigError> {
         toml::from_str(text).map_err(|e| RigError::Parse {

@@ -10,43 +10,12 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// Records fixture repetition `rep` and re-simulates it with the idealized model.
+/// Records fixture repetition `rep` and re-simulates it with the idealized model: the run, the
+/// simulation and the scene.
 fn run_and_sim(dir: &Path, rep: u32) -> (PathBuf, PathBuf, PathBuf) {
-    let src = fixture(&format!("parking/rep-{rep:02}"));
-    let run = dir.join(format!("run{rep}.mcap"));
-    let out = Command::new(hilrig_bin())
-        .args(["record", "--rig"])
-        .arg(demo_rig())
-        .arg("--from")
-        .arg(src.join("drive.pcapng.zst"))
-        .arg("-o")
-        .arg(&run)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let sim = dir.join(format!("sim{rep}.mcap"));
-    let scene = src.join("scene.toml");
-    let out = Command::new(hilrig_bin())
-        .arg("resim")
-        .arg(&run)
-        .arg("--scene")
-        .arg(&scene)
-        .arg("--model")
-        .arg(fixture("parking/idealized.toml"))
-        .arg("-o")
-        .arg(&sim)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (run, sim, scene)
+    let (run, sims) = record_and_resim(dir, rep, &["idealized"]);
+    let scene = fixture(&format!("parking/rep-{rep:02}/scene.toml"));
+    (run, sims[0].clone(), scene)
 }
 
 fn compare(run: &Path, sim: &Path, scene: &Path, extra: &[&str], json: &Path) -> Output {

@@ -11,50 +11,6 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn hilrig(args: &[&std::ffi::OsStr]) -> std::process::Output {
-    Command::new(hilrig_bin()).args(args).output().unwrap()
-}
-
-fn record_and_resim(dir: &Path, rep: u32) -> (PathBuf, PathBuf, PathBuf) {
-    let src = fixture(&format!("parking/rep-{rep:02}"));
-    let run = dir.join(format!("run{rep}.mcap"));
-    let out = hilrig(&[
-        "record".as_ref(),
-        "--rig".as_ref(),
-        demo_rig().as_os_str(),
-        "--from".as_ref(),
-        src.join("drive.pcapng.zst").as_os_str(),
-        "-o".as_ref(),
-        run.as_os_str(),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let mut sims = Vec::new();
-    for model in ["idealized", "truth"] {
-        let sim = dir.join(format!("{model}{rep}.mcap"));
-        let out = hilrig(&[
-            "resim".as_ref(),
-            run.as_os_str(),
-            "--scene".as_ref(),
-            src.join("scene.toml").as_os_str(),
-            "--model".as_ref(),
-            fixture(&format!("parking/{model}.toml")).as_os_str(),
-            "-o".as_ref(),
-            sim.as_os_str(),
-        ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        sims.push(sim);
-    }
-    (run, sims[0].clone(), sims[1].clone())
-}
-
 fn validate(
     reals: &[PathBuf],
     sims: &[PathBuf],
@@ -97,10 +53,10 @@ fn the_truth_model_scores_better_than_the_idealized_one_in_every_phase() {
     .unwrap();
     let (mut reals, mut ideal, mut truth) = (Vec::new(), Vec::new(), Vec::new());
     for rep in 1..=5 {
-        let (r, i, t) = record_and_resim(dir.path(), rep);
+        let (r, sims) = record_and_resim(dir.path(), rep, &["idealized", "truth"]);
         reals.push(r);
-        ideal.push(i);
-        truth.push(t);
+        ideal.push(sims[0].clone());
+        truth.push(sims[1].clone());
     }
     let json = dir.path().join("v.json");
     let (code_i, vi) = validate(&reals, &ideal, &phases, &json);

@@ -26,7 +26,7 @@ use crate::scene::pose::{mounting_isometry, Trajectory};
 use crate::scene::Scene;
 use crate::stats::rank::spearman_with_interval;
 use hilrig_stamp::UtcNanos;
-use hilrig_velodyne::{Calibration, DataPacket, Decoder, Model, Point as LidarPoint};
+use hilrig_velodyne::{DataPacket, Decoder, Point as LidarPoint};
 use nalgebra::{Isometry3, Point3};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -257,26 +257,7 @@ fn reference(
     trajectory: Option<Trajectory>,
 ) -> Result<(Vec<u8>, Run, Rig, Trajectory, f64), CompareError> {
     let input = CompareError::Input;
-    let bytes = std::fs::read(run_path)
-        .map_err(|e| input(format!("cannot read {}: {e}", run_path.display())))?;
-    if !bytes.starts_with(mcap::MAGIC) {
-        return Err(input(format!(
-            "{}: not an MCAP recording",
-            run_path.display()
-        )));
-    }
-    let run = Run::from_bytes(&bytes);
-    let rig = match (rig, &run.rig_toml) {
-        (Some(r), _) => r.clone(),
-        (None, Some(text)) => Rig::from_toml(text, "rig.toml attached to the recording")
-            .map_err(|e| input(e.to_string()))?,
-        (None, None) => {
-            return Err(input(format!(
-                "{}: no rig.toml attached to the recording: give --rig",
-                run_path.display()
-            )))
-        }
-    };
+    let (bytes, run, rig) = crate::reference::run::load_with_rig(run_path, rig).map_err(input)?;
     let (report, smoothed) = check_with_trajectory(&run, &rig, scene);
     if report.verdict == Verdict::Unusable {
         return Err(input(format!(
@@ -372,17 +353,7 @@ pub fn compare(
         )));
     }
     let pairs = pair_scans(&real_scans, &sim_scans, run_path, sim_path)?;
-    let lidar = rig
-        .lidar
-        .as_ref()
-        .ok_or_else(|| input("the rig has no [lidar]".into()))?;
-    let model: Model = lidar.model.parse().map_err(input)?;
-    let calibration = match &lidar.calibration {
-        Some(p) => {
-            Calibration::from_file(&rig.resolve(p), model).map_err(|e| input(e.to_string()))?
-        }
-        None => Calibration::builtin(model),
-    };
+    let (lidar, model, calibration) = rig.lidar_sensor().map_err(input)?;
     let decoder = Decoder::with_calibration(model, calibration);
     if opts.sensor_frame && (opts.region != Region::All || opts.exclude_ground) {
         return Err(input(

@@ -259,6 +259,24 @@ mod tests {
         Point3::new(x, y, z)
     }
 
+    /// The hand-computed case: real points in cells (0,0), (1,0), (2,0), (2,1) of a 1 m grid,
+    /// simulated ones in (0,0), (2,0) twice and (5,5); heights 0 to 9 m.
+    fn hand_case(g: &GridSpec) -> (Occupancy, Occupancy) {
+        let real = vec![
+            p(0.5, 0.5, 0.0),
+            p(1.5, 0.2, 3.0),
+            p(2.1, 0.9, 0.0),
+            p(2.9, 1.1, 0.0),
+        ];
+        let sim = vec![
+            p(0.1, 0.1, 9.0),
+            p(2.5, 0.5, 0.0),
+            p(2.6, 0.4, 1.0),
+            p(5.5, 5.5, 0.0),
+        ];
+        (occ(g, &[real]), occ(g, &[sim]))
+    }
+
     fn occ(spec: &GridSpec, scans: &[Vec<Point3<f64>>]) -> Occupancy {
         let refs: Vec<&[Point3<f64>]> = scans.iter().map(|s| s.as_slice()).collect();
         Occupancy::of(spec, &refs).unwrap()
@@ -271,24 +289,7 @@ mod tests {
     #[test]
     fn ocr_precision_iou_and_cosine_of_a_hand_computed_2d_case() {
         let g = GridSpec::new(1.0, Dims::Bev).unwrap();
-        let real = occ(
-            &g,
-            &[vec![
-                p(0.5, 0.5, 0.0),
-                p(1.5, 0.2, 3.0),
-                p(2.1, 0.9, 0.0),
-                p(2.9, 1.1, 0.0),
-            ]],
-        );
-        let sim = occ(
-            &g,
-            &[vec![
-                p(0.1, 0.1, 9.0),
-                p(2.5, 0.5, 0.0),
-                p(2.6, 0.4, 1.0),
-                p(5.5, 5.5, 0.0),
-            ]],
-        );
+        let (real, sim) = hand_case(&g);
         let s = compare(&real, &sim);
         assert_eq!((s.real_cells, s.sim_cells, s.both_cells), (4, 3, 2));
         assert_eq!(s.ocr, Some(0.5));
@@ -302,24 +303,7 @@ mod tests {
     #[test]
     fn voxels_separate_heights() {
         let g = GridSpec::new(1.0, Dims::Voxel).unwrap();
-        let real = occ(
-            &g,
-            &[vec![
-                p(0.5, 0.5, 0.0),
-                p(1.5, 0.2, 3.0),
-                p(2.1, 0.9, 0.0),
-                p(2.9, 1.1, 0.0),
-            ]],
-        );
-        let sim = occ(
-            &g,
-            &[vec![
-                p(0.1, 0.1, 9.0),
-                p(2.5, 0.5, 0.0),
-                p(2.6, 0.4, 1.0),
-                p(5.5, 5.5, 0.0),
-            ]],
-        );
+        let (real, sim) = hand_case(&g);
         let s = compare(&real, &sim);
         assert_eq!((s.real_cells, s.sim_cells, s.both_cells), (4, 4, 1));
         assert_eq!(s.ocr, Some(0.25));

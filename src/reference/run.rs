@@ -68,6 +68,34 @@ pub enum RunError {
     NotMcap(String),
 }
 
+/// A recording's bytes, the run read from them, and its rig: `rig` when given, else the rig
+/// file the recorder attached. What re-simulation and comparison start from; the error says
+/// what is wrong and with which file.
+pub fn load_with_rig(
+    path: &Path,
+    rig: Option<&crate::rig::Rig>,
+) -> Result<(Vec<u8>, Run, crate::rig::Rig), String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    if !bytes.starts_with(mcap::MAGIC) {
+        return Err(format!("{}: not an MCAP recording", path.display()));
+    }
+    let run = Run::from_bytes(&bytes);
+    let rig = match (rig, &run.rig_toml) {
+        (Some(r), _) => r.clone(),
+        (None, Some(text)) => {
+            crate::rig::Rig::from_toml(text, "rig.toml attached to the recording")
+                .map_err(|e| e.to_string())?
+        }
+        (None, None) => {
+            return Err(format!(
+                "{}: no rig.toml attached to the recording: give the rig file (--rig)",
+                path.display()
+            ))
+        }
+    };
+    Ok((bytes, run, rig))
+}
+
 impl Run {
     /// Reads a recording.
     pub fn read(path: &Path) -> Result<Run, RunError> {

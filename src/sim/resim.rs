@@ -16,12 +16,11 @@ use crate::bag::scans::sensor_time;
 use crate::bag::topics;
 use crate::bag::{msgs, BagOptions, BagWriter};
 use crate::reference::check::{check_with_trajectory, Report, Verdict};
-use crate::reference::run::Run;
 use crate::rig::Rig;
 use crate::scene::pose::Trajectory;
 use crate::scene::Scene;
 use hilrig_stamp::UtcNanos;
-use hilrig_velodyne::{Calibration, DataPacket, Decoder, Model, DATA_PACKET_SIZE};
+use hilrig_velodyne::{DataPacket, Decoder, DATA_PACKET_SIZE};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -84,30 +83,8 @@ pub fn resim(
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<ResimSummary, ResimError> {
     let input = |e: String| ResimError::Input(e);
-    let bytes = std::fs::read(run_path)
-        .map_err(|e| input(format!("cannot read {}: {e}", run_path.display())))?;
-    if !bytes.starts_with(mcap::MAGIC) {
-        return Err(input(format!(
-            "{}: not an MCAP recording",
-            run_path.display()
-        )));
-    }
-    let run = Run::from_bytes(&bytes);
-    let attached;
-    let rig = match rig {
-        Some(r) => r,
-        None => {
-            let text = run.rig_toml.as_deref().ok_or_else(|| {
-                input(format!(
-                    "{}: no rig.toml attached to the recording: give the rig file",
-                    run_path.display()
-                ))
-            })?;
-            attached = Rig::from_toml(text, "rig.toml attached to the recording")
-                .map_err(|e| input(e.to_string()))?;
-            &attached
-        }
-    };
+    let (bytes, run, rig) = crate::reference::run::load_with_rig(run_path, rig).map_err(input)?;
+    let rig = &rig;
     let (report, smoothed) = check_with_trajectory(&run, rig, Some(scene));
     let mut summary = ResimSummary {
         verdict: Some(report.verdict),
@@ -129,17 +106,7 @@ pub fn resim(
             )
         }
     };
-    let lidar = rig
-        .lidar
-        .as_ref()
-        .ok_or_else(|| input("the rig has no [lidar]".into()))?;
-    let sensor: Model = lidar.model.parse().map_err(input)?;
-    let calibration = match &lidar.calibration {
-        Some(p) => {
-            Calibration::from_file(&rig.resolve(p), sensor).map_err(|e| input(e.to_string()))?
-        }
-        None => Calibration::builtin(sensor),
-    };
+    let (lidar, sensor, calibration) = rig.lidar_sensor().map_err(input)?;
     let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, model)
         .map_err(|e| input(e.to_string()))?;
     let pps_locked = run

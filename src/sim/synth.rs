@@ -452,17 +452,9 @@ fn rig_parts(job: &SynthJob) -> Result<RigParts, SynthError> {
     let input = |e: String| SynthError::Input(e);
     let rig_path = job.drive_base.join(&job.drive.rig);
     let rig = Rig::load(&rig_path).map_err(|e| input(e.to_string()))?;
-    let lidar = rig
-        .lidar
-        .as_ref()
-        .ok_or_else(|| input(format!("{}: synth needs a [lidar]", rig_path.display())))?;
-    let model: Model = lidar.model.parse().map_err(input)?;
-    let calibration = match &lidar.calibration {
-        Some(p) => {
-            Calibration::from_file(&rig.resolve(p), model).map_err(|e| input(e.to_string()))?
-        }
-        None => Calibration::builtin(model),
-    };
+    let (_, model, calibration) = rig
+        .lidar_sensor()
+        .map_err(|e| input(format!("{}: synth needs a lidar: {e}", rig_path.display())))?;
     rig.gnss
         .as_ref()
         .ok_or_else(|| input(format!("{}: synth needs a [gnss]", rig_path.display())))?;

@@ -6,7 +6,7 @@ use crate::bag::scans::read_scans;
 use crate::metrics::features::{scan_features, ScanFeatures, FEATURES};
 use crate::reference::run::Run;
 use crate::rig::Rig;
-use hilrig_velodyne::{Calibration, Decoder, Model};
+use hilrig_velodyne::Decoder;
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
@@ -108,12 +108,7 @@ pub fn validate(
             &attached
         }
     };
-    let lidar = rig.lidar.as_ref().ok_or("the rig has no [lidar]")?;
-    let model: Model = lidar.model.parse()?;
-    let calibration = match &lidar.calibration {
-        Some(p) => Calibration::from_file(&rig.resolve(p), model).map_err(|e| e.to_string())?,
-        None => Calibration::builtin(model),
-    };
+    let (_, model, calibration) = rig.lidar_sensor()?;
     let decoder = Decoder::with_calibration(model, calibration);
     let real: Vec<Loaded> = reals
         .iter()

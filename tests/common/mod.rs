@@ -203,3 +203,57 @@ pub fn synth_and_record_edited(
     );
     SynthRun { dir, rep, run }
 }
+
+/// Runs `hilrig ARGS` and asserts that it succeeded (its stderr in the message if not).
+pub fn hilrig_ok(args: &[&std::ffi::OsStr]) -> std::process::Output {
+    let out = std::process::Command::new(hilrig_bin())
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "hilrig {:?}: {}",
+        args,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// Records the parking fixture's repetition `rep` into `dir/run{rep}.mcap` with the demo rig
+/// and re-simulates it with each of `models` (fixture model files: "idealized", "truth") in its
+/// surveyed scene into `dir/{model}{rep}.mcap`.
+pub fn record_and_resim(
+    dir: &std::path::Path,
+    rep: u32,
+    models: &[&str],
+) -> (PathBuf, Vec<PathBuf>) {
+    let src = fixture(&format!("parking/rep-{rep:02}"));
+    let run = dir.join(format!("run{rep}.mcap"));
+    hilrig_ok(&[
+        "record".as_ref(),
+        "--rig".as_ref(),
+        demo_rig().as_os_str(),
+        "--from".as_ref(),
+        src.join("drive.pcapng.zst").as_os_str(),
+        "-o".as_ref(),
+        run.as_os_str(),
+    ]);
+    let sims = models
+        .iter()
+        .map(|model| {
+            let sim = dir.join(format!("{model}{rep}.mcap"));
+            hilrig_ok(&[
+                "resim".as_ref(),
+                run.as_os_str(),
+                "--scene".as_ref(),
+                src.join("scene.toml").as_os_str(),
+                "--model".as_ref(),
+                fixture(&format!("parking/{model}.toml")).as_os_str(),
+                "-o".as_ref(),
+                sim.as_os_str(),
+            ]);
+            sim
+        })
+        .collect();
+    (run, sims)
+}

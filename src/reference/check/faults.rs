@@ -46,6 +46,19 @@ impl FaultLog {
         self.faults.iter().any(|f| f.name == name)
     }
 
+    /// A located finding (fault or mark).
+    fn located(&self, name: &'static str, from: UtcNanos, to: UtcNanos, detail: String) -> Fault {
+        Fault {
+            name,
+            from: iso(from),
+            to: iso(to),
+            from_s: secs_ms(self.start, from),
+            to_s: secs_ms(self.start, to),
+            detail,
+            window: (from, to),
+        }
+    }
+
     /// Records one fault.
     pub(super) fn fault(
         &mut self,
@@ -54,15 +67,8 @@ impl FaultLog {
         to: UtcNanos,
         detail: String,
     ) {
-        self.faults.push(Fault {
-            name,
-            from: iso(from),
-            to: iso(to),
-            from_s: secs_ms(self.start, from),
-            to_s: secs_ms(self.start, to),
-            detail,
-            window: (from, to),
-        });
+        let f = self.located(name, from, to, detail);
+        self.faults.push(f);
     }
 
     /// Marks one stretch not usable (not a fault: the run's verdict stays).
@@ -73,15 +79,8 @@ impl FaultLog {
         to: UtcNanos,
         detail: String,
     ) {
-        self.marks.push(Fault {
-            name,
-            from: iso(from),
-            to: iso(to),
-            from_s: secs_ms(self.start, from),
-            to_s: secs_ms(self.start, to),
-            detail,
-            window: (from, to),
-        });
+        let m = self.located(name, from, to, detail);
+        self.marks.push(m);
     }
 
     /// Faults for runs of consecutive flagged samples (a run ends after `gap` without a flag).
