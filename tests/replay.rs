@@ -646,3 +646,93 @@ fn can_frames_replayed_from_a_recording_are_the_captured_ones() {
         .collect();
     assert_eq!(got, frames);
 }
+
+/// The room capture with its position frames as early VLP-16 firmware writes them: the IPv4
+/// total length of a data packet (1234) in a 554-byte frame, the UDP length right. Returns the
+/// file and the original position payloads.
+fn quirky_position_frames(dir: &Path) -> (std::path::PathBuf, Vec<Vec<u8>>) {
+    let src = common::fixture("vlp16_room.pcapng");
+    let mut r = CaptureReader::new(std::fs::File::open(&src).unwrap()).unwrap();
+    let mut w = PcapngWriter::new(Vec::new(), "hilrig test").unwrap();
+    let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
+    let mut positions = Vec::new();
+    while let Some(rec) = r.next_record() {
+        let rec = rec.unwrap();
+        let mut frame = rec.data.to_vec();
+        // Ethernet (14) + IPv4 (20) + UDP: destination port at 36..38.
+        if frame.len() == 554 && u16::from_be_bytes([frame[36], frame[37]]) == 8308 {
+            positions.push(frame[42..].to_vec());
+            frame[16..18].copy_from_slice(&1234u16.to_be_bytes());
+        }
+        w.write_packet(eth, rec.time, &frame).unwrap();
+    }
+    assert!(!positions.is_empty(), "the fixture has position frames");
+    let out = dir.join("quirky.pcapng");
+    std::fs::write(&out, w.finish().unwrap()).unwrap();
+    (out, positions)
+}
+
+/// Early VLP-16 firmware's position frames (IPv4 total length 1234 in 554 bytes): decoded, with
+/// the hour and the PPS state from their RMC as from the sound capture, counted as a firmware
+/// quirk, and sent by `replay`; a frame really cut by the snap length is still rejected and
+/// counted as such.
+#[test]
+fn position_frames_with_a_data_packet_s_ipv4_length_are_read_and_replayed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (file, positions) = quirky_position_frames(dir.path());
+    let options = hilrig::decode::lidar::LidarOptions::default();
+    let (sound, _) = common::decode_file(&common::fixture("vlp16_room.pcapng"), &options);
+    let (quirky, points) = common::decode_file(&file, &options);
+    assert_eq!(quirky.position_packets, positions.len() as u64);
+    assert_eq!(quirky.position_packets, sound.position_packets);
+    assert_eq!(quirky.capture.ipv4_length_quirks, positions.len() as u64);
+    assert!(quirky.capture.first_ipv4_length_quirk.is_some());
+    assert_eq!(
+        quirky.capture.skipped_total(),
+        0,
+        "{:?}",
+        quirky.capture.skipped
+    );
+    assert_eq!(quirky.hour_source, sound.hour_source);
+    assert!(quirky.hour_source.is_some());
+    assert_eq!(quirky.pps, sound.pps);
+    assert!(!points.is_empty());
+
+    let (_, got_positions, _, _) = receive(&file, &[], Duration::from_millis(300));
+    assert_eq!(got_positions, positions);
+
+    // The same frame cut by the snap length (a classic pcap whose record says 554 bytes were on
+    // the wire and 300 captured) is rejected and counted, not read as a quirk.
+    let mut frame = Vec::new();
+    let mut r = CaptureReader::new(std::fs::File::open(&file).unwrap()).unwrap();
+    while let Some(rec) = r.next_record() {
+        let rec = rec.unwrap();
+        if rec.data.len() == 554 {
+            frame = rec.data.to_vec();
+            break;
+        }
+    }
+    let mut pcap = Vec::new();
+    for v in [0xa1b2_c3d4u32, 0x0004_0002, 0, 0, 300, 1] {
+        pcap.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in [1_795_255_200u32, 0, 300, 554] {
+        pcap.extend_from_slice(&v.to_le_bytes());
+    }
+    pcap.extend_from_slice(&frame[..300]);
+    let cut = dir.path().join("cut.pcap");
+    std::fs::write(&cut, pcap).unwrap();
+    let mut d = Demux::new(CaptureReader::new(std::fs::File::open(&cut).unwrap()).unwrap());
+    while let Some(i) = d.next_item() {
+        assert!(
+            !matches!(i.unwrap().packet, Packet::Udp { .. }),
+            "a cut frame was delivered"
+        );
+    }
+    let stats = d.stats();
+    assert_eq!(stats.skipped_total(), 1, "{:?}", stats.skipped);
+    assert_eq!(stats.ipv4_length_quirks, 0);
+    assert!(stats
+        .skipped
+        .contains_key(&hilrig::capture::SkipReason::CutBySnapLength));
+}

@@ -222,6 +222,13 @@ fn report(args: &DecodeArgs, s: &LidarSummary) {
         }
         lines.push(format!("skipped records: {}", r.join(", ")));
     }
+    if s.capture.ipv4_length_quirks > 0 {
+        lines.push(format!(
+            "{} frames whose IPv4 total length runs past the frame although it was captured whole (a firmware quirk: early VLP-16 position packets); read by their UDP length, first at byte {}",
+            s.capture.ipv4_length_quirks,
+            s.capture.first_ipv4_length_quirk.unwrap_or(0)
+        ));
+    }
     let mut err = io::stderr().lock();
     for l in lines {
         let _ = writeln!(err, "{path}: {l}");

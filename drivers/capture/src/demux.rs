@@ -64,6 +64,11 @@ pub struct Stats {
     pub fragments_dropped: u64,
     /// Records skipped, by reason.
     pub skipped: BTreeMap<SkipReason, u64>,
+    /// Whole frames whose IPv4 total length runs past their end, accepted because their UDP
+    /// length fits (a firmware quirk, see [`crate::ipv4::parse_ipv4`]).
+    pub ipv4_length_quirks: u64,
+    /// Byte offset of the first such record.
+    pub first_ipv4_length_quirk: Option<u64>,
 }
 
 impl Stats {
@@ -85,6 +90,7 @@ enum Outcome {
     Udp {
         src: SocketAddrV4,
         dst: SocketAddrV4,
+        quirk: bool,
     },
     Can(CanFrame),
     Serial,
@@ -152,8 +158,12 @@ impl<R: Read + Send + 'static> Demux<R> {
                     self.stats.fragments += 1;
                     continue;
                 }
-                Outcome::Udp { src, dst } => {
+                Outcome::Udp { src, dst, quirk } => {
                     self.stats.udp += 1;
+                    if quirk {
+                        self.stats.ipv4_length_quirks += 1;
+                        self.stats.first_ipv4_length_quirk.get_or_insert(offset);
+                    }
                     Packet::Udp {
                         src,
                         dst,
@@ -201,7 +211,8 @@ fn classify(
                 Ok(b) => b,
                 Err(r) => return Outcome::Skip(r),
             };
-            let ip = match parse_ipv4(ip_bytes) {
+            // Records cut by the snap length were skipped before: this frame is whole.
+            let ip = match parse_ipv4(ip_bytes, true) {
                 Ok(ip) => ip,
                 Err(r) => return Outcome::Skip(r),
             };
@@ -218,6 +229,7 @@ fn classify(
                             Outcome::Udp {
                                 src: u.src,
                                 dst: u.dst,
+                                quirk: false,
                             }
                         }
                         Err(r) => Outcome::Skip(r),
@@ -231,6 +243,7 @@ fn classify(
                     Outcome::Udp {
                         src: u.src,
                         dst: u.dst,
+                        quirk: ip.length_quirk,
                     }
                 }
                 Err(r) => Outcome::Skip(r),

@@ -33,13 +33,24 @@ pub struct Ipv4Packet<'a> {
     pub fragment_offset: usize,
     /// More-fragments flag.
     pub more_fragments: bool,
-    /// Payload (after options, up to the total length).
+    /// Payload (after options, up to the total length, or to the end of the bytes present
+    /// when `length_quirk`).
     pub payload: &'a [u8],
+    /// The header's total length runs past the bytes present although the frame was captured
+    /// whole (see [`parse_ipv4`]).
+    pub length_quirk: bool,
 }
 
 /// Parses an IPv4 header (options skipped via IHL); the payload is cut to the total length so that
 /// Ethernet padding is not taken for data.
-pub fn parse_ipv4(bytes: &[u8]) -> Result<Ipv4Packet<'_>, SkipReason> {
+///
+/// `whole` says the capture holds the whole frame (captured length = original length). Then a
+/// total length beyond the bytes present is not a cut packet but a firmware quirk: early VLP-16
+/// firmware writes its data packets' total length (1234) into its 554-byte position frames. Such
+/// an unfragmented packet is accepted with `length_quirk` set and the payload running to the end
+/// of the frame (the UDP length, checked by [`parse_udp`], then says where the datagram ends).
+/// Without `whole` it stays a truncated packet.
+pub fn parse_ipv4(bytes: &[u8], whole: bool) -> Result<Ipv4Packet<'_>, SkipReason> {
     if bytes.len() < 20 {
         return Err(SkipReason::TruncatedIpv4);
     }
@@ -54,10 +65,13 @@ pub fn parse_ipv4(bytes: &[u8]) -> Result<Ipv4Packet<'_>, SkipReason> {
     if total < ihl {
         return Err(SkipReason::BadIpv4Header);
     }
-    if bytes.len() < total {
+    let flags_frag = u16::from_be_bytes([bytes[6], bytes[7]]);
+    let fragmented = flags_frag & 0x3fff != 0;
+    let length_quirk = bytes.len() < total;
+    if length_quirk && (!whole || fragmented || bytes.len() < ihl) {
         return Err(SkipReason::TruncatedIpv4);
     }
-    let flags_frag = u16::from_be_bytes([bytes[6], bytes[7]]);
+    let end = total.min(bytes.len());
     Ok(Ipv4Packet {
         src: Ipv4Addr::new(bytes[12], bytes[13], bytes[14], bytes[15]),
         dst: Ipv4Addr::new(bytes[16], bytes[17], bytes[18], bytes[19]),
@@ -65,7 +79,8 @@ pub fn parse_ipv4(bytes: &[u8]) -> Result<Ipv4Packet<'_>, SkipReason> {
         id: u16::from_be_bytes([bytes[4], bytes[5]]),
         fragment_offset: usize::from(flags_frag & 0x1fff) * 8,
         more_fragments: flags_frag & 0x2000 != 0,
-        payload: &bytes[ihl..total],
+        payload: &bytes[ihl..end],
+        length_quirk,
     })
 }
 
@@ -222,7 +237,7 @@ mod tests {
     fn options_are_skipped_and_padding_cut() {
         let mut p = header(24 + 3, 1, 0, 6);
         p.extend_from_slice(&[1, 2, 3, 0, 0, 0]); // 3 payload bytes + Ethernet padding
-        let ip = parse_ipv4(&p).expect("valid");
+        let ip = parse_ipv4(&p, true).expect("valid");
         assert_eq!(ip.payload, &[1, 2, 3]);
     }
 
@@ -240,9 +255,9 @@ mod tests {
             p.extend_from_slice(&data[..24]);
             p
         };
-        assert_eq!(r.push(&parse_ipv4(&f2).unwrap(), UtcNanos(0)), None);
+        assert_eq!(r.push(&parse_ipv4(&f2, true).unwrap(), UtcNanos(0)), None);
         let done = r
-            .push(&parse_ipv4(&f1).unwrap(), UtcNanos(0))
+            .push(&parse_ipv4(&f1, true).unwrap(), UtcNanos(0))
             .expect("complete");
         assert_eq!(done.payload, data);
         assert_eq!(r.pending_fragments(), 0);
@@ -256,5 +271,33 @@ mod tests {
             parse_udp(Ipv4Addr::LOCALHOST, Ipv4Addr::LOCALHOST, &u),
             Err(SkipReason::BadUdpLength)
         );
+    }
+
+    /// A position frame of early VLP-16 firmware: IPv4 total length 1234 in a frame whose IPv4
+    /// part is 540 bytes, UDP length 520: accepted as a quirk when the frame was captured whole,
+    /// its 512-byte payload intact; rejected when the capture says it was cut, or when the UDP
+    /// length does not fit either.
+    #[test]
+    fn a_total_length_beyond_a_whole_frame_is_a_firmware_quirk() {
+        let payload: Vec<u8> = (0..512).map(|i| i as u8).collect();
+        let src = SocketAddrV4::new(Ipv4Addr::new(192, 168, 1, 201), 8308);
+        let dst = SocketAddrV4::new(Ipv4Addr::new(255, 255, 255, 255), 8308);
+        let mut p = crate::writer::udp_ipv4_packets(src, dst, &payload, 1, 1500).remove(0);
+        p[2..4].copy_from_slice(&1234u16.to_be_bytes());
+        let ip = parse_ipv4(&p, true).unwrap();
+        assert!(ip.length_quirk);
+        let u = parse_udp(ip.src, ip.dst, ip.payload).unwrap();
+        assert_eq!(u.payload, &payload[..]);
+        assert_eq!(parse_ipv4(&p, false), Err(SkipReason::TruncatedIpv4));
+        // A UDP length that does not fit the bytes present either: still rejected.
+        p[24..26].copy_from_slice(&1214u16.to_be_bytes());
+        let ip = parse_ipv4(&p, true).unwrap();
+        assert_eq!(
+            parse_udp(ip.src, ip.dst, ip.payload),
+            Err(SkipReason::BadUdpLength)
+        );
+        // A sound packet is no quirk.
+        let q = crate::writer::udp_ipv4_packets(src, dst, &payload, 1, 1500).remove(0);
+        assert!(!parse_ipv4(&q, true).unwrap().length_quirk);
     }
 }
