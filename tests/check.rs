@@ -37,6 +37,34 @@ fn drive_edited_and_check(edit: impl Fn(String) -> String, faults: &str) -> (i32
     (out.status.code().unwrap_or(-1), v)
 }
 
+/// `check` of a synthesized run with its surveyed scene (and `rig` when given), writing the JSON
+/// report and the smoothed trajectory: exit code, report, trajectory file.
+fn check_with_trajectory(
+    d: &SynthRun,
+    rig: Option<&std::path::Path>,
+) -> (Option<i32>, Value, std::path::PathBuf) {
+    let (json, traj) = (
+        d.dir.path().join("check.json"),
+        d.dir.path().join("trajectory.csv"),
+    );
+    let mut cmd = Command::new(hilrig_bin());
+    cmd.arg("check").arg(&d.run);
+    if let Some(r) = rig {
+        cmd.arg("--rig").arg(r);
+    }
+    let out = cmd
+        .arg("--scene")
+        .arg(d.rep.join("scene.toml"))
+        .arg("--json")
+        .arg(&json)
+        .arg("--trajectory")
+        .arg(&traj)
+        .output()
+        .unwrap();
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    (out.status.code(), v, traj)
+}
+
 fn faults<'a>(v: &'a Value, name: &str) -> Vec<&'a Value> {
     v["faults"]
         .as_array()
@@ -163,26 +191,8 @@ fn the_heading_is_as_good_as_its_sigma_says() {
                 ),
         };
         let d = synth_and_record_edited(edit, "", seed, true);
-        let json = d.dir.path().join("check.json");
-        let traj = d.dir.path().join("trajectory.csv");
-        let out = Command::new(hilrig_bin())
-            .arg("check")
-            .arg(&d.run)
-            .arg("--scene")
-            .arg(d.rep.join("scene.toml"))
-            .arg("--json")
-            .arg(&json)
-            .arg("--trajectory")
-            .arg(&traj)
-            .output()
-            .unwrap();
-        let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-        assert_eq!(
-            out.status.code(),
-            Some(0),
-            "{start}: faults {:?}",
-            names(&v)
-        );
+        let (code, v, traj) = check_with_trajectory(&d, None);
+        assert_eq!(code, Some(0), "{start}: faults {:?}", names(&v));
         let rows = |p: &std::path::Path| -> Vec<Vec<f64>> {
             std::fs::read_to_string(p)
                 .unwrap()
@@ -544,22 +554,8 @@ fn stretches_with_an_uncertain_heading_are_marked_not_usable_without_a_fault() {
     assert!(tight.contains(&format!("max_heading_sigma_deg = {limit}")));
     let rig = d.dir.path().join("tight.toml");
     std::fs::write(&rig, tight).unwrap();
-    let (json, traj) = (d.dir.path().join("c.json"), d.dir.path().join("t.csv"));
-    let out = Command::new(hilrig_bin())
-        .arg("check")
-        .arg(&d.run)
-        .arg("--rig")
-        .arg(&rig)
-        .arg("--scene")
-        .arg(d.rep.join("scene.toml"))
-        .arg("--json")
-        .arg(&json)
-        .arg("--trajectory")
-        .arg(&traj)
-        .output()
-        .unwrap();
-    let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    assert_eq!(out.status.code(), Some(0), "faults {:?}", names(&v));
+    let (code, v, traj) = check_with_trajectory(&d, Some(&rig));
+    assert_eq!(code, Some(0), "faults {:?}", names(&v));
     let marks = v["marks"].as_array().unwrap();
     assert!(!marks.is_empty(), "no marks at a {limit}° limit");
     let t0 = std::fs::read_to_string(d.rep.join("truth.csv"))

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{hilrig_bin, python};
+use common::{hilrig_bin, interop_script};
 use serde_json::Value;
 use std::process::Command;
 
@@ -60,21 +60,11 @@ fn ishigami_indices_equal_salib_s_on_the_same_samples() {
         String::from_utf8_lossy(&out.stderr)
     );
     let ours: Vec<Value> = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let script =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/interop/salib_fast.py");
-    let out = Command::new(python())
-        .arg(&script)
-        .arg(&outputs)
-        .arg("x1,x2,x3")
-        .arg("4")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let stdout = interop_script(
+        "salib_fast.py",
+        &[outputs.as_os_str(), "x1,x2,x3".as_ref(), "4".as_ref()],
     );
-    let salib: Vec<Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let salib: Vec<Value> = serde_json::from_slice(&stdout).unwrap();
     for ((o, s), analytic) in ours.iter().zip(&salib).zip([0.3139, 0.4424, 0.0]) {
         let (s1, st) = (o["s1"].as_f64().unwrap(), o["st"].as_f64().unwrap());
         assert!(

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::python;
+use common::interop_script;
 use hilrig::stats::avm::area_validation_metric;
 use rand::{Rng, SeedableRng};
 
@@ -24,19 +24,8 @@ fn the_area_validation_metric_equals_scipy_s_wasserstein_distance() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("pairs.json");
     std::fs::write(&path, serde_json::to_string(&pairs).unwrap()).unwrap();
-    let script =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/interop/wasserstein.py");
-    let out = std::process::Command::new(python())
-        .arg(&script)
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let scipy: Vec<f64> = String::from_utf8(out.stdout)
+    let stdout = interop_script("wasserstein.py", &[path.as_os_str()]);
+    let scipy: Vec<f64> = String::from_utf8(stdout)
         .unwrap()
         .lines()
         .map(|l| l.parse().unwrap())

@@ -207,22 +207,37 @@ fn objects_seen(roi: &Roi, real: &Cloud, sim: &Cloud) -> Vec<ObjectSeen> {
         .collect()
 }
 
-/// Range residuals of the firings both have, and the returns only one has.
-fn residuals(real: &Cloud, sim: &Cloud) -> (Vec<f64>, usize, usize) {
-    let mut diffs = Vec::new();
-    let mut only_real = 0;
+/// The range residuals of one scan pair: their sum and sum of squares over the firings both
+/// have, and the returns only one has.
+#[derive(Clone, Copy, Default)]
+struct Residuals {
+    sum: f64,
+    sum2: f64,
+    both: usize,
+    only_real: usize,
+    only_sim: usize,
+}
+
+/// Simulated minus measured range of the firings both have, and the returns only one has.
+fn residuals(real: &Cloud, sim: &Cloud) -> Residuals {
+    let mut r = Residuals::default();
     for (key, d) in &real.firings {
         match sim.firings.get(key) {
-            Some(s) => diffs.push(f64::from(*s) - f64::from(*d)),
-            None => only_real += 1,
+            Some(s) => {
+                let diff = f64::from(*s) - f64::from(*d);
+                r.sum += diff;
+                r.sum2 += diff * diff;
+                r.both += 1;
+            }
+            None => r.only_real += 1,
         }
     }
-    let only_sim = sim
+    r.only_sim = sim
         .firings
         .keys()
         .filter(|k| !real.firings.contains_key(k))
         .count();
-    (diffs, only_real, only_sim)
+    r
 }
 
 /// The occupancy grids' scores of every window of K scans ending at each scan.
@@ -394,17 +409,18 @@ pub fn compare(
     }
     let grids = windows(&spec, opts.k, &real, &sim);
     let t0 = real[0].middle;
-    let rows: Vec<ScanRow> = (0..real.len())
+    let (rows, res): (Vec<ScanRow>, Vec<Residuals>) = (0..real.len())
         .into_par_iter()
         .map(|i| {
             let (r, s) = (&real[i], &sim[i]);
             let objects = objects_seen(&roi, r, s);
-            let (diffs, only_real, only_sim) = residuals(r, s);
+            let res = residuals(r, s);
+            let per = |x: f64| (res.both > 0).then(|| x / res.both as f64);
             let mut hint = 0;
             let speed = trajectory
                 .velocity_at(r.middle, &mut hint)
                 .map_or(0.0, |v| v.xy().norm());
-            ScanRow {
+            let row = ScanRow {
                 t_s: (r.middle.0 - t0.0) as f64 * 1e-9,
                 stamp_ns: pairs[i].0.stamp.0,
                 ego_speed_mps: speed,
@@ -414,16 +430,17 @@ pub fn compare(
                 sim_points: s.points.len(),
                 grid: grids[i],
                 points: distances(&r.points, &s.points),
-                range_diff_mean_m: mean(diffs.iter().copied()),
-                range_diff_rms_m: mean(diffs.iter().map(|d| d * d)).map(f64::sqrt),
-                only_real,
-                only_sim,
+                range_diff_mean_m: per(res.sum),
+                range_diff_rms_m: per(res.sum2).map(f64::sqrt),
+                only_real: res.only_real,
+                only_sim: res.only_sim,
                 objects,
-            }
+            };
+            (row, res)
         })
-        .collect();
+        .unzip();
     let calibration = curve(&real, &sim, &opts, cell, admissible);
-    let summary = summarise(&rows, &real, &sim, real_scans.len() - pairs.len());
+    let summary = summarise(&rows, &res, &real, &sim, real_scans.len() - pairs.len());
     Ok(Comparison {
         cell_m: cell,
         admissible_cell_m: admissible,
@@ -469,7 +486,13 @@ fn curve(
         .collect()
 }
 
-fn summarise(rows: &[ScanRow], real: &[Cloud], sim: &[Cloud], unpaired: usize) -> Summary {
+fn summarise(
+    rows: &[ScanRow],
+    res: &[Residuals],
+    real: &[Cloud],
+    sim: &[Cloud],
+    unpaired: usize,
+) -> Summary {
     let grid = |f: fn(&GridScores) -> Option<f64>| {
         mean(rows.iter().filter_map(|r| r.grid.as_ref().and_then(f)))
     };
@@ -478,16 +501,11 @@ fn summarise(rows: &[ScanRow], real: &[Cloud], sim: &[Cloud], unpaired: usize) -
         .filter_map(|r| r.grid.and_then(|g| g.ocr))
         .collect();
     ocr.sort_by(f64::total_cmp);
-    let (mut sum, mut sum2, mut n) = (0.0, 0.0, 0usize);
-    let (mut only_r, mut only_s) = (0usize, 0usize);
-    for (r, s) in real.iter().zip(sim) {
-        let (d, a, b) = residuals(r, s);
-        sum += d.iter().sum::<f64>();
-        sum2 += d.iter().map(|x| x * x).sum::<f64>();
-        n += d.len();
-        only_r += a;
-        only_s += b;
-    }
+    let (sum, sum2, n) = res.iter().fold((0.0, 0.0, 0usize), |a, r| {
+        (a.0 + r.sum, a.1 + r.sum2, a.2 + r.both)
+    });
+    let only_r: usize = res.iter().map(|r| r.only_real).sum();
+    let only_s: usize = res.iter().map(|r| r.only_sim).sum();
     let (real_returns, sim_returns): (usize, usize) = real
         .iter()
         .zip(sim)

@@ -319,27 +319,45 @@ fn process_noise(dt: f64, still: bool, s: &Settings) -> P {
     q
 }
 
-/// The extended Kalman filter over GNSS fixes and CAN motion in time order.
-fn filter(
-    gnss: &[GnssObs],
-    motion: &[(UtcNanos, f64, f64)],
-    s: &Settings,
-    start: Option<&S>,
-) -> Result<Filtered, TrajectoryError> {
-    if gnss.len() < 2 {
-        return Err(TrajectoryError::Insufficient(format!(
-            "{} usable GNSS epochs (at least 2 needed)",
-            gnss.len()
-        )));
+/// The measurements in time order, each CAN sample with whether the vehicle stands then: built
+/// once per drive, filtered as often as the noise model and the second pass need.
+struct Events<'a> {
+    gnss: &'a [GnssObs],
+    motion: &'a [(UtcNanos, f64, f64)],
+    ordered: Vec<(UtcNanos, Meas)>,
+}
+
+impl<'a> Events<'a> {
+    fn new(
+        gnss: &'a [GnssObs],
+        motion: &'a [(UtcNanos, f64, f64)],
+    ) -> Result<Events<'a>, TrajectoryError> {
+        if gnss.len() < 2 {
+            return Err(TrajectoryError::Insufficient(format!(
+                "{} usable GNSS epochs (at least 2 needed)",
+                gnss.len()
+            )));
+        }
+        let mut ordered: Vec<(UtcNanos, Meas)> =
+            gnss.iter().map(|g| (g.t, Meas::Gnss(*g))).collect();
+        ordered.extend(
+            motion
+                .iter()
+                .zip(standstill(motion))
+                .map(|(&(t, v, w), still)| (t, Meas::Motion(v, w, still))),
+        );
+        ordered.sort_by_key(|e| e.0);
+        Ok(Events {
+            gnss,
+            motion,
+            ordered,
+        })
     }
-    let mut events: Vec<(UtcNanos, Meas)> = gnss.iter().map(|g| (g.t, Meas::Gnss(*g))).collect();
-    events.extend(
-        motion
-            .iter()
-            .zip(standstill(motion))
-            .map(|(&(t, v, w), still)| (t, Meas::Motion(v, w, still))),
-    );
-    events.sort_by_key(|e| e.0);
+}
+
+/// The extended Kalman filter over GNSS fixes and CAN motion in time order.
+fn filter(ev: &Events<'_>, s: &Settings, start: Option<&S>) -> Filtered {
+    let (gnss, motion, events) = (ev.gnss, ev.motion, &ev.ordered);
     let wander = s.gnss_noise.wanders();
     let share = if wander {
         s.gnss_noise.correlated_share.clamp(0.0, 0.99)
@@ -369,7 +387,7 @@ fn filter(
     let mut still_now = false;
     // The wandering error's steady variance, from the latest fix's sigmas.
     let mut bias_var = b0;
-    for (t, m) in &events {
+    for (t, m) in events {
         let dt = ((t.0 - t_prev.0) as f64 * 1e-9).max(0.0);
         t_prev = *t;
         let mut f = jacobian(|y| ctrv(y, dt), &x);
@@ -436,7 +454,7 @@ fn filter(
             Meas::Motion(..) => None,
         });
     }
-    Ok(out)
+    out
 }
 
 /// The correlation times the GNSS error model is chosen from, s (0: white).
@@ -454,6 +472,9 @@ pub fn fit_gnss_noise(
     motion: &[(UtcNanos, f64, f64)],
     s: &Settings,
 ) -> GnssNoise {
+    let Ok(events) = Events::new(gnss, motion) else {
+        return GnssNoise::WHITE;
+    };
     let mut best = (f64::NEG_INFINITY, GnssNoise::WHITE);
     for &tau in &CORRELATION_TIMES_S {
         let shares: &[f64] = if tau == 0.0 {
@@ -470,10 +491,9 @@ pub fn fit_gnss_noise(
                 gnss_noise: model,
                 ..*s
             };
-            if let Ok(f) = filter(gnss, motion, &settings, None) {
-                if f.log_likelihood > best.0 {
-                    best = (f.log_likelihood, model);
-                }
+            let f = filter(&events, &settings, None);
+            if f.log_likelihood > best.0 {
+                best = (f.log_likelihood, model);
             }
         }
     }
@@ -487,18 +507,14 @@ impl EgoTrajectory {
         motion: &[(UtcNanos, f64, f64)],
         s: &Settings,
     ) -> Result<EgoTrajectory, TrajectoryError> {
-        let first = Self::smooth_from(gnss, motion, s, None)?;
-        // Once more from the first pass's start (see [`filter`]).
-        Self::smooth_from(gnss, motion, s, Some(&first.states[0]))
+        let events = Events::new(gnss, motion)?;
+        let first = Self::smooth_from(&events, s, None);
+        // Once more from the first pass's start (see [`initial_state`]).
+        Ok(Self::smooth_from(&events, s, Some(&first.states[0])))
     }
 
-    fn smooth_from(
-        gnss: &[GnssObs],
-        motion: &[(UtcNanos, f64, f64)],
-        s: &Settings,
-        start: Option<&S>,
-    ) -> Result<EgoTrajectory, TrajectoryError> {
-        let fl = filter(gnss, motion, s, start)?;
+    fn smooth_from(events: &Events<'_>, s: &Settings, start: Option<&S>) -> EgoTrajectory {
+        let fl = filter(events, s, start);
         // Rauch-Tung-Striebel. Constants that are not estimated have no variance at all, so the
         // predicted covariance is singular in their rows and columns: the gain is taken on the
         // states that vary (a failed inverse would silently leave the filter's estimate, which
@@ -540,12 +556,12 @@ impl EgoTrajectory {
                 });
             }
         }
-        Ok(EgoTrajectory {
+        EgoTrajectory {
             times: fl.times,
             states: xs,
             covs: ps,
             residuals,
-        })
+        }
     }
 
     /// First and last instant.
@@ -568,13 +584,18 @@ impl EgoTrajectory {
     /// State `[x, y, ψ, v, ω, a, δ, lever x, GNSS wander east, north]` and its covariance at `t` (propagated from the
     /// smoothed state before it).
     pub fn state_at(&self, t: UtcNanos) -> Option<(S, P)> {
+        let k = self.index_at(t)?;
+        let dt = (t.0 - self.times[k].0) as f64 * 1e-9;
+        Some((ctrv(&self.states[k], dt), self.covs[k]))
+    }
+
+    /// The smoothed sample at or before `t` (`None` outside the span).
+    fn index_at(&self, t: UtcNanos) -> Option<usize> {
         let (a, b) = self.span();
         if t < a || t > b {
             return None;
         }
-        let k = self.times.partition_point(|&x| x <= t).saturating_sub(1);
-        let dt = (t.0 - self.times[k].0) as f64 * 1e-9;
-        Some((ctrv(&self.states[k], dt), self.covs[k]))
+        Some(self.times.partition_point(|&x| x <= t).saturating_sub(1))
     }
 
     /// The rear-axle pose at `t`, and its 1-sigma horizontal position error (m).
@@ -594,8 +615,8 @@ impl EgoTrajectory {
 
     /// The smoother's 1-sigma heading error at `t`, rad.
     pub fn heading_sigma_at(&self, t: UtcNanos) -> Option<f64> {
-        let (_, p) = self.state_at(t)?;
-        Some(p[(2, 2)].max(0.0).sqrt())
+        let k = self.index_at(t)?;
+        Some(self.covs[k][(2, 2)].max(0.0).sqrt())
     }
 
     /// The smoothed trajectory as CSV, one row every `step_ns`: time (s, nine decimals), rear-axle

@@ -4,10 +4,9 @@
 use super::validate::{cell, verdict, Cell, Phase, Verdict};
 use crate::bag::scans::read_scans;
 use crate::metrics::features::{scan_features, ScanFeatures, FEATURES};
-use crate::reference::run::Run;
 use crate::rig::Rig;
 use hilrig_velodyne::Decoder;
-use std::collections::HashSet;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// A simulated run and the real run it re-simulates.
@@ -94,19 +93,9 @@ pub fn validate(
     if reals.is_empty() || sims.is_empty() {
         return Err("give at least one --real and one --sim".into());
     }
-    let attached;
     let rig = match rig {
-        Some(r) => r,
-        None => {
-            let bytes = std::fs::read(&reals[0])
-                .map_err(|e| format!("cannot read {}: {e}", reals[0].display()))?;
-            let text = Run::from_bytes(&bytes).rig_toml.ok_or_else(|| {
-                format!("{}: no rig.toml attached: give --rig", reals[0].display())
-            })?;
-            attached = Rig::from_toml(&text, "rig.toml attached to the recording")
-                .map_err(|e| e.to_string())?;
-            &attached
-        }
+        Some(r) => r.clone(),
+        None => crate::reference::run::load_with_rig(&reals[0], None)?.2,
     };
     let (_, model, calibration) = rig.lidar_sensor()?;
     let decoder = Decoder::with_calibration(model, calibration);
@@ -131,7 +120,8 @@ pub fn validate(
     let measurement: Vec<Pairing> = sim
         .iter()
         .map(|s| {
-            let stamps: HashSet<i64> = s.scans.iter().map(|x| x.stamp.0).collect();
+            let by_stamp: HashMap<i64, &ScanFeatures> =
+                s.scans.iter().map(|x| (x.stamp.0, x)).collect();
             let best = real
                 .iter()
                 .map(|r| {
@@ -139,7 +129,7 @@ pub fn validate(
                         r,
                         r.scans
                             .iter()
-                            .filter(|x| stamps.contains(&x.stamp.0))
+                            .filter(|x| by_stamp.contains_key(&x.stamp.0))
                             .count(),
                     )
                 })
@@ -153,7 +143,7 @@ pub fn validate(
                     .scans
                     .iter()
                     .filter_map(|a| {
-                        let b = s.scans.iter().find(|b| b.stamp == a.stamp)?;
+                        let b = by_stamp.get(&a.stamp.0)?;
                         (a.returns > 0 && b.returns > 0).then_some(b.mean_range_m - a.mean_range_m)
                     })
                     .collect();

@@ -257,3 +257,22 @@ pub fn record_and_resim(
         .collect();
     (run, sims)
 }
+
+/// Runs `tests/interop/SCRIPT` with the reference venv's Python and `args`; asserts it
+/// succeeded and returns its standard output.
+pub fn interop_script(script: &str, args: &[&std::ffi::OsStr]) -> Vec<u8> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/interop")
+        .join(script);
+    let out = std::process::Command::new(python())
+        .arg(&path)
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{script}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout
+}

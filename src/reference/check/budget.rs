@@ -51,26 +51,14 @@ pub(super) fn heading(
         }
         t = hilrig_stamp::UtcNanos(t.0 + STEP);
     }
-    let mut i = 0;
-    while i < flagged.len() {
-        let mut j = i + 1;
-        while j < flagged.len() && flagged[j].0 .0 - flagged[j - 1].0 .0 <= STEP * 3 / 2 {
-            j += 1;
-        }
-        let worst = flagged[i..j].iter().map(|f| f.1).fold(0.0, f64::max);
-        log.mark(
-            "heading_uncertain",
-            flagged[i].0,
-            hilrig_stamp::UtcNanos(flagged[j - 1].0 .0 + STEP),
-            format!(
-                "heading sigma up to {worst:.2}° (limit {:.2}°): {:.3} m at {:.0} m range; the heading shows once the vehicle drives a few metres",
-                th.max_heading_sigma_deg,
-                worst.to_radians() * range_m,
-                range_m
-            ),
-        );
-        i = j;
-    }
+    log.mark_runs("heading_uncertain", &flagged, STEP, |_, worst| {
+        format!(
+            "heading sigma up to {worst:.2}° (limit {:.2}°): {:.3} m at {:.0} m range; the heading shows once the vehicle drives a few metres",
+            th.max_heading_sigma_deg,
+            worst.to_radians() * range_m,
+            range_m
+        )
+    });
     if kept.is_empty() {
         // Nothing usable: the budget says how bad the heading is everywhere.
         kept = flagged.iter().map(|f| f.1).collect();

@@ -91,18 +91,45 @@ impl FaultLog {
         period: i64,
         describe: impl Fn(usize, f64) -> String,
     ) {
-        let mut i = 0;
-        while i < flagged.len() {
-            let mut j = i + 1;
-            while j < flagged.len() && flagged[j].0 .0 - flagged[j - 1].0 .0 <= period * 3 / 2 {
-                j += 1;
-            }
-            let worst = flagged[i..j].iter().map(|f| f.1).fold(f64::NAN, f64::max);
-            let (a, b) = (flagged[i].0, UtcNanos(flagged[j - 1].0 .0 + period));
-            self.fault(name, a, b, describe(j - i, worst));
-            i = j;
+        for (a, b, n, worst) in spans(flagged, period) {
+            self.fault(name, a, b, describe(n, worst));
         }
     }
+
+    /// Marks for runs of consecutive flagged samples, as [`FaultLog::runs`] makes faults.
+    pub(super) fn mark_runs(
+        &mut self,
+        name: &'static str,
+        flagged: &[(UtcNanos, f64)],
+        period: i64,
+        describe: impl Fn(usize, f64) -> String,
+    ) {
+        for (a, b, n, worst) in spans(flagged, period) {
+            self.mark(name, a, b, describe(n, worst));
+        }
+    }
+}
+
+/// Runs of flagged samples (time, value) at most one and a half periods apart: start, end (one
+/// period after the last), samples and the largest value of each.
+fn spans(flagged: &[(UtcNanos, f64)], period: i64) -> Vec<(UtcNanos, UtcNanos, usize, f64)> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < flagged.len() {
+        let mut j = i + 1;
+        while j < flagged.len() && flagged[j].0 .0 - flagged[j - 1].0 .0 <= period * 3 / 2 {
+            j += 1;
+        }
+        let worst = flagged[i..j].iter().map(|f| f.1).fold(f64::NAN, f64::max);
+        out.push((
+            flagged[i].0,
+            UtcNanos(flagged[j - 1].0 .0 + period),
+            j - i,
+            worst,
+        ));
+        i = j;
+    }
+    out
 }
 
 /// A fault (`true`) or mark (`false`) of some name entering (+1) or leaving (-1) the cells.

@@ -154,32 +154,22 @@ fn check_into(
             .map_or(Settings::default().yaw_rate_sigma, |s| s.max(5e-4)),
         ..Settings::default()
     };
-    let first = match EgoTrajectory::smooth(&obs, &motion, &settings) {
-        Ok(t) => t,
-        Err(e) => return unusable(run, e.to_string(), sp),
-    };
     let fixed: Vec<bool> = epochs
         .iter()
         .map(|(_, f)| f.rtk == RtkState::Fixed)
         .collect();
     // RTK errors wander over seconds: weighted as if independent, ten epochs a second would pull
-    // the trajectory (and its heading) along their wander. The final smoothing models the
-    // wander as states, with the correlation time and share that the drive's own GNSS
-    // innovations make most likely (white, if that is what they are), so that CAN motion
-    // carries the short term and GNSS the long term.
-    let noise = fit_gnss_noise(&obs, &motion, &settings);
-    let traj = if noise.wanders() {
-        EgoTrajectory::smooth(
-            &obs,
-            &motion,
-            &Settings {
-                gnss_noise: noise,
-                ..settings
-            },
-        )
-        .unwrap_or(first)
-    } else {
-        first
+    // the trajectory (and its heading) along their wander. The smoothing models the wander as
+    // states, with the correlation time and share that the drive's own GNSS innovations make
+    // most likely (white, if that is what they are), so that CAN motion carries the short term
+    // and GNSS the long term.
+    let settings = Settings {
+        gnss_noise: fit_gnss_noise(&obs, &motion, &settings),
+        ..settings
+    };
+    let traj = match EgoTrajectory::smooth(&obs, &motion, &settings) {
+        Ok(t) => t,
+        Err(e) => return unusable(run, e.to_string(), sp),
     };
     // Epochs good enough to differentiate: fixed and within the sigma limits.
     let good: Vec<bool> = epochs
