@@ -187,6 +187,23 @@ fn inputs_that_do_not_belong_together_and_bad_cells_are_refused() {
             "no object of that name",
         ),
     ];
+    // A simulation cut in the middle: compared as far as it can be read, and said so.
+    let bytes = std::fs::read(&sim2).unwrap();
+    let cut = dir.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let run2 = dir.path().join("run2.mcap");
+    let scene2 = fixture("parking/rep-02/scene.toml");
+    let out = compare(&run2, &cut, &scene2, &[], &json);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(
+        err.contains("warning:") && err.contains("cut.mcap: read up to damage"),
+        "{err}"
+    );
+    let v = read(&json);
+    assert_eq!(v["damage"].as_array().unwrap().len(), 1);
+    assert!(v["summary"]["unpaired_run_scans"].as_u64().unwrap() > 0);
+    std::fs::remove_file(&json).unwrap();
     for (sim, extra, says) in cases {
         let out = compare(&run1, &sim, &scene, &extra, &json);
         let err = String::from_utf8_lossy(&out.stderr);

@@ -212,6 +212,9 @@ pub fn run(args: CompareArgs) -> Result<ExitCode> {
         }
     };
     bar.finish_and_clear();
+    for d in &c.damage {
+        eprintln!("warning: {d}");
+    }
     print!("{}", text(&c));
     if let Some(p) = &args.json {
         std::fs::write(p, serde_json::to_string_pretty(&c)?)

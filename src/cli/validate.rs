@@ -61,6 +61,9 @@ pub fn run(args: ValidateArgs) -> Result<ExitCode> {
         Ok(v) => v,
         Err(e) => return fail(&e),
     };
+    for d in &v.damage {
+        eprintln!("warning: {d}");
+    }
     println!("1 measurement validation: each simulation against its real twin");
     for p in &v.measurement {
         println!(

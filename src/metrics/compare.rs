@@ -354,8 +354,20 @@ pub fn compare(
     if !sim_bytes.starts_with(mcap::MAGIC) {
         return Err(input(format!("{}: not an MCAP file", sim_path.display())));
     }
-    let (real_scans, _) = read_scans(&bytes);
-    let (sim_scans, _) = read_scans(&sim_bytes);
+    let (real_scans, real_damage) = read_scans(&bytes);
+    let (sim_scans, sim_damage) = read_scans(&sim_bytes);
+    // A damaged file is compared as far as it can be read, and says so.
+    let damage: Vec<String> = [(run_path, real_damage), (sim_path, sim_damage)]
+        .into_iter()
+        .filter_map(|(p, d)| {
+            d.map(|d| {
+                format!(
+                    "{}: read up to damage ({d}); the scans after it are not compared",
+                    p.display()
+                )
+            })
+        })
+        .collect();
     if real_scans.is_empty() || sim_scans.is_empty() {
         return Err(input(format!(
             "no lidar scans (/velodyne_packets) in {}",
@@ -452,6 +464,7 @@ pub fn compare(
             Region::Object(n) => format!("object:{n}"),
         },
         ground_excluded: opts.exclude_ground,
+        damage,
         frame: if opts.sensor_frame { "sensor" } else { "scene" },
         scans: rows,
         calibration,

@@ -112,6 +112,8 @@ pub struct Comparison {
     pub dims: Dims,
     /// The region, as given.
     pub region: String,
+    /// Inputs read only up to damage, and where.
+    pub damage: Vec<String>,
     /// Ground left out.
     pub ground_excluded: bool,
     /// The frame the points were compared in: "scene" or "sensor".

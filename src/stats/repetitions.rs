@@ -30,6 +30,8 @@ pub struct Validation {
     pub measurement: Vec<Pairing>,
     /// Whether every simulation has a twin.
     pub measurement_pass: bool,
+    /// Inputs read only up to damage.
+    pub damage: Vec<String>,
     /// Block 2: scenario validation: what is missing (repetitions too few, phases not covered).
     pub scenario_problems: Vec<String>,
     /// Block 3: model validation, per scenario sample and feature.
@@ -40,6 +42,8 @@ pub struct Validation {
 
 struct Loaded {
     name: String,
+    /// Where the file is damaged (it is used as far as it could be read).
+    damage: Option<String>,
     scans: Vec<ScanFeatures>,
 }
 
@@ -48,7 +52,7 @@ fn load(path: &Path, decoder: &Decoder) -> Result<Loaded, String> {
     if !bytes.starts_with(mcap::MAGIC) {
         return Err(format!("{}: not an MCAP file", path.display()));
     }
-    let (scans, _) = read_scans(&bytes);
+    let (scans, damage) = read_scans(&bytes);
     if scans.is_empty() {
         return Err(format!(
             "{}: no lidar scans (/velodyne_packets)",
@@ -56,6 +60,7 @@ fn load(path: &Path, decoder: &Decoder) -> Result<Loaded, String> {
         ));
     }
     Ok(Loaded {
+        damage: damage.map(|d| format!("{}: read up to damage ({d})", path.display())),
         name: path.display().to_string(),
         scans: scan_features(&scans, decoder),
     })
@@ -201,6 +206,11 @@ pub fn validate(
     }
     let v = verdict(&cells, measurement_pass && scenario_problems.is_empty());
     Ok(Validation {
+        damage: real
+            .iter()
+            .chain(&sim)
+            .filter_map(|l| l.damage.clone())
+            .collect(),
         measurement,
         measurement_pass,
         scenario_problems,
