@@ -70,7 +70,13 @@ pub fn read(bytes: &[u8], each: &mut Visitor<'_>) -> Result<(), String> {
     let mut channels = mcap::read::ChannelAccumulator::<'static>::default();
     records(bytes, options, &mut |op, body| {
         data_record(op, body, &mut channels, each)
-    })
+    })?;
+    // Every record of the data section was read; a file cut after it (in its summary or
+    // footer) still lost its index, and a reader that trusts the index finds nothing.
+    if !bytes.ends_with(mcap::MAGIC) {
+        return Err("the file ends without MCAP's closing magic: its summary or footer is cut off (every message was read; `hilrig recover` rewrites the file whole)".into());
+    }
+    Ok(())
 }
 
 /// What [`records`] hands each record to: opcode and body in, whether to go on out.
@@ -224,5 +230,41 @@ fn record_into(
             values: &m.metadata,
         }),
         _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A recording cut after its data section (in the summary or footer) has every message, yet
+    /// is damaged: reading hands over all messages and then says so.
+    #[test]
+    fn a_file_cut_in_its_footer_gives_every_message_and_reports_the_damage() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.mcap");
+        let mut bag =
+            crate::bag::BagWriter::create(&path, &crate::bag::BagOptions::default()).unwrap();
+        for k in 0..5i64 {
+            let t = hilrig_stamp::UtcNanos(1_000_000_000 + k);
+            bag.write("/x", &crate::bag::msgs::can_frame_type(), t, t, &[0u8; 16])
+                .unwrap();
+        }
+        bag.finish().unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        let count = |b: &[u8]| {
+            let mut n = 0;
+            let r = read(b, &mut |e| {
+                if let Event::Message(_) = e {
+                    n += 1;
+                }
+                Ok(())
+            });
+            (n, r)
+        };
+        assert_eq!(count(&bytes), (5, Ok(())));
+        let (n, r) = count(&bytes[..bytes.len() - 3]);
+        assert_eq!(n, 5);
+        assert!(r.unwrap_err().contains("closing magic"));
     }
 }
