@@ -362,7 +362,7 @@ pub fn compare(
         .filter_map(|(p, d)| {
             d.map(|d| {
                 format!(
-                    "{}: read up to damage ({d}); the scans after it are not compared",
+                    "{}: read up to damage ({d}); compared what could be read",
                     p.display()
                 )
             })
