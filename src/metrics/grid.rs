@@ -64,11 +64,22 @@ impl GridSpec {
     /// The cell a point falls in (cells are half-open: [k c, (k + 1) c)).
     pub fn cell(&self, p: &Point3<f64>) -> Cell {
         let inv = 1.0 / self.cell_m;
-        let k = |v: f64| (v * inv).floor() as i64;
+        let k = |v: f64| floor_i64(v * inv);
         match self.dims {
             Dims::Bev => [k(p.x), k(p.y), 0],
             Dims::Voxel => [k(p.x), k(p.y), k(p.z)],
         }
+    }
+}
+
+/// ⌊v⌋ as an integer, without the libm call `f64::floor` compiles to on a baseline x86-64
+/// target (a tenth of the binning time). Saturates like `as`; NaN gives 0.
+fn floor_i64(v: f64) -> i64 {
+    let t = v as i64;
+    if (t as f64) > v {
+        t - 1
+    } else {
+        t
     }
 }
 
@@ -89,6 +100,75 @@ fn unpack(k: u64) -> Cell {
     [f(k >> (2 * AXIS_BITS)), f(k >> AXIS_BITS), f(k)]
 }
 
+/// Reused buffers for binning scans.
+#[derive(Default)]
+struct Scratch {
+    wide: Vec<u64>,
+    narrow: Vec<u32>,
+}
+
+/// Counts equal neighbours of a sorted list into (key, count) runs.
+fn count_runs(sorted: impl Iterator<Item = u64>) -> Vec<(u64, u32)> {
+    let mut runs: Vec<(u64, u32)> = Vec::new();
+    for key in sorted {
+        match runs.last_mut() {
+            Some((last, n)) if *last == key => *n += 1,
+            _ => runs.push((key, 1)),
+        }
+    }
+    runs
+}
+
+impl Scratch {
+    /// One scan's hit cells as sorted (packed key, point count) runs.
+    ///
+    /// Sorting is the cost. A scan spans a few hundred cells per axis, so its cells are
+    /// first numbered relative to its own bounding box in one 32-bit key when they fit (half
+    /// the radix passes of the 64-bit key) and only the distinct cells are packed into the
+    /// grid-wide key afterwards. Both numberings order cells the same way (x, then y, then z),
+    /// so the runs come out sorted by the grid-wide key either way.
+    fn runs(&mut self, spec: &GridSpec, scan: &[Point3<f64>]) -> Vec<(u64, u32)> {
+        let Some(first) = scan.first() else {
+            return Vec::new();
+        };
+        let (mut lo, mut hi) = (*first, *first);
+        let mut finite = true;
+        for p in scan {
+            lo = lo.inf(p);
+            hi = hi.sup(p);
+            finite &= p.x.is_finite() && p.y.is_finite() && p.z.is_finite();
+        }
+        let (c0, c1) = (spec.cell(&lo), spec.cell(&hi));
+        let bits: [u32; 3] = std::array::from_fn(|i| 64 - ((c1[i] - c0[i]) as u64).leading_zeros());
+        if finite && bits.iter().sum::<u32>() <= 32 {
+            let (shift_x, shift_y) = (bits[1] + bits[2], bits[2]);
+            self.narrow.clear();
+            self.narrow.extend(scan.iter().map(|p| {
+                let c = spec.cell(p);
+                let r = |i: usize| (c[i] - c0[i]) as u64;
+                ((r(0) << shift_x) | (r(1) << shift_y) | r(2)) as u32
+            }));
+            radsort::sort(&mut self.narrow);
+            let field = |k: u64, shift: u32, b: u32| ((k >> shift) & ((1u64 << b) - 1)) as i64;
+            count_runs(self.narrow.iter().map(|&k| {
+                let k = u64::from(k);
+                pack([
+                    c0[0] + field(k, shift_x, bits[0]),
+                    c0[1] + field(k, shift_y, bits[1]),
+                    c0[2] + field(k, 0, bits[2]),
+                ])
+            }))
+        } else {
+            self.wide.clear();
+            self.wide.extend(scan.iter().map(|p| pack(spec.cell(p))));
+            // Radix sort (`radsort`: stable, allocation-light, several times faster than a
+            // comparison sort on 100 k integer keys).
+            radsort::sort(&mut self.wide);
+            count_runs(self.wide.iter().copied())
+        }
+    }
+}
+
 /// The occupancy of K scans: which cells are occupied, and every hit cell's point count.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Occupancy {
@@ -107,21 +187,9 @@ impl Occupancy {
         }
         // Per scan: its cells' keys, sorted, with their point counts.
         let mut per_scan: Vec<Vec<(u64, u32)>> = Vec::with_capacity(k);
-        let mut keys: Vec<u64> = Vec::new();
+        let mut scratch = Scratch::default();
         for scan in scans {
-            keys.clear();
-            keys.extend(scan.iter().map(|p| pack(spec.cell(p))));
-            // Radix sort (`radsort`: stable, allocation-light, several times faster than a
-            // comparison sort on 100 k integer keys).
-            radsort::sort(&mut keys);
-            let mut runs: Vec<(u64, u32)> = Vec::with_capacity(keys.len());
-            for &key in &keys {
-                match runs.last_mut() {
-                    Some((last, n)) if *last == key => *n += 1,
-                    _ => runs.push((key, 1)),
-                }
-            }
-            per_scan.push(runs);
+            per_scan.push(scratch.runs(spec, scan));
         }
         if k == 1 {
             let runs = per_scan.pop().unwrap_or_default();
@@ -374,11 +442,6 @@ mod tests {
         }
         assert_eq!(Occupancy::of(&g, &[]), Err(GridError::NoScans));
     }
-}
-
-#[cfg(test)]
-mod keys {
-    use super::*;
 
     /// Packing keeps a cell's identity and the order of cells, negative ones included.
     #[test]
@@ -395,6 +458,45 @@ mod keys {
         }
         for w in cells.windows(2) {
             assert!(pack(w[0]) < pack(w[1]), "{w:?}");
+        }
+    }
+
+    /// Binning through the scan-relative 32-bit key and through the grid-wide key give the
+    /// same cells and counts as counting cells in a map, for small scans, scans too wide for
+    /// 32 bits, negative coordinates, a point exactly on a cell boundary and one at infinity.
+    #[test]
+    fn binning_equals_a_map_of_cells_for_narrow_and_wide_scans() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for (extent, cell, dims) in [
+            (30.0, 0.1, Dims::Voxel),
+            (30.0, 0.05, Dims::Bev),
+            (3000.0, 0.05, Dims::Voxel),
+            (0.01, 1.0, Dims::Voxel),
+        ] {
+            let g = GridSpec::new(cell, dims).unwrap();
+            let mut scan: Vec<Point3<f64>> = (0..5000)
+                .map(|_| {
+                    let mut c = || rng.random_range(-extent..extent);
+                    p(c(), c(), c() / 10.0)
+                })
+                .collect();
+            scan.push(p(-2.0 * cell, 3.0 * cell, 0.0));
+            for with_infinity in [false, true] {
+                if with_infinity {
+                    scan.push(p(f64::INFINITY, 0.0, 0.0));
+                }
+                let mut want = std::collections::BTreeMap::new();
+                for q in &scan {
+                    *want.entry(pack(g.cell(q))).or_insert(0u32) += 1;
+                }
+                let got = Scratch::default().runs(&g, &scan);
+                assert_eq!(
+                    got,
+                    want.into_iter().collect::<Vec<_>>(),
+                    "{extent} {cell} {dims:?}"
+                );
+            }
         }
     }
 }
