@@ -14,20 +14,21 @@
 //! The cell must not be smaller than the admissible cell `check` derives from the reference
 //! accuracy (§6): below it the metric measures the reference's errors, not the model's.
 
+use super::cloud::{Cloud, Frame};
 use super::grid::{compare as grid_compare, Dims, GridScores, GridSpec, Occupancy};
 use super::points::distances;
 pub use super::report::{Comparison, CurvePoint, ObjectSeen, ScanRow, Summary};
 use super::roi::{Region, Roi};
-use crate::bag::scans::{read_scans, sensor_time, Scan};
+use crate::bag::scans::{read_scans, Scan};
 use crate::reference::check::{check_with_trajectory, Verdict};
 use crate::reference::run::Run;
 use crate::rig::Rig;
 use crate::scene::pose::{mounting_isometry, Trajectory};
 use crate::scene::Scene;
 use crate::stats::rank::spearman_with_interval;
-use hilrig_stamp::UtcNanos;
-use hilrig_velodyne::{DataPacket, Decoder, Point as LidarPoint};
-use nalgebra::{Isometry3, Point3};
+
+use hilrig_velodyne::Decoder;
+use nalgebra::Point3;
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::path::Path;
@@ -75,150 +76,6 @@ pub const MIN_POINTS_SEEN: usize = 10;
 
 /// Cell sizes of the calibration curve, m.
 pub const CURVE_CELLS_M: [f64; 9] = [0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0];
-
-/// A decoded scan in the scene frame, with the firings for the residuals.
-struct Cloud {
-    /// Points in the region (scene frame) and their range, m.
-    points: Vec<Point3<f64>>,
-    /// Per firing, keyed by [`firing_key`] and sorted by it: the range, m. (A sorted list
-    /// joined by merging, not a hash map: hashing was a tenth of `compare`'s time.)
-    firings: Vec<(u64, f32)>,
-    /// All points (scene frame) and range, for the objects.
-    all: Vec<(Point3<f64>, f32)>,
-    /// Sensor position at the scan's middle.
-    origin: Option<Point3<f64>>,
-    /// The scan's middle.
-    middle: UtcNanos,
-}
-
-/// The body poses at a packet's first and last firing, interpolated for the firings between.
-///
-/// A packet spans about a millisecond, in which the body turns by well under a milliradian: a
-/// normalised linear blend of the two rotations differs from the trajectory's own interpolation
-/// by far less than a micrometre at 100 m, and saves computing a rotation from Euler angles for
-/// every point (a fifth of `compare`'s decoding time). Translation is blended linearly, as the
-/// trajectory does between its samples.
-struct PacketPoses {
-    ends: Option<(UtcNanos, Isometry3<f64>, UtcNanos, Isometry3<f64>)>,
-}
-
-impl PacketPoses {
-    fn new(
-        trajectory: &Trajectory,
-        first: UtcNanos,
-        points: &[LidarPoint],
-        hint: &mut usize,
-    ) -> PacketPoses {
-        let (lo, hi) = points.iter().fold((i64::MAX, i64::MIN), |(lo, hi), q| {
-            let t = i64::from(q.time_offset_ns);
-            (lo.min(t), hi.max(t))
-        });
-        if lo > hi {
-            return PacketPoses { ends: None };
-        }
-        let (a, b) = (UtcNanos(first.0 + lo), UtcNanos(first.0 + hi));
-        let ends = trajectory
-            .pose_at(a, hint)
-            .zip(trajectory.pose_at(b, hint))
-            .map(|(pa, pb)| (a, pa, b, pb));
-        PacketPoses { ends }
-    }
-
-    /// The pose at `t`, or `None` when an end of the packet lies outside the trajectory.
-    fn at(&self, t: UtcNanos) -> Option<Isometry3<f64>> {
-        let (a, pa, b, pb) = self.ends.as_ref()?;
-        if b.0 == a.0 {
-            return Some(*pa);
-        }
-        let f = (t.0 - a.0) as f64 / (b.0 - a.0) as f64;
-        let translation = pa.translation.vector.lerp(&pb.translation.vector, f);
-        let rotation = pa.rotation.nlerp(&pb.rotation, f);
-        Some(Isometry3::from_parts(translation.into(), rotation))
-    }
-}
-
-struct Frame<'a> {
-    decoder: &'a Decoder,
-    mount: Isometry3<f64>,
-    trajectory: &'a Trajectory,
-    pps_locked: bool,
-    roi: &'a Roi,
-    sensor_frame: bool,
-}
-
-impl Frame<'_> {
-    fn cloud(&self, scan: &Scan) -> Cloud {
-        let mut out = Cloud {
-            points: Vec::new(),
-            firings: Vec::new(),
-            all: Vec::new(),
-            origin: None,
-            middle: scan.stamp,
-        };
-        let mut hint = 0;
-        let mut decoded: Vec<LidarPoint> = Vec::new();
-        let mut times = Vec::new();
-        for (k, (t, bytes)) in scan.packets.iter().enumerate() {
-            let Ok(p) = DataPacket::decode(&bytes[..]) else {
-                continue;
-            };
-            let first = if self.pps_locked {
-                sensor_time(p.timestamp_us, *t)
-            } else {
-                *t
-            };
-            times.push(first);
-            decoded.clear();
-            if self.decoder.decode_into(&p, &mut decoded).is_err() {
-                continue;
-            }
-            let span = PacketPoses::new(self.trajectory, first, &decoded, &mut hint);
-            for q in &decoded {
-                let at = UtcNanos(first.0 + i64::from(q.time_offset_ns));
-                let Some(body) = span
-                    .at(at)
-                    .or_else(|| self.trajectory.pose_at(at, &mut hint))
-                else {
-                    continue;
-                };
-                let world =
-                    body * self.mount * Point3::new(f64::from(q.x), f64::from(q.y), f64::from(q.z));
-                out.firings.push((
-                    firing_key(k, q.block, q.laser.0, q.return_type as u8),
-                    q.distance_m,
-                ));
-                out.all.push((world, q.distance_m));
-                if self.sensor_frame {
-                    out.points
-                        .push(Point3::new(f64::from(q.x), f64::from(q.y), f64::from(q.z)));
-                } else if self.roi.keeps(&world) {
-                    out.points.push(world);
-                }
-            }
-        }
-        // Decoded in packet, block, laser order already for most models: nearly sorted.
-        out.firings.sort_by_key(|f| f.0);
-        out.firings.dedup_by_key(|f| f.0);
-        if let (Some(a), Some(b)) = (times.first(), times.last()) {
-            out.middle = UtcNanos((a.0 + b.0) / 2);
-            let mut h = 0;
-            out.origin = self
-                .trajectory
-                .pose_at(out.middle, &mut h)
-                .map(|body| Point3::from((body * self.mount).translation.vector));
-        }
-        out
-    }
-}
-
-/// A firing's identity within a scan: its packet's index in the scan, the block, the laser and
-/// the return type, in that order of significance.
-fn firing_key(packet: usize, block: u8, laser: u8, return_type: u8) -> u64 {
-    ((packet as u64) << 24)
-        | (u64::from(block) << 16)
-        | (u64::from(laser) << 8)
-        | u64::from(return_type)
-}
 
 fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
     let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));

@@ -3,6 +3,7 @@
 //! Hausdorff), regions of interest ([`roi`]) and the scan-by-scan comparison that `hilrig
 //! compare` runs ([`compare`]) and what it reports ([`report`]).
 
+mod cloud;
 pub mod compare;
 pub mod features;
 pub mod grid;

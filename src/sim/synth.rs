@@ -345,10 +345,12 @@ fn write_scenes(
             )));
         }
     }
-    // Actors of the scene without a walk keep their trajectory files (resolved absolutely).
+    // Actors of the scene without a walk keep their trajectory files (resolved absolutely:
+    // `Scene::from_file` joins the base again, which a relative base would double).
     for a in truth_file.actors.iter_mut() {
         if a.trajectory.is_relative() {
-            a.trajectory = job.scene_base.join(&a.trajectory);
+            let joined = job.scene_base.join(&a.trajectory);
+            a.trajectory = std::path::absolute(&joined).unwrap_or(joined);
         }
     }
     let scene = Scene::from_file(truth_file, job.scene_base, Path::new("scene"))

@@ -8,4 +8,5 @@ pub mod coverage;
 pub mod efast;
 pub mod rank;
 pub mod repetitions;
+pub mod scenario;
 pub mod validate;
