@@ -7,13 +7,21 @@
 //!
 //! 1. velodyne-decoder adds a constant z shift per laser for the HDL-32E and VLP-32C: an offset of
 //!    the form `-r tan(ω)` (the beam origin sits at radius r from the rotation axis; 28.9 mm and
-//!    42.4 mm from its output). hilrig's built-in tables carry the manuals' vertical corrections
+//!    42.4 mm from its output; 58.6 mm for the VLS-128). hilrig's built-in tables carry the manuals' vertical corrections
 //!    only for the VLP-16 and Puck Hi-Res (where both decoders agree), so for the other two the
 //!    test measures the per-laser shift, asserts it is constant per laser and of that `r tan ω`
 //!    form with one r, and compares z after removing it. VeloView has no such shift either
 //!    (shared/data/README.md), so hilrig agrees with VeloView's z on the HDL-32E.
 //! 2. velodyne-decoder rounds each interpolated azimuth to 0.01°; hilrig keeps it exact. At 100 m
-//!    that is up to 8.7 mm sideways, inside the 1 cm bound (checked, not loosened).
+//!    that is up to 8.7 mm sideways, inside the 1 cm bound; the VLS-128 sees to 240 m, where it
+//!    is up to 2.1 cm: there the bound is the rounding's, and every azimuth must agree to 0.0055°.
+//! 3. VLS-128: velodyne-decoder takes the rotation rate from the packet before (173.4 µs back),
+//!    so it does not interpolate the first packet of a file; those points are compared in
+//!    azimuth to the rotation of one firing sequence (0.2°). hilrig takes the rate within the
+//!    packet, from its first to its third sequence (115.6 µs), so it needs no state. Both rates
+//!    come from block azimuths quantised to 0.01°, so they may differ by 0.01° over either span;
+//!    times a firing's delay in its sequence (up to 55 µs) that is up to 0.008° more, growing
+//!    over the sequence. The bound per point is 0.0055° plus that share.
 
 mod common;
 
@@ -134,13 +142,14 @@ fn compare_file(name: &str, path: &std::path::Path) {
             );
             // velodyne-decoder 3.1.0 places every beam's origin at the "focal point where all
             // laser beams intersect", a documented distance from the sensor's axis (its
-            // calibration.cpp: HDL-32E 28.83 mm, VLP-32A/C 42.4 mm), and so lowers each point by
+            // calib_db.cpp: HDL-32E 28.83 mm, VLP-32A/C 42.4 mm, VLS-128 58.63 mm), and so lowers each point by
             // that distance times tan(ω); hilrig, like VeloView, casts from the axis. The lever
             // fitted here must be that distance (half a millimetre covers the f32 z of its output
             // divided by tan 3°).
             let focal = match model {
                 hilrig::velodyne::Model::Hdl32e => 0.028_83,
                 hilrig::velodyne::Model::Vlp32c => 0.042_4,
+                hilrig::velodyne::Model::Vls128 => 0.058_63,
                 other => panic!("{name}: no documented focal distance for {other}"),
             };
             assert!(
@@ -150,8 +159,19 @@ fn compare_file(name: &str, path: &std::path::Path) {
         }
     }
 
-    let (mut max_xy, mut max_z, mut max_d) = (0f64, 0f64, 0f64);
-    for ((_, p), r) in ours.iter().zip(&reference) {
+    // velodyne-decoder interpolates the VLS-128's firing azimuths with the rotation rate since
+    // the previous packet, so it cannot interpolate the file's first packet (it places its
+    // firings at their blocks' azimuths). Those points are compared in count, ring, return type,
+    // intensity and distance above, and in azimuth here: they may differ by no more than the
+    // rotation during one firing sequence.
+    let first_packet = if model == hilrig::velodyne::Model::Vls128 {
+        ours.iter().take_while(|(t, _)| *t == ours[0].0).count()
+    } else {
+        0
+    };
+    let azimuth = |x: f64, y: f64| y.atan2(x).to_degrees();
+    let (mut max_xy, mut max_z, mut max_d, mut max_az) = (0f64, 0f64, 0f64, 0f64);
+    for (i, ((_, p), r)) in ours.iter().zip(&reference).enumerate() {
         let z_ref = r.z - shift[&p.ring];
         // Without the z shift the reference norm is the distance up to the manual's z correction.
         let cal_l = cal.lasers.iter().find(|l| l.ring == p.ring).unwrap();
@@ -165,16 +185,56 @@ fn compare_file(name: &str, path: &std::path::Path) {
         };
         max_d = max_d.max((f64::from(p.distance_m) - d_ref_unshifted).abs());
         assert!((d_ours - f64::from(p.distance_m)).abs() < 1e-3);
-        max_xy = max_xy
-            .max((f64::from(p.x) - r.x).abs())
-            .max((f64::from(p.y) - r.y).abs());
         max_z = max_z.max((f64::from(p.z) - z_ref).abs());
+        let daz = (azimuth(f64::from(p.x), f64::from(p.y)) - azimuth(r.x, r.y) + 540.0)
+            .rem_euclid(360.0)
+            - 180.0;
+        if i < first_packet {
+            assert!(daz.abs() < 0.2, "{name}: first packet, point {i}: {daz}°");
+            continue;
+        }
+        // The reference rounds azimuths to 0.01°: up to 0.005° sideways, which beyond 115 m
+        // (the VLS-128 sees to 240 m) is more than 1 cm. On the VLS-128 the two decoders also
+        // take the rotation rate from different spans of 0.01°-quantised block azimuths (see
+        // the module's note 3), which may add up to 0.008° at the end of a firing sequence.
+        // Where these alone can exceed 1 cm, the bound is what they allow.
+        let allowed_deg = 0.0055
+            + if model == hilrig::velodyne::Model::Vls128 {
+                let sequence_ns = 20.0 * hilrig::velodyne::model::VLS128_SLOT_US * 1000.0;
+                0.008 * (f64::from(p.time_offset_ns) % sequence_ns) / (19.0 / 20.0 * sequence_ns)
+            } else {
+                0.0
+            };
+        assert!(
+            daz.abs() <= allowed_deg,
+            "{name}: point {i}: azimuths differ by {daz}°, more than {allowed_deg}°"
+        );
+        let exy = (f64::from(p.x) - r.x)
+            .abs()
+            .max((f64::from(p.y) - r.y).abs());
+        let sideways = f64::from(p.distance_m) * allowed_deg.to_radians();
+        if exy > 0.01 {
+            assert!(
+                exy <= sideways + 1e-3,
+                "{name}: point {i} at {} m: {exy} m sideways, more than the azimuth bound allows",
+                p.distance_m
+            );
+        } else {
+            max_xy = max_xy.max(exy);
+        }
+        max_az = max_az.max(daz.abs());
     }
     println!(
-        "{name}: max |Δdistance| {:.2} mm, max |Δx|,|Δy| {:.2} mm, max |Δz| {:.2} mm",
+        "{name}: max |Δdistance| {:.2} mm, max |Δx|,|Δy| {:.2} mm (where the rounding stays below 1 cm), max |Δz| {:.2} mm, max |Δazimuth| {:.4}°{}",
         max_d * 1e3,
         max_xy * 1e3,
-        max_z * 1e3
+        max_z * 1e3,
+        max_az,
+        if first_packet > 0 {
+            format!(" ({first_packet} points of the first packet compared in azimuth only)")
+        } else {
+            String::new()
+        }
     );
     assert!(max_d < 0.001, "{name}: distance within 1 mm");
     assert!(max_xy < 0.01, "{name}: x, y within 1 cm");
@@ -191,7 +251,7 @@ macro_rules! interop {
     )*};
 }
 
-interop!(hdl32e_monterey, vlp16_single, vlp16_dual, vlp32c);
+interop!(hdl32e_monterey, vlp16_single, vlp16_dual, vlp32c, vls128);
 
 /// Must-hold 2 of issue 5: packets the simulator wrote (the committed parking drive, truth model
 /// with noise, beam divergence and Lambertian intensity) decode to the same points with hilrig
@@ -220,4 +280,150 @@ fn simulated_parking_drive() {
     let pcap = dir.path().join("parking_rep01.pcap");
     std::fs::write(&pcap, w.finish().unwrap()).unwrap();
     compare_file("parking rep-01 (simulated)", &pcap);
+}
+
+/// The x, y, z of a binary PCD file (fields x y z, f32).
+fn read_pcd_xyz(path: &std::path::Path) -> Vec<[f64; 3]> {
+    let bytes = std::fs::read(path).unwrap();
+    let marker = b"DATA binary\n";
+    let at = bytes
+        .windows(marker.len())
+        .position(|w| w == marker)
+        .expect("a binary PCD")
+        + marker.len();
+    bytes[at..]
+        .chunks_exact(12)
+        .map(|c| {
+            let f = |i: usize| f64::from(f32::from_le_bytes([c[i], c[i + 1], c[i + 2], c[i + 3]]));
+            [f(0), f(4), f(8)]
+        })
+        .collect()
+}
+
+/// Median distance from each of `points` to the nearest of `cloud`.
+fn median_nearest(cloud: &[[f64; 3]], points: &[[f64; 3]]) -> f64 {
+    let tree: kiddo::ImmutableKdTree<f64, 3> =
+        kiddo::ImmutableKdTree::new_from_slice(cloud).unwrap();
+    let mut d: Vec<f64> = points
+        .iter()
+        .map(|p| {
+            tree.query(p)
+                .nearest_one::<kiddo::SquaredEuclidean<f64>>()
+                .execute()
+                .distance
+                .sqrt()
+        })
+        .collect();
+    d.sort_by(f64::total_cmp);
+    d[d.len() / 2]
+}
+
+/// Issue 14, must-hold 1, second half: nebula's decoded VLS-128 cloud. Its file comes from
+/// another instant of the drive than the packets in the capture (shared/data/README.md), so
+/// points cannot be paired; what can be checked is that every surface nebula saw is where hilrig
+/// puts it. The median distance from nebula's points to hilrig's cloud (all four scans) is at
+/// the centimetre level, and the check can fail: the same cloud turned by 0.2° about the
+/// sensor's axis, or lifted by 2 cm, is measurably farther.
+#[test]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
+fn vls128_agrees_with_nebulas_cloud_at_the_cm_level() {
+    let dir = real_data().join("velodyne");
+    let nebula = read_pcd_xyz(&dir.join("vls128.nebula-points.pcd"));
+    assert_eq!(nebula.len(), 208_680);
+    let (_, ours) = decode_file(&dir.join("vls128.pcap"), &LidarOptions::default());
+    let cloud: Vec<[f64; 3]> = ours
+        .iter()
+        .map(|(_, p)| [f64::from(p.x), f64::from(p.y), f64::from(p.z)])
+        .collect();
+    let median = median_nearest(&cloud, &nebula);
+    let (s, c) = 0.2f64.to_radians().sin_cos();
+    let turned: Vec<[f64; 3]> = cloud
+        .iter()
+        .map(|p| [c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]])
+        .collect();
+    let lifted: Vec<[f64; 3]> = cloud.iter().map(|p| [p[0], p[1], p[2] + 0.02]).collect();
+    let (m_turned, m_lifted) = (
+        median_nearest(&turned, &nebula),
+        median_nearest(&lifted, &nebula),
+    );
+    println!(
+        "vls128 vs nebula: median nearest distance {:.1} mm (turned 0.2°: {:.1} mm, lifted 2 cm: {:.1} mm)",
+        median * 1e3,
+        m_turned * 1e3,
+        m_lifted * 1e3
+    );
+    assert!(median < 0.015, "median {median} m");
+    assert!(m_turned > median + 0.008 && m_lifted > median + 0.008);
+}
+
+/// Issue 14, must-hold 2 (VLS-128): drives `synth` makes with a VLS-128 rig, strongest and dual
+/// return, decode equal to velodyne-decoder. The short parking-aisle drive of fixtures/efast
+/// with the parking truth model (noise, beam divergence, dropout, Lambertian intensity); the
+/// rig is the demo rig with its lidar swapped.
+#[test]
+#[cfg_attr(
+    not(hilrig_python),
+    ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
+)]
+fn simulated_vls128_drives_strongest_and_dual() {
+    use hilrig::capture::{CaptureReader, LinkType, PcapWriter};
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = tempfile::tempdir().unwrap();
+    let rig = std::fs::read_to_string(root.join("rigs/demo.toml"))
+        .unwrap()
+        .replace("model = \"vlp16\"", "model = \"vls128\"")
+        .replace(
+            "dbc = \"hilrig-ego.dbc\"",
+            &format!("dbc = {:?}", root.join("rigs/hilrig-ego.dbc")),
+        );
+    let rig_path = dir.path().join("vls128.toml");
+    std::fs::write(&rig_path, rig).unwrap();
+    for mode in ["strongest", "dual"] {
+        let drive = std::fs::read_to_string(root.join("fixtures/efast/drive.toml"))
+            .unwrap()
+            .replace(
+                "rig = \"../../rigs/demo.toml\"",
+                &format!("rig = {rig_path:?}"),
+            )
+            .replace(
+                "return_mode = \"strongest\"",
+                &format!("return_mode = {mode:?}"),
+            );
+        let drive_path = dir.path().join(format!("drive-{mode}.toml"));
+        std::fs::write(&drive_path, drive).unwrap();
+        let out = dir.path().join(mode);
+        hilrig_ok(&[
+            "synth".as_ref(),
+            "--scene".as_ref(),
+            root.join("fixtures/parking/scene.toml").as_os_str(),
+            "--drive".as_ref(),
+            drive_path.as_os_str(),
+            "--truth".as_ref(),
+            root.join("fixtures/parking/truth-model.toml").as_os_str(),
+            "--reps".as_ref(),
+            "1".as_ref(),
+            "--seed".as_ref(),
+            "11".as_ref(),
+            "-o".as_ref(),
+            out.as_os_str(),
+        ]);
+        let capture = out.join("rep-01/drive.pcapng");
+        let mut reader = CaptureReader::new(std::fs::File::open(&capture).unwrap()).unwrap();
+        let mut w = PcapWriter::new(Vec::new(), LinkType::ETHERNET, false, true).unwrap();
+        let mut frames = 0;
+        while let Some(r) = reader.next_record() {
+            let r = r.unwrap();
+            if r.link == LinkType::ETHERNET && r.data.len() > 1200 {
+                w.write_packet(r.time, r.data).unwrap();
+                frames += 1;
+            }
+        }
+        assert!(frames > 1000, "{mode}: {frames} lidar frames");
+        let pcap = dir.path().join(format!("vls128-{mode}.pcap"));
+        std::fs::write(&pcap, w.finish().unwrap()).unwrap();
+        compare_file(&format!("synthesized VLS-128 {mode}"), &pcap);
+    }
 }

@@ -294,3 +294,35 @@ fn every_real_packet_re_encodes_byte_identically() {
     }
     assert_eq!(total, 2702 + 299 + 84 + 603 + 379);
 }
+
+/// Issue 14: a product byte hilrig does not know gives one line naming the byte, where it was
+/// found and every supported model with its byte, and exit 2 (the input's problem). Forcing a
+/// model still decodes it.
+#[test]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
+fn an_unknown_product_byte_is_one_clear_line_and_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let rewritten = dir.path().join("vlp16_as_0x31.pcap");
+    rewrite_product(&capture("vlp16_single.pcap"), &rewritten, 0x31);
+    let rew = rewritten.to_str().unwrap();
+    let (code, stdout, stderr) = hilrig_decode(&[rew]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stdout.lines().count() <= 1, "no point written: {stdout}");
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error")).collect();
+    assert_eq!(errors.len(), 1, "{stderr}");
+    for want in [
+        "product byte 0x31 (Velarray)",
+        "vlp16 (0x22)",
+        "vlp32c (0x28)",
+        "hdl32e (0x21)",
+        "vls128 (0xa1)",
+        "--model",
+    ] {
+        assert!(errors[0].contains(want), "{want}: {stderr}");
+    }
+    let (code, _, stderr) = hilrig_decode(&[rew, "--model", "vlp16", "--format", "summary"]);
+    assert_eq!(code, Some(0), "{stderr}");
+}

@@ -131,8 +131,17 @@ pub fn run(args: DecodeArgs) -> Result<ExitCode> {
             let mut sink = CountSink::default();
             decode_capture(source, &options, &mut sink)
         }
-    }
-    .with_context(|| format!("decoding {}", args.file.display()))?;
+    };
+    let summary = match summary {
+        Ok(s) => s,
+        Err(e @ hilrig::decode::lidar::LidarError::UnknownModel { .. }) => {
+            // One line: which byte, where, and what is supported (exit 2: the input, not a
+            // failure of hilrig).
+            eprintln!("error: {}: {e}", args.file.display());
+            return Ok(ExitCode::from(2));
+        }
+        Err(e) => return Err(e).with_context(|| format!("decoding {}", args.file.display())),
+    };
     report(&args, &summary);
     if summary.data_packets == 0 {
         eprintln!(

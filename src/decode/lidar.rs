@@ -41,6 +41,24 @@ impl Default for LidarOptions {
     }
 }
 
+/// The supported models' names and product bytes, for messages.
+pub fn supported_models() -> String {
+    Model::ALL
+        .iter()
+        .map(|m| format!("{m} ({:#04x})", m.product().0))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// What a product byte is known to be, for messages.
+fn known_product(product: u8) -> &'static str {
+    match product {
+        0x31 => " (Velarray)",
+        0x40 => " (VLP-128)",
+        _ => "",
+    }
+}
+
 /// Where a point's time came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PointTime {
@@ -137,7 +155,7 @@ pub enum LidarError {
     #[error(transparent)]
     Capture(#[from] CaptureError),
     /// The product byte is unknown and no model was given.
-    #[error("data packet at byte {offset}: product byte {product:#04x} is not a supported model; force one with --model (vlp16, puck-hires, vlp32c, hdl32e)")]
+    #[error("data packet at byte {offset}: product byte {product:#04x}{} is not a model hilrig decodes; it decodes {} (force one with --model if the firmware writes a wrong byte)", known_product(*product), supported_models())]
     UnknownModel {
         /// Record offset.
         offset: u64,
@@ -167,6 +185,7 @@ pub fn decode_capture<R: Read + Send + 'static>(
     let mut decoder: Option<Decoder> = None;
     let mut hours = HourResolver::default();
     let mut loss: Option<LossCounter> = None;
+    let mut previous: Option<hilrig_velodyne::DataPacket> = None;
     let mut check = ModelCheck::default();
     let mut points: Vec<Point> = Vec::with_capacity(800);
     let mut last_pps_byte = None;
@@ -263,9 +282,13 @@ pub fn decode_capture<R: Read + Send + 'static>(
             l.observe(pkt.timestamp_us);
         }
         points.clear();
-        if let Err(e) = dec.decode_into(&pkt, &mut points) {
+        if let Err(e) = dec.decode_into_after(&pkt, previous.as_ref(), &mut points) {
             note_problem(&mut summary, item.offset, e);
             continue;
+        }
+        if dec.model() == hilrig_velodyne::Model::Vls128 {
+            // A dual-return VLS-128 packet takes its rotation rate from the one before.
+            previous = Some(pkt.clone());
         }
         summary.data_packets += 1;
         summary.points += points.len() as u64;

@@ -12,6 +12,8 @@
 //! from the ego pose at that time composed with the rig's mounting; actors are at their pose at
 //! that time too.
 
+mod vls128;
+
 use super::model::{Effect, ModelError, ModelFile};
 use crate::rig::Mounting;
 use crate::scene::pose::{mounting_isometry, Trajectory};
@@ -165,6 +167,10 @@ pub struct PacketTime {
     /// Reference time of the first firing of the rotation the packet belongs to (the single pose
     /// used when `motion_distortion` is disabled).
     pub rotation_start: UtcNanos,
+    /// The sensor's rotation rate, hundredths of a degree per µs, where the packet alone does
+    /// not give it (a dual-return VLS-128 packet holds one firing sequence): the spin's for
+    /// synthesized packets, the rate since the previous packet for recorded ones.
+    pub rotation_rate: Option<f64>,
 }
 
 /// Counters of one simulation.
@@ -444,6 +450,9 @@ impl<'a> LidarSim<'a> {
         seed: u64,
         stats: &mut SimStats,
     ) -> DataPacket {
+        if self.decoder.model() == hilrig_velodyne::Model::Vls128 {
+            return self.simulate_vls128(skeleton, time, ego, seed, stats);
+        }
         // Every channel is written below; none keeps what the skeleton carried (a recording's).
         let mut pkt = skeleton.clone();
         for b in pkt.blocks.iter_mut() {

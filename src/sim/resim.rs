@@ -159,12 +159,24 @@ pub fn resim(
     // All packets of all scans at once (both cores busy whatever the scan size), then the scans'
     // messages in parallel, then written in order.
     let mut jobs = Vec::new();
+    let mut previous: Option<DataPacket> = None;
     for (k, scan) in scans.iter().enumerate() {
+        let mut rates = Vec::with_capacity(scan.packets.len());
         let firsts: Vec<Option<UtcNanos>> = scan
             .packets
             .iter()
             .map(|(t, b)| {
-                DataPacket::decode(&b[..]).ok().map(|p| {
+                let p = DataPacket::decode(&b[..]).ok();
+                // The rate since the packet before (what a dual-return VLS-128 packet needs).
+                rates.push(
+                    p.as_ref()
+                        .zip(previous.as_ref())
+                        .and_then(|(p, q)| hilrig_velodyne::decode::rate_between(q, p)),
+                );
+                if p.is_some() {
+                    previous.clone_from(&p);
+                }
+                p.map(|p| {
                     if pps_locked {
                         sensor_time(p.timestamp_us, *t)
                     } else {
@@ -179,14 +191,14 @@ pub fn resim(
             .next()
             .copied()
             .unwrap_or(scan.stamp);
-        for (i, first) in firsts.into_iter().enumerate() {
-            jobs.push((k, i, first, rotation_start));
+        for (i, (first, rate)) in firsts.into_iter().zip(rates).enumerate() {
+            jobs.push((k, i, first, rotation_start, rate));
         }
     }
     let simulated: Vec<([u8; DATA_PACKET_SIZE], SimStats)> = jobs
         .par_iter()
         .enumerate()
-        .map(|(n, &(k, i, first, rotation_start))| {
+        .map(|(n, &(k, i, first, rotation_start, rotation_rate))| {
             let b = &scans[k].packets[i].1;
             let mut st = SimStats::default();
             let out = match (DataPacket::decode(&b[..]), first) {
@@ -196,6 +208,7 @@ pub fn resim(
                         PacketTime {
                             first_firing: first,
                             rotation_start,
+                            rotation_rate,
                         },
                         &trajectory,
                         seed ^ n as u64,

@@ -4,7 +4,7 @@
 use super::lidar::PacketTime;
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::decode::firing_offset_us;
-use hilrig_velodyne::packet::{Block, ReturnMode, BLOCKS, FLAG_UPPER};
+use hilrig_velodyne::packet::{Block, ReturnMode, BLOCKS, FLAGS_BANK};
 use hilrig_velodyne::{Channel, DataPacket, Model};
 
 /// A sensor spinning at a constant rate.
@@ -34,6 +34,9 @@ pub struct Skeleton {
 impl Spin {
     /// Time one packet covers, nanoseconds.
     pub fn packet_period_ns(&self) -> f64 {
+        if self.model == Model::Vls128 {
+            return hilrig_velodyne::Decoder::new(self.model).packet_period_us(self.mode) * 1000.0;
+        }
         let t = self.model.timing();
         let columns = if self.mode == ReturnMode::Dual {
             BLOCKS / 2
@@ -52,12 +55,27 @@ impl Spin {
     pub fn packet(&self, k: u64, sensor_clock: impl Fn(UtcNanos) -> UtcNanos) -> Skeleton {
         let first = self.t0.0 as f64 + k as f64 * self.packet_period_ns();
         let dual = self.mode == ReturnMode::Dual;
+        let vls = self.model == Model::Vls128;
         let blocks = std::array::from_fn(|b| {
-            let column = if dual { b / 2 } else { b };
+            // The VLS-128 spreads a sequence over four blocks (one per bank), and a dual packet
+            // holds a single sequence.
+            let column = match (vls, dual) {
+                (true, true) => 0,
+                (true, false) => b / 4,
+                (false, true) => b / 2,
+                (false, false) => b,
+            };
             let t = first + firing_offset_us(self.model, column, 0) * 1000.0;
             let az = (self.azimuth_deg(t) * 100.0).round().rem_euclid(36_000.0) as u16;
+            let bank = if !vls {
+                0
+            } else if dual {
+                (b / 2) % 4
+            } else {
+                b % 4
+            };
             Block {
-                flag: FLAG_UPPER,
+                flag: FLAGS_BANK[bank],
                 azimuth: az % 36_000,
                 channels: [Channel::default(); 32],
             }
@@ -81,6 +99,7 @@ impl Spin {
             time: PacketTime {
                 first_firing,
                 rotation_start: UtcNanos(rotation_start.round() as i64),
+                rotation_rate: Some(self.rpm * 6.0 * 100.0 * 1e-6),
             },
         }
     }

@@ -13,7 +13,7 @@
 use crate::calibration::Calibration;
 use crate::error::DecodeError;
 use crate::model::Model;
-use crate::packet::{Channel, DataPacket, ReturnMode, BLOCKS, CHANNELS};
+use crate::packet::{Channel, DataPacket, ReturnMode, BLOCKS, CHANNELS, FLAGS_BANK, FLAG_UPPER};
 
 /// A laser's id in firing order (what the calibration is indexed by).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -73,6 +73,9 @@ pub struct Decoder {
 
 /// Time of a channel's firing after the first firing of its column, in µs, per model.
 pub fn firing_offset_us(model: Model, column: usize, channel: usize) -> f64 {
+    if model == Model::Vls128 {
+        return vls128_offset_us(column, channel);
+    }
     let t = model.timing();
     let per_seq = CHANNELS / t.sequences_per_block;
     let lasers_per_seq = per_seq;
@@ -82,6 +85,51 @@ pub fn firing_offset_us(model: Model, column: usize, channel: usize) -> f64 {
     column as f64 * t.sequence_us * t.sequences_per_block as f64
         + seq_in_block as f64 * t.sequence_us
         + firing_index as f64 * t.firing_us
+}
+
+/// When the VLS-128's laser `laser` (0..128) fires in firing sequence `column` of a packet, µs
+/// after the packet's first firing: sequences of 20 slots, laser groups of 8 one slot apart,
+/// and 2 idle slots after the eighth group (lasers 64.. fire two slots later).
+pub fn vls128_offset_us(column: usize, laser: usize) -> f64 {
+    let t = Model::Vls128.timing();
+    column as f64 * t.sequence_us + (laser / 8 + laser / 64 * 2) as f64 * t.firing_us
+}
+
+/// Rotation in hundredths of a degree from `a` to `b`, across the wrap at 360°.
+fn azimuth_span(a: u16, b: u16) -> f64 {
+    f64::from((i32::from(b % 36_000) - i32::from(a % 36_000)).rem_euclid(36_000))
+}
+
+/// The rotation rate between two packets, hundredths of a degree per µs, from their first
+/// blocks' azimuths and their stamps; `None` when the stamps are not a few ms apart in order
+/// (a gap, a new hour, packets from different spins).
+pub fn rate_between(previous: &DataPacket, pkt: &DataPacket) -> Option<f64> {
+    let span = azimuth_span(previous.blocks[0].azimuth, pkt.blocks[0].azimuth);
+    let dt = f64::from(pkt.timestamp_us.wrapping_sub(previous.timestamp_us));
+    (dt > 0.0 && dt < 10_000.0).then(|| span / dt)
+}
+
+/// Where and when the VLS-128's laser `laser` fires in block `block` of `pkt`: the azimuth
+/// (hundredths of a degree, 0..36000) and the time after the packet's first firing (µs), with
+/// `rate` the rotation rate (hundredths of a degree per µs). Strongest/last packets hold three
+/// sequences (block / 4), dual ones one.
+pub fn vls128_firing(pkt: &DataPacket, block: usize, laser: usize, rate: f64) -> (f64, f64) {
+    let dual = pkt.return_mode.mode() == Some(ReturnMode::Dual);
+    let column = if dual { 0 } else { block / 4 };
+    let t = vls128_offset_us(column, laser);
+    let mut az =
+        f64::from(pkt.blocks[block].azimuth % 36_000) + rate * (t - vls128_offset_us(column, 0));
+    if az >= 36_000.0 {
+        az -= 36_000.0;
+    }
+    (az, t)
+}
+
+/// The rotation rate a VLS-128 strongest/last packet shows within itself (its first and third
+/// sequences' azimuths), hundredths of a degree per µs.
+pub fn vls128_rate(pkt: &DataPacket) -> f64 {
+    azimuth_span(pkt.blocks[0].azimuth, pkt.blocks[8].azimuth)
+        / (vls128_offset_us(2, 0) - vls128_offset_us(0, 0))
 }
 
 impl Decoder {
@@ -124,6 +172,11 @@ impl Decoder {
     /// Duration covered by one packet in this return mode, in µs (the expected packet period).
     pub fn packet_period_us(&self, mode: ReturnMode) -> f64 {
         let t = self.model.timing();
+        if self.model == Model::Vls128 {
+            // Four blocks per sequence: three sequences, or one in dual mode.
+            let sequences = if mode == ReturnMode::Dual { 1.0 } else { 3.0 };
+            return sequences * t.sequence_us;
+        }
         let columns = match mode {
             ReturnMode::Dual => BLOCKS / 2,
             _ => BLOCKS,
@@ -140,6 +193,22 @@ impl Decoder {
             None if self.model == Model::Hdl32e && pkt.return_mode.0 == 0 => ReturnMode::Strongest,
             None => return Err(DecodeError::UnsupportedReturnMode(pkt.return_mode.0)),
         };
+        if self.model == Model::Vls128 {
+            return self.decode_vls128(pkt, mode, None, out);
+        }
+        if let Some((block, b)) = pkt
+            .blocks
+            .iter()
+            .enumerate()
+            .find(|(_, b)| b.flag != FLAG_UPPER)
+        {
+            // Only the VLS-128 (and the HDL-64E) use the other banks' flags.
+            return Err(DecodeError::BadBlockFlag {
+                block,
+                offset: block * crate::packet::BLOCK_SIZE,
+                got: b.flag,
+            });
+        }
         let dual = mode == ReturnMode::Dual;
         let columns = if dual { BLOCKS / 2 } else { BLOCKS };
         let rate = self.rotation_rate(pkt, columns);
@@ -176,6 +245,107 @@ impl Decoder {
                 for (ch, &c) in block.channels.iter().enumerate() {
                     if c.distance > 0 {
                         emit(b, b, ch, c, rt);
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Like [`Decoder::decode_into`], with the rotation rate (hundredths of a degree per µs)
+    /// taken from the packet before when the packet itself cannot give it: a dual-return
+    /// VLS-128 packet holds a single firing sequence, so its firings' azimuths need the rate
+    /// the sensor turned at since the previous packet (as velodyne-decoder and VeloView
+    /// interpolate). `previous` is that packet; without it such a packet is decoded at its
+    /// block azimuths, uninterpolated.
+    pub fn decode_into_after(
+        &self,
+        pkt: &DataPacket,
+        previous: Option<&DataPacket>,
+        out: &mut Vec<Point>,
+    ) -> Result<(), DecodeError> {
+        let mode = pkt.return_mode.mode();
+        if self.model == Model::Vls128 && mode == Some(ReturnMode::Dual) {
+            let rate = previous.and_then(|p| rate_between(p, pkt));
+            return self.decode_vls128(pkt, ReturnMode::Dual, rate, out);
+        }
+        self.decode_into(pkt, out)
+    }
+
+    /// The VLS-128 layout: each block holds one bank of 32 lasers (its flag names the bank),
+    /// four blocks make a firing sequence; strongest or last: three sequences per packet;
+    /// dual: one sequence in eight blocks (last, then strongest return per bank) and four
+    /// unused blocks.
+    fn decode_vls128(
+        &self,
+        pkt: &DataPacket,
+        mode: ReturnMode,
+        rate_hint: Option<f64>,
+        out: &mut Vec<Point>,
+    ) -> Result<(), DecodeError> {
+        let dual = mode == ReturnMode::Dual;
+        let used = if dual { 8 } else { BLOCKS };
+        let mut banks = [0usize; BLOCKS];
+        for (b, bank) in banks.iter_mut().enumerate().take(used) {
+            let flag = pkt.blocks[b].flag;
+            *bank =
+                FLAGS_BANK
+                    .iter()
+                    .position(|f| *f == flag)
+                    .ok_or(DecodeError::BadBlockFlag {
+                        block: b,
+                        offset: b * crate::packet::BLOCK_SIZE,
+                        got: flag,
+                    })?;
+        }
+        // Single modes: the first blocks of the first and third sequence span two sequences.
+        let rate = if dual {
+            rate_hint.unwrap_or(0.0)
+        } else {
+            vls128_rate(pkt)
+        };
+        out.reserve(used * CHANNELS);
+        let mut emit = |block: usize, laser: usize, c: Channel, rt: ReturnType| {
+            let (az, t) = vls128_firing(pkt, block, laser, rate);
+            out.push(self.point_at(laser, block, az, t, c, rt));
+        };
+        if dual {
+            for pair in 0..4 {
+                let (lb, sb) = (2 * pair, 2 * pair + 1);
+                if banks[lb] != banks[sb] {
+                    return Err(DecodeError::BadBlockFlag {
+                        block: sb,
+                        offset: sb * crate::packet::BLOCK_SIZE,
+                        got: pkt.blocks[sb].flag,
+                    });
+                }
+                for ch in 0..CHANNELS {
+                    let laser = banks[lb] * CHANNELS + ch;
+                    let (l, s) = (pkt.blocks[lb].channels[ch], pkt.blocks[sb].channels[ch]);
+                    if l.distance == s.distance {
+                        if s.distance > 0 {
+                            emit(sb, laser, s, ReturnType::Both);
+                        }
+                        continue;
+                    }
+                    if l.distance > 0 {
+                        emit(lb, laser, l, ReturnType::Last);
+                    }
+                    if s.distance > 0 {
+                        emit(sb, laser, s, ReturnType::Strongest);
+                    }
+                }
+            }
+        } else {
+            let rt = if mode == ReturnMode::Last {
+                ReturnType::Last
+            } else {
+                ReturnType::Strongest
+            };
+            for (b, block) in pkt.blocks.iter().enumerate() {
+                for (ch, &c) in block.channels.iter().enumerate() {
+                    if c.distance > 0 {
+                        emit(b, banks[b] * CHANNELS + ch, c, rt);
                     }
                 }
             }
@@ -244,15 +414,30 @@ impl Decoder {
         return_type: ReturnType,
     ) -> Point {
         let (az, t) = self.firing(pkt, block, column, ch, rate);
-        let laser = self.laser_of_channel[ch];
-        let cal = &self.calibration.lasers[usize::from(laser)];
+        let laser = usize::from(self.laser_of_channel[ch]);
+        self.point_at(laser, block, az, t, channel, return_type)
+    }
+
+    /// The point of laser `laser`'s return `channel`, fired at azimuth `az` (hundredths of a
+    /// degree) `t` µs after the packet's first firing.
+    #[inline]
+    fn point_at(
+        &self,
+        laser: usize,
+        block: usize,
+        az: f64,
+        t: f64,
+        channel: Channel,
+        return_type: ReturnType,
+    ) -> Point {
+        let cal = &self.calibration.lasers[laser];
         let (raw, reflectivity) = (channel.distance, channel.reflectivity);
         let d = f64::from(raw) * self.calibration.distance_resolution_m + cal.distance_correction_m;
         let (sin_a, cos_a) = crate::calibration::azimuth_sin_cos(az, cal.rot_correction_rad);
         let xy = d * cal.cos_vert - cal.vertical_offset_m * cal.sin_vert;
         let ho = cal.horizontal_offset_m;
         Point {
-            laser: LaserId(laser),
+            laser: LaserId(laser as u8),
             ring: cal.ring,
             block: block as u8,
             azimuth_deg: (az * 0.01) as f32,

@@ -3,10 +3,15 @@
 //!
 //! A firing sequence is every laser once, at one azimuth. 32-laser models store one sequence per
 //! block, 16-laser models two (only the first sequence's azimuth is stored, as on the sensor). In
-//! dual-return mode each sequence fills two blocks: last return, then strongest.
+//! dual-return mode each sequence fills two blocks: last return, then strongest. The VLS-128
+//! spreads a sequence over four blocks, one per bank of 32 lasers (three sequences per packet),
+//! or in dual mode over eight (last, then strongest, per bank) and leaves the last four blocks
+//! unused.
 
 use crate::model::Model;
-use crate::packet::{Block, Channel, DataPacket, ReturnMode, BLOCKS, CHANNELS, FLAG_UPPER};
+use crate::packet::{
+    Block, Channel, DataPacket, ReturnMode, BLOCKS, CHANNELS, FLAGS_BANK, FLAG_UPPER,
+};
 
 /// One firing sequence: returns per laser id.
 #[derive(Clone, Debug, PartialEq)]
@@ -67,6 +72,9 @@ impl PacketEncoder {
 
     /// Sequences that fill one packet.
     pub fn sequences_per_packet(&self) -> usize {
+        if self.model == Model::Vls128 {
+            return if self.mode == ReturnMode::Dual { 1 } else { 3 };
+        }
         let per_block = self.model.timing().sequences_per_block;
         let blocks_per_seq = if self.mode == ReturnMode::Dual { 2 } else { 1 };
         BLOCKS * per_block / blocks_per_seq
@@ -109,7 +117,30 @@ impl PacketEncoder {
             Some(last) => vec![last, &seq.strongest],
             None => vec![&seq.strongest],
         };
-        if halves == 1 || !self.pending_second_half {
+        if self.model == Model::Vls128 {
+            for (bank, flag) in FLAGS_BANK.iter().enumerate() {
+                for set in &sets {
+                    let mut channels = [Channel::default(); CHANNELS];
+                    channels.copy_from_slice(&set[bank * CHANNELS..(bank + 1) * CHANNELS]);
+                    self.blocks.push(Block {
+                        flag: *flag,
+                        azimuth: seq.azimuth,
+                        channels,
+                    });
+                }
+            }
+            if self.mode == ReturnMode::Dual {
+                // The four unused blocks: bank flags, the sequence's azimuth, no returns
+                // (decoders skip them; velodyne-decoder reads only the first eight).
+                for flag in FLAGS_BANK {
+                    self.blocks.push(Block {
+                        flag,
+                        azimuth: seq.azimuth,
+                        channels: [Channel::default(); CHANNELS],
+                    });
+                }
+            }
+        } else if halves == 1 || !self.pending_second_half {
             // A new block per return set; 16-laser models fill its second half next time.
             for set in sets {
                 let mut channels = [Channel::default(); CHANNELS];

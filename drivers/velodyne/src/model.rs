@@ -2,7 +2,7 @@
 //! and the geometry the manuals publish.
 //!
 //! Values are taken from Velodyne's user manuals (VLP-16 63-9243 Rev E, Puck Hi-Res 63-9318,
-//! VLP-32C 63-9325, HDL-32E 63-9113): vertical angles, azimuth offsets and vertical offsets of
+//! VLP-32C 63-9325, HDL-32E 63-9113, VLS-128 / Alpha Prime): vertical angles, azimuth offsets and vertical offsets of
 //! each laser, the firing cycle, and the distance resolution. A calibration file in the
 //! ros-drivers YAML format overrides the geometry (see [`crate::calibration`]).
 
@@ -20,6 +20,9 @@ pub enum Model {
     Vlp32c,
     /// HDL-32E: 32 lasers, -30.67° to +10.67°.
     Hdl32e,
+    /// VLS-128 ("Alpha Prime"): 128 lasers in four banks of 32, -25° to +15°, firing in
+    /// groups of 8.
+    Vls128,
 }
 
 /// The factory byte of a data packet (byte 1205).
@@ -39,7 +42,7 @@ impl ProductId {
     pub const VLP32C: ProductId = ProductId(0x28);
     /// Velarray (not supported).
     pub const VELARRAY: ProductId = ProductId(0x31);
-    /// VLS-128 (not supported yet).
+    /// VLS-128 / Alpha Prime.
     pub const VLS128: ProductId = ProductId(0xA1);
 }
 
@@ -188,9 +191,60 @@ const HDL32E: [LaserSpec; 32] = [
     l(10.67, 0.0, 0.0),
 ];
 
+/// VLS-128 / Alpha Prime manual, laser angle table: elevation per laser id, degrees. (The
+/// same values VeloView ships as the sensor's default calibration.)
+#[rustfmt::skip]
+#[allow(clippy::approx_constant, reason = "laser 26's elevation is -6.28°, not -τ")]
+const VLS128_VERTICAL_DEG: [f64; 128] = [
+    // Firing group k (8 lasers) per row.
+    -11.742, -1.99, 3.4, -5.29, -0.78, 4.61, -4.08, 1.31,
+    -6.5, -1.11, 4.28, -4.41, 0.1, 6.48, -3.2, 2.19,
+    -3.86, 1.53, -9.244, -1.77, 2.74, -5.95, -0.56, 4.83,
+    -2.98, 2.41, -6.28, -0.89, 3.62, -5.07, 0.32, 7.58,
+    -0.34, 5.18, -3.64, 1.75, -25.0, -2.43, 2.96, -5.73,
+    0.54, 9.7, -2.76, 2.63, -7.65, -1.55, 3.84, -4.85,
+    3.18, -5.51, -0.12, 5.73, -4.3, 1.09, -16.042, -2.21,
+    4.06, -4.63, 0.76, 15.0, -3.42, 1.97, -6.85, -1.33,
+    -5.62, -0.23, 5.43, -3.53, 0.98, -19.582, -2.32, 3.07,
+    -4.74, 0.65, 11.75, -2.65, 1.86, -7.15, -1.44, 3.95,
+    -2.1, 3.29, -5.4, -0.01, 4.5, -4.19, 1.2, -13.565,
+    -1.22, 4.17, -4.52, 0.87, 6.08, -3.31, 2.08, -6.65,
+    1.42, -10.346, -1.88, 3.51, -6.06, -0.67, 4.72, -3.97,
+    2.3, -6.39, -1.0, 4.39, -5.18, 0.21, 6.98, -3.09,
+    4.98, -3.75, 1.64, -8.352, -2.54, 2.85, -5.84, -0.45,
+    8.43, -2.87, 2.52, -6.17, -1.66, 3.73, -4.96, 0.43,
+];
+
+/// VLS-128 azimuth offsets, degrees, per position in a firing group of 8 (the same for every
+/// group): the eight lasers that fire together sit side by side, not above each other.
+const VLS128_AZIMUTH_DEG: [f64; 8] = [6.354, 4.548, 2.732, 0.911, -0.911, -2.732, -4.548, -6.354];
+
+const VLS128: [LaserSpec; 128] = {
+    let mut t = [l(0.0, 0.0, 0.0); 128];
+    let mut i = 0;
+    while i < 128 {
+        t[i] = l(VLS128_VERTICAL_DEG[i], VLS128_AZIMUTH_DEG[i % 8], 0.0);
+        i += 1;
+    }
+    t
+};
+
+/// The VLS-128's firing cycle (its manual, "laser firing sequence"): groups of 8 lasers fire
+/// together, one group per channel slot, 16 groups and 4 idle slots (2 after the eighth group,
+/// 2 at the end) make a 20-slot sequence. The slot was 2.665 µs up to firmware 5.1.7 and is
+/// 2.89 µs since 5.2.3; the newer one is built in. (Azimuths do not depend on it: they are
+/// interpolated from the blocks' azimuths over the same table.)
+pub const VLS128_SLOT_US: f64 = 2.89;
+
 impl Model {
     /// Every supported model.
-    pub const ALL: [Model; 4] = [Model::Vlp16, Model::PuckHiRes, Model::Vlp32c, Model::Hdl32e];
+    pub const ALL: [Model; 5] = [
+        Model::Vlp16,
+        Model::PuckHiRes,
+        Model::Vlp32c,
+        Model::Hdl32e,
+        Model::Vls128,
+    ];
 
     /// The model a product byte names, if supported.
     ///
@@ -202,6 +256,7 @@ impl Model {
             ProductId::VLP16 => Some(Model::Vlp16),
             ProductId::PUCK_HIRES => Some(Model::PuckHiRes),
             ProductId::VLP32C => Some(Model::Vlp32c),
+            ProductId::VLS128 => Some(Model::Vls128),
             _ => None,
         }
     }
@@ -213,6 +268,7 @@ impl Model {
             Model::PuckHiRes => ProductId::PUCK_HIRES,
             Model::Vlp32c => ProductId::VLP32C,
             Model::Hdl32e => ProductId::HDL32E,
+            Model::Vls128 => ProductId::VLS128,
         }
     }
 
@@ -228,13 +284,14 @@ impl Model {
             Model::PuckHiRes => &PUCK_HIRES,
             Model::Vlp32c => &VLP32C,
             Model::Hdl32e => &HDL32E,
+            Model::Vls128 => &VLS128,
         }
     }
 
-    /// Metres per distance count: 2 mm, except the VLP-32C's 4 mm.
+    /// Metres per distance count: 2 mm, except the VLP-32C's and VLS-128's 4 mm.
     pub fn distance_resolution_m(self) -> f64 {
         match self {
-            Model::Vlp32c => 0.004,
+            Model::Vlp32c | Model::Vls128 => 0.004,
             _ => 0.002,
         }
     }
@@ -260,6 +317,13 @@ impl Model {
                 simultaneous: 1,
                 sequences_per_block: 1,
             },
+            // One sequence spans four blocks (one per bank); see `decode::firing_offset_us`.
+            Model::Vls128 => Timing {
+                sequence_us: 20.0 * VLS128_SLOT_US,
+                firing_us: VLS128_SLOT_US,
+                simultaneous: 8,
+                sequences_per_block: 1,
+            },
         }
     }
 
@@ -267,6 +331,7 @@ impl Model {
     pub fn max_range_m(self) -> f64 {
         match self {
             Model::Vlp32c => 200.0,
+            Model::Vls128 => 245.0,
             Model::Hdl32e => 100.0,
             Model::Vlp16 | Model::PuckHiRes => 100.0,
         }
@@ -279,6 +344,7 @@ impl Model {
             Model::PuckHiRes => "puck-hires",
             Model::Vlp32c => "vlp32c",
             Model::Hdl32e => "hdl32e",
+            Model::Vls128 => "vls128",
         }
     }
 }
@@ -302,8 +368,9 @@ impl FromStr for Model {
             "puckhires" | "vlp16hires" => Ok(Model::PuckHiRes),
             "vlp32c" | "ultrapuck" => Ok(Model::Vlp32c),
             "hdl32e" | "hdl32" => Ok(Model::Hdl32e),
+            "vls128" | "alphaprime" => Ok(Model::Vls128),
             _ => Err(format!(
-                "unknown Velodyne model '{s}': expected one of vlp16, puck-hires, vlp32c, hdl32e"
+                "unknown Velodyne model '{s}': expected one of vlp16, puck-hires, vlp32c, hdl32e, vls128"
             )),
         }
     }

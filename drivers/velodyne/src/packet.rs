@@ -1,6 +1,7 @@
 //! The 1206-byte data packet as it is on the wire, decoded losslessly.
 //!
-//! Layout (all Velodyne 16/32-laser models): 12 blocks of 100 bytes (flag `FF EE`, azimuth in
+//! Layout (all Velodyne 16/32/128-laser models): 12 blocks of 100 bytes (flag `FF EE`, or the
+//! VLS-128's bank flags `FF DD`, `FF CC`, `FF BB`, azimuth in
 //! hundredths of a degree, 32 × (distance u16, reflectivity u8)), then a 4-byte timestamp
 //! (microseconds past the hour), the return-mode byte and the product byte. All little-endian.
 //!
@@ -21,6 +22,9 @@ pub const CHANNELS: usize = 32;
 pub const BLOCK_SIZE: usize = 100;
 /// Block flag of the upper laser bank, the only one 16/32-laser models use.
 pub const FLAG_UPPER: u16 = 0xEEFF;
+/// The block flags of the VLS-128's four banks of 32 lasers (`FF EE`, `FF DD`, `FF CC`,
+/// `FF BB` on the wire), in laser order; the HDL-64E's lower bank writes the second.
+pub const FLAGS_BANK: [u16; 4] = [FLAG_UPPER, 0xDDFF, 0xCCFF, 0xBBFF];
 
 /// The return mode byte (1204).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -113,7 +117,7 @@ impl DataPacket {
         for (i, block) in blocks.iter_mut().enumerate() {
             let b = &bytes[i * BLOCK_SIZE..(i + 1) * BLOCK_SIZE];
             let flag = u16::from_le_bytes([b[0], b[1]]);
-            if flag != FLAG_UPPER {
+            if !FLAGS_BANK.contains(&flag) {
                 return Err(DecodeError::BadBlockFlag {
                     block: i,
                     offset: i * BLOCK_SIZE,

@@ -1,0 +1,124 @@
+//! The VLS-128's packet layout for the simulator: four blocks per firing sequence, one per bank
+//! of 32 lasers, each firing at its own slot of the firing table.
+
+use super::{LidarSim, PacketTime, SimStats};
+use crate::scene::pose::Trajectory;
+use hilrig_stamp::UtcNanos;
+use hilrig_velodyne::packet::CHANNELS;
+use hilrig_velodyne::{Channel, DataPacket, ReturnMode};
+use nalgebra::{Point3, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+impl LidarSim<'_> {
+    /// [`LidarSim::simulate`] for the VLS-128: each block is one bank of 32 lasers (its flag
+    /// says which), four blocks a firing sequence; every firing is cast at its own azimuth and
+    /// time from the firing table (`hilrig_velodyne::decode::vls128_firing`), at the pose
+    /// interpolated within its sequence.
+    pub(super) fn simulate_vls128(
+        &self,
+        skeleton: &DataPacket,
+        time: PacketTime,
+        ego: &Trajectory,
+        seed: u64,
+        stats: &mut SimStats,
+    ) -> DataPacket {
+        use hilrig_velodyne::decode::{vls128_firing, vls128_offset_us, vls128_rate};
+        use hilrig_velodyne::packet::FLAGS_BANK;
+        let mut pkt = skeleton.clone();
+        for b in pkt.blocks.iter_mut() {
+            b.channels = [Channel::default(); CHANNELS];
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mode = skeleton.return_mode.mode().unwrap_or(ReturnMode::Strongest);
+        let dual = mode == ReturnMode::Dual;
+        let rate = if dual {
+            time.rotation_rate.unwrap_or(0.0)
+        } else {
+            vls128_rate(skeleton)
+        };
+        let mut hint = 0usize;
+        let mut actors = self.scene.new_actor_poses();
+        let has_actors = !self.scene.actors.is_empty();
+        let fixed_pose = if self.fx.per_firing_pose {
+            None
+        } else {
+            Some(self.sensor_pose(ego, self.cast_time(time.rotation_start), &mut hint))
+        };
+        let cal = self.decoder.calibration();
+        let sequence_us = vls128_offset_us(1, 0);
+        // Blocks that carry a sequence's returns: all twelve, or the strongest-return block of
+        // each of the first four bank pairs in dual mode (the last-return block is its twin).
+        let blocks: Vec<usize> = if dual {
+            (0..4).map(|p| 2 * p + 1).collect()
+        } else {
+            (0..12).collect()
+        };
+        for block in blocks {
+            let Some(bank) = FLAGS_BANK
+                .iter()
+                .position(|f| *f == skeleton.blocks[block].flag)
+            else {
+                continue;
+            };
+            let column = if dual { 0 } else { block / 4 };
+            let t_a = self.cast_time(UtcNanos(
+                time.first_firing.0 + (vls128_offset_us(column, 0) * 1000.0).round() as i64,
+            ));
+            let t_b = UtcNanos(t_a.0 + (sequence_us * 1000.0).round() as i64);
+            let bracket = match fixed_pose {
+                Some(p) => p.map(|p| (p, p)),
+                None => self
+                    .sensor_pose(ego, t_a, &mut hint)
+                    .zip(self.sensor_pose(ego, t_b, &mut hint)),
+            };
+            let Some((pa, pb)) = bracket else {
+                stats.firings += CHANNELS as u64;
+                stats.outside_trajectory += CHANNELS as u64;
+                continue;
+            };
+            if has_actors {
+                self.scene
+                    .actor_poses(UtcNanos((t_a.0 + t_b.0) / 2), &mut actors);
+            }
+            let (ra, rb) = (
+                pa.rotation.to_rotation_matrix().into_inner(),
+                pb.rotation.to_rotation_matrix().into_inner(),
+            );
+            let (ta, tb) = (pa.translation.vector, pb.translation.vector);
+            let t0 = vls128_offset_us(column, 0);
+            for ch in 0..CHANNELS {
+                let laser = bank * CHANNELS + ch;
+                stats.firings += 1;
+                let (az, t) = vls128_firing(skeleton, block, laser, rate);
+                let f = if fixed_pose.is_some() {
+                    0.0
+                } else {
+                    ((t - t0) / sequence_us).clamp(0.0, 1.0)
+                };
+                let angle = (az * 0.01).to_radians() - cal.lasers[laser].rot_correction_rad;
+                let (sa, ca) = angle.sin_cos();
+                let beam = cal.beam_at(laser, sa, ca);
+                let (os, ds) = (Vector3::from(beam.origin), Vector3::from(beam.direction));
+                let r = ra + (rb - ra) * f;
+                let o = Point3::from(r * os + ta + (tb - ta) * f);
+                let d = r * ds;
+                let d = d / d.norm();
+                let r = self.fire(&o, &d, &actors, &mut rng);
+                if r.strongest.is_some() {
+                    stats.returns += 1;
+                }
+                let strongest = self.channel(laser, r.strongest, &mut rng);
+                if dual {
+                    pkt.blocks[block].channels[ch] = strongest;
+                    pkt.blocks[block - 1].channels[ch] = self.channel(laser, r.last, &mut rng);
+                } else if mode == ReturnMode::Last {
+                    pkt.blocks[block].channels[ch] = self.channel(laser, r.last, &mut rng);
+                } else {
+                    pkt.blocks[block].channels[ch] = strongest;
+                }
+            }
+        }
+        pkt
+    }
+}
