@@ -159,7 +159,7 @@ fn a_truncated_capture_replays_everything_before_the_cut_and_exits_1() {
     assert!(stderr.contains("truncated"), "{stderr}");
     assert!(
         stderr.contains(&format!(
-            "replaying the {} items before it",
+            "the {} items before it",
             expected.len() + positions
         )),
         "{stderr}"

@@ -79,6 +79,48 @@ pub fn read(bytes: &[u8], each: &mut Visitor<'_>) -> Result<(), String> {
     Ok(())
 }
 
+/// Like [`read`], from a reader of a file of `len` bytes: only one record (a chunk, at most)
+/// is held at a time, so memory does not grow with the file. Replay streams recordings so.
+pub fn read_stream(
+    mut src: impl std::io::Read,
+    len: u64,
+    each: &mut Visitor<'_>,
+) -> Result<(), String> {
+    let options = mcap::sans_io::LinearReaderOptions::default()
+        .with_skip_end_magic(true)
+        .with_emit_chunks(true)
+        .with_record_length_limit(usize::try_from(len).unwrap_or(usize::MAX));
+    let mut channels = mcap::read::ChannelAccumulator::<'static>::default();
+    // The last bytes read, for the closing magic.
+    let mut tail: Vec<u8> = Vec::with_capacity(16);
+    let mut fill = |buf: &mut [u8]| -> Result<usize, String> {
+        let mut got = 0;
+        while got < buf.len() {
+            match src.read(&mut buf[got..]) {
+                Ok(0) => break,
+                Ok(n) => got += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(format!("reading: {e}")),
+            }
+        }
+        tail.extend_from_slice(&buf[..got]);
+        if tail.len() > 8 {
+            tail.drain(..tail.len() - 8);
+        }
+        Ok(got)
+    };
+    records_from(&mut fill, options, &mut |op, body| {
+        data_record(op, body, &mut channels, each)
+    })?;
+    // After the data section the summary and footer follow; read them to find the magic.
+    let mut rest = [0u8; 1 << 16];
+    while fill(&mut rest)? > 0 {}
+    if tail != mcap::MAGIC {
+        return Err("the file ends without MCAP's closing magic: its summary or footer is cut off (every message was read; `hilrig recover` rewrites the file whole)".into());
+    }
+    Ok(())
+}
+
 /// What [`records`] hands each record to: opcode and body in, whether to go on out.
 type RecordVisitor<'a> = dyn FnMut(u8, &[u8]) -> Result<bool, String> + 'a;
 
@@ -91,15 +133,28 @@ fn records(
     options: mcap::sans_io::LinearReaderOptions,
     each: &mut RecordVisitor<'_>,
 ) -> Result<(), String> {
+    let mut fill = |buf: &mut [u8]| -> Result<usize, String> {
+        let n = buf.len().min(bytes.len());
+        buf[..n].copy_from_slice(&bytes[..n]);
+        bytes = &bytes[n..];
+        Ok(n)
+    };
+    records_from(&mut fill, options, each)
+}
+
+/// [`records`] from a source that fills a buffer and says how much it filled (0 at the end).
+fn records_from(
+    fill: &mut dyn FnMut(&mut [u8]) -> Result<usize, String>,
+    options: mcap::sans_io::LinearReaderOptions,
+    each: &mut RecordVisitor<'_>,
+) -> Result<(), String> {
     use mcap::sans_io::LinearReadEvent;
     let mut reader = mcap::sans_io::LinearReader::new_with_options(options);
     while let Some(event) = reader.next_event() {
         match event.map_err(|e| e.to_string())? {
             LinearReadEvent::ReadRequest(need) => {
-                let n = need.min(bytes.len());
-                reader.insert(n).copy_from_slice(&bytes[..n]);
+                let n = fill(reader.insert(need))?;
                 reader.notify_read(n);
-                bytes = &bytes[n..];
             }
             LinearReadEvent::Record { data, opcode } => {
                 if !each(opcode, data)? {

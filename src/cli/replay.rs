@@ -2,8 +2,10 @@
 //! [`hilrig::replay`], and the pacing summary.
 
 use anyhow::{bail, Result};
+use hilrig::replay::{ReplayError, ReplayItem, Streamed};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::{Arc, Mutex};
 
 #[derive(clap::Args)]
 pub struct ReplayArgs {
@@ -49,22 +51,10 @@ pub struct ReplayArgs {
 
 pub fn run(args: ReplayArgs) -> Result<ExitCode> {
     use hilrig::replay::sink::{udp_socket, CanSink, SerialSink, UdpSink};
-    use hilrig::replay::{load, play, stop_on_signals, window, Destinations, PlayOptions};
+    use hilrig::replay::{play_stream, stop_on_signals, Destinations, PlayOptions};
     use std::io::Write;
     if !(args.speed > 0.0 && args.speed.is_finite()) {
         bail!("--speed must be a positive number");
-    }
-    let (items, damage) = load(&args.file, args.data_port, args.position_port)?;
-    if let Some(e) = &damage {
-        // Replay what was read before the damage; the exit status still says it was incomplete.
-        eprintln!("error: {e} (replaying the {} items before it)", items.len());
-    }
-    let items = window(items, args.start, args.end);
-    if items.is_empty() {
-        bail!(
-            "{}: nothing to replay (in the chosen --start/--end window)",
-            args.file.display()
-        );
     }
     let udp = udp_socket()?;
     let mut dest = Destinations::default();
@@ -94,17 +84,105 @@ pub fn run(args: ReplayArgs) -> Result<ExitCode> {
         now: args.now,
         baud: args.baud,
     };
-    let played = play(&items, &mut dest, &options, &stop)?;
+    let reading: Arc<Mutex<Option<Result<Streamed, ReplayError>>>> = Arc::default();
+    let pass = || Pass::open(&args, reading.clone());
+    let played = play_stream(pass, &mut dest, &options, &stop)?;
+    let read = reading.lock().map(|mut r| r.take()).unwrap_or(None);
+    let streamed = match read {
+        Some(Ok(s)) => s,
+        Some(Err(e)) => return Err(e.into()),
+        None => Streamed::default(),
+    };
     let p = &played.pacing;
+    if p.sent + played.without_destination == 0 {
+        match &streamed.damage {
+            Some(e) => bail!("{}: {e}: nothing could be replayed", args.file.display()),
+            None => bail!(
+                "{}: nothing to replay (in the chosen --start/--end window)",
+                args.file.display()
+            ),
+        }
+    }
     eprintln!(
         "replayed {} items ({} without a destination); lag p50 {:.1} us, p99 {:.1} us, max {:.1} us",
         p.sent, played.without_destination, p.p50_us, p.p99_us, p.max_us
     );
-    Ok(match damage {
+    if streamed.out_of_order > 0 {
+        eprintln!(
+            "warning: {}: {} items came more than {} s after later ones in the file and were sent out of time order",
+            args.file.display(),
+            streamed.out_of_order,
+            hilrig::replay::load::REORDER_HORIZON_NS / 1_000_000_000
+        );
+    }
+    Ok(match streamed.damage {
         None => ExitCode::SUCCESS,
         Some(e) => {
-            eprintln!("error: {e}: the rest of the input was not replayed");
+            // What was read before the damage was replayed; the exit status says it was not all.
+            eprintln!(
+                "error: {}: {e} (replayed the {} items before it); the rest of the input was not replayed",
+                args.file.display(),
+                streamed.items
+            );
             ExitCode::from(1)
         }
     })
+}
+
+/// Items read ahead of the player, at most (about 5 MB of lidar packets).
+const READ_AHEAD: usize = 4096;
+
+/// One pass over the file: a reader thread streams it (bounded by [`READ_AHEAD`]) and the
+/// player takes the items in the `--start`/`--end` window from the channel. Dropping the pass
+/// stops the reader. The first pass's outcome (items read, damage) is kept in `reading`.
+struct Pass {
+    rx: std::sync::mpsc::Receiver<ReplayItem>,
+    window: (Option<f64>, Option<f64>),
+    bounds: Option<(i64, i64)>,
+}
+
+impl Pass {
+    fn open(args: &ReplayArgs, reading: Arc<Mutex<Option<Result<Streamed, ReplayError>>>>) -> Pass {
+        let (tx, rx) = std::sync::mpsc::sync_channel(READ_AHEAD);
+        let (path, data, position) = (args.file.clone(), args.data_port, args.position_port);
+        std::thread::spawn(move || {
+            let r =
+                hilrig::replay::stream(&path, data, position, &mut |item| tx.send(item).is_ok());
+            if let Ok(mut slot) = reading.lock() {
+                if slot.is_none() {
+                    *slot = Some(r);
+                }
+            }
+        });
+        Pass {
+            rx,
+            window: (args.start, args.end),
+            bounds: None,
+        }
+    }
+}
+
+impl Iterator for Pass {
+    type Item = ReplayItem;
+
+    fn next(&mut self) -> Option<ReplayItem> {
+        loop {
+            let item = self.rx.recv().ok()?;
+            let (from, to) = *self.bounds.get_or_insert_with(|| {
+                let first = item.time.0;
+                (
+                    self.window.0.map_or(i64::MIN, |s| first + (s * 1e9) as i64),
+                    self.window.1.map_or(i64::MAX, |s| first + (s * 1e9) as i64),
+                )
+            });
+            // Past the window's end by more than the reorder horizon, nothing later can fall
+            // inside it: stop reading instead of reading the rest of the file.
+            if item.time.0 > to.saturating_add(hilrig::replay::load::REORDER_HORIZON_NS) {
+                return None;
+            }
+            if item.time.0 >= from && item.time.0 <= to {
+                return Some(item);
+            }
+        }
+    }
 }

@@ -64,6 +64,179 @@ pub fn load(
     Ok((items, damage.map(err)))
 }
 
+/// How far (in file time) an MCAP item may come after items later than it: a VelodyneScan's
+/// packets are stamped around the message's log time and channels interleave by a few
+/// milliseconds, so items are held back this long and sent in time order. An item that still
+/// comes too late is sent at once, out of order, and counted.
+pub const REORDER_HORIZON_NS: i64 = 3_000_000_000;
+
+/// What [`stream`] read.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Streamed {
+    /// Items handed over.
+    pub items: u64,
+    /// MCAP items that came later than [`REORDER_HORIZON_NS`] behind a later one, and so were
+    /// handed over out of time order.
+    pub out_of_order: u64,
+    /// Damage that ended the reading early (everything before it was handed over).
+    pub damage: Option<String>,
+}
+
+/// Streams a capture (in file order) or an MCAP recording (in time order, through a reorder
+/// buffer of [`REORDER_HORIZON_NS`]) to `each`, which returns false to stop. Memory is bounded
+/// by one chunk and the reorder buffer, not by the file: an hour-long VLS-128 drive (26 GB)
+/// streams like a minute of it. Damage part way ends the stream with everything before it
+/// handed over, as [`load`] does.
+pub fn stream(
+    path: &Path,
+    data_port: u16,
+    position_port: u16,
+    each: &mut dyn FnMut(ReplayItem) -> bool,
+) -> Result<Streamed, ReplayError> {
+    let err = |what: String| ReplayError::Input {
+        path: path.display().to_string(),
+        what,
+    };
+    let file = std::fs::File::open(path).map_err(|e| err(e.to_string()))?;
+    let len = file.metadata().map_err(|e| err(e.to_string()))?.len();
+    let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
+    let magic = {
+        use std::io::BufRead;
+        let head = reader.fill_buf().map_err(|e| err(e.to_string()))?;
+        head.starts_with(mcap::MAGIC)
+    };
+    let mut out = Streamed::default();
+    if magic {
+        stream_mcap(reader, len, &mut out, each);
+        return Ok(out);
+    }
+    let mut d = Demux::new(CaptureReader::new(reader).map_err(|e| err(e.to_string()))?);
+    while let Some(item) = d.next_item() {
+        let item = match item {
+            Ok(i) => i,
+            Err(e) => {
+                out.damage = Some(e.to_string());
+                break;
+            }
+        };
+        let Some(payload) = capture_payload(item.packet, data_port, position_port) else {
+            continue;
+        };
+        out.items += 1;
+        if !each(ReplayItem {
+            time: item.time,
+            payload,
+        }) {
+            break;
+        }
+    }
+    Ok(out)
+}
+
+/// What replay sends for one demultiplexed capture packet, if anything.
+fn capture_payload(packet: Packet<'_>, data_port: u16, position_port: u16) -> Option<Payload> {
+    Some(match packet {
+        Packet::Udp { dst, payload, .. }
+            if dst.port() == data_port && payload.len() == hilrig_velodyne::DATA_PACKET_SIZE =>
+        {
+            Payload::LidarData(payload.to_vec())
+        }
+        Packet::Udp { dst, payload, .. }
+            if dst.port() == position_port
+                && payload.len() == hilrig_velodyne::POSITION_PACKET_SIZE =>
+        {
+            Payload::LidarPosition(payload.to_vec())
+        }
+        Packet::Udp { .. } => return None,
+        Packet::Serial(b) => Payload::Serial(b.to_vec()),
+        Packet::Can(f) => Payload::Can(f),
+    })
+}
+
+/// An item in the reorder buffer: earliest time first, then file order.
+struct Held(ReplayItem, u64);
+
+impl PartialEq for Held {
+    fn eq(&self, other: &Self) -> bool {
+        (self.0.time, self.1) == (other.0.time, other.1)
+    }
+}
+impl Eq for Held {}
+impl PartialOrd for Held {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Held {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        // Reversed: `BinaryHeap` is a max-heap.
+        (other.0.time, other.1).cmp(&(self.0.time, self.1))
+    }
+}
+
+fn stream_mcap(
+    reader: impl std::io::Read,
+    len: u64,
+    out: &mut Streamed,
+    each: &mut dyn FnMut(ReplayItem) -> bool,
+) {
+    let mut held = std::collections::BinaryHeap::new();
+    let (mut seq, mut latest, mut sent_up_to) = (0u64, i64::MIN, i64::MIN);
+    let mut stopped = false;
+    let mut batch = Vec::new();
+    let result = crate::bag::read::read_stream(reader, len, &mut |event| {
+        let crate::bag::read::Event::Message(m) = event else {
+            return Ok(());
+        };
+        batch.clear();
+        message_into(&m, &mut batch)?;
+        latest = latest.max(m.log_time as i64);
+        for item in batch.drain(..) {
+            if item.time.0 < sent_up_to {
+                out.out_of_order += 1;
+                out.items += 1;
+                if !each(item) {
+                    stopped = true;
+                    return Err(String::new());
+                }
+                continue;
+            }
+            held.push(Held(item, seq));
+            seq += 1;
+        }
+        while held
+            .peek()
+            .is_some_and(|h| h.0.time.0 <= latest.saturating_sub(REORDER_HORIZON_NS))
+        {
+            let Some(Held(item, _)) = held.pop() else {
+                break;
+            };
+            sent_up_to = item.time.0;
+            out.items += 1;
+            if !each(item) {
+                stopped = true;
+                return Err(String::new());
+            }
+        }
+        Ok(())
+    });
+    if stopped {
+        return;
+    }
+    if let Err(e) = result {
+        out.damage = Some(format!(
+            "the recording is damaged after {} items: {e}",
+            out.items + held.len() as u64
+        ));
+    }
+    while let Some(Held(item, _)) = held.pop() {
+        out.items += 1;
+        if !each(item) {
+            return;
+        }
+    }
+}
+
 /// The sans-IO core of [`load`]: the schedule of a capture or MCAP recording held in
 /// memory. `Err` when the bytes are no capture or recording at all; otherwise the items read and
 /// what stopped the reading early, if anything.
@@ -83,22 +256,8 @@ pub fn schedule(
             Ok(i) => i,
             Err(e) => return Ok((out, Some(e.to_string()))),
         };
-        let payload = match item.packet {
-            Packet::Udp { dst, payload, .. }
-                if dst.port() == data_port
-                    && payload.len() == hilrig_velodyne::DATA_PACKET_SIZE =>
-            {
-                Payload::LidarData(payload.to_vec())
-            }
-            Packet::Udp { dst, payload, .. }
-                if dst.port() == position_port
-                    && payload.len() == hilrig_velodyne::POSITION_PACKET_SIZE =>
-            {
-                Payload::LidarPosition(payload.to_vec())
-            }
-            Packet::Udp { .. } => continue,
-            Packet::Serial(b) => Payload::Serial(b.to_vec()),
-            Packet::Can(f) => Payload::Can(f),
+        let Some(payload) = capture_payload(item.packet, data_port, position_port) else {
+            continue;
         };
         out.push(ReplayItem {
             time: item.time,

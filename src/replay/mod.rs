@@ -16,6 +16,6 @@ pub mod now;
 pub mod pacing;
 pub mod sink;
 
-pub use load::{load, schedule, window, Payload, ReplayError, ReplayItem};
-pub use pacing::{play, stop_on_signals, wait_until, Pacing, PlayOptions, Played};
+pub use load::{load, schedule, stream, window, Payload, ReplayError, ReplayItem, Streamed};
+pub use pacing::{play, play_stream, stop_on_signals, wait_until, Pacing, PlayOptions, Played};
 pub use sink::{Destinations, Sink, SinkError};

@@ -35,21 +35,33 @@ pub struct Played {
     pub without_destination: u64,
 }
 
-/// Plays `items` (time-ordered, not empty) to `dest` until the end (or, with `repeat`, until
-/// `stop` is set). A send that fails ends the replay with the error.
+/// Plays `items` (in time order) to `dest` until done, or forever with `repeat`, until `stop`.
 pub fn play(
     items: &[ReplayItem],
     dest: &mut Destinations,
     options: &PlayOptions,
     stop: &AtomicBool,
 ) -> Result<Played, SinkError> {
-    let Some(first) = items.first().map(|i| i.time) else {
-        return Ok(Played::default());
-    };
-    let mut lags = Vec::with_capacity(items.len());
+    play_stream(|| items.iter().cloned(), dest, options, stop)
+}
+
+/// Plays the items `pass()` yields (in time order; a new pass for each `repeat`), so a file
+/// can be streamed rather than held: item `i` is due at `wall_start + (t_i - t_first) / speed`.
+/// Lags are kept in a histogram, so memory does not grow with the number of items either.
+pub fn play_stream<I: Iterator<Item = ReplayItem>>(
+    mut pass: impl FnMut() -> I,
+    dest: &mut Destinations,
+    options: &PlayOptions,
+    stop: &AtomicBool,
+) -> Result<Played, SinkError> {
+    let mut lags = LagHistogram::default();
     let byte_time = Duration::from_secs_f64(10.0 / f64::from(options.baud));
     let mut skipped = 0u64;
     'outer: loop {
+        let mut items = pass().peekable();
+        let Some(first) = items.peek().map(|i| i.time) else {
+            break;
+        };
         let wall0 = Instant::now();
         let utc0 = UtcNanos::now();
         let mut serial_free = wall0;
@@ -57,8 +69,9 @@ pub fn play(
             if stop.load(Ordering::Relaxed) {
                 break 'outer;
             }
-            let offset =
-                Duration::from_nanos(((item.time.0 - first.0) as f64 / options.speed) as u64);
+            let offset = Duration::from_nanos(
+                ((item.time.0 - first.0).max(0) as f64 / options.speed) as u64,
+            );
             let mut deadline = wall0 + offset;
             if let Payload::Serial(b) = &item.payload {
                 deadline = deadline.max(serial_free);
@@ -84,9 +97,71 @@ pub fn play(
     }
     dest.finish();
     Ok(Played {
-        pacing: Pacing::from_lags(lags),
+        pacing: lags.pacing(),
         without_destination: skipped,
     })
+}
+
+/// Send lags in whole microseconds up to 100 ms, each larger one kept exactly (there are few:
+/// a replay that late is broken anyway).
+struct LagHistogram {
+    counts: Vec<u64>,
+    over: Vec<i64>,
+    n: u64,
+    max_ns: i64,
+}
+
+impl Default for LagHistogram {
+    fn default() -> Self {
+        LagHistogram {
+            counts: vec![0; LAG_BUCKETS],
+            over: Vec::new(),
+            n: 0,
+            max_ns: 0,
+        }
+    }
+}
+
+const LAG_BUCKETS: usize = 100_000;
+
+impl LagHistogram {
+    fn push(&mut self, ns: i64) {
+        let us = (ns.max(0) / 1000) as usize;
+        match self.counts.get_mut(us) {
+            Some(c) => *c += 1,
+            None => self.over.push(ns),
+        }
+        self.n += 1;
+        self.max_ns = self.max_ns.max(ns);
+    }
+
+    /// The lag of rank `k` (0-based) in µs, to the microsecond below.
+    fn rank_us(&self, k: u64) -> f64 {
+        let mut seen = 0u64;
+        for (us, c) in self.counts.iter().enumerate() {
+            seen += c;
+            if seen > k {
+                return us as f64;
+            }
+        }
+        let mut over = self.over.clone();
+        over.sort_unstable();
+        over.get((k - seen) as usize)
+            .map_or(0.0, |ns| *ns as f64 * 1e-3)
+    }
+
+    fn pacing(&self) -> Pacing {
+        if self.n == 0 {
+            return Pacing::default();
+        }
+        let q = |p: f64| self.rank_us(((self.n - 1) as f64 * p).round() as u64);
+        Pacing {
+            sent: self.n,
+            p50_us: q(0.5),
+            p99_us: q(0.99),
+            max_us: self.max_ns as f64 * 1e-3,
+        }
+    }
 }
 
 /// A flag that Ctrl-C (SIGINT) or SIGTERM sets, for [`play`]'s `stop`.
