@@ -328,6 +328,11 @@ impl Rig {
         let calibration = match &lidar.calibration {
             Some(p) => hilrig_velodyne::Calibration::from_file(&self.resolve(p), model)
                 .map_err(|e| e.to_string())?,
+            None if model.needs_calibration_file() => {
+                return Err(format!(
+                    "the {model} needs its unit's own calibration (each laser's angles and offsets differ by up to a degree and centimetres from the nominal ones): set [lidar] calibration = \"FILE\" (a ros-drivers YAML file) in the rig"
+                ))
+            }
             None => hilrig_velodyne::Calibration::builtin(model),
         };
         Ok((lidar, model, calibration))

@@ -39,7 +39,7 @@ struct Ref {
     return_type: u8,
 }
 
-fn reference_points(capture: &std::path::Path) -> Vec<Ref> {
+fn reference_points(capture: &std::path::Path, forced: &[&std::ffi::OsStr]) -> Vec<Ref> {
     let out = tempfile::NamedTempFile::new().unwrap();
     let status = Command::new(python())
         .arg(concat!(
@@ -48,6 +48,7 @@ fn reference_points(capture: &std::path::Path) -> Vec<Ref> {
         ))
         .arg(capture)
         .arg(out.path())
+        .args(forced)
         .status()
         .expect("run the velodyne-decoder helper");
     assert!(
@@ -80,9 +81,31 @@ fn compare(name: &str) {
 }
 
 fn compare_file(name: &str, path: &std::path::Path) {
+    compare_file_as(name, path, None);
+}
+
+/// Compares with the model (and the calibration file) given to both decoders when the packets
+/// do not name them (the HDL-64E).
+fn compare_file_as(
+    name: &str,
+    path: &std::path::Path,
+    forced: Option<(hilrig::velodyne::Model, &str, &std::path::Path)>,
+) {
     let path = path.to_owned();
-    let reference = reference_points(&path);
-    let (summary, ours) = decode_file(&path, &LidarOptions::default());
+    let (reference, options) = match forced {
+        Some((model, vd_model, calibration)) => (
+            reference_points(&path, &[vd_model.as_ref(), calibration.as_os_str()]),
+            LidarOptions {
+                model: Some(model),
+                calibration: Some(
+                    hilrig::velodyne::Calibration::from_file(calibration, model).unwrap(),
+                ),
+                ..LidarOptions::default()
+            },
+        ),
+        None => (reference_points(&path, &[]), LidarOptions::default()),
+    };
+    let (summary, ours) = decode_file(&path, &options);
     let model = summary.model.expect("model");
     println!(
         "{name}: {} points (velodyne-decoder {})",
@@ -99,7 +122,10 @@ fn compare_file(name: &str, path: &std::path::Path) {
         assert_eq!(p.intensity, r.intensity, "{name}: intensity");
         dz.entry(p.ring).or_default().push(r.z - f64::from(p.z));
     }
-    let cal = hilrig::velodyne::Calibration::builtin(model);
+    let cal = options
+        .calibration
+        .clone()
+        .unwrap_or_else(|| hilrig::velodyne::Calibration::builtin(model));
     let mut shift = BTreeMap::new();
     let mut levers = Vec::new();
     for (ring, v) in &mut dz {
@@ -129,7 +155,10 @@ fn compare_file(name: &str, path: &std::path::Path) {
         hi * 1e3
     );
     match model {
-        hilrig::velodyne::Model::Vlp16 | hilrig::velodyne::Model::PuckHiRes => {
+        hilrig::velodyne::Model::Vlp16
+        | hilrig::velodyne::Model::PuckHiRes
+        | hilrig::velodyne::Model::Hdl64eS2
+        | hilrig::velodyne::Model::Hdl64eS3 => {
             assert!(
                 hi.abs() < 0.0015 && lo.abs() < 0.0015,
                 "{name}: both decoders apply the manual's corrections"
@@ -359,71 +388,124 @@ fn vls128_agrees_with_nebulas_cloud_at_the_cm_level() {
     assert!(m_turned > median + 0.008 && m_lifted > median + 0.008);
 }
 
+/// A drive `synth` makes with the demo rig's lidar swapped for `model` (with `calibration`, a
+/// rig line, if any) in return mode `mode`: the short parking-aisle drive of fixtures/efast with
+/// the parking truth model (noise, beam divergence, dropout, Lambertian intensity). Returns the
+/// lidar frames as a classic pcap (what velodyne-decoder reads).
+fn synthesized_lidar_pcap(
+    dir: &std::path::Path,
+    model: &str,
+    calibration: &str,
+    mode: &str,
+) -> std::path::PathBuf {
+    use hilrig::capture::{CaptureReader, LinkType, PcapWriter};
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let rig = std::fs::read_to_string(root.join("rigs/demo.toml"))
+        .unwrap()
+        .replace(
+            "model = \"vlp16\"",
+            &format!("model = {model:?}\n{calibration}"),
+        )
+        .replace(
+            "dbc = \"hilrig-ego.dbc\"",
+            &format!("dbc = {:?}", root.join("rigs/hilrig-ego.dbc")),
+        );
+    let rig_path = dir.join(format!("{model}.toml"));
+    std::fs::write(&rig_path, rig).unwrap();
+    let drive = std::fs::read_to_string(root.join("fixtures/efast/drive.toml"))
+        .unwrap()
+        .replace(
+            "rig = \"../../rigs/demo.toml\"",
+            &format!("rig = {rig_path:?}"),
+        )
+        .replace(
+            "return_mode = \"strongest\"",
+            &format!("return_mode = {mode:?}"),
+        );
+    let drive_path = dir.join(format!("drive-{model}-{mode}.toml"));
+    std::fs::write(&drive_path, drive).unwrap();
+    let out = dir.join(format!("{model}-{mode}"));
+    hilrig_ok(&[
+        "synth".as_ref(),
+        "--scene".as_ref(),
+        root.join("fixtures/parking/scene.toml").as_os_str(),
+        "--drive".as_ref(),
+        drive_path.as_os_str(),
+        "--truth".as_ref(),
+        root.join("fixtures/parking/truth-model.toml").as_os_str(),
+        "--reps".as_ref(),
+        "1".as_ref(),
+        "--seed".as_ref(),
+        "11".as_ref(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    let capture = out.join("rep-01/drive.pcapng");
+    let mut reader = CaptureReader::new(std::fs::File::open(&capture).unwrap()).unwrap();
+    let mut w = PcapWriter::new(Vec::new(), LinkType::ETHERNET, false, true).unwrap();
+    let mut frames = 0;
+    while let Some(r) = reader.next_record() {
+        let r = r.unwrap();
+        if r.link == LinkType::ETHERNET && r.data.len() > 1200 {
+            w.write_packet(r.time, r.data).unwrap();
+            frames += 1;
+        }
+    }
+    assert!(frames > 1000, "{model} {mode}: {frames} lidar frames");
+    let pcap = dir.join(format!("{model}-{mode}.pcap"));
+    std::fs::write(&pcap, w.finish().unwrap()).unwrap();
+    pcap
+}
+
 /// Issue 14, must-hold 2 (VLS-128): drives `synth` makes with a VLS-128 rig, strongest and dual
-/// return, decode equal to velodyne-decoder. The short parking-aisle drive of fixtures/efast
-/// with the parking truth model (noise, beam divergence, dropout, Lambertian intensity); the
-/// rig is the demo rig with its lidar swapped.
+/// return, decode equal to velodyne-decoder.
 #[test]
 #[cfg_attr(
     not(hilrig_python),
     ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
 )]
 fn simulated_vls128_drives_strongest_and_dual() {
-    use hilrig::capture::{CaptureReader, LinkType, PcapWriter};
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let dir = tempfile::tempdir().unwrap();
-    let rig = std::fs::read_to_string(root.join("rigs/demo.toml"))
-        .unwrap()
-        .replace("model = \"vlp16\"", "model = \"vls128\"")
-        .replace(
-            "dbc = \"hilrig-ego.dbc\"",
-            &format!("dbc = {:?}", root.join("rigs/hilrig-ego.dbc")),
-        );
-    let rig_path = dir.path().join("vls128.toml");
-    std::fs::write(&rig_path, rig).unwrap();
     for mode in ["strongest", "dual"] {
-        let drive = std::fs::read_to_string(root.join("fixtures/efast/drive.toml"))
-            .unwrap()
-            .replace(
-                "rig = \"../../rigs/demo.toml\"",
-                &format!("rig = {rig_path:?}"),
-            )
-            .replace(
-                "return_mode = \"strongest\"",
-                &format!("return_mode = {mode:?}"),
-            );
-        let drive_path = dir.path().join(format!("drive-{mode}.toml"));
-        std::fs::write(&drive_path, drive).unwrap();
-        let out = dir.path().join(mode);
-        hilrig_ok(&[
-            "synth".as_ref(),
-            "--scene".as_ref(),
-            root.join("fixtures/parking/scene.toml").as_os_str(),
-            "--drive".as_ref(),
-            drive_path.as_os_str(),
-            "--truth".as_ref(),
-            root.join("fixtures/parking/truth-model.toml").as_os_str(),
-            "--reps".as_ref(),
-            "1".as_ref(),
-            "--seed".as_ref(),
-            "11".as_ref(),
-            "-o".as_ref(),
-            out.as_os_str(),
-        ]);
-        let capture = out.join("rep-01/drive.pcapng");
-        let mut reader = CaptureReader::new(std::fs::File::open(&capture).unwrap()).unwrap();
-        let mut w = PcapWriter::new(Vec::new(), LinkType::ETHERNET, false, true).unwrap();
-        let mut frames = 0;
-        while let Some(r) = reader.next_record() {
-            let r = r.unwrap();
-            if r.link == LinkType::ETHERNET && r.data.len() > 1200 {
-                w.write_packet(r.time, r.data).unwrap();
-                frames += 1;
-            }
-        }
-        assert!(frames > 1000, "{mode}: {frames} lidar frames");
-        let pcap = dir.path().join(format!("vls128-{mode}.pcap"));
-        std::fs::write(&pcap, w.finish().unwrap()).unwrap();
+        let pcap = synthesized_lidar_pcap(dir.path(), "vls128", "", mode);
         compare_file(&format!("synthesized VLS-128 {mode}"), &pcap);
+    }
+}
+
+/// Issue 14, must-hold 2 (HDL-64E S3): with a calibration file, as a 64E needs; every laser's
+/// angles moved off the nominal table so that a decoder ignoring the file would fail. Both
+/// decoders are told the model (the 64E writes no product byte) and the file.
+#[test]
+#[cfg_attr(
+    not(hilrig_python),
+    ignore = "needs HILRIG_PYTHON (set by .ci/run): did not run"
+)]
+fn simulated_hdl64e_s3_drives_with_a_calibration_file_strongest_and_dual() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = hilrig::velodyne::Model::Hdl64eS3;
+    let nominal = hilrig::velodyne::Calibration::builtin(model);
+    let mut yaml = String::from("distance_resolution: 0.002\nnum_lasers: 64\nlasers:\n");
+    for (i, l) in nominal.lasers.iter().enumerate() {
+        let k = i as f64;
+        yaml.push_str(&format!(
+            "- {{laser_id: {i}, rot_correction: {}, vert_correction: {}}}\n",
+            0.08 * (0.7 * k).sin(),
+            l.vertical_rad + 0.004 * (1.3 * k).cos()
+        ));
+    }
+    let calibration = dir.path().join("hdl64e-s3.yml");
+    std::fs::write(&calibration, yaml).unwrap();
+    for mode in ["strongest", "dual"] {
+        let pcap = synthesized_lidar_pcap(
+            dir.path(),
+            "hdl64e-s3",
+            &format!("calibration = {calibration:?}"),
+            mode,
+        );
+        compare_file_as(
+            &format!("synthesized HDL-64E S3 {mode}"),
+            &pcap,
+            Some((model, "HDL64E_S3", &calibration)),
+        );
     }
 }

@@ -134,7 +134,10 @@ pub fn run(args: DecodeArgs) -> Result<ExitCode> {
     };
     let summary = match summary {
         Ok(s) => s,
-        Err(e @ hilrig::decode::lidar::LidarError::UnknownModel { .. }) => {
+        Err(
+            e @ (hilrig::decode::lidar::LidarError::UnknownModel { .. }
+            | hilrig::decode::lidar::LidarError::NeedsCalibration { .. }),
+        ) => {
             // One line: which byte, where, and what is supported (exit 2: the input, not a
             // failure of hilrig).
             eprintln!("error: {}: {e}", args.file.display());

@@ -162,6 +162,12 @@ pub enum LidarError {
         /// Product byte.
         product: u8,
     },
+    /// The model's data need the unit's calibration file and none was given.
+    #[error("the {model} needs its unit's own calibration (each laser's angles and offsets differ by up to a degree and centimetres from the nominal ones): give it with --calibration FILE (a ros-drivers YAML file)")]
+    NeedsCalibration {
+        /// The model.
+        model: Model,
+    },
     /// Writing to the sink failed.
     #[error("writing points failed: {0}")]
     Output(#[from] std::io::Error),
@@ -263,6 +269,9 @@ pub fn decode_capture<R: Read + Send + 'static>(
                 }
             };
             summary.model = Some(model);
+            if model.needs_calibration_file() && options.calibration.is_none() {
+                return Err(LidarError::NeedsCalibration { model });
+            }
             let d = match &options.calibration {
                 Some(c) => Decoder::with_calibration(model, c.clone()),
                 None => Decoder::new(model),

@@ -12,7 +12,7 @@
 //! from the ego pose at that time composed with the rig's mounting; actors are at their pose at
 //! that time too.
 
-mod vls128;
+mod banked;
 
 use super::model::{Effect, ModelError, ModelFile};
 use crate::rig::Mounting;
@@ -450,8 +450,9 @@ impl<'a> LidarSim<'a> {
         seed: u64,
         stats: &mut SimStats,
     ) -> DataPacket {
-        if self.decoder.model() == hilrig_velodyne::Model::Vls128 {
-            return self.simulate_vls128(skeleton, time, ego, seed, stats);
+        let model = self.decoder.model();
+        if model == hilrig_velodyne::Model::Vls128 || model.is_hdl64e() {
+            return self.simulate_banked(skeleton, time, ego, seed, stats);
         }
         // Every channel is written below; none keeps what the skeleton carried (a recording's).
         let mut pkt = skeleton.clone();

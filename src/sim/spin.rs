@@ -34,7 +34,7 @@ pub struct Skeleton {
 impl Spin {
     /// Time one packet covers, nanoseconds.
     pub fn packet_period_ns(&self) -> f64 {
-        if self.model == Model::Vls128 {
+        if self.model == Model::Vls128 || self.model.is_hdl64e() {
             return hilrig_velodyne::Decoder::new(self.model).packet_period_us(self.mode) * 1000.0;
         }
         let t = self.model.timing();
@@ -56,18 +56,23 @@ impl Spin {
         let first = self.t0.0 as f64 + k as f64 * self.packet_period_ns();
         let dual = self.mode == ReturnMode::Dual;
         let vls = self.model == Model::Vls128;
+        let hdl64 = self.model.is_hdl64e();
         let blocks = std::array::from_fn(|b| {
             // The VLS-128 spreads a sequence over four blocks (one per bank), and a dual packet
-            // holds a single sequence.
-            let column = match (vls, dual) {
-                (true, true) => 0,
-                (true, false) => b / 4,
-                (false, true) => b / 2,
-                (false, false) => b,
+            // holds a single sequence; the HDL-64E over a block pair (two in dual mode).
+            let column = match (vls, hdl64, dual) {
+                (true, _, true) => 0,
+                (true, _, false) => b / 4,
+                (false, true, true) => b / 4,
+                (false, true, false) => b / 2,
+                (false, false, true) => b / 2,
+                (false, false, false) => b,
             };
             let t = first + firing_offset_us(self.model, column, 0) * 1000.0;
             let az = (self.azimuth_deg(t) * 100.0).round().rem_euclid(36_000.0) as u16;
-            let bank = if !vls {
+            let bank = if hdl64 {
+                b % 2
+            } else if !vls {
                 0
             } else if dual {
                 (b / 2) % 4

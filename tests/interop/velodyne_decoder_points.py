@@ -4,7 +4,7 @@ Used by tests/velodyne_interop.rs as the independent reference decoder. Range li
 (velodyne-decoder drops points below 0.1 m and above 200 m by default; hilrig keeps every
 return), everything else is velodyne-decoder's default.
 
-usage: velodyne_decoder_points.py PCAP OUT.csv [MODEL]
+usage: velodyne_decoder_points.py PCAP OUT.csv [MODEL [CALIBRATION.yml]]
 columns: x,y,z,intensity,ring,return_type,time_rel,scan
 """
 import sys
@@ -20,6 +20,8 @@ def main():
     cfg.max_range = 1e6
     if len(sys.argv) > 3:
         cfg.model = getattr(vd.Model, sys.argv[3])
+    if len(sys.argv) > 4:
+        cfg.calibration = vd.Calibration.read(sys.argv[4])
     chunks = []
     for i, (stamp, pts) in enumerate(vd.read_pcap(pcap, cfg)):
         scan = np.full((len(pts), 1), i, dtype=np.float64)

@@ -73,6 +73,9 @@ pub struct Decoder {
 
 /// Time of a channel's firing after the first firing of its column, in µs, per model.
 pub fn firing_offset_us(model: Model, column: usize, channel: usize) -> f64 {
+    if model.is_hdl64e() {
+        return hdl64e_offset_us(model, 2 * column, channel % CHANNELS);
+    }
     if model == Model::Vls128 {
         return vls128_offset_us(column, channel);
     }
@@ -93,6 +96,64 @@ pub fn firing_offset_us(model: Model, column: usize, channel: usize) -> f64 {
 pub fn vls128_offset_us(column: usize, laser: usize) -> f64 {
     let t = Model::Vls128.timing();
     column as f64 * t.sequence_us + (laser / 8 + laser / 64 * 2) as f64 * t.firing_us
+}
+
+/// The HDL-64E's firing table (its manuals' "laser firing time table"): when channel `j` of
+/// block `block` fires, µs after the packet's first firing, in the strongest-return layout (a
+/// block pair per firing sequence: the upper bank's laser j and the lower bank's laser 32 + j
+/// fire together; four lasers per group, the groups 6 µs (S2) or 7.2 µs (S3) apart).
+pub fn hdl64e_offset_us(model: Model, block: usize, j: usize) -> f64 {
+    let (sequence, group, pattern) = match model {
+        Model::Hdl64eS2 => (48.0, 6.0, [0.0, 1.26, 2.46, 3.66]),
+        _ => (57.6, 7.2, [0.0, 1.3, 2.5, 3.7]),
+    };
+    sequence * (block / 2) as f64 + group * (j / 4) as f64 + pattern[j % 4]
+}
+
+/// Whether an HDL-64E packet is dual return: its return-mode byte when it carries one (hilrig's
+/// synthesizer writes it), else the azimuths (the S3 repeats a sequence's azimuth in its
+/// last-return blocks, as velodyne-decoder and VeloView detect it).
+pub fn hdl64e_dual(pkt: &DataPacket) -> bool {
+    match pkt.return_mode.mode() {
+        Some(m) => m == ReturnMode::Dual,
+        None => pkt.blocks[0].azimuth == pkt.blocks[2].azimuth,
+    }
+}
+
+/// Where and when the HDL-64E's laser `laser` (bank × 32 + channel) in block `block` of `pkt`
+/// fires, as [`vls128_firing`] does for the VLS-128.
+pub fn hdl64e_firing(
+    model: Model,
+    pkt: &DataPacket,
+    block: usize,
+    laser: usize,
+    rate: f64,
+) -> (f64, f64) {
+    let j = laser % CHANNELS;
+    let (t0, t) = if hdl64e_dual(pkt) {
+        let column = block / 4 * 2;
+        (
+            hdl64e_offset_us(model, column, 0),
+            hdl64e_offset_us(model, column + block % 2, j),
+        )
+    } else {
+        (
+            hdl64e_offset_us(model, block / 2 * 2, 0),
+            hdl64e_offset_us(model, block, j),
+        )
+    };
+    let mut az = f64::from(pkt.blocks[block].azimuth % 36_000) + rate * (t - t0);
+    if az >= 36_000.0 {
+        az -= 36_000.0;
+    }
+    (az, t)
+}
+
+/// The rotation rate an HDL-64E packet shows from its first to its last block.
+pub fn hdl64e_rate(model: Model, pkt: &DataPacket) -> f64 {
+    let last = if hdl64e_dual(pkt) { 5 } else { 11 };
+    azimuth_span(pkt.blocks[0].azimuth, pkt.blocks[11].azimuth)
+        / (hdl64e_offset_us(model, last, 0) - hdl64e_offset_us(model, 0, 0))
 }
 
 /// Rotation in hundredths of a degree from `a` to `b`, across the wrap at 360°.
@@ -177,6 +238,11 @@ impl Decoder {
             let sequences = if mode == ReturnMode::Dual { 1.0 } else { 3.0 };
             return sequences * t.sequence_us;
         }
+        if self.model.is_hdl64e() {
+            // A block pair per sequence: six, or three in dual mode.
+            let sequences = if mode == ReturnMode::Dual { 3.0 } else { 6.0 };
+            return sequences * t.sequence_us;
+        }
         let columns = match mode {
             ReturnMode::Dual => BLOCKS / 2,
             _ => BLOCKS,
@@ -187,6 +253,10 @@ impl Decoder {
     /// Appends the packet's returns to `out`, in packet order (for dual return: per channel the
     /// last return, then the strongest, or one point of type `Both` when they coincide).
     pub fn decode_into(&self, pkt: &DataPacket, out: &mut Vec<Point>) -> Result<(), DecodeError> {
+        if self.model.is_hdl64e() {
+            // Bytes 1204-1205 are status bytes on the HDL-64E, not a return mode.
+            return self.decode_hdl64e(pkt, out);
+        }
         let mode = match pkt.return_mode.mode() {
             Some(m) => m,
             // HDL-32E firmware before 2.2.20 (2016) leaves the byte at 0 and has no dual mode.
@@ -195,6 +265,9 @@ impl Decoder {
         };
         if self.model == Model::Vls128 {
             return self.decode_vls128(pkt, mode, None, out);
+        }
+        if self.model.is_hdl64e() {
+            return self.decode_hdl64e(pkt, out);
         }
         if let Some((block, b)) = pkt
             .blocks
@@ -270,6 +343,72 @@ impl Decoder {
             return self.decode_vls128(pkt, ReturnMode::Dual, rate, out);
         }
         self.decode_into(pkt, out)
+    }
+
+    /// The HDL-64E layout: blocks in pairs, upper bank (lasers 0..32, flag `FF EE`) then lower
+    /// (32..64, `FF DD`), one pair per firing sequence: six per packet; in dual return (S3)
+    /// three sequences, each as strongest upper, strongest lower, last upper, last lower.
+    fn decode_hdl64e(&self, pkt: &DataPacket, out: &mut Vec<Point>) -> Result<(), DecodeError> {
+        let bank = |b: usize| -> Result<usize, DecodeError> {
+            let flag = pkt.blocks[b].flag;
+            FLAGS_BANK[..2]
+                .iter()
+                .position(|f| *f == flag)
+                .ok_or(DecodeError::BadBlockFlag {
+                    block: b,
+                    offset: b * crate::packet::BLOCK_SIZE,
+                    got: flag,
+                })
+        };
+        let rate = hdl64e_rate(self.model, pkt);
+        out.reserve(BLOCKS * CHANNELS);
+        if hdl64e_dual(pkt) {
+            for i in (0..BLOCKS).filter(|i| i % 4 < 2) {
+                let k = bank(i)?;
+                if bank(i + 2)? != k {
+                    return Err(DecodeError::BadBlockFlag {
+                        block: i + 2,
+                        offset: (i + 2) * crate::packet::BLOCK_SIZE,
+                        got: pkt.blocks[i + 2].flag,
+                    });
+                }
+                for j in 0..CHANNELS {
+                    let laser = k * CHANNELS + j;
+                    let (s, l) = (pkt.blocks[i].channels[j], pkt.blocks[i + 2].channels[j]);
+                    let (az, t) = hdl64e_firing(self.model, pkt, i, laser, rate);
+                    if l.distance == s.distance {
+                        if s.distance > 0 {
+                            out.push(self.point_at(laser, i, az, t, s, ReturnType::Both));
+                        }
+                        continue;
+                    }
+                    if l.distance > 0 {
+                        out.push(self.point_at(laser, i + 2, az, t, l, ReturnType::Last));
+                    }
+                    if s.distance > 0 {
+                        out.push(self.point_at(laser, i, az, t, s, ReturnType::Strongest));
+                    }
+                }
+            }
+        } else {
+            // The S3 can report the last return alone; the byte says so when it is there.
+            let rt = if pkt.return_mode.mode() == Some(ReturnMode::Last) {
+                ReturnType::Last
+            } else {
+                ReturnType::Strongest
+            };
+            for i in 0..BLOCKS {
+                let k = bank(i)?;
+                for (j, &c) in pkt.blocks[i].channels.iter().enumerate() {
+                    if c.distance > 0 {
+                        let laser = k * CHANNELS + j;
+                        let (az, t) = hdl64e_firing(self.model, pkt, i, laser, rate);
+                        out.push(self.point_at(laser, i, az, t, c, rt));
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The VLS-128 layout: each block holds one bank of 32 lasers (its flag names the bank),
@@ -565,5 +704,88 @@ mod tests {
             Decoder::new(Model::Hdl32e).decode(&p),
             Err(DecodeError::UnsupportedReturnMode(0x42))
         );
+    }
+
+    mod vls128 {
+        use super::*;
+        use crate::packet::FLAGS_BANK;
+        use proptest::prelude::*;
+
+        fn arb_vls_packet() -> impl Strategy<Value = DataPacket> {
+            let channel =
+                (any::<u16>(), any::<u8>()).prop_map(|(distance, reflectivity)| Channel {
+                    distance,
+                    reflectivity,
+                });
+            let block = (
+                prop_oneof![4 => (0usize..4).prop_map(|b| FLAGS_BANK[b]), 1 => any::<u16>()],
+                0u16..=36_000,
+                proptest::array::uniform32(channel),
+            )
+                .prop_map(|(flag, azimuth, channels)| Block {
+                    flag,
+                    azimuth,
+                    channels,
+                });
+            (
+                proptest::collection::vec(block, BLOCKS),
+                any::<u32>(),
+                prop_oneof![Just(0x37u8), Just(0x38), Just(0x39), any::<u8>()],
+            )
+                .prop_map(|(blocks, timestamp_us, rm)| DataPacket {
+                    blocks: blocks.try_into().expect("12 blocks"),
+                    timestamp_us,
+                    return_mode: crate::packet::ReturnModeByte(rm),
+                    product: ProductId::VLS128,
+                })
+        }
+
+        proptest! {
+            /// Any VLS-128 packet, alone or after any other: an error or points of real lasers
+            /// at azimuths in [0°, 360°), never a panic; every point is a non-zero return of a
+            /// block whose flag names its bank.
+            #[test]
+            fn any_packet_decodes_or_errors_without_panicking(
+                pkt in arb_vls_packet(),
+                prev in arb_vls_packet(),
+            ) {
+                let d = Decoder::new(Model::Vls128);
+                for previous in [None, Some(&prev)] {
+                    let mut out = Vec::new();
+                    if d.decode_into_after(&pkt, previous, &mut out).is_ok() {
+                        prop_assert!(out.len() <= BLOCKS * CHANNELS);
+                        for p in &out {
+                            prop_assert!(usize::from(p.laser.0) < 128);
+                            prop_assert!((0.0..=360.0).contains(&p.azimuth_deg));
+                            prop_assert!(p.distance_raw > 0);
+                            let block = &pkt.blocks[usize::from(p.block)];
+                            prop_assert_eq!(FLAGS_BANK[usize::from(p.laser.0) / 32], block.flag);
+                        }
+                    }
+                }
+                // The other models refuse the other banks' flags.
+                if pkt.blocks.iter().any(|b| b.flag != FLAG_UPPER) {
+                    prop_assert!(Decoder::new(Model::Vlp16).decode(&pkt).is_err());
+                }
+            }
+        }
+
+        /// The firing table: groups of 8 one slot apart, two idle slots after the eighth group,
+        /// 20 slots a sequence.
+        #[test]
+        fn firing_table_follows_the_manual() {
+            let slot = crate::model::VLS128_SLOT_US;
+            assert!((vls128_offset_us(0, 7) - 0.0).abs() < 1e-12);
+            assert!((vls128_offset_us(0, 8) - slot).abs() < 1e-12);
+            assert!((vls128_offset_us(0, 63) - 7.0 * slot).abs() < 1e-12);
+            assert!((vls128_offset_us(0, 64) - 10.0 * slot).abs() < 1e-12);
+            assert!((vls128_offset_us(0, 127) - 17.0 * slot).abs() < 1e-12);
+            assert!((vls128_offset_us(2, 0) - 40.0 * slot).abs() < 1e-12);
+            assert!(
+                (Decoder::new(Model::Vls128).packet_period_us(ReturnMode::Strongest) - 60.0 * slot)
+                    .abs()
+                    < 1e-9
+            );
+        }
     }
 }

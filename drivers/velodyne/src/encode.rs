@@ -6,7 +6,8 @@
 //! dual-return mode each sequence fills two blocks: last return, then strongest. The VLS-128
 //! spreads a sequence over four blocks, one per bank of 32 lasers (three sequences per packet),
 //! or in dual mode over eight (last, then strongest, per bank) and leaves the last four blocks
-//! unused.
+//! unused. The HDL-64E writes a block pair per sequence (upper bank, lower bank), and in dual
+//! mode the strongest pair, then the last.
 
 use crate::model::Model;
 use crate::packet::{
@@ -75,6 +76,9 @@ impl PacketEncoder {
         if self.model == Model::Vls128 {
             return if self.mode == ReturnMode::Dual { 1 } else { 3 };
         }
+        if self.model.is_hdl64e() {
+            return if self.mode == ReturnMode::Dual { 3 } else { 6 };
+        }
         let per_block = self.model.timing().sequences_per_block;
         let blocks_per_seq = if self.mode == ReturnMode::Dual { 2 } else { 1 };
         BLOCKS * per_block / blocks_per_seq
@@ -117,7 +121,24 @@ impl PacketEncoder {
             Some(last) => vec![last, &seq.strongest],
             None => vec![&seq.strongest],
         };
-        if self.model == Model::Vls128 {
+        if self.model.is_hdl64e() {
+            // A block pair (upper, lower bank) per return: strongest first, then last.
+            let pairs: Vec<&Vec<Channel>> = match &seq.last {
+                Some(last) => vec![&seq.strongest, last],
+                None => vec![&seq.strongest],
+            };
+            for set in pairs {
+                for (bank, flag) in FLAGS_BANK[..2].iter().enumerate() {
+                    let mut channels = [Channel::default(); CHANNELS];
+                    channels.copy_from_slice(&set[bank * CHANNELS..(bank + 1) * CHANNELS]);
+                    self.blocks.push(Block {
+                        flag: *flag,
+                        azimuth: seq.azimuth,
+                        channels,
+                    });
+                }
+            }
+        } else if self.model == Model::Vls128 {
             for (bank, flag) in FLAGS_BANK.iter().enumerate() {
                 for set in &sets {
                     let mut channels = [Channel::default(); CHANNELS];

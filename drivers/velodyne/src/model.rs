@@ -23,6 +23,10 @@ pub enum Model {
     /// VLS-128 ("Alpha Prime"): 128 lasers in four banks of 32, -25° to +15°, firing in
     /// groups of 8.
     Vls128,
+    /// HDL-64E S2: 64 lasers in an upper and a lower bank of 32, about +2° to -24.8°.
+    Hdl64eS2,
+    /// HDL-64E S3: as the S2, a faster firing cycle, and dual return.
+    Hdl64eS3,
 }
 
 /// The factory byte of a data packet (byte 1205).
@@ -219,6 +223,21 @@ const VLS128_VERTICAL_DEG: [f64; 128] = [
 /// group): the eight lasers that fire together sit side by side, not above each other.
 const VLS128_AZIMUTH_DEG: [f64; 8] = [6.354, 4.548, 2.732, 0.911, -0.911, -2.732, -4.548, -6.354];
 
+/// The HDL-64E's nominal geometry (its manuals): the upper bank from +2° down in thirds of a
+/// degree, the lower bank from -8.83° down in halves. Every unit differs from it by up to a
+/// degree and centimetres of offset, so real data needs the unit's own calibration file; this
+/// table serves simulation and tests.
+const HDL64E: [LaserSpec; 64] = {
+    let mut t = [l(0.0, 0.0, 0.0); 64];
+    let mut i = 0;
+    while i < 32 {
+        t[i] = l(2.0 - i as f64 / 3.0, 0.0, 0.0);
+        t[32 + i] = l(-8.83 - i as f64 * 0.5, 0.0, 0.0);
+        i += 1;
+    }
+    t
+};
+
 const VLS128: [LaserSpec; 128] = {
     let mut t = [l(0.0, 0.0, 0.0); 128];
     let mut i = 0;
@@ -238,13 +257,26 @@ pub const VLS128_SLOT_US: f64 = 2.89;
 
 impl Model {
     /// Every supported model.
-    pub const ALL: [Model; 5] = [
+    pub const ALL: [Model; 7] = [
         Model::Vlp16,
         Model::PuckHiRes,
         Model::Vlp32c,
         Model::Hdl32e,
         Model::Vls128,
+        Model::Hdl64eS2,
+        Model::Hdl64eS3,
     ];
+
+    /// Whether the sensor's data need the unit's own calibration file (the HDL-64E's lasers are
+    /// individually calibrated; a nominal table is off by up to a degree).
+    pub fn needs_calibration_file(self) -> bool {
+        matches!(self, Model::Hdl64eS2 | Model::Hdl64eS3)
+    }
+
+    /// The HDL-64E models (two banks of 32 lasers in block pairs, no product byte).
+    pub fn is_hdl64e(self) -> bool {
+        matches!(self, Model::Hdl64eS2 | Model::Hdl64eS3)
+    }
 
     /// The model a product byte names, if supported.
     ///
@@ -269,6 +301,8 @@ impl Model {
             Model::Vlp32c => ProductId::VLP32C,
             Model::Hdl32e => ProductId::HDL32E,
             Model::Vls128 => ProductId::VLS128,
+            // The HDL-64E writes status bytes there, not a product id.
+            Model::Hdl64eS2 | Model::Hdl64eS3 => ProductId(0),
         }
     }
 
@@ -285,6 +319,7 @@ impl Model {
             Model::Vlp32c => &VLP32C,
             Model::Hdl32e => &HDL32E,
             Model::Vls128 => &VLS128,
+            Model::Hdl64eS2 | Model::Hdl64eS3 => &HDL64E,
         }
     }
 
@@ -324,6 +359,20 @@ impl Model {
                 simultaneous: 8,
                 sequences_per_block: 1,
             },
+            // One sequence spans a block pair (upper, lower bank); the firing table is
+            // `decode::hdl64e_offset_us`.
+            Model::Hdl64eS2 => Timing {
+                sequence_us: 48.0,
+                firing_us: 1.2,
+                simultaneous: 2,
+                sequences_per_block: 1,
+            },
+            Model::Hdl64eS3 => Timing {
+                sequence_us: 57.6,
+                firing_us: 1.2,
+                simultaneous: 2,
+                sequences_per_block: 1,
+            },
         }
     }
 
@@ -332,6 +381,7 @@ impl Model {
         match self {
             Model::Vlp32c => 200.0,
             Model::Vls128 => 245.0,
+            Model::Hdl64eS2 | Model::Hdl64eS3 => 120.0,
             Model::Hdl32e => 100.0,
             Model::Vlp16 | Model::PuckHiRes => 100.0,
         }
@@ -345,6 +395,8 @@ impl Model {
             Model::Vlp32c => "vlp32c",
             Model::Hdl32e => "hdl32e",
             Model::Vls128 => "vls128",
+            Model::Hdl64eS2 => "hdl64e-s2",
+            Model::Hdl64eS3 => "hdl64e-s3",
         }
     }
 }
@@ -369,8 +421,10 @@ impl FromStr for Model {
             "vlp32c" | "ultrapuck" => Ok(Model::Vlp32c),
             "hdl32e" | "hdl32" => Ok(Model::Hdl32e),
             "vls128" | "alphaprime" => Ok(Model::Vls128),
+            "hdl64es2" | "hdl64es21" => Ok(Model::Hdl64eS2),
+            "hdl64es3" | "hdl64e" | "hdl64" => Ok(Model::Hdl64eS3),
             _ => Err(format!(
-                "unknown Velodyne model '{s}': expected one of vlp16, puck-hires, vlp32c, hdl32e, vls128"
+                "unknown Velodyne model '{s}': expected one of vlp16, puck-hires, vlp32c, hdl32e, vls128, hdl64e-s2, hdl64e-s3"
             )),
         }
     }
@@ -384,9 +438,11 @@ mod tests {
     fn names_parse_back() {
         for m in Model::ALL {
             assert_eq!(m.name().parse::<Model>(), Ok(m));
-            assert_eq!(Model::from_product(m.product()), Some(m));
+            if !m.is_hdl64e() {
+                assert_eq!(Model::from_product(m.product()), Some(m));
+            }
         }
-        assert!("hdl64".parse::<Model>().is_err());
+        assert!("hdl65".parse::<Model>().is_err());
     }
 
     #[test]

@@ -1,5 +1,6 @@
-//! The VLS-128's packet layout for the simulator: four blocks per firing sequence, one per bank
-//! of 32 lasers, each firing at its own slot of the firing table.
+//! The banked packet layouts for the simulator: the VLS-128's four blocks per firing sequence
+//! and the HDL-64E's block pairs, one block per bank of 32 lasers, each laser firing at its own
+//! slot of the model's firing table.
 
 use super::{LidarSim, PacketTime, SimStats};
 use crate::scene::pose::Trajectory;
@@ -11,11 +12,12 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 impl LidarSim<'_> {
-    /// [`LidarSim::simulate`] for the VLS-128: each block is one bank of 32 lasers (its flag
-    /// says which), four blocks a firing sequence; every firing is cast at its own azimuth and
-    /// time from the firing table (`hilrig_velodyne::decode::vls128_firing`), at the pose
-    /// interpolated within its sequence.
-    pub(super) fn simulate_vls128(
+    /// [`LidarSim::simulate`] for the banked layouts: each block is one bank of 32 lasers (its
+    /// flag says which), four blocks (VLS-128) or two (HDL-64E) a firing sequence; every firing
+    /// is cast at its own azimuth and time from the firing table
+    /// (`hilrig_velodyne::decode::{vls128_firing, hdl64e_firing}`), at the pose interpolated
+    /// within its sequence.
+    pub(super) fn simulate_banked(
         &self,
         skeleton: &DataPacket,
         time: PacketTime,
@@ -23,19 +25,45 @@ impl LidarSim<'_> {
         seed: u64,
         stats: &mut SimStats,
     ) -> DataPacket {
-        use hilrig_velodyne::decode::{vls128_firing, vls128_offset_us, vls128_rate};
+        use hilrig_velodyne::decode::{
+            hdl64e_dual, hdl64e_firing, hdl64e_offset_us, hdl64e_rate, vls128_firing,
+            vls128_offset_us, vls128_rate,
+        };
         use hilrig_velodyne::packet::FLAGS_BANK;
+        let model = self.decoder.model();
+        let hdl64 = model.is_hdl64e();
         let mut pkt = skeleton.clone();
         for b in pkt.blocks.iter_mut() {
             b.channels = [Channel::default(); CHANNELS];
         }
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mode = skeleton.return_mode.mode().unwrap_or(ReturnMode::Strongest);
-        let dual = mode == ReturnMode::Dual;
-        let rate = if dual {
-            time.rotation_rate.unwrap_or(0.0)
+        let dual = if hdl64 {
+            hdl64e_dual(skeleton)
         } else {
-            vls128_rate(skeleton)
+            mode == ReturnMode::Dual
+        };
+        let rate = match (hdl64, dual) {
+            (true, _) => hdl64e_rate(model, skeleton),
+            (false, true) => time.rotation_rate.unwrap_or(0.0),
+            (false, false) => vls128_rate(skeleton),
+        };
+        // Per block: the firing sequence's start (µs after the packet's first firing), and
+        // where and when each laser fires.
+        let column_start = |block: usize| -> f64 {
+            match (hdl64, dual) {
+                (true, true) => hdl64e_offset_us(model, block / 4 * 2, 0),
+                (true, false) => hdl64e_offset_us(model, block / 2 * 2, 0),
+                (false, true) => 0.0,
+                (false, false) => vls128_offset_us(block / 4, 0),
+            }
+        };
+        let firing = |block: usize, laser: usize| {
+            if hdl64 {
+                hdl64e_firing(model, skeleton, block, laser, rate)
+            } else {
+                vls128_firing(skeleton, block, laser, rate)
+            }
         };
         let mut hint = 0usize;
         let mut actors = self.scene.new_actor_poses();
@@ -46,14 +74,16 @@ impl LidarSim<'_> {
             Some(self.sensor_pose(ego, self.cast_time(time.rotation_start), &mut hint))
         };
         let cal = self.decoder.calibration();
-        let sequence_us = vls128_offset_us(1, 0);
-        // Blocks that carry a sequence's returns: all twelve, or the strongest-return block of
-        // each of the first four bank pairs in dual mode (the last-return block is its twin).
-        let blocks: Vec<usize> = if dual {
-            (0..4).map(|p| 2 * p + 1).collect()
-        } else {
-            (0..12).collect()
+        let sequence_us = model.timing().sequence_us;
+        // Blocks that carry a sequence's strongest (or only) returns, and where its last
+        // returns go in dual mode: VLS-128 bank pairs (last, strongest) in the first eight
+        // blocks; HDL-64E block pairs (strongest upper, lower, then last upper, lower).
+        let blocks: Vec<usize> = match (hdl64, dual) {
+            (_, false) => (0..12).collect(),
+            (false, true) => (0..4).map(|p| 2 * p + 1).collect(),
+            (true, true) => (0..12).filter(|i| i % 4 < 2).collect(),
         };
+        let last_block = |block: usize| if hdl64 { block + 2 } else { block - 1 };
         for block in blocks {
             let Some(bank) = FLAGS_BANK
                 .iter()
@@ -61,10 +91,8 @@ impl LidarSim<'_> {
             else {
                 continue;
             };
-            let column = if dual { 0 } else { block / 4 };
-            let t_a = self.cast_time(UtcNanos(
-                time.first_firing.0 + (vls128_offset_us(column, 0) * 1000.0).round() as i64,
-            ));
+            let t0 = column_start(block);
+            let t_a = self.cast_time(UtcNanos(time.first_firing.0 + (t0 * 1000.0).round() as i64));
             let t_b = UtcNanos(t_a.0 + (sequence_us * 1000.0).round() as i64);
             let bracket = match fixed_pose {
                 Some(p) => p.map(|p| (p, p)),
@@ -86,11 +114,10 @@ impl LidarSim<'_> {
                 pb.rotation.to_rotation_matrix().into_inner(),
             );
             let (ta, tb) = (pa.translation.vector, pb.translation.vector);
-            let t0 = vls128_offset_us(column, 0);
             for ch in 0..CHANNELS {
                 let laser = bank * CHANNELS + ch;
                 stats.firings += 1;
-                let (az, t) = vls128_firing(skeleton, block, laser, rate);
+                let (az, t) = firing(block, laser);
                 let f = if fixed_pose.is_some() {
                     0.0
                 } else {
@@ -111,7 +138,8 @@ impl LidarSim<'_> {
                 let strongest = self.channel(laser, r.strongest, &mut rng);
                 if dual {
                     pkt.blocks[block].channels[ch] = strongest;
-                    pkt.blocks[block - 1].channels[ch] = self.channel(laser, r.last, &mut rng);
+                    pkt.blocks[last_block(block)].channels[ch] =
+                        self.channel(laser, r.last, &mut rng);
                 } else if mode == ReturnMode::Last {
                     pkt.blocks[block].channels[ch] = self.channel(laser, r.last, &mut rng);
                 } else {
