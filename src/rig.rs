@@ -434,7 +434,7 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("max_sigma_horizontl_m"));
-        std::fs::write(&bad, "name = \"x\"\n[lidar]\nmodel = \"hdl64\"\n").unwrap();
+        std::fs::write(&bad, "name = \"x\"\n[lidar]\nmodel = \"velarray\"\n").unwrap();
         assert!(Rig::load(&bad)
             .unwrap_err()
             .to_string()

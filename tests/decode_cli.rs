@@ -104,10 +104,17 @@ fn a_ros_drivers_calibration_file_is_applied() {
         stderr.contains("16 lasers listed, but a hdl32e has 32"),
         "{stderr}"
     );
-    let (code, _, stderr) = decode(&[fx, "--model", "hdl64"]);
+    let (code, _, stderr) = decode(&[fx, "--model", "velarray"]);
     assert_eq!(code, Some(2));
     assert!(
-        stderr.contains("unknown Velodyne model 'hdl64'"),
+        stderr.contains("unknown Velodyne model 'velarray'"),
+        "{stderr}"
+    );
+    // The HDL-64E is known, but needs the unit's calibration file.
+    let (code, _, stderr) = decode(&[fx, "--model", "hdl64e-s3"]);
+    assert_eq!(code, Some(2));
+    assert!(
+        stderr.contains("needs its unit's own calibration") && stderr.contains("--calibration"),
         "{stderr}"
     );
 }
