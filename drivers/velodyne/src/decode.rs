@@ -741,7 +741,8 @@ mod tests {
         }
 
         proptest! {
-            /// Any VLS-128 packet, alone or after any other: an error or points of real lasers
+            /// Any VLS-128 packet, alone or after any other, and the same bytes read as an
+            /// HDL-64E: an error or points of real lasers
             /// at azimuths in [0°, 360°), never a panic; every point is a non-zero return of a
             /// block whose flag names its bank.
             #[test]
@@ -766,6 +767,18 @@ mod tests {
                 // The other models refuse the other banks' flags.
                 if pkt.blocks.iter().any(|b| b.flag != FLAG_UPPER) {
                     prop_assert!(Decoder::new(Model::Vlp16).decode(&pkt).is_err());
+                }
+                // The same bytes as an HDL-64E packet: an error or lasers of its two banks.
+                for m in [Model::Hdl64eS2, Model::Hdl64eS3] {
+                    if let Ok(points) = Decoder::new(m).decode(&pkt) {
+                        prop_assert!(points.len() <= BLOCKS * CHANNELS);
+                        for p in &points {
+                            prop_assert!(p.laser.0 < 64 && p.distance_raw > 0);
+                            prop_assert!((0.0..=360.0).contains(&p.azimuth_deg));
+                            let block = &pkt.blocks[usize::from(p.block)];
+                            prop_assert_eq!(FLAGS_BANK[usize::from(p.laser.0) / 32], block.flag);
+                        }
+                    }
                 }
             }
         }
