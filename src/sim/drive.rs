@@ -426,7 +426,7 @@ pub fn parse_utc(s: &str) -> Option<UtcNanos> {
         return None;
     }
     let nanos = (h * 3600 + mi * 60) * 1_000_000_000 + (sec * 1e9).round() as i64;
-    Some(hilrig_stamp::civil::utc_from_civil(y, m, day, nanos))
+    hilrig_stamp::civil::utc_from_civil(y, m, day, nanos)
 }
 
 /// One repetition as driven.
@@ -908,12 +908,7 @@ stop_at_m = 4.0
         }
         assert_eq!(
             parse_utc("2026-11-21T10:00:00Z"),
-            Some(hilrig_stamp::civil::utc_from_civil(
-                2026,
-                11,
-                21,
-                36_000 * 1_000_000_000
-            ))
+            hilrig_stamp::civil::utc_from_civil(2026, 11, 21, 36_000 * 1_000_000_000)
         );
     }
 }

@@ -281,7 +281,7 @@ impl Streams<'_> {
 pub(super) fn hms(t: UtcNanos) -> (String, String) {
     let tod = t.0.rem_euclid(86_400_000_000_000);
     let days = t.0.div_euclid(86_400_000_000_000);
-    let (y, m, d) = hilrig_stamp::civil::civil_from_days(days);
+    let (y, m, d) = hilrig_stamp::civil::civil_from_days(days).unwrap_or((1970, 1, 1));
     (
         format!(
             "{:02}{:02}{:02}.{:02}",

@@ -146,7 +146,7 @@ pub fn generate(model: Model, mode: ReturnMode, packets: usize) -> Vec<u8> {
 pub fn rmc_sentence(secs: i64) -> String {
     let days = secs.div_euclid(86_400);
     let tod = secs.rem_euclid(86_400);
-    let (y, m, d) = hilrig::stamp::civil::civil_from_days(days);
+    let (y, m, d) = hilrig::stamp::civil::civil_from_days(days).unwrap();
     let body = format!(
         "GPRMC,{:02}{:02}{:02},A,4807.0380,N,01131.0000,E,000.0,000.0,{:02}{:02}{:02},,,A",
         tod / 3600,

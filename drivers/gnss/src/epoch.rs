@@ -242,11 +242,14 @@ impl NmeaEpochs {
         let mut f = self.current.take()?;
         if let (Some(tod), Some(((y, m, d), seen_tod))) = (f.time_of_day, self.date) {
             // A time of day well before the one the date was seen at is the next day.
-            let mut t = utc_from_civil(y, m, d, tod);
-            if seen_tod.saturating_sub(tod) > DAY_NS / 2 {
-                t = UtcNanos(t.0.saturating_add(DAY_NS));
-            }
-            f.time = Some(t);
+            // A date that does not exist gives no time, as a missing one does.
+            f.time = utc_from_civil(y, m, d, tod).map(|t| {
+                if seen_tod.saturating_sub(tod) > DAY_NS / 2 {
+                    UtcNanos(t.0.saturating_add(DAY_NS))
+                } else {
+                    t
+                }
+            });
         }
         Some(f)
     }

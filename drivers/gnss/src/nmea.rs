@@ -127,10 +127,10 @@ impl Rmc {
         }
     }
 
-    /// UTC of the fix, when both date and time are present.
+    /// UTC of the fix, when both date and time are present (and the date exists).
     pub fn utc(&self) -> Option<UtcNanos> {
         let (y, m, d) = self.date?;
-        Some(utc_from_civil(y, m, d, self.time_of_day?))
+        utc_from_civil(y, m, d, self.time_of_day?)
     }
 }
 

@@ -160,7 +160,8 @@ impl NavPvt {
             && p[8] < 24
             && p[9] < 60
             && p[10] < 61)
-            .then(|| {
+            .then_some(())
+            .and_then(|()| {
                 let nano = i64::from(i32le(p, 16));
                 let tod = ((i64::from(p[8]) * 60 + i64::from(p[9])) * 60 + i64::from(p[10]))
                     * 1_000_000_000

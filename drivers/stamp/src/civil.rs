@@ -1,32 +1,36 @@
 //! Calendar conversions for the few places that meet dates: NMEA sentences (`ddmmyy`,
-//! `hhmmss.ss`), position packets, report headers. Proleptic Gregorian, UTC, no leap seconds
-//! (as Unix time); chrono is kept out of the drivers on purpose: this is all they need.
+//! `hhmmss.ss`), UBX NAV-PVT, position packets, report headers. Proleptic Gregorian, UTC, no
+//! leap seconds (as Unix time).
+//!
+//! Dates go through `chrono` (the project's calendar crate) rather than hand-written day
+//! arithmetic: chrono rejects dates that do not exist (a receiver's 30 February, day 0), which
+//! the arithmetic silently turned into another day. It is slower (a date in 15-30 ns against
+//! 7-15 ns for the arithmetic, an ISO text in 0.4-0.7 µs, measured in one run on this machine),
+//! which does not matter at the tens of dates a second a receiver sends. The time-of-day
+//! parsing stays here: it is
+//! the NMEA `hhmmss.ss` field, which chrono's format parser would accept more loosely (it takes
+//! a leap second 60 only in some positions and no more than nine fraction digits).
 
 use crate::{UtcNanos, NANOS_PER_SEC};
+use chrono::{DateTime, Datelike, NaiveDate};
 
-/// Days since 1970-01-01 of a civil date (H. Hinnant's `days_from_civil`).
-pub fn days_from_civil(y: i64, m: u32, d: u32) -> i64 {
-    let y = if m <= 2 { y - 1 } else { y };
-    let era = y.div_euclid(400);
-    let yoe = y - era * 400;
-    let m = i64::from(m);
-    let doy = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + i64::from(d) - 1;
-    let doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
-    era * 146_097 + doe - 719_468
+const NANOS_PER_DAY: i64 = 86_400 * NANOS_PER_SEC;
+
+fn epoch() -> NaiveDate {
+    NaiveDate::from_ymd_opt(1970, 1, 1).unwrap_or_default()
 }
 
-/// The civil date (year, month, day) of a day count since 1970-01-01.
-pub fn civil_from_days(z: i64) -> (i64, u32, u32) {
-    let z = z + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let y = yoe + era * 400;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    (if m <= 2 { y + 1 } else { y }, m, d)
+/// Days since 1970-01-01 of a civil date; `None` when the date does not exist.
+pub fn days_from_civil(y: i64, m: u32, d: u32) -> Option<i64> {
+    let date = NaiveDate::from_ymd_opt(i32::try_from(y).ok()?, m, d)?;
+    Some(date.signed_duration_since(epoch()).num_days())
+}
+
+/// The civil date (year, month, day) of a day count since 1970-01-01; `None` beyond
+/// chrono's range (about ±262,000 years).
+pub fn civil_from_days(z: i64) -> Option<(i64, u32, u32)> {
+    let date = epoch().checked_add_signed(chrono::TimeDelta::try_days(z)?)?;
+    Some((i64::from(date.year()), date.month(), date.day()))
 }
 
 /// Parses `hhmmss[.f…]` into nanoseconds of the day; `None` if malformed or out of range.
@@ -55,28 +59,24 @@ pub fn parse_hms(value: &str) -> Option<i64> {
     Some(((h * 60 + m) * 60 + s) * NANOS_PER_SEC + nanos)
 }
 
-/// An instant from a civil date and nanoseconds of the day.
-pub fn utc_from_civil(y: i64, m: u32, d: u32, nanos_of_day: i64) -> UtcNanos {
-    UtcNanos(
-        days_from_civil(y, m, d)
-            .saturating_mul(86_400 * NANOS_PER_SEC)
+/// An instant from a civil date and nanoseconds of the day; `None` when the date does not
+/// exist.
+pub fn utc_from_civil(y: i64, m: u32, d: u32, nanos_of_day: i64) -> Option<UtcNanos> {
+    Some(UtcNanos(
+        days_from_civil(y, m, d)?
+            .saturating_mul(NANOS_PER_DAY)
             .saturating_add(nanos_of_day),
-    )
+    ))
 }
 
-/// ISO 8601 with milliseconds and `Z`, as gpsd and most tools print UTC.
+/// ISO 8601 with milliseconds and `Z`, as gpsd and most tools print UTC (milliseconds
+/// truncated, as gpsd does).
 pub fn iso8601_millis(t: UtcNanos) -> String {
-    let days = t.0.div_euclid(86_400 * NANOS_PER_SEC);
-    let nod = t.0.rem_euclid(86_400 * NANOS_PER_SEC);
-    let (y, m, d) = civil_from_days(days);
-    let ms = nod / 1_000_000;
-    format!(
-        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{:03}Z",
-        ms / 3_600_000,
-        ms / 60_000 % 60,
-        ms / 1000 % 60,
-        ms % 1000
-    )
+    let (secs, nanos) = t.secs_nanos();
+    match DateTime::from_timestamp(secs, nanos - nanos % 1_000_000) {
+        Some(dt) => dt.format("%Y-%m-%dT%H:%M:%S%.3fZ").to_string(),
+        None => format!("{} ns since 1970 (beyond the calendar)", t.0),
+    }
 }
 
 #[cfg(test)]
@@ -86,9 +86,20 @@ mod tests {
 
     #[test]
     fn known_dates() {
-        assert_eq!(days_from_civil(1970, 1, 1), 0);
-        assert_eq!(days_from_civil(2000, 3, 1), 11_017);
-        assert_eq!(days_from_civil(2024, 2, 29), 19_782);
+        assert_eq!(days_from_civil(1970, 1, 1), Some(0));
+        assert_eq!(days_from_civil(2000, 3, 1), Some(11_017));
+        assert_eq!(days_from_civil(2024, 2, 29), Some(19_782));
+        // Dates that do not exist are refused, not moved to another day.
+        for (y, m, d) in [
+            (2023, 2, 29),
+            (2026, 2, 30),
+            (2026, 4, 31),
+            (2026, 13, 1),
+            (2026, 1, 0),
+        ] {
+            assert_eq!(days_from_civil(y, m, d), None, "{y}-{m}-{d}");
+        }
+        assert_eq!(iso8601_millis(UtcNanos(-1)), "1969-12-31T23:59:59.999Z");
         assert_eq!(
             iso8601_millis(UtcNanos(1_355_263_592_123_000_000)),
             "2012-12-11T22:06:32.123Z"
@@ -119,8 +130,25 @@ mod tests {
     proptest! {
         #[test]
         fn civil_round_trips(days in -1_000_000i64..1_000_000) {
-            let (y, m, d) = civil_from_days(days);
-            prop_assert_eq!(days_from_civil(y, m, d), days);
+            let (y, m, d) = civil_from_days(days).unwrap();
+            prop_assert_eq!(days_from_civil(y, m, d), Some(days));
+        }
+
+        /// The ISO text of any instant names the same day and time of day as the arithmetic
+        /// of Unix time (days of 86,400 s).
+        #[test]
+        fn iso_text_matches_unix_time(t in -4_000_000_000_000_000_000i64..4_000_000_000_000_000_000) {
+            let s = iso8601_millis(UtcNanos(t));
+            let (y, m, d) = civil_from_days(t.div_euclid(NANOS_PER_DAY)).unwrap();
+            let ms = t.rem_euclid(NANOS_PER_DAY) / 1_000_000;
+            let want = format!(
+                "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{:03}Z",
+                ms / 3_600_000,
+                ms / 60_000 % 60,
+                ms / 1000 % 60,
+                ms % 1000
+            );
+            prop_assert_eq!(s, want);
         }
 
         #[test]
