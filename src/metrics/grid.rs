@@ -91,7 +91,9 @@ const AXIS_MASK: u64 = (1 << AXIS_BITS) - 1;
 /// A cell as one sortable integer (the grid is binned by sorting keys, not hashing them: a
 /// 100 k-point scan sorts in about a millisecond).
 fn pack(c: Cell) -> u64 {
-    let f = |v: i64| ((v + AXIS_OFFSET).clamp(0, AXIS_MASK as i64) as u64) & AXIS_MASK;
+    // Saturating: a point at infinity has a cell at i64::MAX (found by the binning test in a
+    // debug build); it lands in the edge cell like any point beyond ±105 km.
+    let f = |v: i64| (v.saturating_add(AXIS_OFFSET).clamp(0, AXIS_MASK as i64) as u64) & AXIS_MASK;
     (f(c[0]) << (2 * AXIS_BITS)) | (f(c[1]) << AXIS_BITS) | f(c[2])
 }
 
@@ -139,7 +141,8 @@ impl Scratch {
             finite &= p.x.is_finite() && p.y.is_finite() && p.z.is_finite();
         }
         let (c0, c1) = (spec.cell(&lo), spec.cell(&hi));
-        let bits: [u32; 3] = std::array::from_fn(|i| 64 - ((c1[i] - c0[i]) as u64).leading_zeros());
+        let bits: [u32; 3] =
+            std::array::from_fn(|i| 64 - (c1[i].wrapping_sub(c0[i]) as u64).leading_zeros());
         if finite && bits.iter().sum::<u32>() <= 32 {
             let (shift_x, shift_y) = (bits[1] + bits[2], bits[2]);
             self.narrow.clear();
