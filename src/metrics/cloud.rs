@@ -91,6 +91,8 @@ impl Frame<'_> {
         let mut hint = 0;
         let mut decoded: Vec<LidarPoint> = Vec::new();
         let mut times = Vec::new();
+        // The packet before (a dual-return VLS-128 packet takes its rotation rate from it).
+        let mut previous: Option<DataPacket> = None;
         for (k, (t, bytes)) in scan.packets.iter().enumerate() {
             let Ok(p) = DataPacket::decode(&bytes[..]) else {
                 continue;
@@ -102,7 +104,11 @@ impl Frame<'_> {
             };
             times.push(first);
             decoded.clear();
-            if self.decoder.decode_into(&p, &mut decoded).is_err() {
+            let result = self
+                .decoder
+                .decode_into_after(&p, previous.as_ref(), &mut decoded);
+            previous = Some(p);
+            if result.is_err() {
                 continue;
             }
             let span = PacketPoses::new(self.trajectory, first, &decoded, &mut hint);

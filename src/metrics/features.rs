@@ -51,9 +51,11 @@ pub fn scan_features(scans: &[Scan], decoder: &Decoder) -> Vec<ScanFeatures> {
         .par_iter()
         .map(|scan| {
             let mut points: Vec<Point> = Vec::new();
+            let mut previous: Option<DataPacket> = None;
             for (_, bytes) in &scan.packets {
                 if let Ok(p) = DataPacket::decode(&bytes[..]) {
-                    let _ = decoder.decode_into(&p, &mut points);
+                    let _ = decoder.decode_into_after(&p, previous.as_ref(), &mut points);
+                    previous = Some(p);
                 }
             }
             let mut ranges: Vec<f64> = points.iter().map(|p| f64::from(p.distance_m)).collect();

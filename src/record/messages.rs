@@ -41,12 +41,16 @@ pub fn cloud_cdr(
 ) -> Vec<u8> {
     let mut points = Vec::with_capacity(packets.len() * 384);
     let mut buf = Vec::with_capacity(800);
+    // The packet before (a dual-return VLS-128 packet takes its rotation rate from it).
+    let mut previous: Option<hilrig_velodyne::DataPacket> = None;
     for (t, bytes) in packets {
         let Ok(p) = hilrig_velodyne::DataPacket::decode(&bytes[..]) else {
             continue;
         };
         buf.clear();
-        if decoder.decode_into(&p, &mut buf).is_err() {
+        let decoded = decoder.decode_into_after(&p, previous.as_ref(), &mut buf);
+        previous = Some(p);
+        if decoded.is_err() {
             continue;
         }
         let base = (t.0 - stamp.0) as f64 * 1e-9;
