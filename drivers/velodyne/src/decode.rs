@@ -1,5 +1,9 @@
 //! From a data packet to points: firing times, interpolated azimuths, return pairing, geometry.
 //!
+//! Long file: three packet layouts (the 16/32-laser models' blocks, the VLS-128's four banks,
+//! the HDL-64E's block pairs) share one point geometry and one decoder; each layout's firing
+//! table sits beside the code that reads it.
+//!
 //! Conventions (those of ros-drivers and velodyne-decoder, so clouds line up in every tool):
 //! x forward, y left, z up in the sensor frame; the ring is the laser's index sorted by
 //! elevation; distance 0 means no return and yields no point.
