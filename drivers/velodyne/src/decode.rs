@@ -125,16 +125,18 @@ pub fn hdl64e_dual(pkt: &DataPacket) -> bool {
 }
 
 /// Where and when the HDL-64E's laser `laser` (bank × 32 + channel) in block `block` of `pkt`
-/// fires, as [`vls128_firing`] does for the VLS-128.
+/// fires, as [`vls128_firing`] does for the VLS-128; `dual` is [`hdl64e_dual`] of the packet
+/// (found once per packet, not per firing).
 pub fn hdl64e_firing(
     model: Model,
     pkt: &DataPacket,
     block: usize,
     laser: usize,
     rate: f64,
+    dual: bool,
 ) -> (f64, f64) {
     let j = laser % CHANNELS;
-    let (t0, t) = if hdl64e_dual(pkt) {
+    let (t0, t) = if dual {
         let column = block / 4 * 2;
         (
             hdl64e_offset_us(model, column, 0),
@@ -177,9 +179,14 @@ pub fn rate_between(previous: &DataPacket, pkt: &DataPacket) -> Option<f64> {
 /// Where and when the VLS-128's laser `laser` fires in block `block` of `pkt`: the azimuth
 /// (hundredths of a degree, 0..36000) and the time after the packet's first firing (µs), with
 /// `rate` the rotation rate (hundredths of a degree per µs). Strongest/last packets hold three
-/// sequences (block / 4), dual ones one.
-pub fn vls128_firing(pkt: &DataPacket, block: usize, laser: usize, rate: f64) -> (f64, f64) {
-    let dual = pkt.return_mode.mode() == Some(ReturnMode::Dual);
+/// sequences (block / 4), `dual` ones one.
+pub fn vls128_firing(
+    pkt: &DataPacket,
+    block: usize,
+    laser: usize,
+    rate: f64,
+    dual: bool,
+) -> (f64, f64) {
     let column = if dual { 0 } else { block / 4 };
     let t = vls128_offset_us(column, laser);
     let mut az =
@@ -380,8 +387,9 @@ impl Decoder {
                 })
         };
         let rate = hdl64e_rate(self.model, pkt);
+        let dual = hdl64e_dual(pkt);
         out.reserve(BLOCKS * CHANNELS);
-        if hdl64e_dual(pkt) {
+        if dual {
             for i in (0..BLOCKS).filter(|i| i % 4 < 2) {
                 let k = bank(i)?;
                 if bank(i + 2)? != k {
@@ -394,7 +402,7 @@ impl Decoder {
                 for j in 0..CHANNELS {
                     let laser = k * CHANNELS + j;
                     let (s, l) = (pkt.blocks[i].channels[j], pkt.blocks[i + 2].channels[j]);
-                    let (az, t) = hdl64e_firing(self.model, pkt, i, laser, rate);
+                    let (az, t) = hdl64e_firing(self.model, pkt, i, laser, rate, dual);
                     if l.distance == s.distance {
                         if s.distance > 0 {
                             out.push(self.point_at(laser, i, az, t, s, ReturnType::Both));
@@ -421,7 +429,7 @@ impl Decoder {
                 for (j, &c) in pkt.blocks[i].channels.iter().enumerate() {
                     if c.distance > 0 {
                         let laser = k * CHANNELS + j;
-                        let (az, t) = hdl64e_firing(self.model, pkt, i, laser, rate);
+                        let (az, t) = hdl64e_firing(self.model, pkt, i, laser, rate, dual);
                         out.push(self.point_at(laser, i, az, t, c, rt));
                     }
                 }
@@ -464,7 +472,7 @@ impl Decoder {
         };
         out.reserve(used * CHANNELS);
         let mut emit = |block: usize, laser: usize, c: Channel, rt: ReturnType| {
-            let (az, t) = vls128_firing(pkt, block, laser, rate);
+            let (az, t) = vls128_firing(pkt, block, laser, rate, dual);
             out.push(self.point_at(laser, block, az, t, c, rt));
         };
         if dual {

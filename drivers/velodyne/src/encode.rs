@@ -71,6 +71,17 @@ impl PacketEncoder {
         }
     }
 
+    /// Appends the block of bank `bank` (its flag, lasers bank·32 .. bank·32 + 32 of `set`).
+    fn push_bank(&mut self, azimuth: u16, bank: usize, set: &[Channel]) {
+        let mut channels = [Channel::default(); CHANNELS];
+        channels.copy_from_slice(&set[bank * CHANNELS..(bank + 1) * CHANNELS]);
+        self.blocks.push(Block {
+            flag: FLAGS_BANK[bank],
+            azimuth,
+            channels,
+        });
+    }
+
     /// Sequences that fill one packet.
     pub fn sequences_per_packet(&self) -> usize {
         if self.model == Model::Vls128 {
@@ -123,42 +134,24 @@ impl PacketEncoder {
         };
         if self.model.is_hdl64e() {
             // A block pair (upper, lower bank) per return: strongest first, then last.
-            let pairs: Vec<&Vec<Channel>> = match &seq.last {
-                Some(last) => vec![&seq.strongest, last],
-                None => vec![&seq.strongest],
-            };
-            for set in pairs {
-                for (bank, flag) in FLAGS_BANK[..2].iter().enumerate() {
-                    let mut channels = [Channel::default(); CHANNELS];
-                    channels.copy_from_slice(&set[bank * CHANNELS..(bank + 1) * CHANNELS]);
-                    self.blocks.push(Block {
-                        flag: *flag,
-                        azimuth: seq.azimuth,
-                        channels,
-                    });
+            for set in sets.iter().rev() {
+                for bank in 0..2 {
+                    self.push_bank(seq.azimuth, bank, set);
                 }
             }
         } else if self.model == Model::Vls128 {
-            for (bank, flag) in FLAGS_BANK.iter().enumerate() {
+            // Per bank: last, then strongest.
+            for bank in 0..FLAGS_BANK.len() {
                 for set in &sets {
-                    let mut channels = [Channel::default(); CHANNELS];
-                    channels.copy_from_slice(&set[bank * CHANNELS..(bank + 1) * CHANNELS]);
-                    self.blocks.push(Block {
-                        flag: *flag,
-                        azimuth: seq.azimuth,
-                        channels,
-                    });
+                    self.push_bank(seq.azimuth, bank, set);
                 }
             }
             if self.mode == ReturnMode::Dual {
                 // The four unused blocks: bank flags, the sequence's azimuth, no returns
                 // (decoders skip them; velodyne-decoder reads only the first eight).
-                for flag in FLAGS_BANK {
-                    self.blocks.push(Block {
-                        flag,
-                        azimuth: seq.azimuth,
-                        channels: [Channel::default(); CHANNELS],
-                    });
+                let none = vec![Channel::default(); self.model.lasers()];
+                for bank in 0..FLAGS_BANK.len() {
+                    self.push_bank(seq.azimuth, bank, &none);
                 }
             }
         } else if halves == 1 || !self.pending_second_half {

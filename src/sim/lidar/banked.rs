@@ -60,9 +60,9 @@ impl LidarSim<'_> {
         };
         let firing = |block: usize, laser: usize| {
             if hdl64 {
-                hdl64e_firing(model, skeleton, block, laser, rate)
+                hdl64e_firing(model, skeleton, block, laser, rate, dual)
             } else {
-                vls128_firing(skeleton, block, laser, rate)
+                vls128_firing(skeleton, block, laser, rate, dual)
             }
         };
         let mut hint = 0usize;
