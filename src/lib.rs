@@ -14,6 +14,7 @@
 //! - [`scene`]: the digital twin (objects, actors, the WGS84/ENU frame, poses and trajectories);
 //! - [`sim`]: the lidar model and its effects, `synth` and `resim`;
 //! - [`metrics`]: a run against its re-simulation, scan by scan (`hilrig compare`);
+//! - [`gap`]: the gap workflow: the missing effect found, fitted and validated (`hilrig gap`);
 //! - [`stats`]: over repetitions: area validation metric, traffic lights, rank correlation;
 //! - [`rig`]: the rig file every step reads (sensors, mounting, ports, thresholds).
 
@@ -22,6 +23,7 @@
 
 pub mod bag;
 pub mod decode;
+pub mod gap;
 pub mod metrics;
 pub mod record;
 pub mod reference;

@@ -63,6 +63,9 @@ enum Command {
     /// Statistical validation over repetitions (Rosenberger et al. 2019, §8, Fig. 7): traffic
     /// lights and the area validation metric per phase and metric, and one verdict.
     Validate(cli::validate::ValidateArgs),
+    /// The gap workflow: find where simulation and measurement disagree, name the missing
+    /// effect of the catalogue, fit it, and keep it only if the validation runs improve.
+    Gap(cli::gap::GapArgs),
 }
 
 fn init_logging(verbose: u8) {
@@ -106,6 +109,7 @@ fn main() -> ExitCode {
         Command::Efast(args) => cli::efast::run(args),
         Command::Coverage(args) => cli::coverage::run(args),
         Command::Validate(args) => cli::validate::run(args),
+        Command::Gap(args) => cli::gap::run_cli(args),
     };
     match result {
         Ok(code) => code,

@@ -8,6 +8,7 @@ pub mod compare;
 pub mod coverage;
 pub mod decode;
 pub mod efast;
+pub mod gap;
 pub mod info;
 pub mod record;
 pub mod recover;

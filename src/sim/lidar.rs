@@ -184,6 +184,26 @@ pub struct SimStats {
     pub outside_trajectory: u64,
 }
 
+/// One firing as the simulator cast it: what the gap workflow sets against the measured firing
+/// in the same place of the recorded packet.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Firing {
+    /// The packet block its reported return is written to (the strongest one in dual mode).
+    pub block: u8,
+    /// The channel within that block.
+    pub channel: u8,
+    /// The laser.
+    pub laser: u16,
+    /// When it was cast (reference time, after any time offset of the model).
+    pub time: UtcNanos,
+    /// Beam origin in the scene frame.
+    pub origin: Point3<f64>,
+    /// Unit beam direction in the scene frame.
+    pub direction: Vector3<f64>,
+    /// What the packet reports for it: the strongest echo (last in last-return mode).
+    pub reported: Option<Echo>,
+}
+
 /// A lidar in a scene, on a vehicle, with a model.
 pub struct LidarSim<'a> {
     scene: &'a Scene,
@@ -450,9 +470,23 @@ impl<'a> LidarSim<'a> {
         seed: u64,
         stats: &mut SimStats,
     ) -> DataPacket {
+        self.simulate_observed(skeleton, time, ego, seed, stats, &mut |_| {})
+    }
+
+    /// [`LidarSim::simulate`], handing every firing cast (with a trajectory pose) to `observe`
+    /// as well, in the packet's firing order.
+    pub fn simulate_observed(
+        &self,
+        skeleton: &DataPacket,
+        time: PacketTime,
+        ego: &Trajectory,
+        seed: u64,
+        stats: &mut SimStats,
+        observe: &mut dyn FnMut(&Firing),
+    ) -> DataPacket {
         let model = self.decoder.model();
         if model == hilrig_velodyne::Model::Vls128 || model.is_hdl64e() {
-            return self.simulate_banked(skeleton, time, ego, seed, stats);
+            return self.simulate_banked(skeleton, time, ego, seed, stats, observe);
         }
         // Every channel is written below; none keeps what the skeleton carried (a recording's).
         let mut pkt = skeleton.clone();
@@ -554,6 +588,19 @@ impl<'a> LidarSim<'a> {
                 if r.strongest.is_some() {
                     stats.returns += 1;
                 }
+                observe(&Firing {
+                    block: block as u8,
+                    channel: ch as u8,
+                    laser: laser as u16,
+                    time: UtcNanos(t_a.0 + (f * column_ns).round() as i64),
+                    origin: o,
+                    direction: d,
+                    reported: if mode == ReturnMode::Last {
+                        r.last
+                    } else {
+                        r.strongest
+                    },
+                });
                 let strongest = self.channel(laser, r.strongest, &mut rng);
                 if dual {
                     pkt.blocks[2 * column + 1].channels[ch] = strongest;

@@ -2,7 +2,7 @@
 //! and the HDL-64E's block pairs, one block per bank of 32 lasers, each laser firing at its own
 //! slot of the model's firing table.
 
-use super::{LidarSim, PacketTime, SimStats};
+use super::{Firing, LidarSim, PacketTime, SimStats};
 use crate::scene::pose::Trajectory;
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::packet::CHANNELS;
@@ -24,6 +24,7 @@ impl LidarSim<'_> {
         ego: &Trajectory,
         seed: u64,
         stats: &mut SimStats,
+        observe: &mut dyn FnMut(&Firing),
     ) -> DataPacket {
         use hilrig_velodyne::decode::{
             hdl64e_dual, hdl64e_firing, hdl64e_offset_us, hdl64e_rate, vls128_firing,
@@ -135,6 +136,19 @@ impl LidarSim<'_> {
                 if r.strongest.is_some() {
                     stats.returns += 1;
                 }
+                observe(&Firing {
+                    block: block as u8,
+                    channel: ch as u8,
+                    laser: laser as u16,
+                    time: UtcNanos(t_a.0 + (f * sequence_us * 1000.0).round() as i64),
+                    origin: o,
+                    direction: d,
+                    reported: if mode == ReturnMode::Last {
+                        r.last
+                    } else {
+                        r.strongest
+                    },
+                });
                 let strongest = self.channel(laser, r.strongest, &mut rng);
                 if dual {
                     pkt.blocks[block].channels[ch] = strongest;

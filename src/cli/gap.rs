@@ -1,0 +1,146 @@
+//! `hilrig gap`: the gap workflow over a study file or the shorthand, with a progress spinner
+//! per round and the one-line findings on the terminal. Exit 0 when it ran (an effect found or
+//! not), 2 on bad input or a run that fails `check` without --force.
+
+use anyhow::Result;
+use hilrig::gap::study::Study;
+use hilrig::gap::workflow::{run, Options, Progress};
+use hilrig::gap::GapError;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Mutex;
+
+#[derive(clap::Args)]
+pub struct GapArgs {
+    /// The study file (TOML: `model`, `scene`, `[[run]]` with recording, scene, role).
+    study: Option<PathBuf>,
+    /// Parameterization runs (.mcap), when no study file is given: all share --scene.
+    #[arg(long, num_args = 1.., conflicts_with = "study")]
+    real: Vec<PathBuf>,
+    /// Validation runs (.mcap) for the shorthand.
+    #[arg(long, num_args = 1.., conflicts_with = "study")]
+    validate: Vec<PathBuf>,
+    /// The scene of the shorthand's runs.
+    #[arg(long, conflicts_with = "study")]
+    scene: Option<PathBuf>,
+    /// The start model of the shorthand (model.toml).
+    #[arg(long, conflicts_with = "study")]
+    model: Option<PathBuf>,
+    /// The rig file; default: the one attached to each recording.
+    #[arg(long)]
+    rig: Option<PathBuf>,
+    /// Output directory: model.fitted.toml, gap.json, sim/ (full re-simulations).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Use runs that fail `check` (their trajectory errors may then pass for lidar effects).
+    #[arg(long)]
+    force: bool,
+    /// Firings sampled per run for fitting and scoring.
+    #[arg(long, default_value_t = 120_000)]
+    firings: usize,
+    /// At most this many effects are added.
+    #[arg(long, default_value_t = 6)]
+    max_rounds: usize,
+    /// Skip the full re-simulation of the validation runs for OCR^K and the traffic light
+    /// (the decision rests on the per-firing likelihood either way).
+    #[arg(long)]
+    no_full_metrics: bool,
+}
+
+struct Bars {
+    current: Mutex<Option<(usize, indicatif::ProgressBar)>>,
+}
+
+impl Progress for Bars {
+    fn phase(&self, round: usize, what: &str) {
+        let Ok(mut cur) = self.current.lock() else {
+            return;
+        };
+        if cur.as_ref().is_none_or(|(r, _)| *r != round) {
+            if let Some((_, bar)) = cur.take() {
+                bar.finish();
+            }
+            let bar = indicatif::ProgressBar::new_spinner();
+            bar.set_style(
+                indicatif::ProgressStyle::with_template("{prefix} {spinner} {msg} ({elapsed})")
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+            );
+            bar.set_prefix(if round == 0 {
+                "gap: setup".to_owned()
+            } else {
+                format!("gap: round {round}")
+            });
+            bar.enable_steady_tick(std::time::Duration::from_millis(200));
+            *cur = Some((round, bar));
+        }
+        if let Some((_, bar)) = cur.as_ref() {
+            bar.set_message(what.to_owned());
+        }
+    }
+}
+
+pub fn run_cli(args: GapArgs) -> Result<ExitCode> {
+    let fail = |e: &dyn std::fmt::Display| {
+        eprintln!("error: {e}");
+        Ok(ExitCode::from(2))
+    };
+    let study = match (&args.study, &args.scene, &args.model) {
+        (Some(p), _, _) => Study::load(p),
+        (None, Some(scene), Some(model)) => {
+            if args.real.is_empty() {
+                return fail(&"give a study file, or --real RUN... with --scene and --model");
+            }
+            Study::from_lists(
+                &args.real,
+                &args.validate,
+                scene,
+                model,
+                args.rig.as_deref(),
+            )
+        }
+        _ => return fail(
+            &"give a study file, or --real RUN... [--validate RUN...] --scene SCENE --model MODEL",
+        ),
+    };
+    let mut study = match study {
+        Ok(s) => s,
+        Err(e) => return fail(&e),
+    };
+    if args.rig.is_some() {
+        study.rig.clone_from(&args.rig);
+    }
+    let bars = Bars {
+        current: Mutex::new(None),
+    };
+    let opts = Options {
+        out: args.output.clone(),
+        firings: args.firings,
+        force: args.force,
+        max_rounds: args.max_rounds,
+        full_metrics: !args.no_full_metrics,
+    };
+    let result = run(&study, &opts, &bars);
+    if let Ok(mut cur) = bars.current.lock() {
+        if let Some((_, bar)) = cur.take() {
+            bar.finish_and_clear();
+        }
+    }
+    match result {
+        Ok(report) => {
+            if let Some(s) = &report.split {
+                eprintln!("note: {s}");
+            }
+            for line in &report.summary {
+                println!("{line}");
+            }
+            eprintln!(
+                "{}: fitted model; {}: every round",
+                args.output.join("model.fitted.toml").display(),
+                args.output.join("gap.json").display()
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Err(e @ (GapError::Input(_) | GapError::Refused { .. })) => fail(&e),
+        Err(e) => Err(e.into()),
+    }
+}

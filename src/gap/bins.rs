@@ -1,0 +1,177 @@
+//! The disagreement, binned: per feature of the firings (range, reflectivity of the surface
+//! hit, incidence angle, depth step in the beam's surroundings, ego speed and yaw rate, time
+//! within the rotation, azimuth, laser, elevation), how often the sensor and the model return,
+//! and the range residuals' median, spread and tails. What an engineer looks at to see *where*
+//! simulation and measurement disagree; the candidates' signatures are read on the same data.
+
+use super::likelihood::{median, robust_sigma};
+use super::observe::{Feature, Obs};
+
+/// One bin of one feature.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Bin {
+    /// Lower edge (inclusive), in the feature's unit.
+    pub from: f64,
+    /// Upper edge (exclusive).
+    pub to: f64,
+    /// Firings cast.
+    pub firings: usize,
+    /// Share of them the sensor returned.
+    pub measured_share: f64,
+    /// Share the model returned.
+    pub predicted_share: f64,
+    /// Residuals (measured − predicted) of firings both returned: count.
+    pub both: usize,
+    /// Their median, m.
+    pub median_m: Option<f64>,
+    /// Their robust σ (1.4826 MAD), m.
+    pub sigma_m: Option<f64>,
+    /// 5 % quantile, m.
+    pub p05_m: Option<f64>,
+    /// 95 % quantile, m.
+    pub p95_m: Option<f64>,
+    /// This bin disagrees: the return shares differ by more than 1 point and three standard
+    /// errors, or the median residual is beyond 1 cm and three standard errors.
+    pub disagrees: bool,
+}
+
+/// The bins of one feature.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Table {
+    /// Feature name and unit.
+    pub feature: &'static str,
+    /// Its bins (empty ones left out).
+    pub bins: Vec<Bin>,
+}
+
+type Getter = fn(&Feature, &Obs) -> Option<f64>;
+
+/// The features and their bin edges.
+fn features() -> Vec<(&'static str, Getter, Vec<f64>)> {
+    vec![
+        (
+            "range_m",
+            |f, o| {
+                if o.predicted.is_finite() {
+                    Some(f64::from(o.predicted))
+                } else {
+                    (f.range > 0.0).then_some(f64::from(f.range))
+                }
+            },
+            vec![0.0, 2.0, 5.0, 10.0, 20.0, 40.0, 80.0, 400.0],
+        ),
+        (
+            "reflectivity",
+            |f, _| (f.range > 0.0).then_some(f64::from(f.rho)),
+            vec![0.0, 0.1, 0.2, 0.4, 0.7, 1.0, 10.0],
+        ),
+        (
+            "incidence_deg",
+            |f, _| (f.range > 0.0).then(|| f64::from(f.cos).clamp(-1.0, 1.0).acos().to_degrees()),
+            vec![0.0, 20.0, 40.0, 60.0, 75.0, 90.1],
+        ),
+        (
+            "depth_step_m",
+            |f, _| Some(f64::from(f.step).min(1e3)),
+            vec![0.0, 0.05, 0.2, 1.0, 5.0, 1e3 + 1.0],
+        ),
+        (
+            "ego_speed_mps",
+            |f, _| Some(f64::from(f.speed)),
+            vec![0.0, 0.3, 2.0, 5.0, 10.0, 100.0],
+        ),
+        (
+            "yaw_rate_dps",
+            |f, _| Some(f64::from(f.yaw_rate.abs())),
+            vec![0.0, 2.0, 5.0, 10.0, 20.0, 1e3],
+        ),
+        (
+            "time_in_rotation_s",
+            |f, _| Some(f64::from(f.t_rotation)),
+            vec![0.0, 0.02, 0.04, 0.06, 0.08, 0.1, 1.0],
+        ),
+        (
+            "azimuth_deg",
+            |f, _| Some(f64::from(f.azimuth)),
+            (0..=12).map(|i| f64::from(i) * 30.0).collect(),
+        ),
+        (
+            "laser",
+            |f, _| Some(f64::from(f.laser)),
+            (0..=128).map(f64::from).collect(),
+        ),
+        (
+            "elevation_deg",
+            |f, _| Some(f64::from(f.elevation)),
+            (-5..=3).map(|i| f64::from(i) * 5.0).collect(),
+        ),
+    ]
+}
+
+/// The tables of one evaluation over several runs.
+pub fn tables(runs: &[(&[Obs], &[Feature])]) -> Vec<Table> {
+    features()
+        .into_iter()
+        .map(|(name, get, edges)| {
+            let n = edges.len() - 1;
+            let mut count = vec![0usize; n];
+            let mut meas = vec![0usize; n];
+            let mut pred = vec![0usize; n];
+            let mut res: Vec<Vec<f64>> = vec![Vec::new(); n];
+            for (obs, feat) in runs {
+                for (o, f) in obs.iter().zip(feat.iter()) {
+                    if !o.cast {
+                        continue;
+                    }
+                    let Some(x) = get(f, o) else { continue };
+                    let i = edges.partition_point(|e| *e <= x);
+                    if i == 0 || i > n {
+                        continue;
+                    }
+                    let b = i - 1;
+                    count[b] += 1;
+                    meas[b] += usize::from(o.measured.is_finite());
+                    pred[b] += usize::from(o.predicted.is_finite());
+                    if o.measured.is_finite() && o.predicted.is_finite() {
+                        res[b].push(f64::from(o.measured - o.predicted));
+                    }
+                }
+            }
+            let bins = (0..n)
+                .filter(|&b| count[b] > 0)
+                .map(|b| {
+                    let c = count[b] as f64;
+                    let (ms, ps) = (meas[b] as f64 / c, pred[b] as f64 / c);
+                    let r = &mut res[b];
+                    let sigma = robust_sigma(r);
+                    let med = median(r);
+                    r.sort_by(f64::total_cmp);
+                    let q =
+                        |p: f64| (!r.is_empty()).then(|| r[((r.len() - 1) as f64 * p) as usize]);
+                    let se_share = ((ms * (1.0 - ms) + ps * (1.0 - ps)) / c).sqrt();
+                    let se_med =
+                        sigma.map_or(f64::INFINITY, |s| 1.25 * s / (r.len() as f64).sqrt());
+                    let disagrees = ((ms - ps).abs() > 0.01 && (ms - ps).abs() > 3.0 * se_share)
+                        || med.is_some_and(|m| m.abs() > 0.01 && m.abs() > 3.0 * se_med);
+                    Bin {
+                        from: edges[b],
+                        to: edges[b + 1],
+                        firings: count[b],
+                        measured_share: ms,
+                        predicted_share: ps,
+                        both: r.len(),
+                        median_m: med,
+                        sigma_m: sigma,
+                        p05_m: q(0.05),
+                        p95_m: q(0.95),
+                        disagrees,
+                    }
+                })
+                .collect();
+            Table {
+                feature: name,
+                bins,
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,122 @@
+//! Block bootstrap over scans. Reference errors are correlated over seconds (RTK noise is a
+//! Gauss-Markov process with a correlation time of about 2 s), so scans are resampled in blocks
+//! of [`BLOCK_SCANS`] consecutive scans (2 s at 10 Hz), pooled over the runs.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Scans per bootstrap block.
+pub const BLOCK_SCANS: usize = 20;
+
+/// Resamples drawn for an interval.
+pub const RESAMPLES: usize = 400;
+
+/// The blocks of a set of runs: where each run's blocks start in the pooled numbering.
+#[derive(Clone, Debug)]
+pub struct Blocks {
+    offsets: Vec<usize>,
+    total: usize,
+}
+
+impl Blocks {
+    /// Blocks of runs with these scan counts.
+    pub fn new(scans: &[usize]) -> Blocks {
+        let mut offsets = Vec::with_capacity(scans.len());
+        let mut total = 0;
+        for &n in scans {
+            offsets.push(total);
+            total += n.div_ceil(BLOCK_SCANS).max(1);
+        }
+        Blocks { offsets, total }
+    }
+
+    /// Number of blocks.
+    pub fn len(&self) -> usize {
+        self.total
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.total == 0
+    }
+
+    /// The block of `scan` of run `run`.
+    pub fn of(&self, run: usize, scan: u32) -> usize {
+        self.offsets[run] + scan as usize / BLOCK_SCANS
+    }
+
+    /// `RESAMPLES` resamples, each as a count per block (how often it was drawn).
+    pub fn resamples(&self, seed: u64) -> Vec<Vec<u32>> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        (0..RESAMPLES)
+            .map(|_| {
+                let mut c = vec![0u32; self.total];
+                for _ in 0..self.total {
+                    c[rng.random_range(0..self.total)] += 1;
+                }
+                c
+            })
+            .collect()
+    }
+}
+
+/// The 2.5 % and 97.5 % quantiles of `values` (reordered).
+pub fn interval(values: &mut [f64]) -> Option<(f64, f64)> {
+    let v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    let mut v = v;
+    v.sort_by(f64::total_cmp);
+    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+    Some((at(0.025), at(0.975)))
+}
+
+/// The interval of a sum of per-block values.
+pub fn sum_interval(per_block: &[f64], resamples: &[Vec<u32>]) -> Option<(f64, f64)> {
+    let mut sums: Vec<f64> = resamples
+        .iter()
+        .map(|c| {
+            c.iter()
+                .zip(per_block)
+                .map(|(&n, v)| f64::from(n) * v)
+                .sum()
+        })
+        .collect();
+    interval(&mut sums)
+}
+
+/// The weighted median of `values` (value, block) with the resample's block counts.
+pub fn weighted_median(values: &[(usize, f64)], counts: &[u32]) -> Option<f64> {
+    let mut v: Vec<(f64, u32)> = values
+        .iter()
+        .filter_map(|&(b, x)| {
+            let n = counts[b];
+            (n > 0).then_some((x, n))
+        })
+        .collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: u64 = v.iter().map(|x| u64::from(x.1)).sum();
+    let mut acc = 0u64;
+    for (x, n) in &v {
+        acc += u64::from(*n);
+        if 2 * acc >= total {
+            return Some(*x);
+        }
+    }
+    v.last().map(|x| x.0)
+}
+
+/// The values of a resample: each value repeated as often as its block was drawn.
+pub fn resampled(values: &[(usize, f64)], counts: &[u32]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(values.len());
+    for &(b, x) in values {
+        for _ in 0..counts[b] {
+            out.push(x);
+        }
+    }
+    out
+}

@@ -1,0 +1,810 @@
+//! The effect catalogue as candidates: for each effect of `src/sim/model.rs` the current model
+//! lacks, its signature on the per-firing data, a fit of its parameters with a bootstrap
+//! interval, and its score: the log-likelihood it adds on the parameterization runs
+//! ([`super::likelihood`]), with a block-bootstrap interval.
+//!
+//! The fits follow each effect's physical definition in the catalogue, nothing else:
+//!
+//! | effect | signature | fit |
+//! |---|---|---|
+//! | `range_bias` | residuals offset on every surface, at every range | median residual away from edges |
+//! | `range_noise` | neighbouring firings on one surface disagree by more than the quantum | spread of neighbour differences (reference errors cancel) |
+//! | `random_dropout` | predicted returns missing, independent of range, reflectivity, angle | share missing away from edges |
+//! | `detection_threshold` | predicted returns missing where ρ cos θ / R² is small | the power threshold that best splits returned from missing (exact sweep) |
+//! | `beam_divergence` | returns beyond object borders, mixed ranges at depth edges | grid over the divergence, scored on all firings |
+//! | `motion_distortion` | residuals growing with the time since the rotation started, with ego speed | the switch: each firing at its own pose |
+//! | `time_offset` | residuals along the ego's motion, proportional to speed and yaw rate | Gauss-Newton on the residuals away from edges |
+//! | `mount_misalignment` | residuals that rotate with the sensor, also at standstill | Gauss-Newton on roll, pitch and yaw |
+//! | `intensity` | measured reflectivity falls with the incidence angle | exponent k of cos θ by a robust fit, noise from the rest |
+//!
+//! Each effect also has a resolution floor: below it, the fitted value is not told apart from
+//! the reference data's own errors and the candidate is not eligible (see [`FLOORS`]).
+
+use super::bootstrap::{self, Blocks};
+use super::likelihood::{self, Random, Scored};
+use super::observe::{evaluate, Feature, Obs, RunData};
+use super::GapError;
+use crate::sim::model::{Effect, ModelFile};
+use nalgebra::{DMatrix, DVector};
+
+/// A 95 % interval.
+pub type Interval = (f64, f64);
+
+/// A predicted return away from edges: its bootstrap block, predicted power, and whether the
+/// sensor returned it.
+type DetectionRow = (usize, f64, bool);
+
+/// A row of a linearised fit: bootstrap block, Jacobian row (intercept first), residual.
+type Row = (usize, Vec<f64>, f64);
+
+/// A fitted parameter.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Param {
+    /// Name as in `model.toml`.
+    pub name: &'static str,
+    /// Fitted value.
+    pub value: f64,
+    /// 95 % bootstrap interval.
+    pub interval: Option<(f64, f64)>,
+}
+
+/// One candidate of a round.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Candidate {
+    /// The effect's name.
+    pub effect: &'static str,
+    /// The effect as it would be added (`None` when it could not be fitted).
+    #[serde(skip)]
+    pub fitted: Option<Effect>,
+    /// Its fitted parameters.
+    pub params: Vec<Param>,
+    /// Log-likelihood gain on the parameterization runs, nats.
+    pub gain: f64,
+    /// Its 95 % block-bootstrap interval.
+    pub gain_interval: Option<(f64, f64)>,
+    /// Gain per 1000 firings, nats.
+    pub gain_per_1000_firings: f64,
+    /// The fitted value clears the effect's resolution floor.
+    pub above_floor: bool,
+    /// Eligible: above the floor and a gain whose interval excludes zero.
+    pub eligible: bool,
+    /// What limited it, if anything.
+    pub note: Option<String>,
+}
+
+/// Resolution floors: the smallest value of each effect the workflow adds. Below them, the
+/// effect is indistinguishable from RTK noise (1-2 cm), survey error and quantisation (2 mm),
+/// or too small to change any metric; the floors are a fifth to a half of the smallest values
+/// the catalogue's typical ranges hold.
+pub const FLOORS: [(&str, &str); 9] = [
+    ("range_bias", "|bias| ≥ 5 mm"),
+    ("range_noise", "σ ≥ 3 mm"),
+    ("random_dropout", "probability ≥ 0.5 %"),
+    (
+        "detection_threshold",
+        "removes ≥ 0.2 % of the predicted returns",
+    ),
+    ("beam_divergence", "horizontal ≥ 0.5 mrad"),
+    ("motion_distortion", "none (a switch)"),
+    ("time_offset", "|offset| ≥ 1 ms"),
+    ("mount_misalignment", "largest angle ≥ 0.05°"),
+    ("intensity", "exponent ≥ 0.2 or noise ≥ 1 count"),
+];
+
+/// The parameterization runs with their features and the current model's evaluation.
+pub struct Fitting<'a> {
+    /// Runs.
+    pub runs: &'a [RunData],
+    /// Their features.
+    pub feats: &'a [Vec<Feature>],
+    /// The current model.
+    pub current: &'a ModelFile,
+    /// Its observations per run.
+    pub obs: &'a [Vec<Obs>],
+    /// Its scores per run.
+    pub scored: &'a [Scored],
+    /// Bootstrap blocks.
+    pub blocks: &'a Blocks,
+    /// Resamples of the blocks.
+    pub resamples: &'a [Vec<u32>],
+}
+
+/// `model` with `effect` added (replacing one of the same name).
+pub fn with_effect(model: &ModelFile, effect: Effect) -> ModelFile {
+    let mut m = model.clone();
+    m.effects.retain(|e| e.name() != effect.name());
+    m.effects.push(effect);
+    m
+}
+
+/// The random parts of a model.
+pub fn random_of(model: &ModelFile) -> Random {
+    let mut r = Random::default();
+    for e in &model.effects {
+        match *e {
+            Effect::RangeNoise { sigma_m } => r.sigma_m = sigma_m,
+            Effect::RandomDropout { probability } => r.dropout = probability,
+            _ => {}
+        }
+    }
+    r
+}
+
+impl Fitting<'_> {
+    fn score_all(&self, obs: &[Vec<Obs>], random: Random) -> Vec<Scored> {
+        obs.iter()
+            .zip(self.runs)
+            .zip(self.feats)
+            .map(|((o, r), f)| likelihood::score(o, f, random, r.range_quantum_m, r.scans))
+            .collect()
+    }
+
+    fn cast(&self, model: &ModelFile) -> Result<Vec<Vec<Obs>>, GapError> {
+        self.runs.iter().map(|r| evaluate(r, model)).collect()
+    }
+
+    /// Gain per block of `scored` over the current model, its total and interval.
+    fn gain(&self, scored: &[Scored]) -> (f64, Option<(f64, f64)>, f64) {
+        let mut per_block = vec![0.0; self.blocks.len()];
+        let mut firings = 0;
+        for (r, (new, old)) in scored.iter().zip(self.scored).enumerate() {
+            firings += old.firings;
+            for (s, (a, b)) in new.per_scan.iter().zip(&old.per_scan).enumerate() {
+                per_block[self.blocks.of(r, s as u32)] += a - b;
+            }
+        }
+        let total: f64 = per_block.iter().sum();
+        (
+            total,
+            bootstrap::sum_interval(&per_block, self.resamples),
+            total / firings.max(1) as f64 * 1000.0,
+        )
+    }
+
+    fn candidate(
+        &self,
+        effect: &'static str,
+        fitted: Effect,
+        params: Vec<Param>,
+        above_floor: bool,
+        scored: &[Scored],
+    ) -> Candidate {
+        let (gain, gain_interval, per) = self.gain(scored);
+        let eligible = above_floor && gain_interval.is_some_and(|(lo, _)| lo > 0.0) && gain > 0.0;
+        Candidate {
+            effect,
+            fitted: Some(fitted),
+            params,
+            gain,
+            gain_interval,
+            gain_per_1000_firings: per,
+            above_floor,
+            eligible,
+            note: (!above_floor).then(|| "fitted value below the resolution floor".to_owned()),
+        }
+    }
+
+    /// Residuals away from edges, with their pooled block.
+    fn residual_blocks(&self, obs: &[Vec<Obs>]) -> Vec<(usize, f64)> {
+        let mut out = Vec::new();
+        for (r, (o, f)) in obs.iter().zip(self.feats).enumerate() {
+            out.extend(
+                likelihood::residuals(o, f)
+                    .into_iter()
+                    .map(|(s, e)| (self.blocks.of(r, s), e)),
+            );
+        }
+        out
+    }
+
+    fn bias(&self) -> Result<Candidate, GapError> {
+        let res = self.residual_blocks(self.obs);
+        let all: Vec<u32> = vec![1; self.blocks.len()];
+        let b = bootstrap::weighted_median(&res, &all).unwrap_or(0.0);
+        let mut boots: Vec<f64> = self
+            .resamples
+            .iter()
+            .filter_map(|c| bootstrap::weighted_median(&res, c))
+            .collect();
+        let effect = Effect::RangeBias { bias_m: b };
+        let model = with_effect(self.current, effect.clone());
+        let scored = self.score_all(&self.cast(&model)?, random_of(&model));
+        Ok(self.candidate(
+            "range_bias",
+            effect,
+            vec![Param {
+                name: "bias_m",
+                value: b,
+                interval: bootstrap::interval(&mut boots),
+            }],
+            b.abs() >= 0.005,
+            &scored,
+        ))
+    }
+
+    fn noise(&self) -> Candidate {
+        let mut diffs = Vec::new();
+        let mut quantum = 0.002f64;
+        for (r, (o, f)) in self.obs.iter().zip(self.feats).enumerate() {
+            quantum = self.runs[r].range_quantum_m;
+            diffs.extend(
+                likelihood::differences(o, f)
+                    .into_iter()
+                    .map(|(s, d)| (self.blocks.of(r, s), d)),
+            );
+        }
+        let values: Vec<f64> = diffs.iter().map(|x| x.1).collect();
+        let sigma = likelihood::noise_from_differences(&values, quantum).unwrap_or(0.0);
+        let mut boots: Vec<f64> = self
+            .resamples
+            .iter()
+            .take(100)
+            .filter_map(|c| {
+                likelihood::noise_from_differences(&bootstrap::resampled(&diffs, c), quantum)
+            })
+            .collect();
+        let effect = Effect::RangeNoise { sigma_m: sigma };
+        let model = with_effect(self.current, effect.clone());
+        let scored = self.score_all(self.obs, random_of(&model));
+        self.candidate(
+            "range_noise",
+            effect,
+            vec![Param {
+                name: "sigma_m",
+                value: sigma,
+                interval: bootstrap::interval(&mut boots),
+            }],
+            sigma >= 0.003,
+            &scored,
+        )
+    }
+
+    /// Per block: predicted returns away from edges, and how many of them the sensor
+    /// returned; and the rows (block, power, returned) for the threshold sweep.
+    fn detections(&self) -> (Vec<DetectionRow>, Vec<(f64, f64)>) {
+        let mut rows = Vec::new();
+        let mut per_block = vec![(0.0, 0.0); self.blocks.len()];
+        for (r, (o, f)) in self.obs.iter().zip(self.feats).enumerate() {
+            for (o, f) in o.iter().zip(f) {
+                if !o.cast || f.is_edge() || !o.predicted.is_finite() {
+                    continue;
+                }
+                let b = self.blocks.of(r, f.scan);
+                let hit = o.measured.is_finite();
+                rows.push((b, f64::from(o.power), hit));
+                per_block[b].0 += 1.0;
+                if hit {
+                    per_block[b].1 += 1.0;
+                }
+            }
+        }
+        (rows, per_block)
+    }
+
+    fn dropout(&self) -> Candidate {
+        let (_, per_block) = self.detections();
+        let share = |c: &[u32]| {
+            let (n, h) = per_block.iter().zip(c).fold((0.0, 0.0), |a, (b, &k)| {
+                (a.0 + f64::from(k) * b.0, a.1 + f64::from(k) * b.1)
+            });
+            (n > 0.0).then(|| (1.0 - h / (n * (1.0 - likelihood::EPS))).max(0.0))
+        };
+        let all = vec![1u32; self.blocks.len()];
+        let p = share(&all).unwrap_or(0.0).min(0.999);
+        let mut boots: Vec<f64> = self.resamples.iter().filter_map(|c| share(c)).collect();
+        let effect = Effect::RandomDropout { probability: p };
+        let model = with_effect(self.current, effect.clone());
+        let scored = self.score_all(self.obs, random_of(&model));
+        self.candidate(
+            "random_dropout",
+            effect,
+            vec![Param {
+                name: "probability",
+                value: p,
+                interval: bootstrap::interval(&mut boots),
+            }],
+            p >= 0.005,
+            &scored,
+        )
+    }
+
+    fn threshold(&self) -> Result<Candidate, GapError> {
+        let (mut rows, _) = self.detections();
+        rows.retain(|r| r.1.is_finite() && r.1 > 0.0);
+        rows.sort_by(|a, b| a.1.total_cmp(&b.1));
+        let keep = 1.0 - random_of(self.current).dropout;
+        let (eps, p_in) = (likelihood::EPS, keep * (1.0 - likelihood::EPS));
+        // Log-likelihood of the detection term when every row below index k is predicted
+        // missing: returned rows below pay ln ε, missing ones ln(1-ε); above, the model's.
+        let sweep = |weight: &dyn Fn(usize) -> f64| -> (usize, f64) {
+            let (lh_in, lm_in) = (p_in.ln(), (1.0 - p_in).max(1e-12).ln());
+            let (lh_out, lm_out) = (eps.ln(), (1.0 - eps).ln());
+            let mut above: f64 = rows
+                .iter()
+                .enumerate()
+                .map(|(i, r)| weight(i) * if r.2 { lh_in } else { lm_in })
+                .sum();
+            let mut below = 0.0;
+            let (mut best, mut best_ll) = (0usize, above);
+            for (i, r) in rows.iter().enumerate() {
+                let w = weight(i);
+                above -= w * if r.2 { lh_in } else { lm_in };
+                below += w * if r.2 { lh_out } else { lm_out };
+                if below + above > best_ll {
+                    best_ll = below + above;
+                    best = i + 1;
+                }
+            }
+            (best, best_ll)
+        };
+        let (k, _) = sweep(&|_| 1.0);
+        let power_at = |k: usize| -> Option<f64> {
+            if k == 0 || rows.is_empty() {
+                return None;
+            }
+            let lo = rows[k - 1].1;
+            let hi = rows.get(k).map_or(lo, |r| r.1);
+            Some((lo * hi).sqrt())
+        };
+        let reference_reflectivity = 0.10;
+        let range_of = |p: f64| (reference_reflectivity / p).sqrt();
+        let Some(p_min) = power_at(k) else {
+            return Ok(Candidate {
+                effect: "detection_threshold",
+                fitted: None,
+                params: vec![],
+                gain: 0.0,
+                gain_interval: None,
+                gain_per_1000_firings: 0.0,
+                above_floor: false,
+                eligible: false,
+                note: Some("no threshold explains the missing returns better than none".into()),
+            });
+        };
+        let mut boots: Vec<f64> = self
+            .resamples
+            .iter()
+            .take(100)
+            .filter_map(|c| {
+                let (k, _) = sweep(&|i| f64::from(c[rows[i].0]));
+                power_at(k).map(range_of)
+            })
+            .collect();
+        let effect = Effect::DetectionThreshold {
+            reference_range_m: range_of(p_min),
+            reference_reflectivity,
+        };
+        let model = with_effect(self.current, effect.clone());
+        let scored = self.score_all(&self.cast(&model)?, random_of(&model));
+        Ok(self.candidate(
+            "detection_threshold",
+            effect,
+            vec![
+                Param {
+                    name: "reference_range_m",
+                    value: range_of(p_min),
+                    interval: bootstrap::interval(&mut boots),
+                },
+                Param {
+                    name: "reference_reflectivity",
+                    value: reference_reflectivity,
+                    interval: None,
+                },
+            ],
+            k as f64 >= 0.002 * rows.len() as f64,
+            &scored,
+        ))
+    }
+
+    /// Gauss-Newton with robust (Huber) weights on the residuals away from edges for the
+    /// parameters of a geometric effect, with an intercept as nuisance (a range offset must
+    /// not pass for a rotation or a time shift). The Jacobian comes from one-sided differences
+    /// of the re-cast ranges; rows where a step moves the beam to another surface are left
+    /// out. Returns the parameters and their bootstrap intervals from the last linearisation.
+    fn gauss_newton(
+        &self,
+        make: &dyn Fn(&[f64]) -> Effect,
+        h: &[f64],
+        max_step: &[f64],
+    ) -> Result<(Vec<f64>, Vec<Option<Interval>>), GapError> {
+        let n = h.len();
+        let mut theta = vec![0.0; n];
+        let mut last: Option<(Vec<Row>, Vec<f64>, f64)> = None;
+        for _ in 0..5 {
+            let base = self.cast(&with_effect(self.current, make(&theta)))?;
+            let mut stepped = Vec::with_capacity(n);
+            for k in 0..n {
+                let mut t = theta.clone();
+                t[k] += h[k];
+                stepped.push(self.cast(&with_effect(self.current, make(&t)))?);
+            }
+            let mut rows: Vec<Row> = Vec::new();
+            for r in 0..self.runs.len() {
+                for (i, (o, f)) in base[r].iter().zip(&self.feats[r]).enumerate() {
+                    if f.is_edge() || !o.measured.is_finite() || !o.predicted.is_finite() {
+                        continue;
+                    }
+                    let mut row = vec![1.0];
+                    let mut ok = true;
+                    for (k, s) in stepped.iter().enumerate() {
+                        let p = s[r][i].predicted;
+                        let d = f64::from(p - o.predicted);
+                        if !p.is_finite() || d.abs() > 0.3 {
+                            ok = false;
+                            break;
+                        }
+                        row.push(d / h[k]);
+                    }
+                    if ok {
+                        rows.push((
+                            self.blocks.of(r, f.scan),
+                            row,
+                            f64::from(o.measured - o.predicted),
+                        ));
+                    }
+                }
+            }
+            if rows.len() < 100 {
+                return Err(GapError::Input(
+                    "too few firings on smooth surfaces to fit a geometric effect".into(),
+                ));
+            }
+            let e: Vec<f64> = rows.iter().map(|r| r.2).collect();
+            let s = likelihood::robust_sigma(&e).unwrap_or(0.01).max(1e-3);
+            let all = vec![1u32; self.blocks.len()];
+            let Some(delta) = irls(&rows, s, &all) else {
+                break;
+            };
+            let mut done = true;
+            for k in 0..n {
+                let d = delta[k + 1].clamp(-max_step[k], max_step[k]);
+                if d.abs() > 0.02 * h[k] {
+                    done = false;
+                }
+                theta[k] += d;
+            }
+            last = Some((rows, theta.clone(), s));
+            if done {
+                break;
+            }
+        }
+        let Some((rows, at, s)) = last else {
+            return Ok((theta, vec![None; n]));
+        };
+        // The linearisation point of the last rows is `at` minus the last step; the bootstrap
+        // re-solves that step on resampled blocks.
+        let all = vec![1u32; self.blocks.len()];
+        let step = irls(&rows, s, &all).unwrap_or_else(|| vec![0.0; n + 1]);
+        let mut intervals = Vec::with_capacity(n);
+        let boots: Vec<Vec<f64>> = self
+            .resamples
+            .iter()
+            .take(100)
+            .filter_map(|c| irls(&rows, s, c))
+            .collect();
+        for k in 0..n {
+            let mut v: Vec<f64> = boots
+                .iter()
+                .map(|b| at[k] - step[k + 1].clamp(-max_step[k], max_step[k]) + b[k + 1])
+                .collect();
+            intervals.push(bootstrap::interval(&mut v));
+        }
+        Ok((theta, intervals))
+    }
+
+    fn geometric(
+        &self,
+        effect: &'static str,
+        names: &[&'static str],
+        make: &dyn Fn(&[f64]) -> Effect,
+        h: &[f64],
+        max_step: &[f64],
+        floor: &dyn Fn(&[f64]) -> bool,
+    ) -> Result<Candidate, GapError> {
+        let (theta, intervals) = match self.gauss_newton(make, h, max_step) {
+            Ok(x) => x,
+            Err(e) => {
+                return Ok(Candidate {
+                    effect,
+                    fitted: None,
+                    params: vec![],
+                    gain: 0.0,
+                    gain_interval: None,
+                    gain_per_1000_firings: 0.0,
+                    above_floor: false,
+                    eligible: false,
+                    note: Some(e.to_string()),
+                })
+            }
+        };
+        let fitted = make(&theta);
+        let model = with_effect(self.current, fitted.clone());
+        let scored = self.score_all(&self.cast(&model)?, random_of(&model));
+        let params = names
+            .iter()
+            .zip(&theta)
+            .zip(intervals)
+            .map(|((name, v), i)| Param {
+                name,
+                value: *v,
+                interval: i,
+            })
+            .collect();
+        Ok(self.candidate(effect, fitted, params, floor(&theta), &scored))
+    }
+
+    fn motion(&self) -> Result<Option<Candidate>, GapError> {
+        let disabled = self
+            .current
+            .effects
+            .iter()
+            .any(|e| matches!(e, Effect::MotionDistortion { enabled: false }));
+        if !disabled {
+            return Ok(None);
+        }
+        let effect = Effect::MotionDistortion { enabled: true };
+        let model = with_effect(self.current, effect.clone());
+        let scored = self.score_all(&self.cast(&model)?, random_of(&model));
+        Ok(Some(self.candidate(
+            "motion_distortion",
+            effect,
+            vec![Param {
+                name: "enabled",
+                value: 1.0,
+                interval: None,
+            }],
+            true,
+            &scored,
+        )))
+    }
+
+    fn divergence(&self) -> Result<Candidate, GapError> {
+        let make = |h: f64, v: f64| Effect::BeamDivergence {
+            horizontal_mrad: h,
+            vertical_mrad: v,
+            sub_rays_per_axis: 3,
+            range_separation_m: 0.5,
+        };
+        let try_one = |h: f64, v: f64| -> Result<(f64, Vec<Scored>), GapError> {
+            let model = with_effect(self.current, make(h, v));
+            let scored = self.score_all(&self.cast(&model)?, random_of(&model));
+            let total = scored.iter().flat_map(|s| &s.per_scan).sum();
+            Ok((total, scored))
+        };
+        // The catalogue's typical aspect (VLP-16: 3.0 × 1.5 mrad) first, then each axis.
+        let mut grid: Vec<(f64, f64, f64, Vec<Scored>)> = Vec::new();
+        for s in [1.0, 2.0, 3.0, 4.5, 6.0] {
+            let (ll, sc) = try_one(s, s / 2.0)?;
+            grid.push((s, s / 2.0, ll, sc));
+        }
+        let best = |g: &[(f64, f64, f64, Vec<Scored>)]| {
+            g.iter()
+                .enumerate()
+                .max_by(|a, b| a.1 .2.total_cmp(&b.1 .2))
+                .map_or(0, |x| x.0)
+        };
+        let (h0, v0) = (grid[best(&grid)].0, grid[best(&grid)].1);
+        for f in [0.5, 1.5, 2.0] {
+            let (ll, sc) = try_one(h0, v0 * f)?;
+            grid.push((h0, v0 * f, ll, sc));
+        }
+        let v1 = grid[best(&grid)].1;
+        for f in [0.75, 1.25] {
+            let (ll, sc) = try_one(h0 * f, v1)?;
+            grid.push((h0 * f, v1, ll, sc));
+        }
+        let i = best(&grid);
+        // Interval: the grid points chosen on resampled blocks.
+        let per_block: Vec<Vec<f64>> = grid
+            .iter()
+            .map(|g| {
+                let mut b = vec![0.0; self.blocks.len()];
+                for (r, s) in g.3.iter().enumerate() {
+                    for (k, v) in s.per_scan.iter().enumerate() {
+                        b[self.blocks.of(r, k as u32)] += v;
+                    }
+                }
+                b
+            })
+            .collect();
+        let mut hs = Vec::new();
+        let mut vs = Vec::new();
+        for c in self.resamples.iter().take(200) {
+            let j = (0..grid.len())
+                .max_by(|&a, &b| {
+                    let s = |g: usize| -> f64 {
+                        per_block[g]
+                            .iter()
+                            .zip(c)
+                            .map(|(v, &n)| v * f64::from(n))
+                            .sum()
+                    };
+                    s(a).total_cmp(&s(b))
+                })
+                .unwrap_or(i);
+            hs.push(grid[j].0);
+            vs.push(grid[j].1);
+        }
+        let (h, v) = (grid[i].0, grid[i].1);
+        let scored = grid.swap_remove(i).3;
+        Ok(self.candidate(
+            "beam_divergence",
+            make(h, v),
+            vec![
+                Param {
+                    name: "horizontal_mrad",
+                    value: h,
+                    interval: bootstrap::interval(&mut hs),
+                },
+                Param {
+                    name: "vertical_mrad",
+                    value: v,
+                    interval: bootstrap::interval(&mut vs),
+                },
+            ],
+            h >= 0.5,
+            &scored,
+        ))
+    }
+
+    fn intensity(&self) -> Result<Candidate, GapError> {
+        // Diffuse returns away from edges: measured byte against 100 ρ cos^k θ.
+        let mut rows: Vec<(f64, f64, f64)> = Vec::new();
+        for (o, f) in self.obs.iter().zip(self.feats) {
+            for (o, f) in o.iter().zip(f) {
+                if o.measured.is_finite()
+                    && !f.is_edge()
+                    && o.intensity <= 100
+                    && f.rho > 0.0
+                    && f.rho <= 1.0
+                    && f.cos > 0.0
+                {
+                    rows.push((f64::from(o.intensity), f64::from(f.rho), f64::from(f.cos)));
+                }
+            }
+        }
+        let spread = |k: f64| {
+            let e: Vec<f64> = rows
+                .iter()
+                .map(|(i, rho, cos)| i - 100.0 * rho * cos.powf(k))
+                .collect();
+            let mut c = e.clone();
+            let m = likelihood::median(&mut c).unwrap_or(0.0);
+            (
+                m.abs(),
+                likelihood::robust_sigma(&e).unwrap_or(f64::INFINITY),
+            )
+        };
+        let cost = |k: f64| {
+            let (m, s) = spread(k);
+            m + s
+        };
+        let mut k = 0.0;
+        let mut best = cost(0.0);
+        for i in 1..=60 {
+            let x = f64::from(i) * 0.05;
+            let c = cost(x);
+            if c < best {
+                best = c;
+                k = x;
+            }
+        }
+        let (_, s) = spread(k);
+        let noise = (s * s - 1.0 / 12.0).max(0.0).sqrt();
+        let effect = Effect::Intensity {
+            incidence_exponent: k,
+            noise_sigma: noise,
+        };
+        let model = with_effect(self.current, effect.clone());
+        let scored = self.score_all(&self.cast(&model)?, random_of(&model));
+        Ok(self.candidate(
+            "intensity",
+            effect,
+            vec![
+                Param {
+                    name: "incidence_exponent",
+                    value: k,
+                    interval: None,
+                },
+                Param {
+                    name: "noise_sigma",
+                    value: noise,
+                    interval: None,
+                },
+            ],
+            k >= 0.2 || noise >= 1.0,
+            &scored,
+        ))
+    }
+
+    /// Every candidate the current model lacks, fitted and scored; `progress` is told the name
+    /// of each as it starts.
+    pub fn all(&self, progress: &dyn Fn(&str)) -> Result<Vec<Candidate>, GapError> {
+        let has = |name: &str| self.current.effects.iter().any(|e| e.name() == name);
+        let mut out = Vec::new();
+        if !has("range_bias") {
+            progress("range_bias");
+            out.push(self.bias()?);
+        }
+        if !has("range_noise") {
+            progress("range_noise");
+            out.push(self.noise());
+        }
+        if !has("random_dropout") {
+            progress("random_dropout");
+            out.push(self.dropout());
+        }
+        if !has("detection_threshold") {
+            progress("detection_threshold");
+            out.push(self.threshold()?);
+        }
+        progress("motion_distortion");
+        if let Some(c) = self.motion()? {
+            out.push(c);
+        }
+        if !has("time_offset") {
+            progress("time_offset");
+            out.push(self.geometric(
+                "time_offset",
+                &["offset_ms"],
+                &|t| Effect::TimeOffset { offset_ms: t[0] },
+                &[2.0],
+                &[60.0],
+                &|t| t[0].abs() >= 1.0,
+            )?);
+        }
+        if !has("mount_misalignment") {
+            progress("mount_misalignment");
+            out.push(self.geometric(
+                "mount_misalignment",
+                &["roll_deg", "pitch_deg", "yaw_deg"],
+                &|t| Effect::MountMisalignment {
+                    roll_deg: t[0],
+                    pitch_deg: t[1],
+                    yaw_deg: t[2],
+                },
+                &[0.1, 0.1, 0.1],
+                &[3.0, 3.0, 3.0],
+                &|t| t.iter().any(|a| a.abs() >= 0.05),
+            )?);
+        }
+        if !has("beam_divergence") {
+            progress("beam_divergence");
+            out.push(self.divergence()?);
+        }
+        if !has("intensity") {
+            progress("intensity");
+            out.push(self.intensity()?);
+        }
+        out.sort_by(|a, b| b.gain.total_cmp(&a.gain));
+        Ok(out)
+    }
+}
+
+/// Iteratively reweighted least squares (Huber, k = 1.345 s) of `rows` (block, Jacobian row,
+/// residual), each weighted by its block's count.
+fn irls(rows: &[Row], s: f64, counts: &[u32]) -> Option<Vec<f64>> {
+    let p = rows.first()?.1.len();
+    let mut delta = vec![0.0; p];
+    for _ in 0..6 {
+        let mut a = DMatrix::<f64>::zeros(p, p);
+        let mut b = DVector::<f64>::zeros(p);
+        for (blk, j, e) in rows {
+            let c = f64::from(counts[*blk]);
+            if c == 0.0 {
+                continue;
+            }
+            let r = e - j.iter().zip(&delta).map(|(x, d)| x * d).sum::<f64>();
+            let w = c * (1.345 * s / r.abs().max(1e-12)).min(1.0);
+            for k in 0..p {
+                b[k] += w * j[k] * e;
+                for l in 0..p {
+                    a[(k, l)] += w * j[k] * j[l];
+                }
+            }
+        }
+        let x = a.lu().solve(&b)?;
+        delta = x.iter().copied().collect();
+    }
+    Some(delta)
+}

@@ -1,0 +1,411 @@
+//! A run as the gap workflow sees it: a sample of its recorded packets, each firing with its
+//! measured return, what a model predicts for the same firing (same packet stamp, block and
+//! channel: re-simulation keeps the sensor's firing schedule), and the firing's features for
+//! the bins.
+//!
+//! The workflow re-casts only a sample of the packets (every m-th, so that the sample walks
+//! through all azimuths and the whole drive): a candidate's parameters are searched with tens
+//! of casts, and a few hundred thousand firings per run pin every parameter of the catalogue
+//! far below its documented range while one cast stays a fraction of a second.
+
+use super::study::Role;
+use super::GapError;
+use crate::bag::scans::{read_scans, sensor_time};
+use crate::reference::check::{check_with_trajectory, Verdict};
+use crate::rig::Rig;
+use crate::scene::pose::Trajectory;
+use crate::scene::Scene;
+use crate::sim::lidar::{Firing, LidarSim, PacketTime, SimStats};
+use crate::sim::model::{Effect, ModelFile};
+use hilrig_stamp::UtcNanos;
+use hilrig_velodyne::packet::{BLOCKS, CHANNELS};
+use hilrig_velodyne::DataPacket;
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// Firing slots per packet: blocks × channels.
+pub const SLOTS: usize = BLOCKS * CHANNELS;
+
+/// "No return" in the f32 columns.
+pub const NONE: f32 = f32::NAN;
+
+/// A recorded packet of the sample, with when its firings happened.
+pub struct Sampled {
+    /// Index of its scan within the run (the unit of the bootstrap).
+    pub scan: u32,
+    /// The packet as recorded.
+    pub packet: DataPacket,
+    /// Its timing.
+    pub time: PacketTime,
+}
+
+/// One run, loaded and sampled.
+pub struct RunData {
+    /// A short name (the file name, with the part when a run is split).
+    pub name: String,
+    /// The recording.
+    pub path: PathBuf,
+    /// Its role.
+    pub role: Role,
+    /// Its scene.
+    pub scene: Scene,
+    /// Where the scene came from.
+    pub scene_path: PathBuf,
+    /// The rig.
+    pub rig: Rig,
+    /// The ego trajectory `check` smoothed from the run's RTK and CAN data.
+    pub trajectory: Trajectory,
+    /// The check's verdict.
+    pub verdict: Verdict,
+    /// The sampled packets.
+    pub packets: Vec<Sampled>,
+    /// Scans in the run (or its part).
+    pub scans: usize,
+    /// The range quantum of the sensor, m.
+    pub range_quantum_m: f64,
+}
+
+/// What one firing measured and what a model predicts for it (`NONE` where there is no return).
+#[derive(Clone, Copy, Debug)]
+pub struct Obs {
+    /// Measured range, m.
+    pub measured: f32,
+    /// Measured calibrated reflectivity (intensity byte).
+    pub intensity: u8,
+    /// Predicted range, m.
+    pub predicted: f32,
+    /// Predicted received power (ρ cos θ / R², relative).
+    pub power: f32,
+    /// Predicted reflectivity the intensity byte reports (×100).
+    pub reflectivity: f32,
+    /// The model cast this firing (false: outside the trajectory, or not a firing slot).
+    pub cast: bool,
+}
+
+impl Default for Obs {
+    fn default() -> Obs {
+        Obs {
+            measured: NONE,
+            intensity: 0,
+            predicted: NONE,
+            power: NONE,
+            reflectivity: NONE,
+            cast: false,
+        }
+    }
+}
+
+/// The features of one firing, for the bins and the likelihood's terms.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Feature {
+    /// The scan (bootstrap unit).
+    pub scan: u32,
+    /// Laser.
+    pub laser: u16,
+    /// Range of the ideal beam's hit, m (0: none).
+    pub range: f32,
+    /// Reflectivity of the surface hit.
+    pub rho: f32,
+    /// Cosine of the incidence angle.
+    pub cos: f32,
+    /// Largest range step to the beam's surroundings (±2.5 mrad across and along elevation),
+    /// m: a depth edge inside the beam's possible footprint. Infinite when one side is sky.
+    pub step: f32,
+    /// Ego speed, m/s.
+    pub speed: f32,
+    /// Ego yaw rate, degrees per second.
+    pub yaw_rate: f32,
+    /// Time since the rotation's first firing, s.
+    pub t_rotation: f32,
+    /// Azimuth in the sensor frame, degrees [0, 360).
+    pub azimuth: f32,
+    /// Elevation in the sensor frame, degrees.
+    pub elevation: f32,
+    /// The slot of the same laser's previous firing in the same packet (its azimuth
+    /// neighbour), or `u32::MAX`.
+    pub neighbour: u32,
+}
+
+impl Feature {
+    /// A firing whose beam footprint holds a depth edge: geometry errors there move returns
+    /// between surfaces, so edge firings get their own, wider terms.
+    pub fn is_edge(&self) -> bool {
+        self.step > 0.05 * self.range + 0.1
+    }
+}
+
+/// Angle of the probe rays around the beam, rad: wider than the divergence of any sensor of
+/// the catalogue (VLP-16: 3.0 × 1.5 mrad full angle).
+const PROBE_RAD: f64 = 2.5e-3;
+
+/// Loads a run: checks its reference data (refusing a run that fails unless `force`), smooths
+/// its trajectory and samples about `firings` firings from the scans in `part` (all when
+/// `None`).
+#[allow(clippy::too_many_arguments)]
+pub fn load_run(
+    path: &Path,
+    scene: Scene,
+    scene_path: &Path,
+    rig: Option<&Rig>,
+    role: Role,
+    part: Option<(usize, usize)>,
+    firings: usize,
+    force: bool,
+) -> Result<RunData, GapError> {
+    let input = GapError::Input;
+    let (bytes, run, rig) = crate::reference::run::load_with_rig(path, rig).map_err(input)?;
+    let (report, smoothed) = check_with_trajectory(&run, &rig, Some(&scene));
+    if report.verdict != Verdict::Pass && !force {
+        return Err(GapError::Refused {
+            run: path.display().to_string(),
+            faults: if report.faults.is_empty() {
+                report.unusable.clone().unwrap_or_else(|| "unusable".into())
+            } else {
+                report
+                    .faults
+                    .iter()
+                    .map(|f| f.name)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            },
+        });
+    }
+    let trajectory = smoothed
+        .and_then(|t| t.sampled(10_000_000))
+        .ok_or_else(|| input(format!("{}: no RTK+CAN trajectory", path.display())))?;
+    let (_, model, _) = rig.lidar_sensor().map_err(input)?;
+    let pps_locked = run
+        .metadata
+        .get("clock_sync/lidar")
+        .and_then(|m| m.get("pps"))
+        .is_some_and(|p| p == "Locked");
+    let (scans, _damage) = read_scans(&bytes);
+    let (from, to) = part.unwrap_or((0, scans.len()));
+    let scans = &scans[from.min(scans.len())..to.min(scans.len())];
+    if scans.is_empty() {
+        return Err(input(format!(
+            "{}: no /velodyne_packets to re-simulate",
+            path.display()
+        )));
+    }
+    let total: usize = scans.iter().map(|s| s.packets.len()).sum();
+    let every = (total * SLOTS).div_ceil(firings.max(SLOTS)).max(1);
+    let mut packets = Vec::new();
+    let mut previous: Option<DataPacket> = None;
+    let mut n = 0usize;
+    for (k, scan) in scans.iter().enumerate() {
+        let mut rotation_start = None;
+        for (t, b) in &scan.packets {
+            let Ok(p) = DataPacket::decode(&b[..]) else {
+                continue;
+            };
+            let first = if pps_locked {
+                sensor_time(p.timestamp_us, *t)
+            } else {
+                *t
+            };
+            let rotation_start = *rotation_start.get_or_insert(first);
+            let rate = previous
+                .as_ref()
+                .and_then(|q| hilrig_velodyne::decode::rate_between(q, &p));
+            if n.is_multiple_of(every) {
+                packets.push(Sampled {
+                    scan: k as u32,
+                    packet: p.clone(),
+                    time: PacketTime {
+                        first_firing: first,
+                        rotation_start,
+                        rotation_rate: rate,
+                    },
+                });
+            }
+            previous = Some(p);
+            n += 1;
+        }
+    }
+    let file = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |f| f.to_string_lossy().into(),
+    );
+    Ok(RunData {
+        name: match part {
+            Some((a, b)) => format!("{file} [scans {a}..{b}]"),
+            None => file,
+        },
+        path: path.to_owned(),
+        role,
+        scene,
+        scene_path: scene_path.to_owned(),
+        rig,
+        trajectory,
+        verdict: report.verdict,
+        packets,
+        scans: scans.len(),
+        range_quantum_m: model.distance_resolution_m(),
+    })
+}
+
+/// The scans of a recording (for splitting a single run in time).
+pub fn count_scans(path: &Path) -> Result<usize, GapError> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| GapError::Input(format!("cannot read {}: {e}", path.display())))?;
+    Ok(read_scans(&bytes).0.len())
+}
+
+/// The model without its random parts (noise, dropout, intensity noise, clutter): what it
+/// predicts for each firing. The likelihood adds the random parts analytically.
+pub fn deterministic(model: &ModelFile) -> ModelFile {
+    let mut m = model.clone();
+    m.effects
+        .retain(|e| !matches!(e, Effect::RangeNoise { .. } | Effect::RandomDropout { .. }));
+    for e in &mut m.effects {
+        match e {
+            Effect::Intensity { noise_sigma, .. } => *noise_sigma = 0.0,
+            Effect::Weather {
+                clutter_probability,
+                ..
+            } => *clutter_probability = 0.0,
+            _ => {}
+        }
+    }
+    m
+}
+
+fn simulator<'a>(run: &'a RunData, model: &ModelFile) -> Result<LidarSim<'a>, GapError> {
+    let (lidar, sensor, calibration) = run.rig.lidar_sensor().map_err(GapError::Input)?;
+    LidarSim::new(&run.scene, sensor, calibration, &lidar.mounting, model)
+        .map_err(|e| GapError::Input(e.to_string()))
+}
+
+/// Casts every sampled firing of `run` with `model`'s deterministic part and pairs it with
+/// the measured return: one [`Obs`] per slot (packet × block × channel).
+pub fn evaluate(run: &RunData, model: &ModelFile) -> Result<Vec<Obs>, GapError> {
+    let model = deterministic(model);
+    let sim = simulator(run, &model)?;
+    let cal = sim.decoder().calibration().clone();
+    let mut out = vec![Obs::default(); run.packets.len() * SLOTS];
+    out.par_chunks_mut(SLOTS)
+        .zip(run.packets.par_iter())
+        .enumerate()
+        .for_each(|(i, (slots, s))| {
+            let mut stats = SimStats::default();
+            sim.simulate_observed(
+                &s.packet,
+                s.time,
+                &run.trajectory,
+                i as u64,
+                &mut stats,
+                &mut |f: &Firing| {
+                    let slot = usize::from(f.block) * CHANNELS + usize::from(f.channel);
+                    let ch = s.packet.blocks[usize::from(f.block)].channels[usize::from(f.channel)];
+                    let o = &mut slots[slot];
+                    o.cast = true;
+                    if ch.distance > 0 {
+                        o.measured = cal.metres(usize::from(f.laser), ch.distance) as f32;
+                        o.intensity = ch.reflectivity;
+                    }
+                    if let Some(e) = f.reported {
+                        o.predicted = e.range as f32;
+                        o.power = e.power as f32;
+                        o.reflectivity = e.reflectivity as f32;
+                    }
+                },
+            );
+        });
+    Ok(out)
+}
+
+/// The features of every sampled firing, from the ideal beams of `model`'s geometry (its
+/// mounting, time base and motion handling) with four probe rays each for depth edges.
+pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapError> {
+    let model = deterministic(model);
+    let sim = simulator(run, &model)?;
+    let scene = &run.scene;
+    let mut out = vec![Feature::default(); run.packets.len() * SLOTS];
+    out.par_chunks_mut(SLOTS)
+        .zip(run.packets.par_iter())
+        .enumerate()
+        .for_each(|(i, (slots, s))| {
+            let mut stats = SimStats::default();
+            let mut actors = scene.new_actor_poses();
+            scene.actor_poses(s.time.first_firing, &mut actors);
+            let mut last_of_laser = std::collections::HashMap::new();
+            let mut hint = 0usize;
+            let max = 400.0;
+            sim.simulate_observed(
+                &s.packet,
+                s.time,
+                &run.trajectory,
+                i as u64,
+                &mut stats,
+                &mut |f: &Firing| {
+                    let slot = usize::from(f.block) * CHANNELS + usize::from(f.channel);
+                    let d = f.direction;
+                    let centre = scene.cast(&f.origin, &d, 0.0, max, &actors);
+                    // Probe rays across (u) and along elevation (w).
+                    let u = {
+                        let c = d.cross(&Vector3::z());
+                        let l = c.norm();
+                        if l > 1e-9 {
+                            c / l
+                        } else {
+                            Vector3::x()
+                        }
+                    };
+                    let w = u.cross(&d);
+                    let mut step = 0.0f64;
+                    for (a, b) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
+                        let pd = (d + u * (a * PROBE_RAD) + w * (b * PROBE_RAD)).normalize();
+                        let probe = scene.cast(&f.origin, &pd, 0.0, max, &actors);
+                        step = step.max(match (&centre, probe) {
+                            (Some(c), Some(p)) => (c.range - p.range).abs(),
+                            (None, None) => 0.0,
+                            _ => f64::INFINITY,
+                        });
+                    }
+                    let pose = sim.sensor_pose(&run.trajectory, f.time, &mut hint);
+                    let local = pose.map_or(d, |p| p.rotation.inverse() * d);
+                    let velocity = run.trajectory.velocity_at(f.time, &mut hint);
+                    let mut yaw = |dt: i64| {
+                        run.trajectory
+                            .sample_at(UtcNanos(f.time.0 + dt), &mut hint)
+                            .map(|p| p.yaw)
+                    };
+                    let yaw_rate = match (yaw(-50_000_000), yaw(50_000_000)) {
+                        (Some(a), Some(b)) => {
+                            let mut dy = b - a;
+                            dy = (dy + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                                - std::f64::consts::PI;
+                            (dy / 0.1).to_degrees()
+                        }
+                        _ => 0.0,
+                    };
+                    let neighbour = last_of_laser
+                        .insert(f.laser, slot as u32)
+                        .map_or(u32::MAX, |p| (i * SLOTS) as u32 + p);
+                    slots[slot] = Feature {
+                        scan: s.scan,
+                        laser: f.laser,
+                        range: centre.as_ref().map_or(0.0, |h| h.range as f32),
+                        rho: centre
+                            .as_ref()
+                            .map_or(0.0, |h| h.material.reflectivity as f32),
+                        cos: centre.as_ref().map_or(0.0, |h| (-h.normal.dot(&d)) as f32),
+                        step: step as f32,
+                        speed: velocity.map_or(0.0, |v| v.xy().norm() as f32),
+                        yaw_rate: yaw_rate as f32,
+                        t_rotation: ((f.time.0 - s.time.rotation_start.0) as f64 * 1e-9) as f32,
+                        azimuth: (local.y.atan2(local.x).to_degrees().rem_euclid(360.0)) as f32,
+                        elevation: local.z.clamp(-1.0, 1.0).asin().to_degrees() as f32,
+                        neighbour,
+                    };
+                },
+            );
+            // Slots never cast keep their scan for the bootstrap.
+            for f in slots.iter_mut() {
+                f.scan = s.scan;
+            }
+        });
+    Ok(out)
+}
