@@ -35,8 +35,9 @@ pub struct GapArgs {
     /// Use runs that fail `check` (their trajectory errors may then pass for lidar effects).
     #[arg(long)]
     force: bool,
-    /// Firings sampled per run for fitting and scoring.
-    #[arg(long, default_value_t = 120_000)]
+    /// Firings sampled for fitting and scoring, shared equally by the runs (fewer runs: a
+    /// denser sample of each).
+    #[arg(long, default_value_t = 600_000)]
     firings: usize,
     /// At most this many effects are added.
     #[arg(long, default_value_t = 6)]

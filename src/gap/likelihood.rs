@@ -8,9 +8,9 @@
 //!   of returns no model of the catalogue explains; 5 % at depth edges, where a few centimetres
 //!   of reference error move a return from one surface to the other).
 //! - Range: the residual measured − predicted of firings away from depth edges, a Gaussian whose
-//!   scale is estimated from the residuals (it holds the reference data's errors, which no lidar
-//!   effect explains) with a 2 % outlier floor over ±5 m. A model that predicts the ranges
-//!   better concentrates the residuals.
+//!   scale is estimated from the current model's residuals (it holds the reference data's
+//!   errors, which no lidar effect explains) and held for the round, with a 2 % outlier floor
+//!   over ±5 m. A model that predicts the ranges better concentrates the residuals.
 //! - Difference: the residual of a firing minus that of the same laser's previous firing (its
 //!   neighbour 0.1-0.4° away on the same surface). Trajectory and survey errors are common to
 //!   both and cancel; per-firing range noise does not: `Var = 2(σ² + q²/12) + τ²` with q the
@@ -83,8 +83,20 @@ pub struct Scored {
     pub firings: usize,
 }
 
-/// The residual scale of non-edge and edge firings (m), and of the intensity (counts).
-fn scales(obs: &[Obs], feat: &[Feature]) -> (f64, f64, f64) {
+/// The residual scales of a run: held fixed while the candidates of a round are scored, so that
+/// a candidate gains by concentrating the residuals, not by the noise of a re-estimated scale.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scales {
+    /// Away from edges, m.
+    pub plain: f64,
+    /// At edges, m.
+    pub edge: f64,
+    /// Intensity, counts.
+    pub intensity: f64,
+}
+
+/// The robust residual scales of one run's observations under the current model.
+pub fn scales(obs: &[Obs], feat: &[Feature]) -> Scales {
     let (mut plain, mut edge, mut intensity) = (Vec::new(), Vec::new(), Vec::new());
     for (o, f) in obs.iter().zip(feat) {
         if !both(o) {
@@ -100,23 +112,25 @@ fn scales(obs: &[Obs], feat: &[Feature]) -> (f64, f64, f64) {
             }
         }
     }
-    (
-        robust_sigma(&plain).unwrap_or(0.01).max(1e-3),
-        robust_sigma(&edge).unwrap_or(0.05).max(5e-3),
-        robust_sigma(&intensity).unwrap_or(1.0).max(0.5),
-    )
+    Scales {
+        plain: robust_sigma(&plain).unwrap_or(0.01).max(1e-3),
+        edge: robust_sigma(&edge).unwrap_or(0.05).max(5e-3),
+        intensity: robust_sigma(&intensity).unwrap_or(1.0).max(0.5),
+    }
 }
 
-/// Scores one run's observations under a model whose random parts are `random`; `quantum_m`
-/// is the sensor's range quantum, `scans` the run's scan count.
+/// Scores one run's observations under a model whose random parts are `random`, with the
+/// residual scales `scales`; `quantum_m` is the sensor's range quantum, `scans` the run's scan
+/// count.
 pub fn score(
     obs: &[Obs],
     feat: &[Feature],
     random: Random,
+    scales: &Scales,
     quantum_m: f64,
     scans: usize,
 ) -> Scored {
-    let (s_plain, s_edge, s_int) = scales(obs, feat);
+    let (s_plain, s_edge, s_int) = (scales.plain, scales.edge, scales.intensity);
     let q2 = quantum_m * quantum_m / 12.0;
     let s_diff = (2.0 * (random.sigma_m.powi(2) + q2) + TAU_M * TAU_M).sqrt();
     let s_plain = s_plain.max(random.sigma_m);

@@ -7,7 +7,8 @@
 //! model and pairs them with the measured returns; [`bins`] shows where they disagree;
 //! [`likelihood`] scores how well a model explains them; [`candidates`] fits every effect the
 //! model lacks and scores it; [`workflow`] adds the best one, keeps it only when it improves
-//! the validation runs beyond their noise ([`bootstrap`]), and repeats. The runs and their
+//! the validation runs beyond their noise ([`bootstrap`]), and repeats; [`report`] is what it
+//! writes. The runs and their
 //! roles come from a [`study`] file. Parameterization and validation data never mix
 //! (Rosenberger et al. 2019, §4).
 
@@ -16,6 +17,7 @@ pub mod bootstrap;
 pub mod candidates;
 pub mod likelihood;
 pub mod observe;
+pub mod report;
 pub mod study;
 pub mod workflow;
 

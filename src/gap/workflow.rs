@@ -6,11 +6,15 @@
 //! rewritten (to a temporary file, then renamed), so an interrupted study leaves the last
 //! completed round's results in the output directory.
 
-use super::bins::{tables, Table};
+use super::bins::tables;
 use super::bootstrap::{self, Blocks};
-use super::candidates::{random_of, with_effect, Candidate, Fitting, Param};
-use super::likelihood::{self, Scored};
+use super::candidates::{random_of, with_effect, Fitting};
+use super::likelihood::{self, Scales, Scored};
 use super::observe::{count_scans, evaluate, features, load_run, Feature, Obs, RunData};
+use super::report::{
+    describe, firing_stats, params_text, save, summary_line, GapReport, Round, RunInfo, RunMetrics,
+    Trial,
+};
 use super::study::{Role, Study};
 use super::GapError;
 use crate::metrics::compare::{compare, Options as CompareOptions};
@@ -25,7 +29,7 @@ use std::path::{Path, PathBuf};
 pub struct Options {
     /// Output directory.
     pub out: PathBuf,
-    /// Firings sampled per run.
+    /// Firings sampled over all runs (shared equally).
     pub firings: usize,
     /// Use runs that fail `check`.
     pub force: bool,
@@ -41,141 +45,11 @@ pub trait Progress: Sync {
     fn phase(&self, round: usize, what: &str);
 }
 
-/// Per-firing statistics of a set of runs under one model.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct FiringStats {
-    /// Median residual (measured − predicted) away from edges, m.
-    pub residual_median_m: Option<f64>,
-    /// Its robust σ, m.
-    pub residual_sigma_m: Option<f64>,
-    /// Share of cast firings the sensor returned.
-    pub measured_share: f64,
-    /// Share the model returned (before random dropout).
-    pub predicted_share: f64,
-    /// Log-likelihood per 1000 firings, nats.
-    pub log_likelihood_per_1000: f64,
-}
-
-/// Full-run metrics on the validation runs.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct RunMetrics {
-    /// Mean OCR^K over the validation runs at each run's admissible cell (K = 1, 3D).
-    pub ocr: Option<f64>,
-    /// Area validation metric per per-scan feature (real validation runs against their
-    /// re-simulations), in the feature's unit.
-    pub avm: Vec<(String, Option<f64>)>,
-    /// Traffic lights per feature.
-    pub lights: Vec<(String, String)>,
-    /// The validation verdict.
-    pub verdict: String,
-}
-
-/// An added effect tested on the validation runs.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Trial {
-    /// The effect.
-    pub effect: &'static str,
-    /// Log-likelihood gain on the validation runs, nats.
-    pub gain: f64,
-    /// Its 95 % block-bootstrap interval.
-    pub gain_interval: Option<(f64, f64)>,
-    /// Per-firing statistics before and after.
-    pub before: FiringStats,
-    /// After.
-    pub after: FiringStats,
-    /// Kept: the interval lies above zero.
-    pub kept: bool,
-}
-
-/// One round.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Round {
-    /// 1-based.
-    pub round: usize,
-    /// The bins that disagree on the parameterization runs under the current model,
-    /// `feature [from, to): measured x % vs model y %, median residual z m`.
-    pub disagreeing_bins: Vec<String>,
-    /// All bins.
-    pub bins: Vec<Table>,
-    /// Candidates, best first.
-    pub candidates: Vec<Candidate>,
-    /// The candidates tried on the validation runs, in order.
-    pub trials: Vec<Trial>,
-    /// The effect added in this round.
-    pub chosen: Option<String>,
-    /// Its fitted parameters.
-    pub parameters: Vec<Param>,
-    /// Full-run metrics on the validation runs before and after (when computed).
-    pub metrics_before: Option<RunMetrics>,
-    /// After.
-    pub metrics_after: Option<RunMetrics>,
-}
-
-/// A run as listed in the report.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct RunInfo {
-    /// Name.
-    pub name: String,
-    /// Role.
-    pub role: Role,
-    /// The check's verdict.
-    pub check: String,
-    /// Firings sampled.
-    pub sampled_firings: usize,
-}
-
-/// Everything `gap.json` holds.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct GapReport {
-    /// The start model's file.
-    pub start_model: String,
-    /// The runs.
-    pub runs: Vec<RunInfo>,
-    /// Set when a single run was split in time.
-    pub split: Option<String>,
-    /// The resolution floors of the catalogue.
-    pub floors: Vec<(String, String)>,
-    /// The completed rounds.
-    pub rounds: Vec<Round>,
-    /// Whether the workflow finished (false while running or when interrupted).
-    pub finished: bool,
-    /// One line per effect found, or the evidence that none was.
-    pub summary: Vec<String>,
-}
-
-fn write_atomic(path: &Path, text: &str) -> Result<(), GapError> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, text)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|e| GapError::Output(format!("{}: {e}", path.display())))
-}
-
-fn save(out: &Path, model: &ModelFile, report: &GapReport) -> Result<(), GapError> {
-    write_atomic(&out.join("model.fitted.toml"), &model.to_toml())?;
-    let json = serde_json::to_string_pretty(report)
-        .map_err(|e| GapError::Output(format!("gap.json: {e}")))?;
-    write_atomic(&out.join("gap.json"), &json)
-}
-
-fn firing_stats(obs: &[Vec<Obs>], feats: &[Vec<Feature>], scored: &[Scored]) -> FiringStats {
-    let mut res = Vec::new();
-    let (mut cast, mut meas, mut pred) = (0usize, 0usize, 0usize);
-    for (o, f) in obs.iter().zip(feats) {
-        res.extend(likelihood::residuals(o, f).into_iter().map(|x| x.1));
-        for o in o.iter().filter(|o| o.cast) {
-            cast += 1;
-            meas += usize::from(o.measured.is_finite());
-            pred += usize::from(o.predicted.is_finite());
-        }
-    }
-    let ll: f64 = scored.iter().flat_map(|s| &s.per_scan).sum();
-    FiringStats {
-        residual_sigma_m: likelihood::robust_sigma(&res),
-        residual_median_m: likelihood::median(&mut res),
-        measured_share: meas as f64 / cast.max(1) as f64,
-        predicted_share: pred as f64 / cast.max(1) as f64,
-        log_likelihood_per_1000: ll / cast.max(1) as f64 * 1000.0,
-    }
+/// A model's observations, scores and the residual scales used, per run.
+struct Evaluation {
+    obs: Vec<Vec<Obs>>,
+    scored: Vec<Scored>,
+    scales: Vec<Scales>,
 }
 
 struct Set {
@@ -197,20 +71,39 @@ impl Set {
         }
     }
 
-    fn evaluate(&self, model: &ModelFile) -> Result<(Vec<Vec<Obs>>, Vec<Scored>), GapError> {
+    /// Observations and scores of `model`, with the residual scales `scales` (per run), or
+    /// the ones of these observations when `None`; the scales are returned too.
+    fn evaluate(
+        &self,
+        model: &ModelFile,
+        scales: Option<&[Scales]>,
+    ) -> Result<Evaluation, GapError> {
         let random = random_of(model);
         let obs: Vec<Vec<Obs>> = self
             .runs
             .iter()
             .map(|r| evaluate(r, model))
             .collect::<Result<_, _>>()?;
+        let scales: Vec<Scales> = match scales {
+            Some(s) => s.to_vec(),
+            None => obs
+                .iter()
+                .zip(&self.feats)
+                .map(|(o, f)| likelihood::scales(o, f))
+                .collect(),
+        };
         let scored = obs
             .iter()
             .zip(&self.runs)
             .zip(&self.feats)
-            .map(|((o, r), f)| likelihood::score(o, f, random, r.range_quantum_m, r.scans))
+            .zip(&scales)
+            .map(|(((o, r), f), s)| likelihood::score(o, f, random, s, r.range_quantum_m, r.scans))
             .collect();
-        Ok((obs, scored))
+        Ok(Evaluation {
+            obs,
+            scored,
+            scales,
+        })
     }
 
     fn gain(&self, new: &[Scored], old: &[Scored]) -> (f64, Option<(f64, f64)>) {
@@ -238,7 +131,7 @@ fn run_metrics(
         .map_err(|e| GapError::Output(format!("{}: {e}", dir.display())))?;
     let quiet = |_: u64, _: u64| {};
     let mut sims = Vec::new();
-    let mut ocr = Vec::new();
+    let (mut ocr, mut precision, mut iou) = (Vec::new(), Vec::new(), Vec::new());
     for (i, r) in val.iter().enumerate() {
         let sim = dir.join(format!("{tag}-validation-{:02}.mcap", i + 1));
         resim(
@@ -272,16 +165,19 @@ fn run_metrics(
             &quiet,
         )
         .map_err(|e| GapError::Input(format!("comparing {}: {e}", r.name)))?;
-        if let Some(o) = c.summary.ocr_mean {
-            ocr.push(o);
-        }
+        ocr.extend(c.summary.ocr_mean);
+        precision.extend(c.summary.precision_mean);
+        iou.extend(c.summary.iou_mean);
         sims.push(sim);
     }
     let reals: Vec<PathBuf> = val.iter().map(|r| r.path.clone()).collect();
     let v = crate::stats::repetitions::validate(&reals, &sims, Some(&val[0].rig), &[])
         .map_err(GapError::Input)?;
+    let mean = |v: &[f64]| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
     Ok(RunMetrics {
-        ocr: (!ocr.is_empty()).then(|| ocr.iter().sum::<f64>() / ocr.len() as f64),
+        ocr: mean(&ocr),
+        precision: mean(&precision),
+        iou: mean(&iou),
         avm: v.cells.iter().map(|c| (c.metric.clone(), c.avm)).collect(),
         lights: v
             .cells
@@ -290,48 +186,6 @@ fn run_metrics(
             .collect(),
         verdict: format!("{:?}", v.verdict).to_lowercase(),
     })
-}
-
-fn describe(tables: &[Table]) -> Vec<String> {
-    let mut out = Vec::new();
-    for t in tables {
-        for b in t.bins.iter().filter(|b| b.disagrees) {
-            out.push(format!(
-                "{} [{}, {}): {} firings, sensor returns {:.1} % vs model {:.1} %, median residual {}",
-                t.feature,
-                b.from,
-                b.to,
-                b.firings,
-                b.measured_share * 100.0,
-                b.predicted_share * 100.0,
-                b.median_m
-                    .map_or_else(|| "n/a".to_owned(), |m| format!("{m:+.3} m")),
-            ));
-        }
-    }
-    out
-}
-
-fn params_text(c: &Candidate) -> String {
-    c.params
-        .iter()
-        .filter(|p| p.name != "reference_reflectivity" && p.name != "enabled")
-        .map(|p| {
-            let unit_digits = if p.name.ends_with("_m") { 3 } else { 2 };
-            match p.interval {
-                Some((a, b)) => format!(
-                    "{} = {:.d$} [{:.d$}, {:.d$}]",
-                    p.name,
-                    p.value,
-                    a,
-                    b,
-                    d = unit_digits
-                ),
-                None => format!("{} = {:.d$}", p.name, p.value, d = unit_digits),
-            }
-        })
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// Runs the workflow on `study`; returns the report (also written to `opts.out`).
@@ -389,7 +243,7 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
                 rig.as_ref(),
                 role,
                 part,
-                opts.firings,
+                opts.firings / parts.len().max(1),
                 opts.force,
             )
         })
@@ -462,7 +316,11 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
     };
     for round in 1..=opts.max_rounds {
         progress.phase(round, "re-simulating the parameterization runs");
-        let (obs, scored) = fit.evaluate(&model)?;
+        let Evaluation {
+            obs,
+            scored,
+            scales,
+        } = fit.evaluate(&model, None)?;
         let pairs: Vec<(&[Obs], &[Feature])> = obs
             .iter()
             .zip(&fit.feats)
@@ -475,6 +333,7 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
             current: &model,
             obs: &obs,
             scored: &scored,
+            scales: &scales,
             blocks: &fit.blocks,
             resamples: &fit.resamples,
         };
@@ -492,7 +351,11 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
             metrics_after: None,
         };
         progress.phase(round, "validating");
-        let (val_obs, val_scored) = val.evaluate(&model)?;
+        let Evaluation {
+            obs: val_obs,
+            scored: val_scored,
+            scales: val_scales,
+        } = val.evaluate(&model, None)?;
         let before = firing_stats(&val_obs, &val.feats, &val_scored);
         let mut accepted = None;
         for c in candidates.iter().filter(|c| c.eligible) {
@@ -500,7 +363,11 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
                 continue;
             };
             let next = with_effect(&model, effect);
-            let (o2, s2) = val.evaluate(&next)?;
+            let Evaluation {
+                obs: o2,
+                scored: s2,
+                ..
+            } = val.evaluate(&next, Some(&val_scales))?;
             let (gain, interval) = val.gain(&s2, &val_scored);
             let kept = interval.is_some_and(|(lo, _)| lo > 0.0);
             this.trials.push(Trial {
@@ -562,31 +429,4 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
     report.finished = true;
     save(&opts.out, &model, &report)?;
     Ok(report)
-}
-
-fn summary_line(c: &Candidate, trial: Option<&Trial>, round: &Round, runs: usize) -> String {
-    let mut parts = vec![format!("found: {} {}", c.effect, params_text(c))];
-    if let (Some(b), Some(a)) = (&round.metrics_before, &round.metrics_after) {
-        if let (Some(x), Some(y)) = (b.ocr, a.ocr) {
-            parts.push(format!("OCR {x:.3} -> {y:.3}"));
-        }
-        let avm = |m: &RunMetrics, name: &str| {
-            m.avm.iter().find(|(n, _)| n == name).and_then(|(_, v)| *v)
-        };
-        for (name, label) in [
-            ("returns_per_scan", "AVM returns/scan"),
-            ("mean_range_m", "AVM mean range"),
-        ] {
-            if let (Some(x), Some(y)) = (avm(b, name), avm(a, name)) {
-                parts.push(format!("{label} {x:.3} -> {y:.3}"));
-            }
-        }
-    }
-    if let Some(t) = trial {
-        parts.push(format!(
-            "log-likelihood {:+.3} -> {:+.3} per 1000 firings",
-            t.before.log_likelihood_per_1000, t.after.log_likelihood_per_1000
-        ));
-    }
-    format!("{} on {runs} validation runs", parts.join("; "))
 }

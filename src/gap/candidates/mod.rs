@@ -20,12 +20,14 @@
 //! Each effect also has a resolution floor: below it, the fitted value is not told apart from
 //! the reference data's own errors and the candidate is not eligible (see [`FLOORS`]).
 
+mod beam;
+mod geometric;
+
 use super::bootstrap::{self, Blocks};
 use super::likelihood::{self, Random, Scored};
 use super::observe::{evaluate, Feature, Obs, RunData};
 use super::GapError;
 use crate::sim::model::{Effect, ModelFile};
-use nalgebra::{DMatrix, DVector};
 
 /// A 95 % interval.
 pub type Interval = (f64, f64);
@@ -33,9 +35,6 @@ pub type Interval = (f64, f64);
 /// A predicted return away from edges: its bootstrap block, predicted power, and whether the
 /// sensor returned it.
 type DetectionRow = (usize, f64, bool);
-
-/// A row of a linearised fit: bootstrap block, Jacobian row (intercept first), residual.
-type Row = (usize, Vec<f64>, f64);
 
 /// A fitted parameter.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -72,14 +71,15 @@ pub struct Candidate {
     pub note: Option<String>,
 }
 
-/// Resolution floors: the smallest value of each effect the workflow adds. Below them, the
+/// Resolution floors: the smallest value of each effect the workflow adds; the fitted value's
+/// bootstrap interval must clear it (see `clears`). Below them, the
 /// effect is indistinguishable from RTK noise (1-2 cm), survey error and quantisation (2 mm),
 /// or too small to change any metric; the floors are a fifth to a half of the smallest values
 /// the catalogue's typical ranges hold.
 pub const FLOORS: [(&str, &str); 9] = [
     ("range_bias", "|bias| ≥ 5 mm"),
     ("range_noise", "σ ≥ 3 mm"),
-    ("random_dropout", "probability ≥ 0.5 %"),
+    ("random_dropout", "probability ≥ 0.2 %"),
     (
         "detection_threshold",
         "removes ≥ 0.2 % of the predicted returns",
@@ -87,9 +87,20 @@ pub const FLOORS: [(&str, &str); 9] = [
     ("beam_divergence", "horizontal ≥ 0.5 mrad"),
     ("motion_distortion", "none (a switch)"),
     ("time_offset", "|offset| ≥ 1 ms"),
-    ("mount_misalignment", "largest angle ≥ 0.05°"),
+    (
+        "mount_misalignment",
+        "largest angle ≥ 0.1° (the smoothed RTK heading is good to about that)",
+    ),
     ("intensity", "exponent ≥ 0.2 or noise ≥ 1 count"),
 ];
+
+/// Whether a fitted value clears its floor with 95 % confidence: its whole bootstrap interval
+/// (the value itself when there is none) lies at or beyond `floor` on one side of zero.
+fn clears(value: f64, interval: Option<Interval>, floor: f64) -> bool {
+    let (lo, hi) = interval.unwrap_or((value, value));
+    let (lo, hi) = (lo.min(value), hi.max(value));
+    lo >= floor || hi <= -floor
+}
 
 /// The parameterization runs with their features and the current model's evaluation.
 pub struct Fitting<'a> {
@@ -103,6 +114,8 @@ pub struct Fitting<'a> {
     pub obs: &'a [Vec<Obs>],
     /// Its scores per run.
     pub scored: &'a [Scored],
+    /// The residual scales per run, held for the round.
+    pub scales: &'a [likelihood::Scales],
     /// Bootstrap blocks.
     pub blocks: &'a Blocks,
     /// Resamples of the blocks.
@@ -135,7 +148,8 @@ impl Fitting<'_> {
         obs.iter()
             .zip(self.runs)
             .zip(self.feats)
-            .map(|((o, r), f)| likelihood::score(o, f, random, r.range_quantum_m, r.scans))
+            .zip(self.scales)
+            .map(|(((o, r), f), s)| likelihood::score(o, f, random, s, r.range_quantum_m, r.scans))
             .collect()
     }
 
@@ -170,6 +184,19 @@ impl Fitting<'_> {
         scored: &[Scored],
     ) -> Candidate {
         let (gain, gain_interval, per) = self.gain(scored);
+        let sum = |s: &[Scored]| {
+            s.iter().fold([0.0; 4], |mut a, x| {
+                for (t, v) in a.iter_mut().zip(x.terms) {
+                    *t += v;
+                }
+                a
+            })
+        };
+        let (new, old) = (sum(scored), sum(self.scored));
+        tracing::debug!(
+            "candidate {effect}: {params:?}: gain per term (detection, range, difference, intensity) {:?}",
+            [new[0] - old[0], new[1] - old[1], new[2] - old[2], new[3] - old[3]]
+        );
         let eligible = above_floor && gain_interval.is_some_and(|(lo, _)| lo > 0.0) && gain > 0.0;
         Candidate {
             effect,
@@ -206,6 +233,7 @@ impl Fitting<'_> {
             .iter()
             .filter_map(|c| bootstrap::weighted_median(&res, c))
             .collect();
+        let interval = bootstrap::interval(&mut boots);
         let effect = Effect::RangeBias { bias_m: b };
         let model = with_effect(self.current, effect.clone());
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
@@ -215,9 +243,9 @@ impl Fitting<'_> {
             vec![Param {
                 name: "bias_m",
                 value: b,
-                interval: bootstrap::interval(&mut boots),
+                interval,
             }],
-            b.abs() >= 0.005,
+            clears(b, interval, 0.005),
             &scored,
         ))
     }
@@ -243,6 +271,7 @@ impl Fitting<'_> {
                 likelihood::noise_from_differences(&bootstrap::resampled(&diffs, c), quantum)
             })
             .collect();
+        let interval = bootstrap::interval(&mut boots);
         let effect = Effect::RangeNoise { sigma_m: sigma };
         let model = with_effect(self.current, effect.clone());
         let scored = self.score_all(self.obs, random_of(&model));
@@ -252,9 +281,9 @@ impl Fitting<'_> {
             vec![Param {
                 name: "sigma_m",
                 value: sigma,
-                interval: bootstrap::interval(&mut boots),
+                interval,
             }],
-            sigma >= 0.003,
+            clears(sigma, interval, 0.003),
             &scored,
         )
     }
@@ -292,6 +321,7 @@ impl Fitting<'_> {
         let all = vec![1u32; self.blocks.len()];
         let p = share(&all).unwrap_or(0.0).min(0.999);
         let mut boots: Vec<f64> = self.resamples.iter().filter_map(|c| share(c)).collect();
+        let interval = bootstrap::interval(&mut boots);
         let effect = Effect::RandomDropout { probability: p };
         let model = with_effect(self.current, effect.clone());
         let scored = self.score_all(self.obs, random_of(&model));
@@ -301,9 +331,9 @@ impl Fitting<'_> {
             vec![Param {
                 name: "probability",
                 value: p,
-                interval: bootstrap::interval(&mut boots),
+                interval,
             }],
-            p >= 0.005,
+            clears(p, interval, 0.002),
             &scored,
         )
     }
@@ -396,327 +426,6 @@ impl Fitting<'_> {
         ))
     }
 
-    /// Gauss-Newton with robust (Huber) weights on the residuals away from edges for the
-    /// parameters of a geometric effect, with an intercept as nuisance (a range offset must
-    /// not pass for a rotation or a time shift). The Jacobian comes from one-sided differences
-    /// of the re-cast ranges; rows where a step moves the beam to another surface are left
-    /// out. Returns the parameters and their bootstrap intervals from the last linearisation.
-    fn gauss_newton(
-        &self,
-        make: &dyn Fn(&[f64]) -> Effect,
-        h: &[f64],
-        max_step: &[f64],
-    ) -> Result<(Vec<f64>, Vec<Option<Interval>>), GapError> {
-        let n = h.len();
-        let mut theta = vec![0.0; n];
-        let mut last: Option<(Vec<Row>, Vec<f64>, f64)> = None;
-        for _ in 0..5 {
-            let base = self.cast(&with_effect(self.current, make(&theta)))?;
-            let mut stepped = Vec::with_capacity(n);
-            for k in 0..n {
-                let mut t = theta.clone();
-                t[k] += h[k];
-                stepped.push(self.cast(&with_effect(self.current, make(&t)))?);
-            }
-            let mut rows: Vec<Row> = Vec::new();
-            for r in 0..self.runs.len() {
-                for (i, (o, f)) in base[r].iter().zip(&self.feats[r]).enumerate() {
-                    if f.is_edge() || !o.measured.is_finite() || !o.predicted.is_finite() {
-                        continue;
-                    }
-                    let mut row = vec![1.0];
-                    let mut ok = true;
-                    for (k, s) in stepped.iter().enumerate() {
-                        let p = s[r][i].predicted;
-                        let d = f64::from(p - o.predicted);
-                        if !p.is_finite() || d.abs() > 0.3 {
-                            ok = false;
-                            break;
-                        }
-                        row.push(d / h[k]);
-                    }
-                    if ok {
-                        rows.push((
-                            self.blocks.of(r, f.scan),
-                            row,
-                            f64::from(o.measured - o.predicted),
-                        ));
-                    }
-                }
-            }
-            if rows.len() < 100 {
-                return Err(GapError::Input(
-                    "too few firings on smooth surfaces to fit a geometric effect".into(),
-                ));
-            }
-            let e: Vec<f64> = rows.iter().map(|r| r.2).collect();
-            let s = likelihood::robust_sigma(&e).unwrap_or(0.01).max(1e-3);
-            let all = vec![1u32; self.blocks.len()];
-            let Some(delta) = irls(&rows, s, &all) else {
-                break;
-            };
-            let mut done = true;
-            for k in 0..n {
-                let d = delta[k + 1].clamp(-max_step[k], max_step[k]);
-                if d.abs() > 0.02 * h[k] {
-                    done = false;
-                }
-                theta[k] += d;
-            }
-            last = Some((rows, theta.clone(), s));
-            if done {
-                break;
-            }
-        }
-        let Some((rows, at, s)) = last else {
-            return Ok((theta, vec![None; n]));
-        };
-        // The linearisation point of the last rows is `at` minus the last step; the bootstrap
-        // re-solves that step on resampled blocks.
-        let all = vec![1u32; self.blocks.len()];
-        let step = irls(&rows, s, &all).unwrap_or_else(|| vec![0.0; n + 1]);
-        let mut intervals = Vec::with_capacity(n);
-        let boots: Vec<Vec<f64>> = self
-            .resamples
-            .iter()
-            .take(100)
-            .filter_map(|c| irls(&rows, s, c))
-            .collect();
-        for k in 0..n {
-            let mut v: Vec<f64> = boots
-                .iter()
-                .map(|b| at[k] - step[k + 1].clamp(-max_step[k], max_step[k]) + b[k + 1])
-                .collect();
-            intervals.push(bootstrap::interval(&mut v));
-        }
-        Ok((theta, intervals))
-    }
-
-    fn geometric(
-        &self,
-        effect: &'static str,
-        names: &[&'static str],
-        make: &dyn Fn(&[f64]) -> Effect,
-        h: &[f64],
-        max_step: &[f64],
-        floor: &dyn Fn(&[f64]) -> bool,
-    ) -> Result<Candidate, GapError> {
-        let (theta, intervals) = match self.gauss_newton(make, h, max_step) {
-            Ok(x) => x,
-            Err(e) => {
-                return Ok(Candidate {
-                    effect,
-                    fitted: None,
-                    params: vec![],
-                    gain: 0.0,
-                    gain_interval: None,
-                    gain_per_1000_firings: 0.0,
-                    above_floor: false,
-                    eligible: false,
-                    note: Some(e.to_string()),
-                })
-            }
-        };
-        let fitted = make(&theta);
-        let model = with_effect(self.current, fitted.clone());
-        let scored = self.score_all(&self.cast(&model)?, random_of(&model));
-        let params = names
-            .iter()
-            .zip(&theta)
-            .zip(intervals)
-            .map(|((name, v), i)| Param {
-                name,
-                value: *v,
-                interval: i,
-            })
-            .collect();
-        Ok(self.candidate(effect, fitted, params, floor(&theta), &scored))
-    }
-
-    fn motion(&self) -> Result<Option<Candidate>, GapError> {
-        let disabled = self
-            .current
-            .effects
-            .iter()
-            .any(|e| matches!(e, Effect::MotionDistortion { enabled: false }));
-        if !disabled {
-            return Ok(None);
-        }
-        let effect = Effect::MotionDistortion { enabled: true };
-        let model = with_effect(self.current, effect.clone());
-        let scored = self.score_all(&self.cast(&model)?, random_of(&model));
-        Ok(Some(self.candidate(
-            "motion_distortion",
-            effect,
-            vec![Param {
-                name: "enabled",
-                value: 1.0,
-                interval: None,
-            }],
-            true,
-            &scored,
-        )))
-    }
-
-    fn divergence(&self) -> Result<Candidate, GapError> {
-        let make = |h: f64, v: f64| Effect::BeamDivergence {
-            horizontal_mrad: h,
-            vertical_mrad: v,
-            sub_rays_per_axis: 3,
-            range_separation_m: 0.5,
-        };
-        let try_one = |h: f64, v: f64| -> Result<(f64, Vec<Scored>), GapError> {
-            let model = with_effect(self.current, make(h, v));
-            let scored = self.score_all(&self.cast(&model)?, random_of(&model));
-            let total = scored.iter().flat_map(|s| &s.per_scan).sum();
-            Ok((total, scored))
-        };
-        // The catalogue's typical aspect (VLP-16: 3.0 × 1.5 mrad) first, then each axis.
-        let mut grid: Vec<(f64, f64, f64, Vec<Scored>)> = Vec::new();
-        for s in [1.0, 2.0, 3.0, 4.5, 6.0] {
-            let (ll, sc) = try_one(s, s / 2.0)?;
-            grid.push((s, s / 2.0, ll, sc));
-        }
-        let best = |g: &[(f64, f64, f64, Vec<Scored>)]| {
-            g.iter()
-                .enumerate()
-                .max_by(|a, b| a.1 .2.total_cmp(&b.1 .2))
-                .map_or(0, |x| x.0)
-        };
-        let (h0, v0) = (grid[best(&grid)].0, grid[best(&grid)].1);
-        for f in [0.5, 1.5, 2.0] {
-            let (ll, sc) = try_one(h0, v0 * f)?;
-            grid.push((h0, v0 * f, ll, sc));
-        }
-        let v1 = grid[best(&grid)].1;
-        for f in [0.75, 1.25] {
-            let (ll, sc) = try_one(h0 * f, v1)?;
-            grid.push((h0 * f, v1, ll, sc));
-        }
-        let i = best(&grid);
-        // Interval: the grid points chosen on resampled blocks.
-        let per_block: Vec<Vec<f64>> = grid
-            .iter()
-            .map(|g| {
-                let mut b = vec![0.0; self.blocks.len()];
-                for (r, s) in g.3.iter().enumerate() {
-                    for (k, v) in s.per_scan.iter().enumerate() {
-                        b[self.blocks.of(r, k as u32)] += v;
-                    }
-                }
-                b
-            })
-            .collect();
-        let mut hs = Vec::new();
-        let mut vs = Vec::new();
-        for c in self.resamples.iter().take(200) {
-            let j = (0..grid.len())
-                .max_by(|&a, &b| {
-                    let s = |g: usize| -> f64 {
-                        per_block[g]
-                            .iter()
-                            .zip(c)
-                            .map(|(v, &n)| v * f64::from(n))
-                            .sum()
-                    };
-                    s(a).total_cmp(&s(b))
-                })
-                .unwrap_or(i);
-            hs.push(grid[j].0);
-            vs.push(grid[j].1);
-        }
-        let (h, v) = (grid[i].0, grid[i].1);
-        let scored = grid.swap_remove(i).3;
-        Ok(self.candidate(
-            "beam_divergence",
-            make(h, v),
-            vec![
-                Param {
-                    name: "horizontal_mrad",
-                    value: h,
-                    interval: bootstrap::interval(&mut hs),
-                },
-                Param {
-                    name: "vertical_mrad",
-                    value: v,
-                    interval: bootstrap::interval(&mut vs),
-                },
-            ],
-            h >= 0.5,
-            &scored,
-        ))
-    }
-
-    fn intensity(&self) -> Result<Candidate, GapError> {
-        // Diffuse returns away from edges: measured byte against 100 ρ cos^k θ.
-        let mut rows: Vec<(f64, f64, f64)> = Vec::new();
-        for (o, f) in self.obs.iter().zip(self.feats) {
-            for (o, f) in o.iter().zip(f) {
-                if o.measured.is_finite()
-                    && !f.is_edge()
-                    && o.intensity <= 100
-                    && f.rho > 0.0
-                    && f.rho <= 1.0
-                    && f.cos > 0.0
-                {
-                    rows.push((f64::from(o.intensity), f64::from(f.rho), f64::from(f.cos)));
-                }
-            }
-        }
-        let spread = |k: f64| {
-            let e: Vec<f64> = rows
-                .iter()
-                .map(|(i, rho, cos)| i - 100.0 * rho * cos.powf(k))
-                .collect();
-            let mut c = e.clone();
-            let m = likelihood::median(&mut c).unwrap_or(0.0);
-            (
-                m.abs(),
-                likelihood::robust_sigma(&e).unwrap_or(f64::INFINITY),
-            )
-        };
-        let cost = |k: f64| {
-            let (m, s) = spread(k);
-            m + s
-        };
-        let mut k = 0.0;
-        let mut best = cost(0.0);
-        for i in 1..=60 {
-            let x = f64::from(i) * 0.05;
-            let c = cost(x);
-            if c < best {
-                best = c;
-                k = x;
-            }
-        }
-        let (_, s) = spread(k);
-        let noise = (s * s - 1.0 / 12.0).max(0.0).sqrt();
-        let effect = Effect::Intensity {
-            incidence_exponent: k,
-            noise_sigma: noise,
-        };
-        let model = with_effect(self.current, effect.clone());
-        let scored = self.score_all(&self.cast(&model)?, random_of(&model));
-        Ok(self.candidate(
-            "intensity",
-            effect,
-            vec![
-                Param {
-                    name: "incidence_exponent",
-                    value: k,
-                    interval: None,
-                },
-                Param {
-                    name: "noise_sigma",
-                    value: noise,
-                    interval: None,
-                },
-            ],
-            k >= 0.2 || noise >= 1.0,
-            &scored,
-        ))
-    }
-
     /// Every candidate the current model lacks, fitted and scored; `progress` is told the name
     /// of each as it starts.
     pub fn all(&self, progress: &dyn Fn(&str)) -> Result<Vec<Candidate>, GapError> {
@@ -750,7 +459,7 @@ impl Fitting<'_> {
                 &|t| Effect::TimeOffset { offset_ms: t[0] },
                 &[2.0],
                 &[60.0],
-                &|t| t[0].abs() >= 1.0,
+                &|t, i| clears(t[0], i[0], 1.0),
             )?);
         }
         if !has("mount_misalignment") {
@@ -765,7 +474,7 @@ impl Fitting<'_> {
                 },
                 &[0.1, 0.1, 0.1],
                 &[3.0, 3.0, 3.0],
-                &|t| t.iter().any(|a| a.abs() >= 0.05),
+                &|t, i| t.iter().zip(i).any(|(a, i)| clears(*a, *i, 0.1)),
             )?);
         }
         if !has("beam_divergence") {
@@ -779,32 +488,4 @@ impl Fitting<'_> {
         out.sort_by(|a, b| b.gain.total_cmp(&a.gain));
         Ok(out)
     }
-}
-
-/// Iteratively reweighted least squares (Huber, k = 1.345 s) of `rows` (block, Jacobian row,
-/// residual), each weighted by its block's count.
-fn irls(rows: &[Row], s: f64, counts: &[u32]) -> Option<Vec<f64>> {
-    let p = rows.first()?.1.len();
-    let mut delta = vec![0.0; p];
-    for _ in 0..6 {
-        let mut a = DMatrix::<f64>::zeros(p, p);
-        let mut b = DVector::<f64>::zeros(p);
-        for (blk, j, e) in rows {
-            let c = f64::from(counts[*blk]);
-            if c == 0.0 {
-                continue;
-            }
-            let r = e - j.iter().zip(&delta).map(|(x, d)| x * d).sum::<f64>();
-            let w = c * (1.345 * s / r.abs().max(1e-12)).min(1.0);
-            for k in 0..p {
-                b[k] += w * j[k] * e;
-                for l in 0..p {
-                    a[(k, l)] += w * j[k] * j[l];
-                }
-            }
-        }
-        let x = a.lu().solve(&b)?;
-        delta = x.iter().copied().collect();
-    }
-    Some(delta)
 }

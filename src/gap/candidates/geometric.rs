@@ -1,0 +1,208 @@
+//! The geometric candidates: a time offset and a mount misalignment fitted by Gauss-Newton
+//! on the re-cast ranges, and motion distortion switched on.
+
+use super::{random_of, with_effect, Candidate, Fitting, Interval, Param};
+use crate::gap::bootstrap;
+use crate::gap::likelihood;
+use crate::gap::GapError;
+use crate::sim::model::Effect;
+use nalgebra::{DMatrix, DVector};
+
+/// A row of a linearised fit: bootstrap block, Jacobian row (intercept first), residual.
+type Row = (usize, Vec<f64>, f64);
+
+/// Whether fitted values (with their intervals) clear the effect's floor.
+pub(super) type FloorTest<'a> = &'a dyn Fn(&[f64], &[Option<Interval>]) -> bool;
+
+impl Fitting<'_> {
+    /// Gauss-Newton with robust (Huber) weights on the residuals away from edges for the
+    /// parameters of a geometric effect, with an intercept as nuisance (a range offset must
+    /// not pass for a rotation or a time shift). The Jacobian comes from one-sided differences
+    /// of the re-cast ranges; rows where a step moves the beam to another surface are left
+    /// out. Returns the parameters and their bootstrap intervals from the last linearisation.
+    fn gauss_newton(
+        &self,
+        make: &dyn Fn(&[f64]) -> Effect,
+        h: &[f64],
+        max_step: &[f64],
+    ) -> Result<(Vec<f64>, Vec<Option<Interval>>), GapError> {
+        let n = h.len();
+        let mut theta = vec![0.0; n];
+        let mut last: Option<(Vec<Row>, Vec<f64>, f64)> = None;
+        for _ in 0..5 {
+            let base = self.cast(&with_effect(self.current, make(&theta)))?;
+            let mut stepped = Vec::with_capacity(n);
+            for k in 0..n {
+                let mut t = theta.clone();
+                t[k] += h[k];
+                stepped.push(self.cast(&with_effect(self.current, make(&t)))?);
+            }
+            let mut rows: Vec<Row> = Vec::new();
+            for r in 0..self.runs.len() {
+                for (i, (o, f)) in base[r].iter().zip(&self.feats[r]).enumerate() {
+                    if f.is_edge() || !o.measured.is_finite() || !o.predicted.is_finite() {
+                        continue;
+                    }
+                    let mut row = vec![1.0];
+                    let mut ok = true;
+                    for (k, s) in stepped.iter().enumerate() {
+                        let p = s[r][i].predicted;
+                        let d = f64::from(p - o.predicted);
+                        if !p.is_finite() || d.abs() > 0.3 {
+                            ok = false;
+                            break;
+                        }
+                        row.push(d / h[k]);
+                    }
+                    if ok {
+                        rows.push((
+                            self.blocks.of(r, f.scan),
+                            row,
+                            f64::from(o.measured - o.predicted),
+                        ));
+                    }
+                }
+            }
+            if rows.len() < 100 {
+                return Err(GapError::Input(
+                    "too few firings on smooth surfaces to fit a geometric effect".into(),
+                ));
+            }
+            let e: Vec<f64> = rows.iter().map(|r| r.2).collect();
+            let s = likelihood::robust_sigma(&e).unwrap_or(0.01).max(1e-3);
+            let all = vec![1u32; self.blocks.len()];
+            let Some(delta) = irls(&rows, s, &all) else {
+                break;
+            };
+            let mut done = true;
+            for k in 0..n {
+                let d = delta[k + 1].clamp(-max_step[k], max_step[k]);
+                if d.abs() > 0.02 * h[k] {
+                    done = false;
+                }
+                theta[k] += d;
+            }
+            last = Some((rows, theta.clone(), s));
+            if done {
+                break;
+            }
+        }
+        let Some((rows, at, s)) = last else {
+            return Ok((theta, vec![None; n]));
+        };
+        // The linearisation point of the last rows is `at` minus the last step; the bootstrap
+        // re-solves that step on resampled blocks.
+        let all = vec![1u32; self.blocks.len()];
+        let step = irls(&rows, s, &all).unwrap_or_else(|| vec![0.0; n + 1]);
+        let mut intervals = Vec::with_capacity(n);
+        let boots: Vec<Vec<f64>> = self
+            .resamples
+            .iter()
+            .take(100)
+            .filter_map(|c| irls(&rows, s, c))
+            .collect();
+        for k in 0..n {
+            let mut v: Vec<f64> = boots
+                .iter()
+                .map(|b| at[k] - step[k + 1].clamp(-max_step[k], max_step[k]) + b[k + 1])
+                .collect();
+            intervals.push(bootstrap::interval(&mut v));
+        }
+        Ok((theta, intervals))
+    }
+
+    pub(super) fn geometric(
+        &self,
+        effect: &'static str,
+        names: &[&'static str],
+        make: &dyn Fn(&[f64]) -> Effect,
+        h: &[f64],
+        max_step: &[f64],
+        floor: FloorTest<'_>,
+    ) -> Result<Candidate, GapError> {
+        let (theta, intervals) = match self.gauss_newton(make, h, max_step) {
+            Ok(x) => x,
+            Err(e) => {
+                return Ok(Candidate {
+                    effect,
+                    fitted: None,
+                    params: vec![],
+                    gain: 0.0,
+                    gain_interval: None,
+                    gain_per_1000_firings: 0.0,
+                    above_floor: false,
+                    eligible: false,
+                    note: Some(e.to_string()),
+                })
+            }
+        };
+        let fitted = make(&theta);
+        let above = floor(&theta, &intervals);
+        let model = with_effect(self.current, fitted.clone());
+        let scored = self.score_all(&self.cast(&model)?, random_of(&model));
+        let params = names
+            .iter()
+            .zip(&theta)
+            .zip(intervals)
+            .map(|((name, v), i)| Param {
+                name,
+                value: *v,
+                interval: i,
+            })
+            .collect();
+        Ok(self.candidate(effect, fitted, params, above, &scored))
+    }
+
+    pub(super) fn motion(&self) -> Result<Option<Candidate>, GapError> {
+        let disabled = self
+            .current
+            .effects
+            .iter()
+            .any(|e| matches!(e, Effect::MotionDistortion { enabled: false }));
+        if !disabled {
+            return Ok(None);
+        }
+        let effect = Effect::MotionDistortion { enabled: true };
+        let model = with_effect(self.current, effect.clone());
+        let scored = self.score_all(&self.cast(&model)?, random_of(&model));
+        Ok(Some(self.candidate(
+            "motion_distortion",
+            effect,
+            vec![Param {
+                name: "enabled",
+                value: 1.0,
+                interval: None,
+            }],
+            true,
+            &scored,
+        )))
+    }
+}
+
+/// Iteratively reweighted least squares (Huber, k = 1.345 s) of `rows` (block, Jacobian row,
+/// residual), each weighted by its block's count.
+fn irls(rows: &[Row], s: f64, counts: &[u32]) -> Option<Vec<f64>> {
+    let p = rows.first()?.1.len();
+    let mut delta = vec![0.0; p];
+    for _ in 0..6 {
+        let mut a = DMatrix::<f64>::zeros(p, p);
+        let mut b = DVector::<f64>::zeros(p);
+        for (blk, j, e) in rows {
+            let c = f64::from(counts[*blk]);
+            if c == 0.0 {
+                continue;
+            }
+            let r = e - j.iter().zip(&delta).map(|(x, d)| x * d).sum::<f64>();
+            let w = c * (1.345 * s / r.abs().max(1e-12)).min(1.0);
+            for k in 0..p {
+                b[k] += w * j[k] * e;
+                for l in 0..p {
+                    a[(k, l)] += w * j[k] * j[l];
+                }
+            }
+        }
+        let x = a.lu().solve(&b)?;
+        delta = x.iter().copied().collect();
+    }
+    Some(delta)
+}

@@ -1,0 +1,244 @@
+//! What `hilrig gap` reports: `gap.json` (every round: the bins that disagreed, the candidates
+//! ranked with their scores and intervals, the trials on the validation runs, the metrics before
+//! and after) and the one-line findings, written atomically so an interrupted study leaves the
+//! last completed round.
+
+use super::bins::Table;
+use super::candidates::{Candidate, Param};
+use super::likelihood::{self, Scored};
+use super::observe::{Feature, Obs};
+use super::study::Role;
+use super::GapError;
+use crate::sim::model::ModelFile;
+use std::path::Path;
+
+/// Per-firing statistics of a set of runs under one model.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct FiringStats {
+    /// Median residual (measured − predicted) away from edges, m.
+    pub residual_median_m: Option<f64>,
+    /// Its robust σ, m.
+    pub residual_sigma_m: Option<f64>,
+    /// Share of cast firings the sensor returned.
+    pub measured_share: f64,
+    /// Share the model returned (before random dropout).
+    pub predicted_share: f64,
+    /// Log-likelihood per 1000 firings, nats.
+    pub log_likelihood_per_1000: f64,
+}
+
+/// Full-run metrics on the validation runs.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RunMetrics {
+    /// Mean OCR^K over the validation runs at each run's admissible cell (K = 1, 3D): the
+    /// share of the measured cells the simulation occupies too.
+    pub ocr: Option<f64>,
+    /// Mean precision (the share of the simulated cells the measurement occupies too): what
+    /// improves when an effect removes returns (OCR cannot).
+    pub precision: Option<f64>,
+    /// Mean IoU of the occupied cells.
+    pub iou: Option<f64>,
+    /// Area validation metric per per-scan feature (real validation runs against their
+    /// re-simulations), in the feature's unit.
+    pub avm: Vec<(String, Option<f64>)>,
+    /// Traffic lights per feature.
+    pub lights: Vec<(String, String)>,
+    /// The validation verdict.
+    pub verdict: String,
+}
+
+/// An added effect tested on the validation runs.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Trial {
+    /// The effect.
+    pub effect: &'static str,
+    /// Log-likelihood gain on the validation runs, nats.
+    pub gain: f64,
+    /// Its 95 % block-bootstrap interval.
+    pub gain_interval: Option<(f64, f64)>,
+    /// Per-firing statistics before and after.
+    pub before: FiringStats,
+    /// After.
+    pub after: FiringStats,
+    /// Kept: the interval lies above zero.
+    pub kept: bool,
+}
+
+/// One round.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Round {
+    /// 1-based.
+    pub round: usize,
+    /// The bins that disagree on the parameterization runs under the current model,
+    /// `feature [from, to): measured x % vs model y %, median residual z m`.
+    pub disagreeing_bins: Vec<String>,
+    /// All bins.
+    pub bins: Vec<Table>,
+    /// Candidates, best first.
+    pub candidates: Vec<Candidate>,
+    /// The candidates tried on the validation runs, in order.
+    pub trials: Vec<Trial>,
+    /// The effect added in this round.
+    pub chosen: Option<String>,
+    /// Its fitted parameters.
+    pub parameters: Vec<Param>,
+    /// Full-run metrics on the validation runs before and after (when computed).
+    pub metrics_before: Option<RunMetrics>,
+    /// After.
+    pub metrics_after: Option<RunMetrics>,
+}
+
+/// A run as listed in the report.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RunInfo {
+    /// Name.
+    pub name: String,
+    /// Role.
+    pub role: Role,
+    /// The check's verdict.
+    pub check: String,
+    /// Firings sampled.
+    pub sampled_firings: usize,
+}
+
+/// Everything `gap.json` holds.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GapReport {
+    /// The start model's file.
+    pub start_model: String,
+    /// The runs.
+    pub runs: Vec<RunInfo>,
+    /// Set when a single run was split in time.
+    pub split: Option<String>,
+    /// The resolution floors of the catalogue.
+    pub floors: Vec<(String, String)>,
+    /// The completed rounds.
+    pub rounds: Vec<Round>,
+    /// Whether the workflow finished (false while running or when interrupted).
+    pub finished: bool,
+    /// One line per effect found, or the evidence that none was.
+    pub summary: Vec<String>,
+}
+
+fn write_atomic(path: &Path, text: &str) -> Result<(), GapError> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, text)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .map_err(|e| GapError::Output(format!("{}: {e}", path.display())))
+}
+
+/// Writes the fitted model and `gap.json` into `out`.
+pub(super) fn save(out: &Path, model: &ModelFile, report: &GapReport) -> Result<(), GapError> {
+    write_atomic(&out.join("model.fitted.toml"), &model.to_toml())?;
+    let json = serde_json::to_string_pretty(report)
+        .map_err(|e| GapError::Output(format!("gap.json: {e}")))?;
+    write_atomic(&out.join("gap.json"), &json)
+}
+
+/// The per-firing statistics of observations under a model.
+pub(super) fn firing_stats(
+    obs: &[Vec<Obs>],
+    feats: &[Vec<Feature>],
+    scored: &[Scored],
+) -> FiringStats {
+    let mut res = Vec::new();
+    let (mut cast, mut meas, mut pred) = (0usize, 0usize, 0usize);
+    for (o, f) in obs.iter().zip(feats) {
+        res.extend(likelihood::residuals(o, f).into_iter().map(|x| x.1));
+        for o in o.iter().filter(|o| o.cast) {
+            cast += 1;
+            meas += usize::from(o.measured.is_finite());
+            pred += usize::from(o.predicted.is_finite());
+        }
+    }
+    let ll: f64 = scored.iter().flat_map(|s| &s.per_scan).sum();
+    FiringStats {
+        residual_sigma_m: likelihood::robust_sigma(&res),
+        residual_median_m: likelihood::median(&mut res),
+        measured_share: meas as f64 / cast.max(1) as f64,
+        predicted_share: pred as f64 / cast.max(1) as f64,
+        log_likelihood_per_1000: ll / cast.max(1) as f64 * 1000.0,
+    }
+}
+
+/// The disagreeing bins, one line each.
+pub(super) fn describe(tables: &[Table]) -> Vec<String> {
+    let mut out = Vec::new();
+    for t in tables {
+        for b in t.bins.iter().filter(|b| b.disagrees) {
+            out.push(format!(
+                "{} [{}, {}): {} firings, sensor returns {:.1} % vs model {:.1} %, median residual {}",
+                t.feature,
+                b.from,
+                b.to,
+                b.firings,
+                b.measured_share * 100.0,
+                b.predicted_share * 100.0,
+                b.median_m
+                    .map_or_else(|| "n/a".to_owned(), |m| format!("{m:+.3} m")),
+            ));
+        }
+    }
+    out
+}
+
+/// The fitted parameters with their intervals, as the summary prints them.
+pub(super) fn params_text(c: &Candidate) -> String {
+    c.params
+        .iter()
+        .filter(|p| p.name != "reference_reflectivity" && p.name != "enabled")
+        .map(|p| {
+            let unit_digits = if p.name.ends_with("_m") { 3 } else { 2 };
+            match p.interval {
+                Some((a, b)) => format!(
+                    "{} = {:.d$} [{:.d$}, {:.d$}]",
+                    p.name,
+                    p.value,
+                    a,
+                    b,
+                    d = unit_digits
+                ),
+                None => format!("{} = {:.d$}", p.name, p.value, d = unit_digits),
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The one-line finding of a round.
+pub(super) fn summary_line(
+    c: &Candidate,
+    trial: Option<&Trial>,
+    round: &Round,
+    runs: usize,
+) -> String {
+    let mut parts = vec![format!("found: {} {}", c.effect, params_text(c))];
+    if let (Some(b), Some(a)) = (&round.metrics_before, &round.metrics_after) {
+        for (label, x, y) in [
+            ("OCR", b.ocr, a.ocr),
+            ("precision", b.precision, a.precision),
+        ] {
+            if let (Some(x), Some(y)) = (x, y) {
+                parts.push(format!("{label} {x:.3} -> {y:.3}"));
+            }
+        }
+        let avm = |m: &RunMetrics, name: &str| {
+            m.avm.iter().find(|(n, _)| n == name).and_then(|(_, v)| *v)
+        };
+        for (name, label) in [
+            ("returns_per_scan", "AVM returns/scan"),
+            ("mean_range_m", "AVM mean range"),
+        ] {
+            if let (Some(x), Some(y)) = (avm(b, name), avm(a, name)) {
+                parts.push(format!("{label} {x:.3} -> {y:.3}"));
+            }
+        }
+    }
+    if let Some(t) = trial {
+        parts.push(format!(
+            "log-likelihood {:+.3} -> {:+.3} per 1000 firings",
+            t.before.log_likelihood_per_1000, t.after.log_likelihood_per_1000
+        ));
+    }
+    format!("{} on {runs} validation runs", parts.join("; "))
+}

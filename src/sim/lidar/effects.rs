@@ -1,0 +1,118 @@
+//! The effects of a model file compiled for the ray loop: distributions built, angles turned
+//! into rotations, the beam footprint into sub-ray offsets, once per simulator.
+
+use crate::sim::model::{Effect, ModelError, ModelFile};
+use nalgebra::UnitQuaternion;
+use rand_distr::Normal;
+
+/// The effects of a model, ready to apply.
+#[derive(Clone, Debug)]
+pub(super) struct Compiled {
+    pub(super) noise: Option<Normal<f64>>,
+    pub(super) bias_m: f64,
+    pub(super) dropout: f64,
+    pub(super) min_power: Option<f64>,
+    /// Sub-ray angular offsets (horizontal, vertical) in radians, and the merge distance.
+    pub(super) divergence: Option<(Vec<(f64, f64)>, f64)>,
+    pub(super) per_firing_pose: bool,
+    pub(super) time_offset_ns: i64,
+    pub(super) intensity: Option<(f64, f64)>,
+    pub(super) weather: Option<(f64, f64, f64, f64)>,
+    pub(super) misalignment: UnitQuaternion<f64>,
+}
+
+impl Compiled {
+    pub(super) fn new(model: &ModelFile) -> Result<Compiled, ModelError> {
+        model.validate()?;
+        let mut c = Compiled {
+            noise: None,
+            bias_m: 0.0,
+            dropout: 0.0,
+            min_power: None,
+            divergence: None,
+            per_firing_pose: true,
+            time_offset_ns: 0,
+            intensity: None,
+            weather: None,
+            misalignment: UnitQuaternion::identity(),
+        };
+        for e in &model.effects {
+            match *e {
+                Effect::RangeNoise { sigma_m } => {
+                    c.noise = Normal::new(0.0, sigma_m).ok();
+                }
+                Effect::RangeBias { bias_m } => c.bias_m = bias_m,
+                Effect::RandomDropout { probability } => c.dropout = probability,
+                Effect::DetectionThreshold {
+                    reference_range_m,
+                    reference_reflectivity,
+                } => c.min_power = Some(reference_reflectivity / reference_range_m.powi(2)),
+                Effect::BeamDivergence {
+                    horizontal_mrad,
+                    vertical_mrad,
+                    sub_rays_per_axis,
+                    range_separation_m,
+                } => {
+                    // A grid over the footprint's bounding box, keeping points inside the
+                    // ellipse (all of them when n = 1).
+                    let n = sub_rays_per_axis as usize;
+                    let mut offs = Vec::new();
+                    for i in 0..n {
+                        for j in 0..n {
+                            let u = if n == 1 {
+                                0.0
+                            } else {
+                                -1.0 + 2.0 * i as f64 / (n - 1) as f64
+                            };
+                            let v = if n == 1 {
+                                0.0
+                            } else {
+                                -1.0 + 2.0 * j as f64 / (n - 1) as f64
+                            };
+                            if u * u + v * v <= 1.0 + 1e-9 {
+                                offs.push((
+                                    u * horizontal_mrad * 0.5e-3,
+                                    v * vertical_mrad * 0.5e-3,
+                                ));
+                            }
+                        }
+                    }
+                    c.divergence = Some((offs, range_separation_m));
+                }
+                Effect::MotionDistortion { enabled } => c.per_firing_pose = enabled,
+                Effect::TimeOffset { offset_ms } => {
+                    c.time_offset_ns = (offset_ms * 1e6).round() as i64;
+                }
+                Effect::MountMisalignment {
+                    roll_deg,
+                    pitch_deg,
+                    yaw_deg,
+                } => {
+                    c.misalignment = UnitQuaternion::from_euler_angles(
+                        roll_deg.to_radians(),
+                        pitch_deg.to_radians(),
+                        yaw_deg.to_radians(),
+                    )
+                }
+                Effect::Intensity {
+                    incidence_exponent,
+                    noise_sigma,
+                } => c.intensity = Some((incidence_exponent, noise_sigma)),
+                Effect::Weather {
+                    extinction_per_m,
+                    clutter_probability,
+                    clutter_max_range_m,
+                    clutter_reflectivity,
+                } => {
+                    c.weather = Some((
+                        extinction_per_m,
+                        clutter_probability,
+                        clutter_max_range_m,
+                        clutter_reflectivity,
+                    ))
+                }
+            }
+        }
+        Ok(c)
+    }
+}
