@@ -264,6 +264,33 @@ fn reference_noise_alone_adds_no_effect() {
     assert_eq!(report["finished"], true);
     // The evidence: every candidate listed with its score.
     assert!(report["rounds"][0]["candidates"].as_array().unwrap().len() >= 7);
+    assert!(report["split"].is_null());
+    // One run alone is split in time, and the output says so.
+    let d = _d.path();
+    let one = gap(
+        &[
+            "--real".as_ref(),
+            d.join("run-1.mcap").as_os_str(),
+            "--scene".as_ref(),
+            d.join("rep-01/scene.toml").as_os_str(),
+            "--model".as_ref(),
+            d.join("start.toml").as_os_str(),
+            "--no-full-metrics".as_ref(),
+        ],
+        &d.join("one"),
+    );
+    assert_eq!(one.code, Some(0), "{}", one.stderr);
+    assert!(
+        one.stderr.contains("a single run: scans 0.."),
+        "{}",
+        one.stderr
+    );
+    let report = one.report.unwrap();
+    assert!(report["split"].as_str().unwrap().contains("validate"));
+    let runs = report["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2);
+    assert_eq!(runs[0]["role"], "fit");
+    assert_eq!(runs[1]["role"], "validate");
 }
 
 #[test]

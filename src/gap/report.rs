@@ -188,7 +188,12 @@ pub(super) fn params_text(c: &Candidate) -> String {
         .iter()
         .filter(|p| p.name != "reference_reflectivity" && p.name != "enabled")
         .map(|p| {
-            let unit_digits = if p.name.ends_with("_m") { 3 } else { 2 };
+            // Three significant digits of the value; the interval to the same decimals.
+            let unit_digits = if p.value == 0.0 || !p.value.is_finite() {
+                2
+            } else {
+                (2 - p.value.abs().log10().floor() as i32).clamp(0, 6) as usize
+            };
             match p.interval {
                 Some((a, b)) => format!(
                     "{} = {:.d$} [{:.d$}, {:.d$}]",

@@ -362,7 +362,9 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
             let Some(effect) = c.fitted.clone() else {
                 continue;
             };
-            let next = with_effect(&model, effect);
+            let next = c.refitted.iter().fold(with_effect(&model, effect), |m, e| {
+                with_effect(&m, e.clone())
+            });
             let Evaluation {
                 obs: o2,
                 scored: s2,

@@ -1,9 +1,10 @@
 //! The candidates of the beam and the echo: beam divergence fitted on a grid (the
 //! likelihood is not smooth in it), and the intensity's incidence dependence.
 
-use super::{clears, random_of, with_effect, Candidate, Fitting, Param};
+use super::{clears, random_of, with_effect, Candidate, Fitting, Param, REFERENCE_REFLECTIVITY};
 use crate::gap::bootstrap;
 use crate::gap::likelihood::{self, Scored};
+use crate::gap::observe::NONE;
 use crate::gap::GapError;
 use crate::sim::model::Effect;
 
@@ -17,6 +18,21 @@ impl Fitting<'_> {
         };
         // (horizontal, vertical, sub-rays, log-likelihood, scores)
         let mut grid: Vec<(f64, f64, u32, f64, Vec<Scored>)> = Vec::new();
+        // Beam divergence spreads the power over the footprint, so a detection threshold of
+        // the current model is re-fitted at every grid point (cast without it, the threshold
+        // swept on the result and applied: exact for the strongest echo, which is below the
+        // threshold only when every echo is).
+        let threshold = self
+            .current
+            .effects
+            .iter()
+            .any(|e| matches!(e, Effect::DetectionThreshold { .. }));
+        let mut base = self.current.clone();
+        if threshold {
+            base.effects
+                .retain(|e| !matches!(e, Effect::DetectionThreshold { .. }));
+        }
+        let mut refits: Vec<((f64, f64, u32), f64)> = Vec::new();
         let mut try_one = |h: f64, v: f64, n: u32| -> Result<f64, GapError> {
             if let Some(g) = grid
                 .iter()
@@ -24,8 +40,20 @@ impl Fitting<'_> {
             {
                 return Ok(g.3);
             }
-            let model = with_effect(self.current, make(h, v, n));
-            let scored = self.score_all(&self.cast(&model)?, random_of(&model));
+            let model = with_effect(&base, make(h, v, n));
+            let mut obs = self.cast(&model)?;
+            if threshold {
+                if let Some(p_min) = self.threshold_of(&obs) {
+                    for o in obs.iter_mut().flatten() {
+                        if o.power.is_finite() && f64::from(o.power) < p_min {
+                            o.predicted = NONE;
+                            o.power = NONE;
+                        }
+                    }
+                    refits.push(((h, v, n), p_min));
+                }
+            }
+            let scored = self.score_all(&obs, random_of(&model));
             let total = scored.iter().flat_map(|s| &s.per_scan).sum();
             grid.push((h, v, n, total, scored));
             Ok(total)
@@ -109,31 +137,52 @@ impl Fitting<'_> {
             vs.push(grid[j].1);
         }
         let (h, v, n) = (grid[i].0, grid[i].1, grid[i].2);
+        let refit =
+            refits
+                .iter()
+                .find(|(k, _)| *k == (h, v, n))
+                .map(|(_, p)| Effect::DetectionThreshold {
+                    reference_range_m: (REFERENCE_REFLECTIVITY / p).sqrt(),
+                    reference_reflectivity: REFERENCE_REFLECTIVITY,
+                });
         let h_interval = bootstrap::interval(&mut hs);
         let scored = grid.swap_remove(i).4;
-        Ok(self.candidate(
+        let mut params = vec![
+            Param {
+                name: "horizontal_mrad",
+                value: h,
+                interval: h_interval,
+            },
+            Param {
+                name: "vertical_mrad",
+                value: v,
+                interval: bootstrap::interval(&mut vs),
+            },
+            Param {
+                name: "sub_rays_per_axis",
+                value: f64::from(n),
+                interval: None,
+            },
+        ];
+        if let Some(Effect::DetectionThreshold {
+            reference_range_m, ..
+        }) = &refit
+        {
+            params.push(Param {
+                name: "detection_threshold.reference_range_m (re-fitted)",
+                value: *reference_range_m,
+                interval: None,
+            });
+        }
+        let mut c = self.candidate(
             "beam_divergence",
             make(h, v, n),
-            vec![
-                Param {
-                    name: "horizontal_mrad",
-                    value: h,
-                    interval: h_interval,
-                },
-                Param {
-                    name: "vertical_mrad",
-                    value: v,
-                    interval: bootstrap::interval(&mut vs),
-                },
-                Param {
-                    name: "sub_rays_per_axis",
-                    value: f64::from(n),
-                    interval: None,
-                },
-            ],
+            params,
             clears(h, h_interval, 0.5),
             &scored,
-        ))
+        );
+        c.refitted.extend(refit);
+        Ok(c)
     }
 
     pub(super) fn intensity(&self) -> Result<Candidate, GapError> {

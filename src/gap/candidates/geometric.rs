@@ -126,6 +126,7 @@ impl Fitting<'_> {
                 return Ok(Candidate {
                     effect,
                     fitted: None,
+                    refitted: Vec::new(),
                     params: vec![],
                     gain: 0.0,
                     gain_interval: None,

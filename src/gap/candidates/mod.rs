@@ -55,6 +55,10 @@ pub struct Candidate {
     /// The effect as it would be added (`None` when it could not be fitted).
     #[serde(skip)]
     pub fitted: Option<Effect>,
+    /// Effects of the current model re-fitted with it (a detection threshold re-fitted with
+    /// beam divergence, which changes the received power).
+    #[serde(skip)]
+    pub refitted: Vec<Effect>,
     /// Its fitted parameters.
     pub params: Vec<Param>,
     /// Log-likelihood gain on the parameterization runs, nats.
@@ -100,6 +104,52 @@ fn clears(value: f64, interval: Option<Interval>, floor: f64) -> bool {
     let (lo, hi) = interval.unwrap_or((value, value));
     let (lo, hi) = (lo.min(value), hi.max(value));
     lo >= floor || hi <= -floor
+}
+
+/// The reflectivity at which fitted detection thresholds are expressed (the specification
+/// sheets' "range at 10 % reflectivity").
+pub const REFERENCE_REFLECTIVITY: f64 = 0.10;
+
+fn sort_rows(rows: &mut Vec<DetectionRow>) {
+    rows.retain(|r| r.1.is_finite() && r.1 > 0.0);
+    rows.sort_by(|a, b| a.1.total_cmp(&b.1));
+}
+
+/// The index k into `rows` (sorted by power) below which predicting every return missing
+/// explains the detections best, by the likelihood's detection term: returned rows below pay
+/// ln ε, missing ones ln(1 − ε); rows above pay the model's. `weight(i)` weights row i (the
+/// bootstrap's block counts).
+fn sweep(rows: &[DetectionRow], keep: f64, weight: &dyn Fn(usize) -> f64) -> usize {
+    let (eps, p_in) = (likelihood::EPS, keep * (1.0 - likelihood::EPS));
+    let (lh_in, lm_in) = (p_in.ln(), (1.0 - p_in).max(1e-12).ln());
+    let (lh_out, lm_out) = (eps.ln(), (1.0 - eps).ln());
+    let mut above: f64 = rows
+        .iter()
+        .enumerate()
+        .map(|(i, r)| weight(i) * if r.2 { lh_in } else { lm_in })
+        .sum();
+    let mut below = 0.0;
+    let (mut best, mut best_ll) = (0usize, above);
+    for (i, r) in rows.iter().enumerate() {
+        let w = weight(i);
+        above -= w * if r.2 { lh_in } else { lm_in };
+        below += w * if r.2 { lh_out } else { lm_out };
+        if below + above > best_ll {
+            best_ll = below + above;
+            best = i + 1;
+        }
+    }
+    best
+}
+
+/// The power between row k − 1 and row k (geometric mean); `None` for k = 0.
+fn power_at(rows: &[DetectionRow], k: usize) -> Option<f64> {
+    if k == 0 || rows.is_empty() {
+        return None;
+    }
+    let lo = rows[k - 1].1;
+    let hi = rows.get(k).map_or(lo, |r| r.1);
+    Some((lo * hi).sqrt())
 }
 
 /// The parameterization runs with their features and the current model's evaluation.
@@ -201,6 +251,7 @@ impl Fitting<'_> {
         Candidate {
             effect,
             fitted: Some(fitted),
+            refitted: Vec::new(),
             params,
             gain,
             gain_interval,
@@ -291,9 +342,13 @@ impl Fitting<'_> {
     /// Per block: predicted returns away from edges, and how many of them the sensor
     /// returned; and the rows (block, power, returned) for the threshold sweep.
     fn detections(&self) -> (Vec<DetectionRow>, Vec<(f64, f64)>) {
+        self.detections_of(self.obs)
+    }
+
+    fn detections_of(&self, obs: &[Vec<Obs>]) -> (Vec<DetectionRow>, Vec<(f64, f64)>) {
         let mut rows = Vec::new();
         let mut per_block = vec![(0.0, 0.0); self.blocks.len()];
-        for (r, (o, f)) in self.obs.iter().zip(self.feats).enumerate() {
+        for (r, (o, f)) in obs.iter().zip(self.feats).enumerate() {
             for (o, f) in o.iter().zip(f) {
                 if !o.cast || f.is_edge() || !o.predicted.is_finite() {
                     continue;
@@ -338,50 +393,27 @@ impl Fitting<'_> {
         )
     }
 
+    /// The detection threshold (as a minimum power) that best explains which of `obs`'s
+    /// predicted returns the sensor missed; `None` when no threshold beats none.
+    pub(super) fn threshold_of(&self, obs: &[Vec<Obs>]) -> Option<f64> {
+        let (mut rows, _) = self.detections_of(obs);
+        sort_rows(&mut rows);
+        let keep = 1.0 - random_of(self.current).dropout;
+        power_at(&rows, sweep(&rows, keep, &|_| 1.0))
+    }
+
     fn threshold(&self) -> Result<Candidate, GapError> {
         let (mut rows, _) = self.detections();
-        rows.retain(|r| r.1.is_finite() && r.1 > 0.0);
-        rows.sort_by(|a, b| a.1.total_cmp(&b.1));
+        sort_rows(&mut rows);
         let keep = 1.0 - random_of(self.current).dropout;
-        let (eps, p_in) = (likelihood::EPS, keep * (1.0 - likelihood::EPS));
-        // Log-likelihood of the detection term when every row below index k is predicted
-        // missing: returned rows below pay ln ε, missing ones ln(1-ε); above, the model's.
-        let sweep = |weight: &dyn Fn(usize) -> f64| -> (usize, f64) {
-            let (lh_in, lm_in) = (p_in.ln(), (1.0 - p_in).max(1e-12).ln());
-            let (lh_out, lm_out) = (eps.ln(), (1.0 - eps).ln());
-            let mut above: f64 = rows
-                .iter()
-                .enumerate()
-                .map(|(i, r)| weight(i) * if r.2 { lh_in } else { lm_in })
-                .sum();
-            let mut below = 0.0;
-            let (mut best, mut best_ll) = (0usize, above);
-            for (i, r) in rows.iter().enumerate() {
-                let w = weight(i);
-                above -= w * if r.2 { lh_in } else { lm_in };
-                below += w * if r.2 { lh_out } else { lm_out };
-                if below + above > best_ll {
-                    best_ll = below + above;
-                    best = i + 1;
-                }
-            }
-            (best, best_ll)
-        };
-        let (k, _) = sweep(&|_| 1.0);
-        let power_at = |k: usize| -> Option<f64> {
-            if k == 0 || rows.is_empty() {
-                return None;
-            }
-            let lo = rows[k - 1].1;
-            let hi = rows.get(k).map_or(lo, |r| r.1);
-            Some((lo * hi).sqrt())
-        };
-        let reference_reflectivity = 0.10;
-        let range_of = |p: f64| (reference_reflectivity / p).sqrt();
-        let Some(p_min) = power_at(k) else {
+        let k = sweep(&rows, keep, &|_| 1.0);
+        let range_of = |p: f64| (REFERENCE_REFLECTIVITY / p).sqrt();
+        let reference_reflectivity = REFERENCE_REFLECTIVITY;
+        let Some(p_min) = power_at(&rows, k) else {
             return Ok(Candidate {
                 effect: "detection_threshold",
                 fitted: None,
+                refitted: Vec::new(),
                 params: vec![],
                 gain: 0.0,
                 gain_interval: None,
@@ -396,8 +428,8 @@ impl Fitting<'_> {
             .iter()
             .take(100)
             .filter_map(|c| {
-                let (k, _) = sweep(&|i| f64::from(c[rows[i].0]));
-                power_at(k).map(range_of)
+                let k = sweep(&rows, keep, &|i| f64::from(c[rows[i].0]));
+                power_at(&rows, k).map(range_of)
             })
             .collect();
         let effect = Effect::DetectionThreshold {
