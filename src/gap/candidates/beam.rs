@@ -106,36 +106,10 @@ impl Fitting<'_> {
         };
         let i = best(&grid);
         // Interval: the grid points chosen on resampled blocks.
-        let per_block: Vec<Vec<f64>> = grid
-            .iter()
-            .map(|g| {
-                let mut b = vec![0.0; self.blocks.len()];
-                for (r, s) in g.4.iter().enumerate() {
-                    for (k, v) in s.per_scan.iter().enumerate() {
-                        b[self.blocks.of(r, k as u32)] += v;
-                    }
-                }
-                b
-            })
-            .collect();
-        let mut hs = Vec::new();
-        let mut vs = Vec::new();
-        for c in self.resamples.iter().take(200) {
-            let j = (0..grid.len())
-                .max_by(|&a, &b| {
-                    let s = |g: usize| -> f64 {
-                        per_block[g]
-                            .iter()
-                            .zip(c)
-                            .map(|(v, &n)| v * f64::from(n))
-                            .sum()
-                    };
-                    s(a).total_cmp(&s(b))
-                })
-                .unwrap_or(i);
-            hs.push(grid[j].0);
-            vs.push(grid[j].1);
-        }
+        let scores: Vec<&[Scored]> = grid.iter().map(|g| g.4.as_slice()).collect();
+        let chosen = self.argmax_resampled(&scores, i);
+        let mut hs: Vec<f64> = chosen.iter().map(|&j| grid[j].0).collect();
+        let mut vs: Vec<f64> = chosen.iter().map(|&j| grid[j].1).collect();
         let (h, v, n) = (grid[i].0, grid[i].1, grid[i].2);
         let refit =
             refits
@@ -253,5 +227,38 @@ impl Fitting<'_> {
             k >= 0.2 || noise >= 1.0,
             &scored,
         ))
+    }
+
+    /// For each of the first 200 bootstrap resamples, the index of the grid point (`scores`,
+    /// per run) with the highest resampled log-likelihood (`fallback` when there is none).
+    fn argmax_resampled(&self, scores: &[&[Scored]], fallback: usize) -> Vec<usize> {
+        let per_block: Vec<Vec<f64>> = scores
+            .iter()
+            .map(|g| {
+                let mut b = vec![0.0; self.blocks.len()];
+                for (r, s) in g.iter().enumerate() {
+                    for (k, v) in s.per_scan.iter().enumerate() {
+                        b[self.blocks.of(r, k as u32)] += v;
+                    }
+                }
+                b
+            })
+            .collect();
+        self.resamples
+            .iter()
+            .take(200)
+            .map(|c| {
+                let total = |g: usize| -> f64 {
+                    per_block[g]
+                        .iter()
+                        .zip(c)
+                        .map(|(v, &n)| v * f64::from(n))
+                        .sum()
+                };
+                (0..scores.len())
+                    .max_by(|&a, &b| total(a).total_cmp(&total(b)))
+                    .unwrap_or(fallback)
+            })
+            .collect()
     }
 }
