@@ -14,7 +14,9 @@ the validation metrics before and after.
 Ranges (documented realistic values, see src/sim/model.rs): range bias ±(2-10) cm; range noise
 1-5 cm; random dropout 2-20 %; detection threshold: range at 10 % reflectivity 15-40 m (it must
 bite within the scene's 2-40 m); beam divergence 2-6 mrad horizontal, half that vertical (5 sub-
-rays per axis); time offset ±(5-50) ms; mount misalignment ±(0.2-2)° about one axis.
+rays per axis); time offset ±(5-50) ms; mount misalignment ±(0.2-2)° about one axis; weather:
+extinction 0.004-0.03 /m and clutter 0.5-5 % per firing, with a detection threshold (35 m at 10 %
+reflectivity) that truth and start model share.
 
 usage: benches/gap_hidden.py [--hilrig PATH] [--work DIR] [--seed N] [CASE ...]
   CASE: a name of CASES below (default: all), e.g. range_bias null-1 bias+dropout
@@ -57,6 +59,8 @@ def draw(rng, effect):
         effect = "mount_misalignment"
     elif effect == "motion_distortion":
         p = {"enabled": True}
+    elif effect == "weather":
+        p = {"extinction_per_m": rng.uniform(0.004, 0.03), "clutter_probability": rng.uniform(0.005, 0.05)}
     else:
         raise SystemExit(f"unknown effect {effect}")
     return effect, p
@@ -79,8 +83,13 @@ def model_toml(name, effects):
     return "\n".join(out) + "\n"
 
 
+# The sensor's detection threshold, known to the start model of the weather case (extinction acts
+# only through it).
+THRESHOLD = ("detection_threshold", {"reference_range_m": 35.0, "reference_reflectivity": 0.1})
+
 # name: (hidden effects, start model has motion distortion disabled)
 CASES = {
+    "weather": (["weather"], False),
     "range_bias": (["range_bias"], False),
     "range_noise": (["range_noise"], False),
     "random_dropout": (["random_dropout"], False),
@@ -111,14 +120,15 @@ def case(hilrig, work, name, seed):
     effects, frame_based = CASES[name]
     rng = random.Random(f"{name}-{seed}")
     hidden = [draw(rng, e) for e in effects]
+    known = [THRESHOLD] if name == "weather" else []
     d = os.path.join(work, name)
     shutil.rmtree(d, ignore_errors=True)
     os.makedirs(d)
     truth = os.path.join(d, "truth.toml")
-    open(truth, "w").write(model_toml(f"hidden {name}", hidden))
+    open(truth, "w").write(model_toml(f"hidden {name}", known + hidden))
     start = os.path.join(d, "start.toml")
     open(start, "w").write(
-        model_toml("idealized", [("motion_distortion", {"enabled": False})] if frame_based else [])
+        model_toml("idealized", known + ([("motion_distortion", {"enabled": False})] if frame_based else []))
     )
     run([hilrig, "synth", "--scene", SCENE, "--drive", DRIVE, "--truth", truth, "--reps", "3",
          "--seed", str(1000 + seed + sum(map(ord, name))), "-o", d])

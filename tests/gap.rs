@@ -252,6 +252,31 @@ fn a_hidden_detection_threshold_is_not_taken_for_dropout() {
 }
 
 #[test]
+fn hidden_rain_is_fitted_with_its_clutter_and_the_threshold_refitted() {
+    let threshold =
+        "[[effect]]\nname = \"detection_threshold\"\nreference_range_m = 35.0\nreference_reflectivity = 0.1\n";
+    let (_d, out) = run_hidden(
+        &format!("name = \"rain\"\n{threshold}[[effect]]\nname = \"weather\"\nextinction_per_m = 0.012\nclutter_probability = 0.02\n"),
+        &format!("name = \"known threshold\"\n{threshold}"),
+        77,
+        &|t| t,
+    );
+    let report = out.report.unwrap();
+    let f = found(&report);
+    assert_eq!(
+        f.first().map(|x| x.0.as_str()),
+        Some("weather"),
+        "{}",
+        out.stdout
+    );
+    let alpha = param(&f[0].1, "extinction_per_m");
+    let p = param(&f[0].1, "clutter_probability");
+    assert!((alpha - 0.012).abs() < 0.2 * 0.012, "extinction {alpha}");
+    assert!((p - 0.02).abs() < 0.2 * 0.02, "clutter {p}");
+    validation_improved(&report);
+}
+
+#[test]
 fn reference_noise_alone_adds_no_effect() {
     let (_d, out) = run_hidden(IDEALIZED, IDEALIZED, 23, &|t| t);
     let report = out.report.unwrap();

@@ -31,6 +31,38 @@ pub struct Random {
     pub sigma_m: f64,
     /// Dropout probability.
     pub dropout: f64,
+    /// Weather clutter, if any.
+    pub clutter: Option<Clutter>,
+}
+
+/// The weather effect's clutter: with `probability` a firing also sees a droplet echo at a
+/// uniform range in `[min_m, max_m]` with the power of a `reflectivity` target; it is the
+/// reported (strongest) echo when it outshines the target.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Clutter {
+    /// Probability per firing.
+    pub probability: f64,
+    /// Nearest range (the sensor's blind zone), m.
+    pub min_m: f64,
+    /// Farthest range, m.
+    pub max_m: f64,
+    /// Apparent reflectivity.
+    pub reflectivity: f64,
+}
+
+impl Clutter {
+    /// The probability that a clutter echo, when there is one, is the strongest of a firing
+    /// whose target echo has `power` (`None`: no target).
+    pub fn wins(&self, power: Option<f64>) -> f64 {
+        let span = (self.max_m - self.min_m).max(1e-9);
+        match power {
+            Some(p) if p > 0.0 => {
+                let r = (self.reflectivity / p).sqrt().min(self.max_m);
+                ((r - self.min_m) / span).clamp(0.0, 1.0)
+            }
+            _ => 1.0,
+        }
+    }
 }
 
 /// Returns no model explains, per firing (away from edges).
@@ -147,11 +179,19 @@ pub fn score(
         out.firings += 1;
         let edge = f.is_edge();
         let eps = if edge { EPS_EDGE } else { EPS };
-        let p_return = if o.predicted.is_finite() {
+        let mut p_return = if o.predicted.is_finite() {
             keep * (1.0 - eps)
         } else {
             eps
         };
+        // Clutter: a droplet echo that outshines the target replaces it.
+        let clutter = random.clutter.map(|c| {
+            let w = c.probability * c.wins(o.predicted.is_finite().then_some(f64::from(o.power)));
+            (w, c)
+        });
+        if let Some((w, _)) = clutter {
+            p_return = 1.0 - (1.0 - p_return) * (1.0 - w);
+        }
         let det = if o.measured.is_finite() {
             p_return
         } else {
@@ -167,6 +207,15 @@ pub fn score(
             } else {
                 ln_gauss_mix(e, s_plain, OUTLIER, WINDOW_M)
             };
+            if let Some((w, c)) = clutter {
+                let m = f64::from(o.measured);
+                let uniform = if (c.min_m..=c.max_m).contains(&m) {
+                    1.0 / (c.max_m - c.min_m).max(1e-9)
+                } else {
+                    0.0
+                };
+                terms[1] = ((1.0 - w) * terms[1].exp() + w * uniform).max(1e-300).ln();
+            }
             if !edge {
                 let n = f.neighbour as usize;
                 if let (Some(no), Some(nf)) = (obs.get(n), feat.get(n)) {

@@ -58,6 +58,9 @@ pub struct RunData {
     pub trajectory: Trajectory,
     /// The check's verdict.
     pub verdict: Verdict,
+    /// The smoothed heading's 1σ error the check found, degrees: a mount yaw below it cannot
+    /// be told from the trajectory's heading error.
+    pub heading_sigma_deg: f64,
     /// The sampled packets.
     pub packets: Vec<Sampled>,
     /// Scans in the run (or its part).
@@ -240,6 +243,7 @@ pub fn load_run(
         rig,
         trajectory,
         verdict: report.verdict,
+        heading_sigma_deg: report.accuracy.heading_sigma_deg,
         packets,
         scans: scans.len(),
         range_quantum_m: model.distance_resolution_m(),

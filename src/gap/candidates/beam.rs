@@ -22,11 +22,17 @@ impl Fitting<'_> {
         // the current model is re-fitted at every grid point (cast without it, the threshold
         // swept on the result and applied: exact for the strongest echo, which is below the
         // threshold only when every echo is).
+        // (Not with weather in the model: its extinction needs the threshold.)
         let threshold = self
             .current
             .effects
             .iter()
-            .any(|e| matches!(e, Effect::DetectionThreshold { .. }));
+            .any(|e| matches!(e, Effect::DetectionThreshold { .. }))
+            && !self
+                .current
+                .effects
+                .iter()
+                .any(|e| matches!(e, Effect::Weather { .. }));
         let mut base = self.current.clone();
         if threshold {
             base.effects

@@ -16,12 +16,14 @@
 //! | `time_offset` | residuals along the ego's motion, proportional to speed and yaw rate | Gauss-Newton on the residuals away from edges |
 //! | `mount_misalignment` | residuals that rotate with the sensor, also at standstill | Gauss-Newton on roll, pitch and yaw |
 //! | `intensity` | measured reflectivity falls with the incidence angle | exponent k of cos θ by a robust fit, noise from the rest |
+//! | `weather` | far returns missing in proportion to range beyond the threshold; near returns in front of the target | extinction on a grid with the threshold re-swept; clutter share over the firings it would win |
 //!
 //! Each effect also has a resolution floor: below it, the fitted value is not told apart from
 //! the reference data's own errors and the candidate is not eligible (see [`FLOORS`]).
 
 mod beam;
 mod geometric;
+mod weather;
 
 use super::bootstrap::{self, Blocks};
 use super::likelihood::{self, Random, Scored};
@@ -34,7 +36,7 @@ pub type Interval = (f64, f64);
 
 /// A predicted return away from edges: its bootstrap block, predicted power, and whether the
 /// sensor returned it.
-type DetectionRow = (usize, f64, bool);
+pub(super) type DetectionRow = (usize, f64, bool);
 
 /// A fitted parameter.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -80,7 +82,7 @@ pub struct Candidate {
 /// effect is indistinguishable from RTK noise (1-2 cm), survey error and quantisation (2 mm),
 /// or too small to change any metric; the floors are a fifth to a half of the smallest values
 /// the catalogue's typical ranges hold.
-pub const FLOORS: [(&str, &str); 9] = [
+pub const FLOORS: [(&str, &str); 10] = [
     ("range_bias", "|bias| ≥ 5 mm"),
     ("range_noise", "σ ≥ 3 mm"),
     ("random_dropout", "probability ≥ 0.2 %"),
@@ -96,6 +98,10 @@ pub const FLOORS: [(&str, &str); 9] = [
         "largest angle ≥ 0.1° (the smoothed RTK heading is good to about that)",
     ),
     ("intensity", "exponent ≥ 0.2 or noise ≥ 1 count"),
+    (
+        "weather",
+        "extinction ≥ 0.002 /m or clutter probability ≥ 0.2 %",
+    ),
 ];
 
 /// Whether a fitted value clears its floor with 95 % confidence: its whole bootstrap interval
@@ -120,6 +126,11 @@ fn sort_rows(rows: &mut Vec<DetectionRow>) {
 /// ln ε, missing ones ln(1 − ε); rows above pay the model's. `weight(i)` weights row i (the
 /// bootstrap's block counts).
 fn sweep(rows: &[DetectionRow], keep: f64, weight: &dyn Fn(usize) -> f64) -> usize {
+    sweep_ll(rows, keep, weight).0
+}
+
+/// [`sweep`] with the detection log-likelihood at the best split.
+fn sweep_ll(rows: &[DetectionRow], keep: f64, weight: &dyn Fn(usize) -> f64) -> (usize, f64) {
     let (eps, p_in) = (likelihood::EPS, keep * (1.0 - likelihood::EPS));
     let (lh_in, lm_in) = (p_in.ln(), (1.0 - p_in).max(1e-12).ln());
     let (lh_out, lm_out) = (eps.ln(), (1.0 - eps).ln());
@@ -139,7 +150,7 @@ fn sweep(rows: &[DetectionRow], keep: f64, weight: &dyn Fn(usize) -> f64) -> usi
             best = i + 1;
         }
     }
-    best
+    (best, best_ll)
 }
 
 /// The power between row k − 1 and row k (geometric mean); `None` for k = 0.
@@ -187,6 +198,23 @@ pub fn random_of(model: &ModelFile) -> Random {
         match *e {
             Effect::RangeNoise { sigma_m } => r.sigma_m = sigma_m,
             Effect::RandomDropout { probability } => r.dropout = probability,
+            Effect::Weather {
+                clutter_probability,
+                clutter_max_range_m,
+                clutter_reflectivity,
+                ..
+            } if clutter_probability > 0.0 => {
+                r.clutter = Some(likelihood::Clutter {
+                    probability: clutter_probability,
+                    min_m: model
+                        .limits
+                        .and_then(|l| l.min_range_m)
+                        .unwrap_or(0.5)
+                        .min(clutter_max_range_m),
+                    max_m: clutter_max_range_m,
+                    reflectivity: clutter_reflectivity,
+                });
+            }
             _ => {}
         }
     }
@@ -496,6 +524,13 @@ impl Fitting<'_> {
         }
         if !has("mount_misalignment") {
             progress("mount_misalignment");
+            // The trajectory's heading error turns the whole scan like a mount yaw.
+            let yaw_floor = self
+                .runs
+                .iter()
+                .map(|r| r.heading_sigma_deg)
+                .filter(|h| h.is_finite())
+                .fold(0.1, f64::max);
             out.push(self.geometric(
                 "mount_misalignment",
                 &["roll_deg", "pitch_deg", "yaw_deg"],
@@ -506,7 +541,11 @@ impl Fitting<'_> {
                 },
                 &[0.1, 0.1, 0.1],
                 &[3.0, 3.0, 3.0],
-                &|t, i| t.iter().zip(i).any(|(a, i)| clears(*a, *i, 0.1)),
+                &|t, i| {
+                    clears(t[0], i[0], 0.1)
+                        || clears(t[1], i[1], 0.1)
+                        || clears(t[2], i[2], yaw_floor)
+                },
             )?);
         }
         if !has("beam_divergence") {
@@ -516,6 +555,10 @@ impl Fitting<'_> {
         if !has("intensity") {
             progress("intensity");
             out.push(self.intensity()?);
+        }
+        if !has("weather") && has("detection_threshold") {
+            progress("weather");
+            out.push(self.weather()?);
         }
         out.sort_by(|a, b| b.gain.total_cmp(&a.gain));
         Ok(out)

@@ -1,0 +1,164 @@
+//! The weather candidate (rain or fog, `src/sim/model.rs`): two-way extinction `exp(−2αR)` of
+//! the received power, which removes far returns through the detection threshold, and near
+//! clutter: droplet echoes that outshine the target. Offered when the model has a detection
+//! threshold (extinction acts only through it).
+//!
+//! Signature: returns missing more with range than the threshold alone explains, and returns
+//! within a few metres where the model sees a farther target or none. Fit: for each α of a grid
+//! the threshold is swept again on the attenuated power (the two trade off: a higher threshold
+//! also removes far returns, but not in proportion to range); the clutter probability is the
+//! share of clutter-like returns over the firings in which a clutter echo would be the
+//! strongest, its range the farthest such return.
+
+use super::{
+    power_at, random_of, sort_rows, sweep_ll, with_effect, Candidate, DetectionRow, Fitting, Param,
+    REFERENCE_REFLECTIVITY,
+};
+use crate::gap::likelihood::Clutter;
+use crate::gap::GapError;
+use crate::sim::model::Effect;
+
+/// Extinction coefficients tried, per metre (fog of 80 m visibility: 0.05; heavy rain of
+/// 25 mm/h: about 0.007).
+const ALPHAS: [f64; 16] = [
+    0.0, 0.002, 0.003, 0.004, 0.005, 0.006, 0.0075, 0.009, 0.0105, 0.012, 0.014, 0.017, 0.02,
+    0.025, 0.035, 0.05,
+];
+
+/// Clutter-like returns lie within this range, m.
+const CLUTTER_RANGE_M: f64 = 5.0;
+
+/// The apparent reflectivity of droplet echoes assumed in the fit (the catalogue's default).
+const CLUTTER_REFLECTIVITY: f64 = 0.05;
+
+impl Fitting<'_> {
+    pub(super) fn weather(&self) -> Result<Candidate, GapError> {
+        let mut base = self.current.clone();
+        base.effects
+            .retain(|e| !matches!(e, Effect::DetectionThreshold { .. }));
+        let obs = self.cast(&base)?;
+        let keep = 1.0 - random_of(self.current).dropout;
+        // (block, power, returned, range) of predicted returns away from edges.
+        let mut rows: Vec<(usize, f64, bool, f64)> = Vec::new();
+        let mut clutter_ranges: Vec<f64> = Vec::new();
+        for (r, (o, f)) in obs.iter().zip(self.feats).enumerate() {
+            for (o, f) in o.iter().zip(f) {
+                if !o.cast || f.is_edge() {
+                    continue;
+                }
+                let m = f64::from(o.measured);
+                if o.measured.is_finite()
+                    && m < CLUTTER_RANGE_M
+                    && (!o.predicted.is_finite() || m < f64::from(o.predicted) - 0.5)
+                {
+                    clutter_ranges.push(m);
+                }
+                if o.predicted.is_finite() {
+                    rows.push((
+                        self.blocks.of(r, f.scan),
+                        f64::from(o.power),
+                        o.measured.is_finite(),
+                        f64::from(o.predicted),
+                    ));
+                }
+            }
+        }
+        let (mut best, mut best_ll, mut best_p) = (0.0, f64::NEG_INFINITY, None);
+        for alpha in ALPHAS {
+            let mut attenuated: Vec<DetectionRow> = rows
+                .iter()
+                .map(|&(b, p, hit, range)| (b, p * (-2.0 * alpha * range).exp(), hit))
+                .collect();
+            sort_rows(&mut attenuated);
+            let (k, ll) = sweep_ll(&attenuated, keep, &|_| 1.0);
+            if ll > best_ll {
+                (best, best_ll, best_p) = (alpha, ll, power_at(&attenuated, k));
+            }
+        }
+        let clutter_like = clutter_ranges.len();
+        let blind = self
+            .current
+            .limits
+            .and_then(|l| l.min_range_m)
+            .unwrap_or(0.5);
+        // Droplet ranges are uniform from the blind zone out: the farthest from their 90th
+        // percentile (robust to the odd return of another cause).
+        clutter_ranges.sort_by(f64::total_cmp);
+        let max_m = if clutter_like >= 20 {
+            let q = clutter_ranges[clutter_like * 9 / 10];
+            (blind + (q - blind) / 0.9).clamp(1.0, CLUTTER_RANGE_M)
+        } else {
+            3.0
+        };
+        let min_m = blind.min(max_m);
+        let clutter = Clutter {
+            probability: 1.0,
+            min_m,
+            max_m,
+            reflectivity: CLUTTER_REFLECTIVITY,
+        };
+        let exposure: f64 = obs
+            .iter()
+            .flatten()
+            .zip(self.feats.iter().flatten())
+            .filter(|(o, f)| o.cast && !f.is_edge())
+            .map(|(o, _)| clutter.wins(o.predicted.is_finite().then_some(f64::from(o.power))))
+            .sum();
+        let probability = if exposure > 0.0 {
+            (clutter_like as f64 / exposure).min(1.0)
+        } else {
+            0.0
+        };
+        let effect = Effect::Weather {
+            extinction_per_m: best,
+            clutter_probability: probability,
+            clutter_max_range_m: max_m,
+            clutter_reflectivity: CLUTTER_REFLECTIVITY,
+        };
+        let threshold = best_p.map(|p| Effect::DetectionThreshold {
+            reference_range_m: (REFERENCE_REFLECTIVITY / p).sqrt(),
+            reference_reflectivity: REFERENCE_REFLECTIVITY,
+        });
+        let mut model = with_effect(self.current, effect.clone());
+        if let Some(t) = &threshold {
+            model = with_effect(&model, t.clone());
+        }
+        let scored = self.score_all(&self.cast(&model)?, random_of(&model));
+        let mut params = vec![
+            Param {
+                name: "extinction_per_m",
+                value: best,
+                interval: None,
+            },
+            Param {
+                name: "clutter_probability",
+                value: probability,
+                interval: None,
+            },
+            Param {
+                name: "clutter_max_range_m",
+                value: max_m,
+                interval: None,
+            },
+        ];
+        if let Some(Effect::DetectionThreshold {
+            reference_range_m, ..
+        }) = &threshold
+        {
+            params.push(Param {
+                name: "detection_threshold.reference_range_m (re-fitted)",
+                value: *reference_range_m,
+                interval: None,
+            });
+        }
+        let mut c = self.candidate(
+            "weather",
+            effect,
+            params,
+            best >= 0.002 || probability >= 0.002,
+            &scored,
+        );
+        c.refitted.extend(threshold);
+        Ok(c)
+    }
+}
