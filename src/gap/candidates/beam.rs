@@ -1,7 +1,10 @@
 //! The candidates of the beam and the echo: beam divergence fitted on a grid (the
 //! likelihood is not smooth in it), and the intensity's incidence dependence.
 
-use super::{clears, random_of, with_effect, Candidate, Fitting, Param, REFERENCE_REFLECTIVITY};
+use super::{
+    clears, random_of, refitted_threshold, with_effect, Candidate, Fitting, Param,
+    REFERENCE_REFLECTIVITY,
+};
 use crate::gap::bootstrap;
 use crate::gap::likelihood::{self, Scored};
 use crate::gap::observe::NONE;
@@ -144,16 +147,7 @@ impl Fitting<'_> {
                 interval: None,
             },
         ];
-        if let Some(Effect::DetectionThreshold {
-            reference_range_m, ..
-        }) = &refit
-        {
-            params.push(Param {
-                name: "detection_threshold.reference_range_m (re-fitted)",
-                value: *reference_range_m,
-                interval: None,
-            });
-        }
+        params.extend(refitted_threshold(refit.as_ref()));
         let mut c = self.candidate(
             "beam_divergence",
             make(h, v, n),

@@ -112,6 +112,21 @@ fn clears(value: f64, interval: Option<Interval>, floor: f64) -> bool {
     lo >= floor || hi <= -floor
 }
 
+/// A detection threshold re-fitted along with another effect, as a parameter of that
+/// candidate.
+fn refitted_threshold(threshold: Option<&Effect>) -> Option<Param> {
+    match threshold {
+        Some(Effect::DetectionThreshold {
+            reference_range_m, ..
+        }) => Some(Param {
+            name: "detection_threshold.reference_range_m (re-fitted)",
+            value: *reference_range_m,
+            interval: None,
+        }),
+        _ => None,
+    }
+}
+
 /// The reflectivity at which fitted detection thresholds are expressed (the specification
 /// sheets' "range at 10 % reflectivity").
 pub const REFERENCE_REFLECTIVITY: f64 = 0.10;

@@ -11,8 +11,8 @@
 //! strongest, its range the farthest such return.
 
 use super::{
-    power_at, random_of, sort_rows, sweep_ll, with_effect, Candidate, DetectionRow, Fitting, Param,
-    REFERENCE_REFLECTIVITY,
+    power_at, random_of, refitted_threshold, sort_rows, sweep_ll, with_effect, Candidate,
+    DetectionRow, Fitting, Param, REFERENCE_REFLECTIVITY,
 };
 use crate::gap::likelihood::Clutter;
 use crate::gap::GapError;
@@ -141,16 +141,7 @@ impl Fitting<'_> {
                 interval: None,
             },
         ];
-        if let Some(Effect::DetectionThreshold {
-            reference_range_m, ..
-        }) = &threshold
-        {
-            params.push(Param {
-                name: "detection_threshold.reference_range_m (re-fitted)",
-                value: *reference_range_m,
-                interval: None,
-            });
-        }
+        params.extend(refitted_threshold(threshold.as_ref()));
         let mut c = self.candidate(
             "weather",
             effect,
