@@ -120,3 +120,44 @@ pub fn resampled(values: &[(usize, f64)], counts: &[u32]) -> Vec<f64> {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blocks_number_the_runs_scans_in_order() {
+        let b = Blocks::new(&[45, 20, 1]);
+        assert_eq!(b.len(), 3 + 1 + 1);
+        assert_eq!(
+            (b.of(0, 0), b.of(0, 19), b.of(0, 20), b.of(0, 44)),
+            (0, 0, 1, 2)
+        );
+        assert_eq!((b.of(1, 0), b.of(1, 19), b.of(2, 0)), (3, 3, 4));
+        let r = b.resamples(7);
+        assert_eq!(r.len(), RESAMPLES);
+        assert!(r.iter().all(|c| c.iter().sum::<u32>() as usize == b.len()));
+        assert_eq!(r, b.resamples(7));
+    }
+
+    #[test]
+    fn weighted_median_counts_each_block_as_often_as_drawn() {
+        let v = [(0, 1.0), (0, 2.0), (1, 10.0), (2, 20.0)];
+        assert_eq!(weighted_median(&v, &[1, 1, 1]), Some(2.0));
+        // Block 0 drawn three times: its values dominate.
+        assert_eq!(weighted_median(&v, &[3, 0, 1]), Some(2.0));
+        assert_eq!(weighted_median(&v, &[0, 1, 2]), Some(20.0));
+        assert_eq!(weighted_median(&v, &[0, 0, 0]), None);
+        assert_eq!(resampled(&v, &[0, 2, 1]), vec![10.0, 10.0, 20.0]);
+    }
+
+    #[test]
+    fn a_sum_interval_covers_the_sum_and_excludes_zero_for_a_clear_gain() {
+        let per_block: Vec<f64> = (0..50).map(|i| 10.0 + f64::from(i % 5)).collect();
+        let b = Blocks::new(&[50 * BLOCK_SCANS]);
+        let (lo, hi) = sum_interval(&per_block, &b.resamples(1)).unwrap();
+        let total: f64 = per_block.iter().sum();
+        assert!(lo < total && total < hi && lo > 0.0, "{lo} {total} {hi}");
+        assert_eq!(interval(&mut [f64::NAN]), None);
+    }
+}

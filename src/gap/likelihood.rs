@@ -273,3 +273,58 @@ pub fn noise_from_differences(differences: &[f64], quantum_m: f64) -> Option<f64
     let var = s * s / 2.0 - quantum_m * quantum_m / 12.0 - TAU_M * TAU_M / 2.0;
     Some(var.max(0.0).sqrt())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    #[test]
+    fn range_noise_is_recovered_from_neighbour_differences_whatever_the_common_offset() {
+        // Residual = a slowly varying reference error common to neighbours + noise + quantum.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let quantum = 0.002;
+        for sigma in [0.0f64, 0.01, 0.03] {
+            let noise = Normal::new(0.0, sigma.max(1e-12)).unwrap();
+            let drift = Normal::new(0.0, 0.05).unwrap();
+            let diffs: Vec<f64> = (0..40_000)
+                .map(|_| {
+                    let common = drift.sample(&mut rng);
+                    let q = |x: f64| (x / quantum).round() * quantum;
+                    q(common + noise.sample(&mut rng)) - q(common + noise.sample(&mut rng))
+                })
+                .collect();
+            let fitted = noise_from_differences(&diffs, quantum).unwrap();
+            assert!(
+                (fitted - sigma).abs() < 0.05 * sigma + 1.5e-3,
+                "σ {sigma}: {fitted}"
+            );
+        }
+    }
+
+    #[test]
+    fn clutter_wins_only_where_it_outshines_the_target() {
+        let c = Clutter {
+            probability: 0.1,
+            min_m: 0.5,
+            max_m: 3.0,
+            reflectivity: 0.05,
+        };
+        assert_eq!(c.wins(None), 1.0);
+        // A bright close target (power 1): no droplet between 0.5 and 3 m outshines it.
+        assert_eq!(c.wins(Some(1.0)), 0.0);
+        // A target of power 0.05 / 2² is outshone by droplets nearer than 2 m.
+        assert!((c.wins(Some(0.05 / 4.0)) - 0.6).abs() < 1e-9);
+        assert_eq!(c.wins(Some(1e-9)), 1.0);
+    }
+
+    #[test]
+    fn robust_sigma_ignores_outliers() {
+        let mut v: Vec<f64> = (0..999).map(|i| f64::from(i % 3) - 1.0).collect();
+        v.extend([1e6, -1e6, 5e3]);
+        let s = robust_sigma(&v).unwrap();
+        assert!((s - 1.4826).abs() < 1e-9, "{s}");
+        assert_eq!(median(&mut []), None);
+    }
+}

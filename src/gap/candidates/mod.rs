@@ -579,3 +579,47 @@ impl Fitting<'_> {
         Ok(out)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_threshold_sweep_finds_the_power_below_which_returns_go_missing() {
+        // Powers 1..=1000 (×1e-6); returns below 300e-6 missing, one stray return below and one
+        // stray miss above.
+        let mut rows: Vec<DetectionRow> = (1..=1000)
+            .map(|i| (0, f64::from(i) * 1e-6, i >= 300))
+            .collect();
+        rows[10].2 = true;
+        rows[700].2 = false;
+        sort_rows(&mut rows);
+        let k = sweep(&rows, 1.0, &|_| 1.0);
+        let p = power_at(&rows, k).unwrap();
+        assert!((p - 299.5e-6).abs() < 1e-6, "{p}");
+        // No missing returns: no threshold.
+        let all: Vec<DetectionRow> = (1..=100).map(|i| (0, f64::from(i), true)).collect();
+        assert_eq!(power_at(&all, sweep(&all, 1.0, &|_| 1.0)), None);
+    }
+
+    #[test]
+    fn a_floor_is_cleared_only_by_the_whole_interval() {
+        assert!(clears(0.05, Some((0.04, 0.06)), 0.005));
+        assert!(clears(-0.05, Some((-0.06, -0.04)), 0.005));
+        assert!(!clears(0.05, Some((-0.01, 0.06)), 0.005));
+        assert!(!clears(0.004, None, 0.005));
+        assert!(clears(2.0, None, 1.0));
+    }
+
+    #[test]
+    fn adding_an_effect_replaces_one_of_the_same_name() {
+        let m = ModelFile::idealized();
+        let m = with_effect(&m, Effect::RangeBias { bias_m: 0.1 });
+        let m = with_effect(&m, Effect::RangeNoise { sigma_m: 0.01 });
+        let m = with_effect(&m, Effect::RangeBias { bias_m: 0.2 });
+        assert_eq!(m.effects.len(), 2);
+        assert!(m.effects.contains(&Effect::RangeBias { bias_m: 0.2 }));
+        let r = random_of(&m);
+        assert_eq!((r.sigma_m, r.dropout, r.clutter), (0.01, 0.0, None));
+    }
+}
