@@ -123,7 +123,7 @@ impl Frame<'_> {
                 let world =
                     body * self.mount * Point3::new(f64::from(q.x), f64::from(q.y), f64::from(q.z));
                 out.firings.push((
-                    firing_key(k, q.block, q.laser.0, q.return_type as u8),
+                    firing_key(k, q.time_offset_ns, q.laser.0, q.return_type as u8),
                     q.distance_m,
                 ));
                 out.all.push((world, q.distance_m));
@@ -150,11 +150,29 @@ impl Frame<'_> {
     }
 }
 
-/// A firing's identity within a scan: its packet's index in the scan, the block, the laser and
-/// the return type, in that order of significance.
-pub(super) fn firing_key(packet: usize, block: u8, laser: u8, return_type: u8) -> u64 {
-    ((packet as u64) << 24)
-        | (u64::from(block) << 16)
+/// A firing's identity within a scan: its packet's index in the scan, its time after the
+/// packet's first firing (ns), the laser and the return type, in that order of significance.
+/// The time, not the block: a 16-laser block holds two firing sequences, so block and laser
+/// name two firings (the key once kept only one of them); a laser fires once at a time, and
+/// measured and re-simulated packets share their firing times.
+pub(super) fn firing_key(packet: usize, time_offset_ns: u32, laser: u8, return_type: u8) -> u64 {
+    ((packet as u64) << 40)
+        | (u64::from(time_offset_ns & 0xff_ffff) << 16)
         | (u64::from(laser) << 8)
         | u64::from(return_type)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::firing_key;
+
+    #[test]
+    fn the_two_firing_sequences_of_a_16_laser_block_are_two_firings() {
+        // VLP-16: laser 3 fires at 6.912 µs and, in the block's second sequence, at 62.208 µs.
+        let (a, b) = (firing_key(0, 6_912, 3, 1), firing_key(0, 62_208, 3, 1));
+        assert_ne!(a, b);
+        // Ordered by packet first, then time, laser, return.
+        assert!(firing_key(1, 0, 0, 0) > firing_key(0, 1_400_000, 31, 3));
+        assert!(a < b && firing_key(0, 6_912, 3, 2) > a && firing_key(0, 6_912, 4, 0) > a);
+    }
 }
