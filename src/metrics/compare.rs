@@ -5,7 +5,7 @@
 //! rig's calibration and put into the scene frame at each firing's pose: the trajectory `check`
 //! smooths from the run (or a trajectory file), the lidar's mounting from the rig. Then per scan:
 //! the grid metrics over the last K scans ([`super::grid`]), the point metrics
-//! ([`super::points`]), the per-firing range residuals (same packet, block and laser), what the
+//! ([`super::points`]), the per-firing range residuals (same packet, firing time and laser), what the
 //! sensor sees of the scene's objects, and the ego's speed; over the drive: the calibration
 //! curve of OCR over cell sizes (Rosenberger et al. 2019, §5: a grid metric's cell size "has to
 //! be evaluated in any case") and the Fig. 5 trend of OCR against the mean distance to the
