@@ -39,8 +39,8 @@ pub struct GapArgs {
     /// denser sample of each).
     #[arg(long, default_value_t = 600_000)]
     firings: usize,
-    /// At most this many effects are added.
-    #[arg(long, default_value_t = 6)]
+    /// At most this many effects are added (the catalogue has ten).
+    #[arg(long, default_value_t = 10)]
     max_rounds: usize,
     /// Skip the full re-simulation of the validation runs for OCR^K and the traffic light
     /// (the decision rests on the per-firing likelihood either way).

@@ -61,6 +61,9 @@ pub struct RunData {
     /// The smoothed heading's 1σ error the check found, degrees: a mount yaw below it cannot
     /// be told from the trajectory's heading error.
     pub heading_sigma_deg: f64,
+    /// The uncertainty of the GNSS time offset the check estimated, ms: the trajectory's
+    /// timing is known to about this, so a lidar time offset below it cannot be told apart.
+    pub time_sigma_ms: f64,
     /// The sampled packets.
     pub packets: Vec<Sampled>,
     /// Scans in the run (or its part).
@@ -244,6 +247,7 @@ pub fn load_run(
         trajectory,
         verdict: report.verdict,
         heading_sigma_deg: report.accuracy.heading_sigma_deg,
+        time_sigma_ms: report.spatial.gnss_time_offset_sigma_ms.unwrap_or(0.0),
         packets,
         scans: scans.len(),
         range_quantum_m: model.distance_resolution_m(),

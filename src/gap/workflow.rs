@@ -427,6 +427,11 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
             .push(summary_line(&c, trial.as_ref(), &this, val.runs.len()));
         report.rounds.push(this);
         save(&opts.out, &model, &report)?;
+        if round == opts.max_rounds {
+            report.summary.push(format!(
+                "stopped after {round} rounds (--max-rounds): candidates may be left; run again from model.fitted.toml"
+            ));
+        }
     }
     report.finished = true;
     save(&opts.out, &model, &report)?;

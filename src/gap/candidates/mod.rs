@@ -92,7 +92,10 @@ pub const FLOORS: [(&str, &str); 10] = [
     ),
     ("beam_divergence", "horizontal ≥ 0.5 mrad"),
     ("motion_distortion", "none (a switch)"),
-    ("time_offset", "|offset| ≥ 1 ms"),
+    (
+        "time_offset",
+        "|offset| ≥ the larger of 1 ms and the uncertainty of the GNSS time offset `check` found",
+    ),
     (
         "mount_misalignment",
         "largest angle ≥ 0.1° (the smoothed RTK heading is good to about that)",
@@ -528,13 +531,20 @@ impl Fitting<'_> {
         }
         if !has("time_offset") {
             progress("time_offset");
+            // The trajectory's own timing is known only to the GNSS offset's uncertainty.
+            let time_floor = self
+                .runs
+                .iter()
+                .map(|r| r.time_sigma_ms)
+                .filter(|s| s.is_finite())
+                .fold(1.0, f64::max);
             out.push(self.geometric(
                 "time_offset",
                 &["offset_ms"],
                 &|t| Effect::TimeOffset { offset_ms: t[0] },
                 &[2.0],
                 &[60.0],
-                &|t, i| clears(t[0], i[0], 1.0),
+                &|t, i| clears(t[0], i[0], time_floor),
             )?);
         }
         if !has("mount_misalignment") {
