@@ -15,12 +15,11 @@ use crate::reference::check::{check_with_trajectory, Verdict};
 use crate::rig::Rig;
 use crate::scene::pose::Trajectory;
 use crate::scene::Scene;
-use crate::sim::lidar::{Firing, LidarSim, PacketTime, SimStats};
+use crate::sim::lidar::{beam_frame, Firing, LidarSim, PacketTime, SimStats};
 use crate::sim::model::{Effect, ModelFile};
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::packet::{BLOCKS, CHANNELS};
 use hilrig_velodyne::DataPacket;
-use nalgebra::Vector3;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -352,16 +351,7 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                     let d = f.direction;
                     let centre = scene.cast(&f.origin, &d, 0.0, max, &actors);
                     // Probe rays across (u) and along elevation (w).
-                    let u = {
-                        let c = d.cross(&Vector3::z());
-                        let l = c.norm();
-                        if l > 1e-9 {
-                            c / l
-                        } else {
-                            Vector3::x()
-                        }
-                    };
-                    let w = u.cross(&d);
+                    let (u, w) = beam_frame(&d);
                     let mut step = 0.0f64;
                     for (a, b) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
                         let pd = (d + u * (a * PROBE_RAD) + w * (b * PROBE_RAD)).normalize();

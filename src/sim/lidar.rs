@@ -95,6 +95,15 @@ pub struct Firing {
     pub reported: Option<Echo>,
 }
 
+/// An orthonormal frame across the unit beam direction `d`: `u` horizontal, `w` "up" across
+/// the beam (the axes of the footprint's horizontal and vertical divergence).
+pub fn beam_frame(d: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let c = d.cross(&Vector3::z());
+    let l = c.norm();
+    let u = if l > 1e-9 { c / l } else { Vector3::x() };
+    (u, u.cross(d))
+}
+
 /// A lidar in a scene, on a vehicle, with a model.
 pub struct LidarSim<'a> {
     scene: &'a Scene,
@@ -245,17 +254,7 @@ impl<'a> LidarSim<'a> {
                 }
             }
             Some((offsets, separation)) => {
-                // Orthonormal frame around the beam: u horizontal, w "up" across the beam.
-                let u = {
-                    let c = d.cross(&Vector3::z());
-                    let l = c.norm();
-                    if l > 1e-9 {
-                        c / l
-                    } else {
-                        Vector3::x()
-                    }
-                };
-                let w = u.cross(d);
+                let (u, w) = beam_frame(d);
                 let share = 1.0 / offsets.len() as f64;
                 let mut subs: Vec<Echo> = Vec::with_capacity(offsets.len());
                 for &(a, b) in offsets {

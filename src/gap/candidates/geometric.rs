@@ -122,20 +122,7 @@ impl Fitting<'_> {
     ) -> Result<Candidate, GapError> {
         let (theta, intervals) = match self.gauss_newton(make, h, max_step) {
             Ok(x) => x,
-            Err(e) => {
-                return Ok(Candidate {
-                    effect,
-                    fitted: None,
-                    refitted: Vec::new(),
-                    params: vec![],
-                    gain: 0.0,
-                    gain_interval: None,
-                    gain_per_1000_firings: 0.0,
-                    above_floor: false,
-                    eligible: false,
-                    note: Some(e.to_string()),
-                })
-            }
+            Err(e) => return Ok(Candidate::unfitted(effect, e.to_string())),
         };
         let fitted = make(&theta);
         let above = floor(&theta, &intervals);

@@ -77,6 +77,24 @@ pub struct Candidate {
     pub note: Option<String>,
 }
 
+impl Candidate {
+    /// A candidate that could not be fitted, with why.
+    fn unfitted(effect: &'static str, note: String) -> Candidate {
+        Candidate {
+            effect,
+            fitted: None,
+            refitted: Vec::new(),
+            params: vec![],
+            gain: 0.0,
+            gain_interval: None,
+            gain_per_1000_firings: 0.0,
+            above_floor: false,
+            eligible: false,
+            note: Some(note),
+        }
+    }
+}
+
 /// Resolution floors: the smallest value of each effect the workflow adds; the fitted value's
 /// bootstrap interval must clear it (see `clears`). Below them, the
 /// effect is indistinguishable from RTK noise (1-2 cm), survey error and quantisation (2 mm),
@@ -456,18 +474,10 @@ impl Fitting<'_> {
         let range_of = |p: f64| (REFERENCE_REFLECTIVITY / p).sqrt();
         let reference_reflectivity = REFERENCE_REFLECTIVITY;
         let Some(p_min) = power_at(&rows, k) else {
-            return Ok(Candidate {
-                effect: "detection_threshold",
-                fitted: None,
-                refitted: Vec::new(),
-                params: vec![],
-                gain: 0.0,
-                gain_interval: None,
-                gain_per_1000_firings: 0.0,
-                above_floor: false,
-                eligible: false,
-                note: Some("no threshold explains the missing returns better than none".into()),
-            });
+            return Ok(Candidate::unfitted(
+                "detection_threshold",
+                "no threshold explains the missing returns better than none".into(),
+            ));
         };
         let mut boots: Vec<f64> = self
             .resamples
