@@ -22,8 +22,11 @@
 //! the reference data's own errors and the candidate is not eligible (see [`FLOORS`]).
 
 mod beam;
+mod detection;
 mod geometric;
 mod weather;
+
+use detection::{power_at, sort_rows, sweep, sweep_ll};
 
 use super::bootstrap::{self, Blocks};
 use super::likelihood::{self, Random, Scored};
@@ -151,53 +154,6 @@ fn refitted_threshold(threshold: Option<&Effect>) -> Option<Param> {
 /// The reflectivity at which fitted detection thresholds are expressed (the specification
 /// sheets' "range at 10 % reflectivity").
 pub const REFERENCE_REFLECTIVITY: f64 = 0.10;
-
-fn sort_rows(rows: &mut Vec<DetectionRow>) {
-    rows.retain(|r| r.1.is_finite() && r.1 > 0.0);
-    rows.sort_by(|a, b| a.1.total_cmp(&b.1));
-}
-
-/// The index k into `rows` (sorted by power) below which predicting every return missing
-/// explains the detections best, by the likelihood's detection term: returned rows below pay
-/// ln ε, missing ones ln(1 − ε); rows above pay the model's. `weight(i)` weights row i (the
-/// bootstrap's block counts).
-fn sweep(rows: &[DetectionRow], keep: f64, weight: &dyn Fn(usize) -> f64) -> usize {
-    sweep_ll(rows, keep, weight).0
-}
-
-/// [`sweep`] with the detection log-likelihood at the best split.
-fn sweep_ll(rows: &[DetectionRow], keep: f64, weight: &dyn Fn(usize) -> f64) -> (usize, f64) {
-    let (eps, p_in) = (likelihood::EPS, keep * (1.0 - likelihood::EPS));
-    let (lh_in, lm_in) = (p_in.ln(), (1.0 - p_in).max(1e-12).ln());
-    let (lh_out, lm_out) = (eps.ln(), (1.0 - eps).ln());
-    let mut above: f64 = rows
-        .iter()
-        .enumerate()
-        .map(|(i, r)| weight(i) * if r.2 { lh_in } else { lm_in })
-        .sum();
-    let mut below = 0.0;
-    let (mut best, mut best_ll) = (0usize, above);
-    for (i, r) in rows.iter().enumerate() {
-        let w = weight(i);
-        above -= w * if r.2 { lh_in } else { lm_in };
-        below += w * if r.2 { lh_out } else { lm_out };
-        if below + above > best_ll {
-            best_ll = below + above;
-            best = i + 1;
-        }
-    }
-    (best, best_ll)
-}
-
-/// The power between row k − 1 and row k (geometric mean); `None` for k = 0.
-fn power_at(rows: &[DetectionRow], k: usize) -> Option<f64> {
-    if k == 0 || rows.is_empty() {
-        return None;
-    }
-    let lo = rows[k - 1].1;
-    let hi = rows.get(k).map_or(lo, |r| r.1);
-    Some((lo * hi).sqrt())
-}
 
 /// The parameterization runs with their features and the current model's evaluation.
 pub struct Fitting<'a> {
