@@ -68,7 +68,7 @@ pub struct LidarConfig {
     /// UDP port of position packets.
     #[serde(default = "default_position_port")]
     pub position_port: u16,
-    /// Calibration file (ros-drivers YAML), optional.
+    /// Calibration file (ros-drivers YAML or VeloView XML), optional.
     pub calibration: Option<PathBuf>,
     /// Azimuth where one rotation (one VelodyneScan message) ends, degrees.
     #[serde(default)]
@@ -330,7 +330,8 @@ impl Rig {
                 .map_err(|e| e.to_string())?,
             None if model.needs_calibration_file() => {
                 return Err(format!(
-                    "the {model} needs its unit's own calibration (each laser's angles and offsets differ by up to a degree and centimetres from the nominal ones): set [lidar] calibration = \"FILE\" (a ros-drivers YAML file) in the rig"
+                    "the {model} needs its unit's own calibration ({}): set [lidar] calibration = \"FILE\" (a ros-drivers YAML or VeloView XML file) in the rig",
+                    model.calibration_file_reason().unwrap_or_default()
                 ))
             }
             None => hilrig_velodyne::Calibration::builtin(model),

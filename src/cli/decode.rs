@@ -44,7 +44,7 @@ pub struct DecodeArgs {
     /// (vlp16, puck-hires, vlp32c, hdl32e).
     #[arg(long)]
     model: Option<String>,
-    /// Calibration file in the ros-drivers YAML format (lidar).
+    /// Calibration file of the unit (lidar): ros-drivers YAML or VeloView XML.
     #[arg(long)]
     calibration: Option<PathBuf>,
     /// DBC file for --kind can.
@@ -136,6 +136,7 @@ pub fn run(args: DecodeArgs) -> Result<ExitCode> {
         Ok(s) => s,
         Err(
             e @ (hilrig::decode::lidar::LidarError::UnknownModel { .. }
+            | hilrig::decode::lidar::LidarError::AmbiguousModel { .. }
             | hilrig::decode::lidar::LidarError::NeedsCalibration { .. }),
         ) => {
             // One line: which byte, where, and what is supported (exit 2: the input, not a

@@ -162,8 +162,18 @@ pub enum LidarError {
         /// Product byte.
         product: u8,
     },
+    /// The product byte names two models and no model was given.
+    #[error("data packet at byte {offset}: product byte {product:#04x} is written by both the {} and the {}, which differ in geometry; say which with --model ({} or {}) or in the rig's [lidar] model", models[0], models[1], models[0], models[1])]
+    AmbiguousModel {
+        /// Record offset.
+        offset: u64,
+        /// Product byte.
+        product: u8,
+        /// The models it may stand for.
+        models: &'static [Model],
+    },
     /// The model's data need the unit's calibration file and none was given.
-    #[error("the {model} needs its unit's own calibration (each laser's angles and offsets differ by up to a degree and centimetres from the nominal ones): give it with --calibration FILE (a ros-drivers YAML file)")]
+    #[error("the {model} needs its unit's own calibration ({}): give it with --calibration FILE (a ros-drivers YAML or VeloView XML file)", model.calibration_file_reason().unwrap_or_default())]
     NeedsCalibration {
         /// The model.
         model: Model,
@@ -262,10 +272,19 @@ pub fn decode_capture<R: Read + Send + 'static>(
             let model = match options.model.or_else(|| Model::from_product(pkt.product)) {
                 Some(m) => m,
                 None => {
-                    return Err(LidarError::UnknownModel {
-                        offset: item.offset,
-                        product: pkt.product.0,
-                    })
+                    let models = Model::ambiguous_product(pkt.product);
+                    return Err(if models.len() >= 2 {
+                        LidarError::AmbiguousModel {
+                            offset: item.offset,
+                            product: pkt.product.0,
+                            models,
+                        }
+                    } else {
+                        LidarError::UnknownModel {
+                            offset: item.offset,
+                            product: pkt.product.0,
+                        }
+                    });
                 }
             };
             summary.model = Some(model);

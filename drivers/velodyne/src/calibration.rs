@@ -1,9 +1,25 @@
-//! Per-laser geometry: built in from the manuals, or read from a ros-drivers calibration YAML.
+//! Per-laser geometry: built in from the manuals, or read from the unit's calibration file.
 //!
-//! The YAML format is the one `velodyne_pointcloud` ships (`lasers: [{laser_id, rot_correction,
-//! vert_correction, vert_offset_correction, horiz_offset_correction, dist_correction, ...}]`,
-//! angles in radians, lengths in metres), which is also what VeloView's XML converts to. It is the
-//! format engineers already have for their individual sensors.
+//! Two file formats are read, the two engineers have for their sensors:
+//! - ros-drivers YAML, the one `velodyne_pointcloud` ships (`lasers: [{laser_id, rot_correction,
+//!   vert_correction, vert_offset_correction, horiz_offset_correction, dist_correction, ...}]`,
+//!   angles in radians, lengths in metres);
+//! - VeloView XML (`db.xml`, the file Velodyne delivers with each HDL-64E and VeloView ships for
+//!   every model: boost-serialized `<DB>` with `<distLSB_>` and `<points_>` of `<px>` lasers,
+//!   angles in degrees, lengths in centimetres). ros-drivers' `gen_calibration.py` converts it
+//!   to the YAML by exactly those unit changes, and so does this reader.
+//!
+//! Points follow the ros-drivers and VeloView formulas (the HDL-64E manuals'): the vertical
+//! offset moves the beam's origin perpendicular to the beam, the horizontal offset sideways.
+//!
+//! **Two-point distance correction** (HDL-64E): the far-point correction `dist_correction`
+//! holds beyond 25.04 m; nearer, x and y each take a correction interpolated linearly towards
+//! the near-point corrections `dist_correction_x` (at |x| = 2.4 m) and `dist_correction_y` (at
+//! |y| = 1.93 m), and z takes y's, as ros-drivers' `rawdata.cc` does. A YAML file applies it when
+//! it says `two_pt_correction_available: true` (ros-drivers' switch: without it ros-drivers
+//! ignores the near-point values, and so does hilrig); an XML file when its near-point values
+//! are set and differ from the far one (VeloView's rule). velodyne-decoder applies it only below
+//! 25.04 m and gives z the mean of the two; the interop tests measure that difference.
 
 use crate::error::CalibrationError;
 use crate::model::Model;
@@ -25,12 +41,42 @@ pub struct LaserCalibration {
     pub z_offset_m: f64,
     /// Horizontal offset of the beam origin in metres.
     pub horizontal_offset_m: f64,
-    /// Distance added to every measurement in metres.
+    /// Distance added to every measurement in metres (the far-point correction).
     pub distance_correction_m: f64,
+    /// The HDL-64E's near-point corrections, when the file has them and asks for them.
+    pub two_point: Option<TwoPointCorrection>,
     /// Ring: index of the laser when sorted by elevation, lowest 0.
     pub ring: u8,
     pub(crate) sin_vert: f64,
     pub(crate) cos_vert: f64,
+}
+
+/// The near-point distance corrections of a two-point calibration (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TwoPointCorrection {
+    /// Correction in metres at |x| = 2.4 m (Velodyne's x: sideways).
+    pub x_m: f64,
+    /// Correction in metres at |y| = 1.93 m (Velodyne's y: forward).
+    pub y_m: f64,
+}
+
+/// Where the near-point corrections are given, and where the far one holds (metres): the
+/// HDL-64E manual's calibration distances, as ros-drivers and VeloView use them.
+const NEAR_X_M: f64 = 2.4;
+const NEAR_Y_M: f64 = 1.93;
+const FAR_M: f64 = 25.04;
+
+impl TwoPointCorrection {
+    /// The corrections to add to a distance that already carries the far-point correction
+    /// `far_m`, for a point whose Velodyne-frame |x| and |y| (sideways and forward) are `xx`
+    /// and `yy`: (for x, for y and z). Linear in |x| and |y| between the near and far points,
+    /// and beyond them, as ros-drivers computes it.
+    #[inline]
+    pub fn corrections(&self, far_m: f64, xx: f64, yy: f64) -> (f64, f64) {
+        let cx = (far_m - self.x_m) * (xx - NEAR_X_M) / (FAR_M - NEAR_X_M) + self.x_m - far_m;
+        let cy = (far_m - self.y_m) * (yy - NEAR_Y_M) / (FAR_M - NEAR_Y_M) + self.y_m - far_m;
+        (cx, cy)
+    }
 }
 
 /// A laser beam in the sensor frame (x forward, y left, z up).
@@ -68,6 +114,17 @@ struct YamlFile {
     distance_resolution: Option<f64>,
 }
 
+/// One laser as a file gives it, in metres and radians (both formats end up here).
+struct FileLaser {
+    laser_id: usize,
+    rot_correction: f64,
+    vert_correction: f64,
+    vert_offset_correction: f64,
+    horiz_offset_correction: f64,
+    dist_correction: f64,
+    two_point: Option<TwoPointCorrection>,
+}
+
 // Unknown keys are tolerated here on purpose: ros-drivers files carry intensity fields
 // (focal_distance, min_intensity, ...) that do not change geometry.
 #[derive(Deserialize)]
@@ -86,6 +143,8 @@ struct YamlLaser {
     dist_correction_x: Option<f64>,
     #[serde(default)]
     dist_correction_y: Option<f64>,
+    #[serde(default)]
+    two_pt_correction_available: bool,
 }
 
 fn laser(vertical_rad: f64, rot: f64, vo: f64, ho: f64, dc: f64) -> LaserCalibration {
@@ -96,6 +155,7 @@ fn laser(vertical_rad: f64, rot: f64, vo: f64, ho: f64, dc: f64) -> LaserCalibra
         z_offset_m: 0.0,
         horizontal_offset_m: ho,
         distance_correction_m: dc,
+        two_point: None,
         ring: 0,
         sin_vert: vertical_rad.sin(),
         cos_vert: vertical_rad.cos(),
@@ -126,7 +186,10 @@ impl Calibration {
     /// interpolated firing azimuth): its origin in the sensor frame and its unit direction. A
     /// return at range `r` along it is the point the decoder computes for the raw distance whose
     /// metres ([`Calibration::metres`]) are `r`. The simulator casts exactly this ray, so that
-    /// decoding simulated packets puts every point back on the ray it came from.
+    /// decoding simulated packets puts every point back on the ray it came from. (Except for a
+    /// two-point calibration's near-range terms, which one raw count cannot undo for x and y at
+    /// once: within 25 m such a laser's points sit up to the difference of its near and far
+    /// corrections off the ray.)
     #[inline]
     pub fn beam(&self, laser: usize, azimuth_hundredths: f64) -> Beam {
         let cal = &self.lasers[laser];
@@ -170,8 +233,111 @@ impl Calibration {
     pub fn from_yaml(text: &str, model: Model) -> Result<Calibration, CalibrationError> {
         let file: YamlFile =
             serde_yaml::from_str(text).map_err(|e| CalibrationError::Yaml(e.to_string()))?;
-        let n = file.lasers.len();
-        if let Some(declared) = file.num_lasers {
+        let mut lasers = Vec::with_capacity(file.lasers.len());
+        for l in &file.lasers {
+            let two_point = if l.two_pt_correction_available {
+                match (l.dist_correction_x, l.dist_correction_y) {
+                    (Some(x_m), Some(y_m)) => Some(TwoPointCorrection { x_m, y_m }),
+                    _ => {
+                        return Err(CalibrationError::Inconsistent(format!(
+                            "laser {} asks for the two-point correction but lacks dist_correction_x or dist_correction_y",
+                            l.laser_id
+                        )))
+                    }
+                }
+            } else {
+                None
+            };
+            lasers.push(FileLaser {
+                laser_id: l.laser_id,
+                rot_correction: l.rot_correction,
+                vert_correction: l.vert_correction,
+                vert_offset_correction: l.vert_offset_correction,
+                horiz_offset_correction: l.horiz_offset_correction,
+                dist_correction: l.dist_correction,
+                two_point,
+            });
+        }
+        Calibration::from_file_lasers(&lasers, file.num_lasers, file.distance_resolution, model)
+    }
+
+    /// Parses a VeloView XML calibration (`db.xml`) for a model: degrees and centimetres,
+    /// converted as ros-drivers' `gen_calibration.py` converts them.
+    pub fn from_veloview_xml(text: &str, model: Model) -> Result<Calibration, CalibrationError> {
+        // VeloView's files start with `<!DOCTYPE boost_serialization>`; roxmltree never
+        // fetches external entities, so allowing the declaration is safe.
+        let options = roxmltree::ParsingOptions {
+            allow_dtd: true,
+            ..roxmltree::ParsingOptions::default()
+        };
+        let doc = roxmltree::Document::parse_with_options(text, options)
+            .map_err(|e| CalibrationError::Xml(e.to_string()))?;
+        let bad = |m: String| CalibrationError::Xml(m);
+        let number = |node: roxmltree::Node, what: &str| -> Result<f64, CalibrationError> {
+            let t = node.text().unwrap_or("").trim();
+            t.parse::<f64>().map_err(|_| {
+                bad(format!(
+                    "<{what}> holds {t:?}, not a number (line {})",
+                    doc.text_pos_at(node.range().start).row
+                ))
+            })
+        };
+        let resolution = match doc.descendants().find(|n| n.has_tag_name("distLSB_")) {
+            Some(n) => Some(number(n, "distLSB_")? * 0.01),
+            None => None,
+        };
+        let mut lasers = Vec::new();
+        for px in doc.descendants().filter(|n| n.has_tag_name("px")) {
+            let field = |tag: &str| -> Result<Option<f64>, CalibrationError> {
+                match px.children().find(|c| c.has_tag_name(tag)) {
+                    Some(n) => number(n, tag).map(Some),
+                    None => Ok(None),
+                }
+            };
+            let line = doc.text_pos_at(px.range().start).row;
+            let id =
+                field("id_")?.ok_or_else(|| bad(format!("a <px> without <id_> (line {line})")))?;
+            if !(id >= 0.0 && id.fract() == 0.0 && id < 1024.0) {
+                return Err(bad(format!(
+                    "<id_> {id} is not a laser number (line {line})"
+                )));
+            }
+            let vert = field("vertCorrection_")?
+                .ok_or_else(|| bad(format!("laser {id} has no <vertCorrection_> (line {line})")))?;
+            let cm = |tag: &str| -> Result<f64, CalibrationError> {
+                Ok(field(tag)?.unwrap_or(0.0) * 0.01)
+            };
+            let dc = cm("distCorrection_")?;
+            let (dcx, dcy) = (cm("distCorrectionX_")?, cm("distCorrectionY_")?);
+            let two_point = ((dcx != 0.0 || dcy != 0.0) && (dcx != dc || dcy != dc))
+                .then_some(TwoPointCorrection { x_m: dcx, y_m: dcy });
+            lasers.push(FileLaser {
+                laser_id: id as usize,
+                rot_correction: field("rotCorrection_")?.unwrap_or(0.0).to_radians(),
+                vert_correction: vert.to_radians(),
+                vert_offset_correction: cm("vertOffsetCorrection_")?,
+                horiz_offset_correction: cm("horizOffsetCorrection_")?,
+                dist_correction: dc,
+                two_point,
+            });
+        }
+        if lasers.is_empty() {
+            return Err(bad(
+                "no <px> lasers found (expected <DB><points_><item><px>...)".into(),
+            ));
+        }
+        Calibration::from_file_lasers(&lasers, None, resolution, model)
+    }
+
+    /// Checks a file's lasers against the model and builds the calibration.
+    fn from_file_lasers(
+        file: &[FileLaser],
+        declared: Option<usize>,
+        resolution: Option<f64>,
+        model: Model,
+    ) -> Result<Calibration, CalibrationError> {
+        let n = file.len();
+        if let Some(declared) = declared {
             if declared != n {
                 return Err(CalibrationError::Inconsistent(format!(
                     "num_lasers is {declared} but {n} lasers are listed"
@@ -185,7 +351,7 @@ impl Calibration {
             )));
         }
         let mut slots: Vec<Option<LaserCalibration>> = vec![None; n];
-        for l in &file.lasers {
+        for l in file {
             if l.laser_id >= n {
                 return Err(CalibrationError::Inconsistent(format!(
                     "laser_id {} is out of range 0..{n}",
@@ -198,40 +364,35 @@ impl Calibration {
                     l.laser_id
                 )));
             }
-            let two_point = [l.dist_correction_x, l.dist_correction_y]
-                .iter()
-                .any(|v| v.is_some_and(|v| (v - l.dist_correction).abs() > 1e-9 && v != 0.0));
-            if two_point {
-                return Err(CalibrationError::Unsupported(format!(
-                    "two-point distance corrections (dist_correction_x/y) on laser {}",
-                    l.laser_id
-                )));
-            }
+            let tp = l.two_point.map_or([0.0; 2], |t| [t.x_m, t.y_m]);
             let values = [
                 l.rot_correction,
                 l.vert_correction,
                 l.vert_offset_correction,
                 l.horiz_offset_correction,
                 l.dist_correction,
+                tp[0],
+                tp[1],
             ];
-            if values.iter().any(|v| !v.is_finite()) {
+            if values.iter().any(|v| !v.is_finite() || v.abs() > 1e3) {
                 return Err(CalibrationError::Inconsistent(format!(
-                    "laser {} has a non-finite value",
+                    "laser {} has a value that is not finite or not plausible",
                     l.laser_id
                 )));
             }
-            slots[l.laser_id] = Some(laser(
-                l.vert_correction,
-                l.rot_correction,
-                l.vert_offset_correction,
-                l.horiz_offset_correction,
-                l.dist_correction,
-            ));
+            slots[l.laser_id] = Some(LaserCalibration {
+                two_point: l.two_point,
+                ..laser(
+                    l.vert_correction,
+                    l.rot_correction,
+                    l.vert_offset_correction,
+                    l.horiz_offset_correction,
+                    l.dist_correction,
+                )
+            });
         }
         let lasers = slots.into_iter().flatten().collect();
-        let res = file
-            .distance_resolution
-            .unwrap_or(model.distance_resolution_m());
+        let res = resolution.unwrap_or(model.distance_resolution_m());
         if !(res > 0.0 && res < 0.1) {
             return Err(CalibrationError::Inconsistent(format!(
                 "distance_resolution {res} m is not plausible"
@@ -249,7 +410,21 @@ impl Calibration {
             path: path.display().to_string(),
             source: e,
         })?;
-        Calibration::from_yaml(&text, model)
+        Calibration::from_text(&text, model)
+    }
+
+    /// Parses a calibration file's text, VeloView XML or ros-drivers YAML, told apart by their
+    /// first character (`<` starts every XML document; YAML cannot start with it).
+    pub fn from_text(text: &str, model: Model) -> Result<Calibration, CalibrationError> {
+        if text
+            .trim_start_matches('\u{feff}')
+            .trim_start()
+            .starts_with('<')
+        {
+            Calibration::from_veloview_xml(text, model)
+        } else {
+            Calibration::from_yaml(text, model)
+        }
     }
 
     fn with_rings(mut lasers: Vec<LaserCalibration>, distance_resolution_m: f64) -> Calibration {
@@ -273,8 +448,14 @@ impl Calibration {
             self.lasers.len()
         );
         for (id, l) in self.lasers.iter().enumerate() {
+            let two_point = l.two_point.map_or(String::new(), |t| {
+                format!(
+                    ", dist_correction_x: {}, dist_correction_y: {}, two_pt_correction_available: true",
+                    t.x_m, t.y_m
+                )
+            });
             s.push_str(&format!(
-                "- {{laser_id: {id}, rot_correction: {}, vert_correction: {}, vert_offset_correction: {}, horiz_offset_correction: {}, dist_correction: {}}}\n",
+                "- {{laser_id: {id}, rot_correction: {}, vert_correction: {}, vert_offset_correction: {}, horiz_offset_correction: {}, dist_correction: {}{two_point}}}\n",
                 l.rot_correction_rad,
                 l.vertical_rad,
                 // A pure z shift has no exact ros-drivers equivalent; vo cos ω = dz keeps z exact
@@ -321,6 +502,148 @@ mod tests {
         assert!(
             e.to_string()
                 .contains("16 lasers listed, but a hdl32e has 32"),
+            "{e}"
+        );
+    }
+
+    /// A calibration written as VeloView writes `db.xml` (degrees, centimetres).
+    fn veloview_xml(c: &Calibration) -> String {
+        let mut s = format!(
+            "<?xml version=\"1.0\" encoding=\"UTF-8\" standalone=\"yes\" ?>\n<!DOCTYPE boost_serialization>\n<boost_serialization signature=\"serialization::archive\" version=\"4\">\n<DB class_id=\"0\" tracking_level=\"0\" version=\"0\">\n\t<distLSB_>{}</distLSB_>\n\t<points_ class_id=\"5\" tracking_level=\"0\" version=\"0\">\n\t\t<count>{}</count>\n",
+            c.distance_resolution_m * 100.0,
+            c.lasers.len()
+        );
+        for (id, l) in c.lasers.iter().enumerate() {
+            let (x, y) = l.two_point.map_or((0.0, 0.0), |t| (t.x_m, t.y_m));
+            s.push_str(&format!(
+                "\t\t<item><px><id_>{id}</id_><rotCorrection_>{}</rotCorrection_><vertCorrection_>{}</vertCorrection_><distCorrection_>{}</distCorrection_><distCorrectionX_>{}</distCorrectionX_><distCorrectionY_>{}</distCorrectionY_><vertOffsetCorrection_>{}</vertOffsetCorrection_><horizOffsetCorrection_>{}</horizOffsetCorrection_><focalDistance_>0</focalDistance_><focalSlope_>0</focalSlope_></px></item>\n",
+                l.rot_correction_rad.to_degrees(),
+                l.vertical_rad.to_degrees(),
+                l.distance_correction_m * 100.0,
+                x * 100.0,
+                y * 100.0,
+                l.vertical_offset_m * 100.0,
+                l.horizontal_offset_m * 100.0,
+            ));
+        }
+        s + "\t</points_>\n</DB>\n</boost_serialization>\n"
+    }
+
+    /// An HDL-64E calibration as real units have them: offsets of centimetres, far corrections
+    /// over a metre, near-point corrections a few centimetres off the far one.
+    fn real_looking_64e() -> Calibration {
+        let mut c = Calibration::builtin(Model::Hdl64eS3);
+        for (i, l) in c.lasers.iter_mut().enumerate() {
+            let k = i as f64;
+            l.rot_correction_rad = 0.08 * (0.7 * k).sin();
+            l.vertical_offset_m = 0.2 + 0.01 * (0.3 * k).cos();
+            l.horizontal_offset_m = if i % 2 == 0 { 0.026 } else { -0.026 };
+            l.distance_correction_m = 1.3 + 0.1 * (0.9 * k).sin();
+            l.two_point = Some(TwoPointCorrection {
+                x_m: l.distance_correction_m + 0.04 * (1.1 * k).cos(),
+                y_m: l.distance_correction_m - 0.03 * (0.5 * k).sin(),
+            });
+        }
+        c
+    }
+
+    #[test]
+    fn veloview_xml_reads_as_its_yaml_conversion() {
+        let c = real_looking_64e();
+        let xml = Calibration::from_text(&veloview_xml(&c), Model::Hdl64eS3).unwrap();
+        let yaml = Calibration::from_text(&c.to_yaml(), Model::Hdl64eS3).unwrap();
+        assert_eq!(xml.lasers.len(), 64);
+        assert!((xml.distance_resolution_m - 0.002).abs() < 1e-12);
+        for ((a, b), o) in xml.lasers.iter().zip(&yaml.lasers).zip(&c.lasers) {
+            for (u, v) in [
+                (a.vertical_rad, o.vertical_rad),
+                (a.rot_correction_rad, o.rot_correction_rad),
+                (a.vertical_offset_m, o.vertical_offset_m),
+                (a.horizontal_offset_m, o.horizontal_offset_m),
+                (a.distance_correction_m, o.distance_correction_m),
+                (a.two_point.unwrap().x_m, o.two_point.unwrap().x_m),
+                (a.two_point.unwrap().y_m, b.two_point.unwrap().y_m),
+                (b.vertical_offset_m, o.vertical_offset_m),
+            ] {
+                assert!((u - v).abs() < 1e-9, "{u} vs {v}");
+            }
+            assert_eq!(a.ring, b.ring);
+        }
+    }
+
+    #[test]
+    fn two_point_is_applied_only_where_the_file_asks() {
+        let c = real_looking_64e();
+        // ros-drivers' switch: near-point values without `two_pt_correction_available` are
+        // ignored.
+        let no_switch = c
+            .to_yaml()
+            .replace(", two_pt_correction_available: true", "");
+        let y = Calibration::from_yaml(&no_switch, Model::Hdl64eS3).unwrap();
+        assert!(y.lasers.iter().all(|l| l.two_point.is_none()));
+        // VeloView's rule: near-point values equal to the far one (or zero) are no correction.
+        let mut flat = c.clone();
+        for l in &mut flat.lasers {
+            l.two_point = Some(TwoPointCorrection {
+                x_m: l.distance_correction_m,
+                y_m: l.distance_correction_m,
+            });
+        }
+        let x = Calibration::from_veloview_xml(&veloview_xml(&flat), Model::Hdl64eS3).unwrap();
+        assert!(x.lasers.iter().all(|l| l.two_point.is_none()));
+        let half = no_switch.replacen(
+            "dist_correction_x",
+            "two_pt_correction_available: true, unused",
+            1,
+        );
+        let e = Calibration::from_yaml(&half, Model::Hdl64eS3).unwrap_err();
+        assert!(e.to_string().contains("lacks dist_correction_x"), "{e}");
+    }
+
+    #[test]
+    fn two_point_corrections_hold_at_the_near_and_far_points() {
+        let t = TwoPointCorrection {
+            x_m: 1.25,
+            y_m: 1.31,
+        };
+        let far = 1.28;
+        let (cx, cy) = t.corrections(far, NEAR_X_M, NEAR_Y_M);
+        assert!((far + cx - 1.25).abs() < 1e-12 && (far + cy - 1.31).abs() < 1e-12);
+        let (cx, cy) = t.corrections(far, FAR_M, FAR_M);
+        assert!(cx.abs() < 1e-12 && cy.abs() < 1e-12);
+        // Linear beyond the far point, as ros-drivers extrapolates.
+        let (cx, _) = t.corrections(far, 2.0 * FAR_M - NEAR_X_M, 0.0);
+        assert!((cx - (far - 1.25)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_xml_says_what_and_where() {
+        let c = real_looking_64e();
+        let xml = veloview_xml(&c);
+        let e = Calibration::from_text(
+            &xml.replacen("<vertCorrection_>", "<vertCorrection_>x", 1),
+            Model::Hdl64eS3,
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("<vertCorrection_> holds") && e.to_string().contains("line 8"),
+            "{e}"
+        );
+        let e = Calibration::from_text("<DB><distLSB_>0.2</distLSB_></DB>", Model::Hdl64eS3)
+            .unwrap_err();
+        assert!(e.to_string().contains("no <px> lasers"), "{e}");
+        let e = Calibration::from_text("<DB><points_>", Model::Hdl64eS3).unwrap_err();
+        assert!(e.to_string().contains("not a VeloView XML file"), "{e}");
+        let e = Calibration::from_text(
+            &xml.replace("<id_>63</id_>", "<id_>3</id_>"),
+            Model::Hdl64eS3,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("laser_id 3 appears twice"), "{e}");
+        let e = Calibration::from_text(&xml, Model::Vlp32a).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("64 lasers listed, but a vlp32a has 32"),
             "{e}"
         );
     }

@@ -599,8 +599,12 @@ impl Decoder {
         let cal = &self.calibration.lasers[laser];
         let (raw, reflectivity) = (channel.distance, channel.reflectivity);
         let d = f64::from(raw) * self.calibration.distance_resolution_m + cal.distance_correction_m;
+        if let Some(tp) = cal.two_point {
+            return self.two_point_at(laser, block, az, t, channel, return_type, d, tp);
+        }
         let (sin_a, cos_a) = crate::calibration::azimuth_sin_cos(az, cal.rot_correction_rad);
-        let xy = d * cal.cos_vert - cal.vertical_offset_m * cal.sin_vert;
+        let vo = cal.vertical_offset_m;
+        let xy = d * cal.cos_vert - vo * cal.sin_vert;
         let ho = cal.horizontal_offset_m;
         Point {
             laser: LaserId(laser as u8),
@@ -614,7 +618,51 @@ impl Decoder {
             time_offset_ns: (t * 1000.0).round() as u32,
             x: (xy * cos_a + ho * sin_a) as f32,
             y: (-xy * sin_a + ho * cos_a) as f32,
-            z: (d * cal.sin_vert + cal.vertical_offset_m * cal.cos_vert + cal.z_offset_m) as f32,
+            z: (d * cal.sin_vert + vo * cal.cos_vert + cal.z_offset_m) as f32,
+        }
+    }
+
+    /// [`Decoder::point_at`] for a laser with a two-point distance calibration (HDL-64E; the
+    /// formulas in [`crate::calibration`]'s docs): x, y and z each from their own corrected
+    /// distance. Kept apart so that the common path stays small enough to inline.
+    #[allow(clippy::too_many_arguments)]
+    #[cold]
+    fn two_point_at(
+        &self,
+        laser: usize,
+        block: usize,
+        az: f64,
+        t: f64,
+        channel: Channel,
+        return_type: ReturnType,
+        d: f64,
+        tp: crate::calibration::TwoPointCorrection,
+    ) -> Point {
+        let cal = &self.calibration.lasers[laser];
+        let (sin_a, cos_a) = crate::calibration::azimuth_sin_cos(az, cal.rot_correction_rad);
+        let (vo, ho) = (cal.vertical_offset_m, cal.horizontal_offset_m);
+        let xy = d * cal.cos_vert - vo * cal.sin_vert;
+        // Velodyne's frame: x sideways (ours is -y), y forward (ours is x).
+        let (xx, yy) = (
+            (xy * sin_a - ho * cos_a).abs(),
+            (xy * cos_a + ho * sin_a).abs(),
+        );
+        let (cx, cy) = tp.corrections(cal.distance_correction_m, xx, yy);
+        let xy_x = (d + cx) * cal.cos_vert - vo * cal.sin_vert;
+        let xy_y = (d + cy) * cal.cos_vert - vo * cal.sin_vert;
+        Point {
+            laser: LaserId(laser as u8),
+            ring: cal.ring,
+            block: block as u8,
+            azimuth_deg: (az * 0.01) as f32,
+            distance_raw: channel.distance,
+            distance_m: d as f32,
+            intensity: channel.reflectivity,
+            return_type,
+            time_offset_ns: (t * 1000.0).round() as u32,
+            x: (xy_y * cos_a + ho * sin_a) as f32,
+            y: (-xy_x * sin_a + ho * cos_a) as f32,
+            z: ((d + cy) * cal.sin_vert + vo * cal.cos_vert + cal.z_offset_m) as f32,
         }
     }
 }
@@ -643,6 +691,52 @@ mod tests {
             return_mode: mode.byte(),
             product: model.product(),
         }
+    }
+
+    #[test]
+    fn two_point_calibration_moves_near_points_by_the_near_corrections() {
+        let mut cal = Calibration::builtin(Model::Hdl64eS3);
+        let l = &mut cal.lasers[0];
+        *l = crate::calibration::LaserCalibration {
+            vertical_rad: 0.0,
+            rot_correction_rad: 0.0,
+            sin_vert: 0.0,
+            cos_vert: 1.0,
+            distance_correction_m: 1.0,
+            two_point: Some(crate::calibration::TwoPointCorrection {
+                x_m: 1.05,
+                y_m: 0.97,
+            }),
+            ..*l
+        };
+        let d = Decoder::with_calibration(Model::Hdl64eS3, cal.clone());
+        let at = |raw: u16, az: f64| {
+            let ch = Channel {
+                distance: raw,
+                reflectivity: 1,
+            };
+            d.point_at(0, 0, az, 0.0, ch, ReturnType::Strongest)
+        };
+        // Straight ahead at |y| = 1.93 m (Velodyne's y is forward): the near y correction.
+        let p = at(465, 0.0);
+        assert!((p.distance_m - 1.93).abs() < 1e-6);
+        assert!((p.x - (465.0 * 0.002 + 0.97)).abs() < 1e-6, "{}", p.x);
+        assert!(p.y.abs() < 1e-6 && p.z.abs() < 1e-6);
+        // To the right at |x| = 2.4 m: the near x correction.
+        let p = at(700, 9000.0);
+        assert!((p.y + (700.0 * 0.002 + 1.05)).abs() < 1e-5, "{}", p.y);
+        // At the far point the far correction alone.
+        let p = at(12_020, 0.0);
+        assert!((p.x - 25.04).abs() < 1e-5, "{}", p.x);
+        // Without the near values: the far correction everywhere.
+        cal.lasers[0].two_point = None;
+        let plain = Decoder::with_calibration(Model::Hdl64eS3, cal);
+        let ch = Channel {
+            distance: 465,
+            reflectivity: 1,
+        };
+        let p = plain.point_at(0, 0, 0.0, 0.0, ch, ReturnType::Strongest);
+        assert!((p.x - 1.93).abs() < 1e-6);
     }
 
     #[test]

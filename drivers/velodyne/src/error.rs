@@ -37,7 +37,9 @@ pub enum DecodeError {
         got: u16,
     },
     /// The product byte names a sensor hilrig does not decode (and no model was forced).
-    #[error("product byte {0:#04x} at byte 1205 is not a supported model (vlp16, puck-hires, vlp32c, hdl32e); force one with --model")]
+    #[error(
+        "product byte {0:#04x} at byte 1205 is not a model hilrig decodes; force one with --model"
+    )]
     UnsupportedProduct(u8),
     /// The return-mode byte is not 0x37, 0x38 or 0x39.
     #[error("return mode byte {0:#04x} at byte 1204 is not strongest (0x37), last (0x38) or dual (0x39)")]
@@ -60,10 +62,13 @@ pub enum CalibrationError {
     /// Not valid YAML of the ros-drivers calibration format.
     #[error("calibration is not in the ros-drivers YAML format: {0}")]
     Yaml(String),
+    /// Not a VeloView XML calibration (`<DB>` with `<points_>` of `<px>` lasers).
+    #[error("calibration is not a VeloView XML file: {0}")]
+    Xml(String),
     /// Laser ids are missing, repeated, or do not match the model.
     #[error("calibration lasers are inconsistent: {0}")]
     Inconsistent(String),
     /// A correction hilrig does not apply (it would silently give wrong points).
-    #[error("calibration uses {0}, which hilrig does not apply for 16/32-laser models")]
+    #[error("calibration uses {0}, which hilrig does not apply")]
     Unsupported(String),
 }

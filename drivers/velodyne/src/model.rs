@@ -18,6 +18,14 @@ pub enum Model {
     PuckHiRes,
     /// VLP-32C ("Ultra Puck"): 32 lasers, -25° to +15°, firing in pairs.
     Vlp32c,
+    /// VLP-32A: the Ultra Puck's first version (product byte 0x23, shared with the VLP-32B).
+    /// Velodyne published no manual for it, so its geometry comes from the unit's calibration
+    /// file (VeloView ships one); timing as the VLP-32C.
+    Vlp32a,
+    /// VLP-32B: the Ultra Puck's second version (product byte 0x23). VeloView's calibration for
+    /// it equals the VLP-32C's laser for laser, so the VLP-32C's manual geometry and timing
+    /// serve as its nominal table.
+    Vlp32b,
     /// HDL-32E: 32 lasers, -30.67° to +10.67°.
     Hdl32e,
     /// VLS-128 ("Alpha Prime"): 128 lasers in four banks of 32, -25° to +15°, firing in
@@ -42,6 +50,8 @@ impl ProductId {
     pub const PUCK_LITE: ProductId = ProductId(0x22);
     /// Puck Hi-Res.
     pub const PUCK_HIRES: ProductId = ProductId(0x24);
+    /// VLP-32A or VLP-32B: the byte does not say which.
+    pub const VLP32AB: ProductId = ProductId(0x23);
     /// VLP-32C.
     pub const VLP32C: ProductId = ProductId(0x28);
     /// Velarray (not supported).
@@ -257,20 +267,43 @@ pub const VLS128_SLOT_US: f64 = 2.89;
 
 impl Model {
     /// Every supported model.
-    pub const ALL: [Model; 7] = [
+    pub const ALL: [Model; 9] = [
         Model::Vlp16,
         Model::PuckHiRes,
         Model::Vlp32c,
+        Model::Vlp32a,
+        Model::Vlp32b,
         Model::Hdl32e,
         Model::Vls128,
         Model::Hdl64eS2,
         Model::Hdl64eS3,
     ];
 
-    /// Whether the sensor's data need the unit's own calibration file (the HDL-64E's lasers are
-    /// individually calibrated; a nominal table is off by up to a degree).
+    /// Whether the sensor's data need the unit's own calibration file: the HDL-64E's lasers are
+    /// individually calibrated (a nominal table is off by up to a degree), and the VLP-32A has
+    /// no published table at all.
     pub fn needs_calibration_file(self) -> bool {
-        matches!(self, Model::Hdl64eS2 | Model::Hdl64eS3)
+        self.calibration_file_reason().is_some()
+    }
+
+    /// Why the model needs its unit's calibration file, for messages.
+    pub fn calibration_file_reason(self) -> Option<&'static str> {
+        match self {
+            Model::Hdl64eS2 | Model::Hdl64eS3 => Some(
+                "each laser's angles and offsets differ by up to a degree and centimetres from the nominal ones",
+            ),
+            Model::Vlp32a => Some("Velodyne published no geometry table for it"),
+            _ => None,
+        }
+    }
+
+    /// The models a product byte may stand for when the byte alone cannot tell them apart
+    /// (0x23: VLP-32A or VLP-32B); empty otherwise.
+    pub fn ambiguous_product(id: ProductId) -> &'static [Model] {
+        match id {
+            ProductId::VLP32AB => &[Model::Vlp32a, Model::Vlp32b],
+            _ => &[],
+        }
     }
 
     /// The HDL-64E models (two banks of 32 lasers in block pairs, no product byte).
@@ -299,6 +332,7 @@ impl Model {
             Model::Vlp16 => ProductId::VLP16,
             Model::PuckHiRes => ProductId::PUCK_HIRES,
             Model::Vlp32c => ProductId::VLP32C,
+            Model::Vlp32a | Model::Vlp32b => ProductId::VLP32AB,
             Model::Hdl32e => ProductId::HDL32E,
             Model::Vls128 => ProductId::VLS128,
             // The HDL-64E writes status bytes there, not a product id.
@@ -316,7 +350,9 @@ impl Model {
         match self {
             Model::Vlp16 => &VLP16,
             Model::PuckHiRes => &PUCK_HIRES,
-            Model::Vlp32c => &VLP32C,
+            Model::Vlp32c | Model::Vlp32b => &VLP32C,
+            // Nominal only (simulation and tests): decoding a VLP-32A requires its file.
+            Model::Vlp32a => &VLP32C,
             Model::Hdl32e => &HDL32E,
             Model::Vls128 => &VLS128,
             Model::Hdl64eS2 | Model::Hdl64eS3 => &HDL64E,
@@ -326,7 +362,7 @@ impl Model {
     /// Metres per distance count: 2 mm, except the VLP-32C's and VLS-128's 4 mm.
     pub fn distance_resolution_m(self) -> f64 {
         match self {
-            Model::Vlp32c | Model::Vls128 => 0.004,
+            Model::Vlp32c | Model::Vlp32a | Model::Vlp32b | Model::Vls128 => 0.004,
             _ => 0.002,
         }
     }
@@ -340,7 +376,9 @@ impl Model {
                 simultaneous: 1,
                 sequences_per_block: 2,
             },
-            Model::Vlp32c => Timing {
+            // No manual gives the VLP-32A/B's firing cycle; VeloView and velodyne-decoder use the
+            // VLP-32C's, and so does hilrig.
+            Model::Vlp32c | Model::Vlp32a | Model::Vlp32b => Timing {
                 sequence_us: 55.296,
                 firing_us: 2.304,
                 simultaneous: 2,
@@ -379,7 +417,7 @@ impl Model {
     /// Nominal maximum range in metres (specification sheet).
     pub fn max_range_m(self) -> f64 {
         match self {
-            Model::Vlp32c => 200.0,
+            Model::Vlp32c | Model::Vlp32a | Model::Vlp32b => 200.0,
             Model::Vls128 => 245.0,
             Model::Hdl64eS2 | Model::Hdl64eS3 => 120.0,
             Model::Hdl32e => 100.0,
@@ -393,6 +431,8 @@ impl Model {
             Model::Vlp16 => "vlp16",
             Model::PuckHiRes => "puck-hires",
             Model::Vlp32c => "vlp32c",
+            Model::Vlp32a => "vlp32a",
+            Model::Vlp32b => "vlp32b",
             Model::Hdl32e => "hdl32e",
             Model::Vls128 => "vls128",
             Model::Hdl64eS2 => "hdl64e-s2",
@@ -419,12 +459,14 @@ impl FromStr for Model {
             "vlp16" | "puck" | "pucklite" => Ok(Model::Vlp16),
             "puckhires" | "vlp16hires" => Ok(Model::PuckHiRes),
             "vlp32c" | "ultrapuck" => Ok(Model::Vlp32c),
+            "vlp32a" => Ok(Model::Vlp32a),
+            "vlp32b" => Ok(Model::Vlp32b),
             "hdl32e" | "hdl32" => Ok(Model::Hdl32e),
             "vls128" | "alphaprime" => Ok(Model::Vls128),
             "hdl64es2" | "hdl64es21" => Ok(Model::Hdl64eS2),
             "hdl64es3" | "hdl64e" | "hdl64" => Ok(Model::Hdl64eS3),
             _ => Err(format!(
-                "unknown Velodyne model '{s}': expected one of vlp16, puck-hires, vlp32c, hdl32e, vls128, hdl64e-s2, hdl64e-s3"
+                "unknown Velodyne model '{s}': expected one of vlp16, puck-hires, vlp32c, vlp32a, vlp32b, hdl32e, vls128, hdl64e-s2, hdl64e-s3"
             )),
         }
     }
@@ -438,7 +480,7 @@ mod tests {
     fn names_parse_back() {
         for m in Model::ALL {
             assert_eq!(m.name().parse::<Model>(), Ok(m));
-            if !m.is_hdl64e() {
+            if !m.is_hdl64e() && Model::ambiguous_product(m.product()).is_empty() {
                 assert_eq!(Model::from_product(m.product()), Some(m));
             }
         }
@@ -447,6 +489,11 @@ mod tests {
 
     #[test]
     fn tables_are_complete_and_distinct() {
+        assert_eq!(
+            Model::ambiguous_product(ProductId(0x23)),
+            &[Model::Vlp32a, Model::Vlp32b]
+        );
+        assert_eq!(Model::from_product(ProductId(0x23)), None);
         for m in Model::ALL {
             let mut v: Vec<f64> = m.laser_specs().iter().map(|s| s.vertical_deg).collect();
             v.sort_by(f64::total_cmp);

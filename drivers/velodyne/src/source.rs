@@ -244,7 +244,12 @@ impl LidarSource {
             match DataPacket::decode(bytes) {
                 Ok(pkt) => {
                     if self.loss.is_none() {
-                        let model = self.model.or_else(|| Model::from_product(pkt.product));
+                        // A byte shared by two models (0x23, VLP-32A/B) still gives the packet
+                        // rate: the two fire alike.
+                        let model = self.model.or_else(|| {
+                            Model::from_product(pkt.product)
+                                .or_else(|| Model::ambiguous_product(pkt.product).first().copied())
+                        });
                         if let Some(m) = model {
                             let mode = pkt.return_mode.mode().unwrap_or(ReturnMode::Strongest);
                             self.loss =
