@@ -5,7 +5,8 @@
 //! `HILRIG_PYTHON`. Both are set by `.ci/run`. Where one is missing, the tests that need it are
 //! compiled as ignored with a reason, so `cargo test` reports them as not run instead of passed.
 //! The same holds for SocketCAN tests, which need a `vcan0` interface (a kernel module that is
-//! not available everywhere).
+//! not available everywhere), the report's browser test (`HILRIG_CHROMIUM`, a chromium binary)
+//! and the Foxglove reader test (`HILRIG_FOXGLOVE`, the folder with Foxglove's npm packages).
 
 use std::env;
 use std::path::Path;
@@ -14,6 +15,8 @@ fn main() {
     println!("cargo::rustc-check-cfg=cfg(hilrig_real_data)");
     println!("cargo::rustc-check-cfg=cfg(hilrig_python)");
     println!("cargo::rustc-check-cfg=cfg(hilrig_vcan)");
+    println!("cargo::rustc-check-cfg=cfg(hilrig_chromium)");
+    println!("cargo::rustc-check-cfg=cfg(hilrig_foxglove)");
     println!("cargo:rerun-if-changed=/sys/class/net");
     // A virtual CAN interface for SocketCAN tests (.ci/run tries to create vcan0).
     if Path::new("/sys/class/net/vcan0").exists() {
@@ -21,6 +24,24 @@ fn main() {
     }
     println!("cargo:rerun-if-env-changed=HILRIG_REAL_DATA");
     println!("cargo:rerun-if-env-changed=HILRIG_PYTHON");
+    println!("cargo:rerun-if-env-changed=HILRIG_CHROMIUM");
+    println!("cargo:rerun-if-env-changed=HILRIG_FOXGLOVE");
+    // A headless browser for the report test (Debian's chromium, installed by .ci/run).
+    if let Ok(c) = env::var("HILRIG_CHROMIUM") {
+        if Path::new(&c).exists() {
+            println!("cargo:rustc-cfg=hilrig_chromium");
+        } else {
+            println!("cargo:warning=HILRIG_CHROMIUM={c} does not exist: the report's browser test will not run");
+        }
+    }
+    // Foxglove's readers (npm packages installed by .ci/run into tests/interop/foxglove).
+    if let Ok(d) = env::var("HILRIG_FOXGLOVE") {
+        if Path::new(&d).join("node_modules/@mcap/core").is_dir() {
+            println!("cargo:rustc-cfg=hilrig_foxglove");
+        } else {
+            println!("cargo:warning=HILRIG_FOXGLOVE={d} has no node_modules/@mcap/core: the Foxglove test will not run");
+        }
+    }
     if let Ok(dir) = env::var("HILRIG_REAL_DATA") {
         // The real-data tests read all three folders (lidar captures, GNSS logs with gpsd's
         // output, DBC files): one missing and they do not run, rather than fail half-way.

@@ -16,6 +16,7 @@
 //! - [`metrics`]: a run against its re-simulation, scan by scan (`hilrig compare`);
 //! - [`gap`]: the gap workflow: the missing effect found, fitted and validated (`hilrig gap`);
 //! - [`stats`]: over repetitions: area validation metric, traffic lights, rank correlation;
+//! - [`report`]: the HTML validation report from the JSON the steps write (`hilrig report`);
 //! - [`rig`]: the rig file every step reads (sensors, mounting, ports, thresholds).
 
 #![warn(missing_docs)]
@@ -28,6 +29,7 @@ pub mod metrics;
 pub mod record;
 pub mod reference;
 pub mod replay;
+pub mod report;
 pub mod rig;
 pub mod scene;
 pub mod sim;

@@ -66,6 +66,12 @@ enum Command {
     /// The gap workflow: find where simulation and measurement disagree, name the missing
     /// effect of the catalogue, fit it, and keep it only if the validation runs improve.
     Gap(cli::gap::GapArgs),
+    /// The whole method on the bundled parking-lot drives: record, check, re-simulate,
+    /// compare, validate, close the gap, and the HTML report.
+    Demo(cli::demo::DemoArgs),
+    /// The validation report (one self-contained HTML file) from the JSON that check,
+    /// compare, validate and gap write.
+    Report(cli::report::ReportArgs),
 }
 
 fn init_logging(verbose: u8) {
@@ -110,6 +116,8 @@ fn main() -> ExitCode {
         Command::Coverage(args) => cli::coverage::run(args),
         Command::Validate(args) => cli::validate::run(args),
         Command::Gap(args) => cli::gap::run_cli(args),
+        Command::Demo(args) => cli::demo::run(args),
+        Command::Report(args) => cli::report::run(args),
     };
     match result {
         Ok(code) => code,
@@ -123,24 +131,8 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("error: {}", describe(&e));
+            eprintln!("error: {}", cli::describe(&e));
             ExitCode::from(2)
         }
     }
-}
-
-/// The error and its causes, each said once: library errors already quote their cause in
-/// their message, so a cause whose text is already there is not repeated.
-fn describe(e: &anyhow::Error) -> String {
-    let mut out = String::new();
-    for cause in e.chain() {
-        let text = cause.to_string();
-        if !out.contains(&text) {
-            if !out.is_empty() {
-                out.push_str(": ");
-            }
-            out.push_str(&text);
-        }
-    }
-    out
 }

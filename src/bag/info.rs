@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// One channel's summary.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct ChannelInfo {
     /// Topic.
     pub topic: String,
@@ -18,7 +18,7 @@ pub struct ChannelInfo {
 }
 
 /// A file's summary.
-#[derive(Clone, Debug, PartialEq, Default)]
+#[derive(Clone, Debug, PartialEq, Default, serde::Serialize)]
 pub struct Info {
     /// MCAP profile.
     pub profile: String,

@@ -1,6 +1,6 @@
 //! `hilrig info`: channels, counts, rates, time span and clock synchronisation of an MCAP.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use std::io::{self, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -9,10 +9,19 @@ use std::process::ExitCode;
 pub struct InfoArgs {
     /// The MCAP file.
     file: PathBuf,
+    /// Also write the summary as JSON here (what `hilrig report` lists of a recording).
+    #[arg(long)]
+    json: Option<PathBuf>,
 }
 
 pub fn run(args: InfoArgs) -> Result<ExitCode> {
     let i = hilrig::bag::info::info(&args.file)?;
+    if let Some(path) = &args.json {
+        let mut v = serde_json::to_value(&i)?;
+        v["file"] = args.file.display().to_string().into();
+        std::fs::write(path, serde_json::to_string_pretty(&v)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
     let mut out = io::stdout().lock();
     writeln!(out, "file: {}", args.file.display())?;
     writeln!(out, "profile: {}", i.profile)?;

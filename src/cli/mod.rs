@@ -7,12 +7,14 @@ pub mod check;
 pub mod compare;
 pub mod coverage;
 pub mod decode;
+pub mod demo;
 pub mod efast;
 pub mod gap;
 pub mod info;
 pub mod record;
 pub mod recover;
 pub mod replay;
+pub mod report;
 pub mod resim;
 pub mod synth;
 pub mod validate;
@@ -29,4 +31,20 @@ pub fn open_output(path: Option<&std::path::Path>) -> Result<Box<dyn Write>> {
         }
         None => Box::new(io::stdout().lock()),
     })
+}
+
+/// The error and its causes, each said once: library errors already quote their cause in
+/// their message, so a cause whose text is already there is not repeated.
+pub fn describe(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if !out.contains(&text) {
+            if !out.is_empty() {
+                out.push_str(": ");
+            }
+            out.push_str(&text);
+        }
+    }
+    out
 }

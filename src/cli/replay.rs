@@ -9,8 +9,11 @@ use std::sync::{Arc, Mutex};
 
 #[derive(clap::Args)]
 pub struct ReplayArgs {
-    /// The recording or capture.
-    file: PathBuf,
+    /// The recording or capture; several are merged by time (files recorded side by side on
+    /// one clock, such as lidar and CAN captures of the same drive, or the parts of a split
+    /// recording).
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
     /// Where lidar data packets go (e.g. 192.168.1.77:2368).
     #[arg(long)]
     lidar_to: Option<std::net::SocketAddr>,
@@ -32,10 +35,10 @@ pub struct ReplayArgs {
     /// Start again at the end, until Ctrl-C.
     #[arg(long = "loop")]
     repeat: bool,
-    /// Start this many seconds into the file.
+    /// Start this many seconds after the first item.
     #[arg(long)]
     start: Option<f64>,
-    /// End this many seconds into the file.
+    /// End this many seconds after the first item.
     #[arg(long)]
     end: Option<f64>,
     /// Rewrite Velodyne timestamps and position packets (PPS locked, RMC) to the present.
@@ -84,78 +87,106 @@ pub fn run(args: ReplayArgs) -> Result<ExitCode> {
         now: args.now,
         baud: args.baud,
     };
-    let reading: Arc<Mutex<Option<Result<Streamed, ReplayError>>>> = Arc::default();
+    let reading: Reading = Arc::new(Mutex::new(args.files.iter().map(|_| None).collect()));
     let pass = || Pass::open(&args, reading.clone());
     let played = play_stream(pass, &mut dest, &options, &stop)?;
-    let read = reading.lock().map(|mut r| r.take()).unwrap_or(None);
-    let streamed = match read {
-        Some(Ok(s)) => s,
-        Some(Err(e)) => return Err(e.into()),
-        None => Streamed::default(),
-    };
+    let read: Vec<Option<Result<Streamed, ReplayError>>> = reading
+        .lock()
+        .map(|mut r| std::mem::take(&mut *r))
+        .unwrap_or_default();
+    let mut streamed = Vec::new();
+    for (path, r) in args.files.iter().zip(read) {
+        match r {
+            Some(Ok(s)) => streamed.push((path, s)),
+            Some(Err(e)) => return Err(e.into()),
+            None => streamed.push((path, Streamed::default())),
+        }
+    }
+    let names = args
+        .files
+        .iter()
+        .map(|f| f.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ");
     let p = &played.pacing;
     if p.sent + played.without_destination == 0 {
-        match &streamed.damage {
-            Some(e) => bail!("{}: {e}: nothing could be replayed", args.file.display()),
-            None => bail!(
-                "{}: nothing to replay (in the chosen --start/--end window)",
-                args.file.display()
-            ),
+        match streamed
+            .iter()
+            .find_map(|(f, s)| Some((f, s.damage.as_ref()?)))
+        {
+            Some((f, e)) => bail!("{}: {e}: nothing could be replayed", f.display()),
+            None => bail!("{names}: nothing to replay (in the chosen --start/--end window)"),
         }
     }
     eprintln!(
         "replayed {} items ({} without a destination); lag p50 {:.1} us, p99 {:.1} us, max {:.1} us",
         p.sent, played.without_destination, p.p50_us, p.p99_us, p.max_us
     );
-    if streamed.out_of_order > 0 {
-        eprintln!(
-            "warning: {}: {} items came more than {} s after later ones in the file and were sent out of time order",
-            args.file.display(),
-            streamed.out_of_order,
-            hilrig::replay::load::REORDER_HORIZON_NS / 1_000_000_000
-        );
-    }
-    Ok(match streamed.damage {
-        None => ExitCode::SUCCESS,
-        Some(e) => {
+    let mut damaged = false;
+    for (path, s) in &streamed {
+        if s.out_of_order > 0 {
+            eprintln!(
+                "warning: {}: {} items came more than {} s after later ones in the file and were sent out of time order",
+                path.display(),
+                s.out_of_order,
+                hilrig::replay::load::REORDER_HORIZON_NS / 1_000_000_000
+            );
+        }
+        if let Some(e) = &s.damage {
             // What was read before the damage was replayed; the exit status says it was not all.
             eprintln!(
                 "error: {}: {e} (replayed the {} items before it); the rest of the input was not replayed",
-                args.file.display(),
-                streamed.items
+                path.display(),
+                s.items
             );
-            ExitCode::from(1)
+            damaged = true;
         }
+    }
+    Ok(if damaged {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
     })
 }
+
+/// What each input's reader thread found, per file (the first pass's).
+type Reading = Arc<Mutex<Vec<Option<Result<Streamed, ReplayError>>>>>;
 
 /// Items read ahead of the player, at most (about 5 MB of lidar packets).
 const READ_AHEAD: usize = 4096;
 
-/// One pass over the file: a reader thread streams it (bounded by [`READ_AHEAD`]) and the
-/// player takes the items in the `--start`/`--end` window from the channel. Dropping the pass
-/// stops the reader. The first pass's outcome (items read, damage) is kept in `reading`.
+/// One pass over the inputs: a reader thread per file streams it (bounded by [`READ_AHEAD`]
+/// shared among them), the streams are merged by time, and the player takes the items in the
+/// `--start`/`--end` window. Dropping the pass stops the readers. The first pass's outcome per
+/// file (items read, damage) is kept in `reading`.
 struct Pass {
-    rx: std::sync::mpsc::Receiver<ReplayItem>,
+    merged: hilrig::replay::MergeByTime<std::sync::mpsc::IntoIter<ReplayItem>>,
     window: (Option<f64>, Option<f64>),
     bounds: Option<(i64, i64)>,
 }
 
 impl Pass {
-    fn open(args: &ReplayArgs, reading: Arc<Mutex<Option<Result<Streamed, ReplayError>>>>) -> Pass {
-        let (tx, rx) = std::sync::mpsc::sync_channel(READ_AHEAD);
-        let (path, data, position) = (args.file.clone(), args.data_port, args.position_port);
-        std::thread::spawn(move || {
-            let r =
-                hilrig::replay::stream(&path, data, position, &mut |item| tx.send(item).is_ok());
-            if let Ok(mut slot) = reading.lock() {
-                if slot.is_none() {
-                    *slot = Some(r);
+    fn open(args: &ReplayArgs, reading: Reading) -> Pass {
+        let per_file = (READ_AHEAD / args.files.len()).max(256);
+        let mut streams = Vec::with_capacity(args.files.len());
+        for (k, path) in args.files.iter().enumerate() {
+            let (tx, rx) = std::sync::mpsc::sync_channel(per_file);
+            let (path, data, position) = (path.clone(), args.data_port, args.position_port);
+            let reading = reading.clone();
+            std::thread::spawn(move || {
+                let r = hilrig::replay::stream(&path, data, position, &mut |item| {
+                    tx.send(item).is_ok()
+                });
+                if let Ok(mut slots) = reading.lock() {
+                    if slots[k].is_none() {
+                        slots[k] = Some(r);
+                    }
                 }
-            }
-        });
+            });
+            streams.push(rx.into_iter());
+        }
         Pass {
-            rx,
+            merged: hilrig::replay::MergeByTime::new(streams),
             window: (args.start, args.end),
             bounds: None,
         }
@@ -167,7 +198,7 @@ impl Iterator for Pass {
 
     fn next(&mut self) -> Option<ReplayItem> {
         loop {
-            let item = self.rx.recv().ok()?;
+            let item = self.merged.next()?;
             let (from, to) = *self.bounds.get_or_insert_with(|| {
                 let first = item.time.0;
                 (
@@ -176,7 +207,7 @@ impl Iterator for Pass {
                 )
             });
             // Past the window's end by more than the reorder horizon, nothing later can fall
-            // inside it: stop reading instead of reading the rest of the file.
+            // inside it: stop reading instead of reading the rest of the files.
             if item.time.0 > to.saturating_add(hilrig::replay::load::REORDER_HORIZON_NS) {
                 return None;
             }

@@ -17,7 +17,7 @@
 use super::cloud::{Cloud, Frame};
 use super::grid::{compare as grid_compare, Dims, GridScores, GridSpec, Occupancy};
 use super::points::distances;
-pub use super::report::{Comparison, CurvePoint, ObjectSeen, ScanRow, Summary};
+pub use super::report::{Comparison, CurvePoint, ObjectSeen, ScanRow, Snapshot, Summary};
 use super::roi::{Region, Roi};
 use crate::bag::scans::{read_scans, Scan};
 use crate::reference::check::{check_with_trajectory, Verdict};
@@ -404,6 +404,7 @@ pub fn compare(
     let calibration = curve(&real, &sim, &opts, cell, admissible);
     phase("calibration curve");
     let summary = summarise(&rows, &res, &real, &sim, real_scans.len() - pairs.len());
+    let snapshot = snapshot(&rows, &real, &sim, &roi, &spec);
     Ok(Comparison {
         cell_m: cell,
         admissible_cell_m: admissible,
@@ -419,7 +420,50 @@ pub fn compare(
         frame: if opts.sensor_frame { "sensor" } else { "scene" },
         scans: rows,
         calibration,
+        snapshot,
         summary,
+    })
+}
+
+/// The bird's-eye [`Snapshot`] of the scan with the most objects in view (the earliest of
+/// those), at the comparison's cell size; cells are taken in the ground plane even for voxels.
+fn snapshot(
+    rows: &[ScanRow],
+    real: &[Cloud],
+    sim: &[Cloud],
+    roi: &Roi,
+    spec: &GridSpec,
+) -> Option<Snapshot> {
+    let i = (0..rows.len()).max_by_key(|&i| (rows[i].objects_in_view, std::cmp::Reverse(i)))?;
+    let (r, s) = (&real[i], &sim[i]);
+    let thin = |p: &[Point3<f64>]| -> Vec<[f32; 2]> {
+        let step = p.len().div_ceil(super::report::SNAPSHOT_POINTS).max(1);
+        p.iter()
+            .step_by(step)
+            .map(|q| [q.x as f32, q.y as f32])
+            .collect()
+    };
+    let bev = GridSpec::new(spec.cell_m(), Dims::Bev).ok()?;
+    let cells = |p: &[Point3<f64>]| -> std::collections::BTreeSet<[i64; 3]> {
+        p.iter().map(|q| bev.cell(q)).collect()
+    };
+    let (cr, cs) = (cells(&r.points), cells(&s.points));
+    let corner = |c: &[i64; 3]| [c[0] as f64 * bev.cell_m(), c[1] as f64 * bev.cell_m()];
+    Some(Snapshot {
+        scan: i,
+        t_s: rows[i].t_s,
+        sensor: r.origin.map(|o| [o.x, o.y]),
+        real: thin(&r.points),
+        sim: thin(&s.points),
+        objects: roi
+            .boxes()
+            .iter()
+            .map(|(n, b)| (n.clone(), [b.min.x, b.min.y], [b.max.x, b.max.y]))
+            .collect(),
+        cell_m: bev.cell_m(),
+        only_real_cells: cr.difference(&cs).map(corner).collect(),
+        only_sim_cells: cs.difference(&cr).map(corner).collect(),
+        both_cells: cr.intersection(&cs).count(),
     })
 }
 

@@ -22,6 +22,36 @@ pub struct ObjectSeen {
     pub sim_extent_m: f64,
 }
 
+/// A bird's-eye view of one scan pair for the report: measured and simulated points over the
+/// scene's objects, and the cells (at the comparison's cell size) occupied in only one of them.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Snapshot {
+    /// Index of the scan in `scans`.
+    pub scan: usize,
+    /// Seconds after the first paired scan.
+    pub t_s: f64,
+    /// Sensor position (east, north), m.
+    pub sensor: Option<[f64; 2]>,
+    /// Measured points in the region (east, north), every n-th so that at most
+    /// [`SNAPSHOT_POINTS`] are kept.
+    pub real: Vec<[f32; 2]>,
+    /// Simulated points, thinned alike.
+    pub sim: Vec<[f32; 2]>,
+    /// The scene's objects: name and footprint (min and max corner, east, north).
+    pub objects: Vec<(String, [f64; 2], [f64; 2])>,
+    /// Cell size, m.
+    pub cell_m: f64,
+    /// Cells (south-west corner) occupied by the measurement only.
+    pub only_real_cells: Vec<[f64; 2]>,
+    /// Cells occupied by the simulation only.
+    pub only_sim_cells: Vec<[f64; 2]>,
+    /// Cells both occupy.
+    pub both_cells: usize,
+}
+
+/// Points kept per cloud in a [`Snapshot`].
+pub const SNAPSHOT_POINTS: usize = 5000;
+
 /// One scan pair.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct ScanRow {
@@ -122,6 +152,8 @@ pub struct Comparison {
     pub scans: Vec<ScanRow>,
     /// OCR over cell sizes.
     pub calibration: Vec<CurvePoint>,
+    /// One scan pair from above (the one with the most objects in view).
+    pub snapshot: Option<Snapshot>,
     /// Over the drive.
     pub summary: Summary,
 }

@@ -1,6 +1,7 @@
 //! Loading what replay sends: a capture (pcap/pcapng, streamed in file order) or an MCAP
 //! recording (messages sorted by log time, the packets of a VelodyneScan at their own stamps) as
-//! one time-ordered schedule of [`ReplayItem`]s, and the `--start`/`--end` window on it.
+//! one time-ordered schedule of [`ReplayItem`]s, several files merged by time
+//! ([`MergeByTime`]), and the `--start`/`--end` window on it.
 
 use crate::bag::cdr::CdrReader;
 use hilrig_capture::demux::{Demux, Packet};
@@ -369,9 +370,61 @@ pub fn window(items: Vec<ReplayItem>, start_s: Option<f64>, end_s: Option<f64>) 
         .collect()
 }
 
+/// Several streams merged by time: the next item is the earliest head among them, ties going
+/// to the stream listed first. Each stream keeps its own order (a capture's file order), so
+/// files recorded side by side on one clock (lidar in one capture, CAN in another, or the parts
+/// of a split recording) play as one drive. Holds one item per stream.
+pub struct MergeByTime<I: Iterator<Item = ReplayItem>> {
+    streams: Vec<std::iter::Peekable<I>>,
+}
+
+impl<I: Iterator<Item = ReplayItem>> MergeByTime<I> {
+    /// Merges `streams`.
+    pub fn new(streams: impl IntoIterator<Item = I>) -> MergeByTime<I> {
+        MergeByTime {
+            streams: streams.into_iter().map(Iterator::peekable).collect(),
+        }
+    }
+}
+
+impl<I: Iterator<Item = ReplayItem>> Iterator for MergeByTime<I> {
+    type Item = ReplayItem;
+
+    fn next(&mut self) -> Option<ReplayItem> {
+        let mut best: Option<(usize, UtcNanos)> = None;
+        for (k, s) in self.streams.iter_mut().enumerate() {
+            if let Some(head) = s.peek() {
+                if best.is_none_or(|(_, t)| head.time < t) {
+                    best = Some((k, head.time));
+                }
+            }
+        }
+        self.streams[best?.0].next()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn merge_takes_the_earliest_head_and_keeps_each_stream_s_order() {
+        let item = |t: i64, tag: u8| ReplayItem {
+            time: UtcNanos(t),
+            payload: Payload::Serial(vec![tag]),
+        };
+        // Stream 0 is not in time order (a capture's file order is kept); ties go to stream 0.
+        let a = vec![item(10, 0), item(30, 1), item(25, 2), item(50, 3)];
+        let b = vec![item(5, 10), item(30, 11), item(40, 12)];
+        let c: Vec<ReplayItem> = Vec::new();
+        let merged: Vec<u8> = MergeByTime::new([a.into_iter(), b.into_iter(), c.into_iter()])
+            .map(|i| match i.payload {
+                Payload::Serial(b) => b[0],
+                _ => unreachable!(),
+            })
+            .collect();
+        assert_eq!(merged, vec![10, 0, 1, 11, 2, 12, 3]);
+    }
 
     /// An MCAP with a header and one zstd chunk holding `records`, claiming `size`.
     fn recording_with_chunk(records: &[u8], size: u64) -> Vec<u8> {

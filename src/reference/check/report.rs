@@ -123,6 +123,10 @@ pub struct RtkEpoch {
     pub time: String,
     /// `fixed`, `float` or `none`.
     pub state: &'static str,
+    /// Seconds after the run's start.
+    pub t_s: f64,
+    /// Receiver 1-sigma horizontal error (larger of lat/lon), m, when the receiver gives it.
+    pub sigma_horizontal_m: Option<f64>,
 }
 
 /// Spatial measurements.

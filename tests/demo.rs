@@ -1,0 +1,370 @@
+//! `hilrig demo --quick` and what it leaves (issue 16): every stage's line, the report rendered
+//! by a real browser (Debian's headless chromium) with every plot and table laid out and no
+//! network request, and the demo's recordings read by Foxglove's own readers.
+//!
+//! The demo runs once (in a temporary folder) and the tests share it.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+/// The quick demo's output folder and its terminal output.
+fn demo() -> &'static (tempfile::TempDir, String) {
+    static DEMO: OnceLock<(tempfile::TempDir, String)> = OnceLock::new();
+    DEMO.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let out = Command::new(common::hilrig_bin())
+            .args(["demo", "--quick", "--out"])
+            .arg(dir.path())
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert!(
+            out.status.success(),
+            "demo failed: {stdout}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (dir, stdout)
+    })
+}
+
+fn demo_dir() -> &'static Path {
+    demo().0.path()
+}
+
+#[test]
+fn the_demo_runs_every_stage_and_writes_the_report() {
+    let (_, stdout) = demo();
+    println!("{stdout}");
+    for stage in [
+        "record", "check", "resim", "compare", "validate", "gap", "report",
+    ] {
+        assert!(
+            stdout.lines().any(|l| l.starts_with(stage)),
+            "no {stage} line in:\n{stdout}"
+        );
+    }
+    assert!(stdout.contains("2/2 runs pass"), "{stdout}");
+    let d = demo_dir();
+    for f in [
+        "report.html",
+        "report.json",
+        "commands.sh",
+        "check/rep-01.json",
+        "compare/rep-01-idealized.json",
+        "validate/truth.json",
+        "gap/gap.json",
+        "rec/rep-02.mcap",
+        "sim/truth/rep-02.mcap",
+    ] {
+        assert!(d.join(f).is_file(), "{f} missing");
+    }
+    // The script holds the commands as a user would type them, one per step.
+    let script = std::fs::read_to_string(d.join("commands.sh")).unwrap();
+    assert!(
+        script.lines().any(|l| l.starts_with("hilrig gap ")),
+        "{script}"
+    );
+    assert_eq!(
+        script
+            .lines()
+            .filter(|l| l.starts_with("hilrig resim "))
+            .count(),
+        4
+    );
+    // report.json holds every input the page was built from, with its hash.
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("report.json")).unwrap()).unwrap();
+    let inputs = json["inputs"].as_array().unwrap();
+    for kind in ["recording", "check", "compare", "validate", "gap"] {
+        assert!(
+            inputs.iter().any(|i| i["kind"] == kind),
+            "no {kind} input in report.json"
+        );
+    }
+    assert!(inputs
+        .iter()
+        .all(|i| i["sha256"].as_str().is_some_and(|h| h.len() == 64)));
+}
+
+/// `hilrig report` on its own refuses what is not one of the JSON kinds, and names the file.
+#[test]
+fn report_says_which_input_it_cannot_use() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("notes.json");
+    std::fs::write(&bad, "{\"hello\": 1}").unwrap();
+    let out = Command::new(common::hilrig_bin())
+        .arg("report")
+        .arg(&bad)
+        .arg("-o")
+        .arg(dir.path().join("r.html"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("notes.json") && err.contains("not a JSON that check"),
+        "{err}"
+    );
+    assert!(!dir.path().join("r.html").exists(), "nothing written");
+}
+
+fn chromium() -> PathBuf {
+    PathBuf::from(std::env::var("HILRIG_CHROMIUM").expect("HILRIG_CHROMIUM"))
+}
+
+/// Runs headless chromium on `page` with `extra` arguments, a net log in `netlog`; returns
+/// stdout.
+fn browse(page: &Path, netlog: &Path, extra: &[&str]) -> String {
+    let profile = tempfile::tempdir().unwrap();
+    let out = Command::new(chromium())
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--hide-scrollbars",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--disable-default-apps",
+            "--virtual-time-budget=3000",
+        ])
+        .arg(format!("--user-data-dir={}", profile.path().display()))
+        .arg(format!("--log-net-log={}", netlog.display()))
+        .args(extra)
+        .arg(format!("file://{}", page.display()))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "chromium failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The URLs the page asked for beyond its own file, from chromium's net log: the requests
+/// started on behalf of a document (the browser's own background requests, component updates
+/// and the like, carry the initiator "not an origin" and are not the page's).
+fn network_requests(netlog: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(netlog).expect("net log written");
+    let log: serde_json::Value = serde_json::from_str(&text).expect("net log is JSON");
+    let start_job = log["constants"]["logEventTypes"]["URL_REQUEST_START_JOB"].clone();
+    let mut urls: Vec<String> = log["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["type"] == start_job)
+        .filter(|e| e["params"]["initiator"] != "not an origin")
+        .filter_map(|e| e["params"]["url"].as_str())
+        .filter(|u| !u.starts_with("file:") && !u.starts_with("data:"))
+        .map(str::to_owned)
+        .collect();
+    urls.sort();
+    urls.dedup();
+    urls
+}
+
+/// Issue 16, must-hold 3: every plot and table named in the issue is in the page as the
+/// browser laid it out (each with a non-zero rendered size), nothing is fetched from the
+/// network (checked on the page without its Content-Security-Policy too, so that the policy
+/// does not hide a reference; and the detector is shown to see a request when there is one),
+/// and a screenshot is kept in the target folder.
+#[test]
+#[cfg_attr(
+    not(hilrig_chromium),
+    ignore = "needs HILRIG_CHROMIUM (set by .ci/run): did not run"
+)]
+fn the_report_renders_in_chromium_without_network() {
+    let d = demo_dir();
+    let page = d.join("report.html");
+    let html = std::fs::read_to_string(&page).unwrap();
+    let work = tempfile::tempdir().unwrap();
+    let netlog = work.path().join("net.json");
+    let dom = browse(&page, &netlog, &["--dump-dom"]);
+    let rendered = |id: &str| -> Option<(u32, u32)> {
+        let at = dom.find(&format!("id=\"{id}\""))?;
+        let tag_end = at + dom[at..].find('>')?;
+        let tag = &dom[..tag_end];
+        let start = tag.rfind('<')?;
+        let attr = tag[start..].split("data-rendered=\"").nth(1)?;
+        let v = attr.split('"').next()?;
+        let (w, h) = v.split_once('x')?;
+        Some((w.parse().ok()?, h.parse().ok()?))
+    };
+    let mut required: Vec<String> = [
+        "topics",
+        "rates",
+        "clocks",
+        "check-runs",
+        "check-timeline-0",
+        "birds-eye",
+        "fig5-0",
+        "calibration-curve",
+        "compare-summary",
+        "traffic-light-0",
+        "traffic-light-1",
+        "gap-0-round-0-candidates",
+        "gap-0-round-0-bins",
+        "gap-0-round-0-parameters",
+        "gap-0-round-0-metrics",
+        "inputs",
+    ]
+    .map(str::to_owned)
+    .to_vec();
+    // Every figure and table of the page, beyond the named ones.
+    for part in html.split("id=\"").skip(1) {
+        let id = part.split('"').next().unwrap();
+        if id.starts_with("gap-") || id.starts_with("fig5-") || id.starts_with("check-timeline-") {
+            required.push(id.to_owned());
+        }
+    }
+    for id in &required {
+        let size = rendered(id);
+        assert!(
+            size.is_some_and(|(w, h)| w > 100 && h > 20),
+            "{id}: rendered size {size:?}"
+        );
+        // A figure holds a drawn plot, not the "nothing to draw" note.
+        if let Some(at) = html.find(&format!("<figure class=\"plot\" id=\"{id}\">")) {
+            let body = &html[at..at + html[at..].find("</figure>").unwrap()];
+            assert!(
+                body.contains("<svg")
+                    && body.matches("<line").count()
+                        + body.matches("<polyline").count()
+                        + body.matches("<rect").count()
+                        > 10,
+                "{id}: no plot drawn"
+            );
+        }
+        // A table has rows.
+        if let Some(at) = html.find(&format!("<table id=\"{id}\">")) {
+            let body = &html[at..at + html[at..].find("</table>").unwrap()];
+            assert!(body.matches("<tr>").count() >= 2, "{id}: an empty table");
+        }
+    }
+    assert!(dom.contains("class=\"light "), "traffic lights in the page");
+    let requests = network_requests(&netlog);
+    assert!(requests.is_empty(), "network requests: {requests:?}");
+
+    // Without its policy the page must still fetch nothing (it references nothing outside).
+    let bare = work.path().join("bare.html");
+    let cut = html
+        .split("<meta http-equiv=\"Content-Security-Policy\"")
+        .collect::<Vec<_>>();
+    assert_eq!(cut.len(), 2, "one policy in the page");
+    let bare_html = format!("{}{}", cut[0], &cut[1][cut[1].find('>').unwrap() + 1..]);
+    std::fs::write(&bare, &bare_html).unwrap();
+    let netlog2 = work.path().join("net2.json");
+    browse(&bare, &netlog2, &["--dump-dom"]);
+    let requests = network_requests(&netlog2);
+    assert!(
+        requests.is_empty(),
+        "network requests without the policy: {requests:?}"
+    );
+    // The detector sees a request when the page makes one.
+    let leaky = work.path().join("leaky.html");
+    std::fs::write(
+        &leaky,
+        bare_html.replace("<body>", "<body><img src=\"http://127.0.0.1:9/probe.png\">"),
+    )
+    .unwrap();
+    let netlog3 = work.path().join("net3.json");
+    browse(&leaky, &netlog3, &["--dump-dom"]);
+    assert!(
+        network_requests(&netlog3)
+            .iter()
+            .any(|u| u.contains("127.0.0.1:9/probe.png")),
+        "the net log check does not see requests"
+    );
+
+    // The screenshot, kept as a CI artifact.
+    let shot = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/report-screenshot.png");
+    let _ = std::fs::remove_file(&shot);
+    browse(
+        &page,
+        &work.path().join("net4.json"),
+        &[
+            "--window-size=1200,8000",
+            &format!("--screenshot={}", shot.display()),
+        ],
+    );
+    let png = std::fs::read(&shot).expect("screenshot written");
+    assert!(
+        png.starts_with(b"\x89PNG") && png.len() > 100_000,
+        "{} bytes",
+        png.len()
+    );
+    println!("screenshot: {}", shot.display());
+}
+
+/// Issue 16, must-hold 4: the demo's recording and re-simulation read by Foxglove's own
+/// libraries (`@mcap/core`, `@mcap/support`, `@foxglove/rosmsg`,
+/// `@foxglove/rosmsg2-serialization`): every message of every topic decodes, each topic has
+/// the count the summary states, and the point clouds carry float32 x, y, z as Foxglove's 3D
+/// panel needs. A cut-off copy must fail the same reader (it is not a reader that passes
+/// anything).
+#[test]
+#[cfg_attr(
+    not(hilrig_foxglove),
+    ignore = "needs HILRIG_FOXGLOVE (set by .ci/run): did not run"
+)]
+fn foxglove_reads_every_message_of_the_demo_s_recordings() {
+    let d = demo_dir();
+    let dir = PathBuf::from(std::env::var("HILRIG_FOXGLOVE").unwrap());
+    let files = [
+        d.join("rec/rep-01.mcap"),
+        d.join("sim/idealized/rep-01.mcap"),
+        d.join("sim/truth/rep-02.mcap"),
+    ];
+    let out = Command::new("node")
+        .arg(dir.join("read_mcap.mjs"))
+        .args(&files)
+        .current_dir(&dir)
+        .output()
+        .expect("run node");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut clouds = 0;
+    for line in stdout.lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        assert_eq!(v["ok"], true, "{line}");
+        for (topic, t) in v["topics"].as_object().unwrap() {
+            assert!(t["messages"].as_u64().unwrap() > 0, "{topic}: no messages");
+            if t["schema"] == "sensor_msgs/msg/PointCloud2" {
+                clouds += 1;
+                let fields: Vec<&str> = t["fields"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .filter_map(|f| f.as_str())
+                    .collect();
+                assert!(fields.starts_with(&["x", "y", "z"]), "{topic}: {fields:?}");
+                assert!(t["points"].as_u64().unwrap() > 100_000, "{topic}");
+            }
+        }
+        println!("{line}");
+    }
+    assert_eq!(
+        clouds, 3,
+        "/points in the recording, /sim/points in both simulations"
+    );
+
+    let cut = tempfile::NamedTempFile::new().unwrap();
+    let bytes = std::fs::read(&files[1]).unwrap();
+    std::fs::write(cut.path(), &bytes[..bytes.len() / 2]).unwrap();
+    let out = Command::new("node")
+        .arg(dir.join("read_mcap.mjs"))
+        .arg(cut.path())
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(!out.status.success(), "a cut-off file passed the reader");
+}
