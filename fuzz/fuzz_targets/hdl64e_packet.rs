@@ -44,12 +44,20 @@ fuzz_target!(|data: &[u8]| {
             l.vertical_offset_m = scale(b(2), 0.002);
             l.horizontal_offset_m = scale(b(3), 0.0005);
             l.distance_correction_m = scale(b(4), 0.01);
-            if head[5] & 1 == 1 {
-                l.two_point = Some(TwoPointCorrection {
-                    x_m: l.distance_correction_m + scale(b(6), 0.001),
-                    y_m: l.distance_correction_m + scale(b(7), 0.001),
-                });
-            }
+        }
+        if head[5] & 1 == 1 {
+            cal.two_point = cal
+                .lasers
+                .iter()
+                .enumerate()
+                .map(|(k, l)| {
+                    let b = |j: usize| head[(k + j) % 8] ^ (k as u8).wrapping_mul(37);
+                    Some(TwoPointCorrection {
+                        x_m: l.distance_correction_m + scale(b(6), 0.001),
+                        y_m: l.distance_correction_m + scale(b(7), 0.001),
+                    })
+                })
+                .collect();
         }
         // Through the file reader, as a user's calibration comes in.
         let Ok(cal) = Calibration::from_text(&cal.to_yaml(), model) else {

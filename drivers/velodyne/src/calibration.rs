@@ -43,8 +43,6 @@ pub struct LaserCalibration {
     pub horizontal_offset_m: f64,
     /// Distance added to every measurement in metres (the far-point correction).
     pub distance_correction_m: f64,
-    /// The HDL-64E's near-point corrections, when the file has them and asks for them.
-    pub two_point: Option<TwoPointCorrection>,
     /// Ring: index of the laser when sorted by elevation, lowest 0.
     pub ring: u8,
     pub(crate) sin_vert: f64,
@@ -105,6 +103,11 @@ pub struct Calibration {
     pub lasers: Vec<LaserCalibration>,
     /// Metres per distance count.
     pub distance_resolution_m: f64,
+    /// The HDL-64E's near-point corrections per laser id, where the file has them and asks for
+    /// them; empty when no laser has one. Kept apart from [`LaserCalibration`] so that the
+    /// common decoding path stays as small as it was (the decoder applies them in a second pass
+    /// over the points of the lasers that have them).
+    pub two_point: Vec<Option<TwoPointCorrection>>,
 }
 
 #[derive(Deserialize)]
@@ -155,7 +158,6 @@ fn laser(vertical_rad: f64, rot: f64, vo: f64, ho: f64, dc: f64) -> LaserCalibra
         z_offset_m: 0.0,
         horizontal_offset_m: ho,
         distance_correction_m: dc,
-        two_point: None,
         ring: 0,
         sin_vert: vertical_rad.sin(),
         cos_vert: vertical_rad.cos(),
@@ -179,7 +181,7 @@ impl Calibration {
                 )
             })
             .collect();
-        Calibration::with_rings(lasers, model.distance_resolution_m())
+        Calibration::with_rings(lasers, model.distance_resolution_m(), Vec::new())
     }
 
     /// The beam of laser `laser` at `azimuth_hundredths` (hundredths of a degree, the decoder's
@@ -351,6 +353,7 @@ impl Calibration {
             )));
         }
         let mut slots: Vec<Option<LaserCalibration>> = vec![None; n];
+        let mut two_point: Vec<Option<TwoPointCorrection>> = vec![None; n];
         for l in file {
             if l.laser_id >= n {
                 return Err(CalibrationError::Inconsistent(format!(
@@ -380,16 +383,14 @@ impl Calibration {
                     l.laser_id
                 )));
             }
-            slots[l.laser_id] = Some(LaserCalibration {
-                two_point: l.two_point,
-                ..laser(
-                    l.vert_correction,
-                    l.rot_correction,
-                    l.vert_offset_correction,
-                    l.horiz_offset_correction,
-                    l.dist_correction,
-                )
-            });
+            slots[l.laser_id] = Some(laser(
+                l.vert_correction,
+                l.rot_correction,
+                l.vert_offset_correction,
+                l.horiz_offset_correction,
+                l.dist_correction,
+            ));
+            two_point[l.laser_id] = l.two_point;
         }
         let lasers = slots.into_iter().flatten().collect();
         let res = resolution.unwrap_or(model.distance_resolution_m());
@@ -398,7 +399,10 @@ impl Calibration {
                 "distance_resolution {res} m is not plausible"
             )));
         }
-        Ok(Calibration::with_rings(lasers, res))
+        if two_point.iter().all(Option::is_none) {
+            two_point.clear();
+        }
+        Ok(Calibration::with_rings(lasers, res, two_point))
     }
 
     /// Reads a calibration file.
@@ -427,7 +431,11 @@ impl Calibration {
         }
     }
 
-    fn with_rings(mut lasers: Vec<LaserCalibration>, distance_resolution_m: f64) -> Calibration {
+    fn with_rings(
+        mut lasers: Vec<LaserCalibration>,
+        distance_resolution_m: f64,
+        two_point: Vec<Option<TwoPointCorrection>>,
+    ) -> Calibration {
         let mut order: Vec<usize> = (0..lasers.len()).collect();
         order.sort_by(|&a, &b| lasers[a].vertical_rad.total_cmp(&lasers[b].vertical_rad));
         for (ring, &id) in order.iter().enumerate() {
@@ -436,6 +444,7 @@ impl Calibration {
         Calibration {
             lasers,
             distance_resolution_m,
+            two_point,
         }
     }
 
@@ -448,7 +457,7 @@ impl Calibration {
             self.lasers.len()
         );
         for (id, l) in self.lasers.iter().enumerate() {
-            let two_point = l.two_point.map_or(String::new(), |t| {
+            let two_point = self.two_point.get(id).copied().flatten().map_or(String::new(), |t| {
                 format!(
                     ", dist_correction_x: {}, dist_correction_y: {}, two_pt_correction_available: true",
                     t.x_m, t.y_m
@@ -514,7 +523,12 @@ mod tests {
             c.lasers.len()
         );
         for (id, l) in c.lasers.iter().enumerate() {
-            let (x, y) = l.two_point.map_or((0.0, 0.0), |t| (t.x_m, t.y_m));
+            let (x, y) = c
+                .two_point
+                .get(id)
+                .copied()
+                .flatten()
+                .map_or((0.0, 0.0), |t| (t.x_m, t.y_m));
             s.push_str(&format!(
                 "\t\t<item><px><id_>{id}</id_><rotCorrection_>{}</rotCorrection_><vertCorrection_>{}</vertCorrection_><distCorrection_>{}</distCorrection_><distCorrectionX_>{}</distCorrectionX_><distCorrectionY_>{}</distCorrectionY_><vertOffsetCorrection_>{}</vertOffsetCorrection_><horizOffsetCorrection_>{}</horizOffsetCorrection_><focalDistance_>0</focalDistance_><focalSlope_>0</focalSlope_></px></item>\n",
                 l.rot_correction_rad.to_degrees(),
@@ -533,17 +547,19 @@ mod tests {
     /// over a metre, near-point corrections a few centimetres off the far one.
     fn real_looking_64e() -> Calibration {
         let mut c = Calibration::builtin(Model::Hdl64eS3);
+        let mut two_point = Vec::new();
         for (i, l) in c.lasers.iter_mut().enumerate() {
             let k = i as f64;
             l.rot_correction_rad = 0.08 * (0.7 * k).sin();
             l.vertical_offset_m = 0.2 + 0.01 * (0.3 * k).cos();
             l.horizontal_offset_m = if i % 2 == 0 { 0.026 } else { -0.026 };
             l.distance_correction_m = 1.3 + 0.1 * (0.9 * k).sin();
-            l.two_point = Some(TwoPointCorrection {
+            two_point.push(Some(TwoPointCorrection {
                 x_m: l.distance_correction_m + 0.04 * (1.1 * k).cos(),
                 y_m: l.distance_correction_m - 0.03 * (0.5 * k).sin(),
-            });
+            }));
         }
+        c.two_point = two_point;
         c
     }
 
@@ -554,15 +570,22 @@ mod tests {
         let yaml = Calibration::from_text(&c.to_yaml(), Model::Hdl64eS3).unwrap();
         assert_eq!(xml.lasers.len(), 64);
         assert!((xml.distance_resolution_m - 0.002).abs() < 1e-12);
-        for ((a, b), o) in xml.lasers.iter().zip(&yaml.lasers).zip(&c.lasers) {
+        for (i, ((a, b), o)) in xml
+            .lasers
+            .iter()
+            .zip(&yaml.lasers)
+            .zip(&c.lasers)
+            .enumerate()
+        {
+            let tp = |c: &Calibration| c.two_point[i].unwrap();
             for (u, v) in [
                 (a.vertical_rad, o.vertical_rad),
                 (a.rot_correction_rad, o.rot_correction_rad),
                 (a.vertical_offset_m, o.vertical_offset_m),
                 (a.horizontal_offset_m, o.horizontal_offset_m),
                 (a.distance_correction_m, o.distance_correction_m),
-                (a.two_point.unwrap().x_m, o.two_point.unwrap().x_m),
-                (a.two_point.unwrap().y_m, b.two_point.unwrap().y_m),
+                (tp(&xml).x_m, tp(&c).x_m),
+                (tp(&xml).y_m, tp(&yaml).y_m),
                 (b.vertical_offset_m, o.vertical_offset_m),
             ] {
                 assert!((u - v).abs() < 1e-9, "{u} vs {v}");
@@ -580,17 +603,21 @@ mod tests {
             .to_yaml()
             .replace(", two_pt_correction_available: true", "");
         let y = Calibration::from_yaml(&no_switch, Model::Hdl64eS3).unwrap();
-        assert!(y.lasers.iter().all(|l| l.two_point.is_none()));
+        assert!(y.two_point.is_empty());
         // VeloView's rule: near-point values equal to the far one (or zero) are no correction.
         let mut flat = c.clone();
-        for l in &mut flat.lasers {
-            l.two_point = Some(TwoPointCorrection {
-                x_m: l.distance_correction_m,
-                y_m: l.distance_correction_m,
-            });
-        }
+        flat.two_point = flat
+            .lasers
+            .iter()
+            .map(|l| {
+                Some(TwoPointCorrection {
+                    x_m: l.distance_correction_m,
+                    y_m: l.distance_correction_m,
+                })
+            })
+            .collect();
         let x = Calibration::from_veloview_xml(&veloview_xml(&flat), Model::Hdl64eS3).unwrap();
-        assert!(x.lasers.iter().all(|l| l.two_point.is_none()));
+        assert!(x.two_point.is_empty());
         let half = no_switch.replacen(
             "dist_correction_x",
             "two_pt_correction_available: true, unused",

@@ -264,6 +264,16 @@ impl Decoder {
     /// Appends the packet's returns to `out`, in packet order (for dual return: per channel the
     /// last return, then the strongest, or one point of type `Both` when they coincide).
     pub fn decode_into(&self, pkt: &DataPacket, out: &mut Vec<Point>) -> Result<(), DecodeError> {
+        let start = out.len();
+        let r = self.decode_into_plain(pkt, out);
+        if !self.calibration.two_point.is_empty() {
+            self.apply_two_point(&mut out[start..]);
+        }
+        r
+    }
+
+    /// [`Decoder::decode_into`] without the two-point pass.
+    fn decode_into_plain(&self, pkt: &DataPacket, out: &mut Vec<Point>) -> Result<(), DecodeError> {
         if self.model.is_hdl64e() {
             // Bytes 1204-1205 are status bytes on the HDL-64E, not a return mode.
             return self.decode_hdl64e(pkt, out);
@@ -366,7 +376,12 @@ impl Decoder {
         let mode = pkt.return_mode.mode();
         if self.model == Model::Vls128 && mode == Some(ReturnMode::Dual) {
             let rate = previous.and_then(|p| rate_between(p, pkt));
-            return self.decode_vls128(pkt, ReturnMode::Dual, rate, out);
+            let start = out.len();
+            let r = self.decode_vls128(pkt, ReturnMode::Dual, rate, out);
+            if !self.calibration.two_point.is_empty() {
+                self.apply_two_point(&mut out[start..]);
+            }
+            return r;
         }
         self.decode_into(pkt, out)
     }
@@ -599,9 +614,6 @@ impl Decoder {
         let cal = &self.calibration.lasers[laser];
         let (raw, reflectivity) = (channel.distance, channel.reflectivity);
         let d = f64::from(raw) * self.calibration.distance_resolution_m + cal.distance_correction_m;
-        if let Some(tp) = cal.two_point {
-            return self.two_point_at(laser, block, az, t, channel, return_type, d, tp);
-        }
         let (sin_a, cos_a) = crate::calibration::azimuth_sin_cos(az, cal.rot_correction_rad);
         let vo = cal.vertical_offset_m;
         let xy = d * cal.cos_vert - vo * cal.sin_vert;
@@ -622,47 +634,35 @@ impl Decoder {
         }
     }
 
-    /// [`Decoder::point_at`] for a laser with a two-point distance calibration (HDL-64E; the
-    /// formulas in [`crate::calibration`]'s docs): x, y and z each from their own corrected
-    /// distance. Kept apart so that the common path stays small enough to inline.
-    #[allow(clippy::too_many_arguments)]
-    #[cold]
-    fn two_point_at(
-        &self,
-        laser: usize,
-        block: usize,
-        az: f64,
-        t: f64,
-        channel: Channel,
-        return_type: ReturnType,
-        d: f64,
-        tp: crate::calibration::TwoPointCorrection,
-    ) -> Point {
-        let cal = &self.calibration.lasers[laser];
-        let (sin_a, cos_a) = crate::calibration::azimuth_sin_cos(az, cal.rot_correction_rad);
-        let (vo, ho) = (cal.vertical_offset_m, cal.horizontal_offset_m);
-        let xy = d * cal.cos_vert - vo * cal.sin_vert;
-        // Velodyne's frame: x sideways (ours is -y), y forward (ours is x).
-        let (xx, yy) = (
-            (xy * sin_a - ho * cos_a).abs(),
-            (xy * cos_a + ho * sin_a).abs(),
-        );
-        let (cx, cy) = tp.corrections(cal.distance_correction_m, xx, yy);
-        let xy_x = (d + cx) * cal.cos_vert - vo * cal.sin_vert;
-        let xy_y = (d + cy) * cal.cos_vert - vo * cal.sin_vert;
-        Point {
-            laser: LaserId(laser as u8),
-            ring: cal.ring,
-            block: block as u8,
-            azimuth_deg: (az * 0.01) as f32,
-            distance_raw: channel.distance,
-            distance_m: d as f32,
-            intensity: channel.reflectivity,
-            return_type,
-            time_offset_ns: (t * 1000.0).round() as u32,
-            x: (xy_y * cos_a + ho * sin_a) as f32,
-            y: (-xy_x * sin_a + ho * cos_a) as f32,
-            z: ((d + cy) * cal.sin_vert + vo * cal.cos_vert + cal.z_offset_m) as f32,
+    /// Moves the points of lasers with a two-point distance calibration (HDL-64E; the formulas
+    /// in [`crate::calibration`]'s docs) to where x, y and z each take their own corrected
+    /// distance. A second pass over the packet's points, so that the common path (no two-point
+    /// laser) stays the small inlined loop it is: a branch on each point there halved the
+    /// VLS-128's decoding speed.
+    fn apply_two_point(&self, points: &mut [Point]) {
+        let table = &self.calibration.two_point;
+        for p in points {
+            let laser = usize::from(p.laser.0);
+            let Some(Some(tp)) = table.get(laser) else {
+                continue;
+            };
+            let cal = &self.calibration.lasers[laser];
+            let d = self.calibration.metres(laser, p.distance_raw);
+            let az = f64::from(p.azimuth_deg) * 100.0;
+            let (sin_a, cos_a) = crate::calibration::azimuth_sin_cos(az, cal.rot_correction_rad);
+            let (vo, ho) = (cal.vertical_offset_m, cal.horizontal_offset_m);
+            let xy = d * cal.cos_vert - vo * cal.sin_vert;
+            // Velodyne's frame: x sideways (ours is -y), y forward (ours is x).
+            let (xx, yy) = (
+                (xy * sin_a - ho * cos_a).abs(),
+                (xy * cos_a + ho * sin_a).abs(),
+            );
+            let (cx, cy) = tp.corrections(cal.distance_correction_m, xx, yy);
+            let xy_x = (d + cx) * cal.cos_vert - vo * cal.sin_vert;
+            let xy_y = (d + cy) * cal.cos_vert - vo * cal.sin_vert;
+            p.x = (xy_y * cos_a + ho * sin_a) as f32;
+            p.y = (-xy_x * sin_a + ho * cos_a) as f32;
+            p.z = ((d + cy) * cal.sin_vert + vo * cal.cos_vert + cal.z_offset_m) as f32;
         }
     }
 }
@@ -703,19 +703,22 @@ mod tests {
             sin_vert: 0.0,
             cos_vert: 1.0,
             distance_correction_m: 1.0,
-            two_point: Some(crate::calibration::TwoPointCorrection {
-                x_m: 1.05,
-                y_m: 0.97,
-            }),
             ..*l
         };
+        cal.two_point = vec![None; 64];
+        cal.two_point[0] = Some(crate::calibration::TwoPointCorrection {
+            x_m: 1.05,
+            y_m: 0.97,
+        });
         let d = Decoder::with_calibration(Model::Hdl64eS3, cal.clone());
         let at = |raw: u16, az: f64| {
             let ch = Channel {
                 distance: raw,
                 reflectivity: 1,
             };
-            d.point_at(0, 0, az, 0.0, ch, ReturnType::Strongest)
+            let mut p = [d.point_at(0, 0, az, 0.0, ch, ReturnType::Strongest)];
+            d.apply_two_point(&mut p);
+            p[0]
         };
         // Straight ahead at |y| = 1.93 m (Velodyne's y is forward): the near y correction.
         let p = at(465, 0.0);
@@ -729,7 +732,7 @@ mod tests {
         let p = at(12_020, 0.0);
         assert!((p.x - 25.04).abs() < 1e-5, "{}", p.x);
         // Without the near values: the far correction everywhere.
-        cal.lasers[0].two_point = None;
+        cal.two_point.clear();
         let plain = Decoder::with_calibration(Model::Hdl64eS3, cal);
         let ch = Channel {
             distance: 465,
