@@ -675,6 +675,42 @@ mod tests {
         );
     }
 
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Any text built from calibration-file pieces (XML tags and YAML keys with any
+        /// numbers, cut anywhere) reads as a calibration or an error, never a panic; a
+        /// calibration read has one laser per id and finite values.
+        #[test]
+        fn any_calibration_text_reads_or_errors(
+            pieces in proptest::collection::vec(
+                prop_oneof![
+                    Just("<DB>".to_string()),
+                    Just("<points_><item><px>".to_string()),
+                    Just("</px></item>".to_string()),
+                    Just("lasers:\n".to_string()),
+                    (0usize..70).prop_map(|i| format!("<id_>{i}</id_>")),
+                    (0usize..70).prop_map(|i| format!("- {{laser_id: {i}, vert_correction: 0.1}}\n")),
+                    proptest::num::f64::ANY.prop_map(|v| format!("<vertCorrection_>{v}</vertCorrection_>")),
+                    proptest::num::f64::ANY.prop_map(|v| format!("<distCorrectionX_>{v}</distCorrectionX_>")),
+                    proptest::num::f64::ANY.prop_map(|v| format!("<distLSB_>{v}</distLSB_>")),
+                    "[ -~]{0,12}",
+                ],
+                0..80,
+            ),
+            cut in 0usize..4000,
+        ) {
+            let text: String = pieces.concat();
+            let text = &text[..text.floor_char_boundary(cut.min(text.len()))];
+            for model in [Model::Vlp16, Model::Hdl64eS3] {
+                if let Ok(c) = Calibration::from_text(text, model) {
+                    prop_assert_eq!(c.lasers.len(), model.lasers());
+                    prop_assert!(c.lasers.iter().all(|l| l.vertical_rad.is_finite()));
+                }
+            }
+        }
+    }
+
     #[test]
     fn duplicate_ids_are_rejected() {
         let mut y = String::from("lasers:\n");

@@ -907,6 +907,50 @@ mod tests {
             }
         }
 
+        proptest! {
+            /// Any HDL-64E packet with any plausible two-point calibration: the same points as
+            /// without it (count, lasers, raw distances, azimuths), each finite and moved by no
+            /// more than the corrections allow: |near - far| times 1.11 at the sensor (the near
+            /// point lies 2.4 m out), growing linearly with distance as the manual's formula
+            /// extrapolates.
+            #[test]
+            fn two_point_pass_moves_points_only_as_the_corrections_allow(
+                pkt in arb_vls_packet().prop_map(|mut p| {
+                    // The 64E's layout: upper and lower bank blocks in pairs.
+                    for (i, b) in p.blocks.iter_mut().enumerate() {
+                        b.flag = FLAGS_BANK[i % 2];
+                    }
+                    p
+                }),
+                near in proptest::collection::vec((-0.05f64..0.05, -0.05f64..0.05), 64),
+                far in -0.5f64..2.0,
+            ) {
+                let mut cal = Calibration::builtin(Model::Hdl64eS3);
+                for l in &mut cal.lasers {
+                    l.distance_correction_m = far;
+                }
+                let plain = Decoder::with_calibration(Model::Hdl64eS3, cal.clone());
+                cal.two_point = near
+                    .iter()
+                    .map(|&(x, y)| Some(crate::calibration::TwoPointCorrection { x_m: far + x, y_m: far + y }))
+                    .collect();
+                let two = Decoder::with_calibration(Model::Hdl64eS3, cal);
+                let (a, b) = (plain.decode(&pkt), two.decode(&pkt));
+                prop_assert!(a.is_ok() && b.is_ok(), "a 64E packet decodes");
+                if let (Ok(a), Ok(b)) = (a, b) {
+                    prop_assert_eq!(a.len(), b.len());
+                    for (p, q) in a.iter().zip(&b) {
+                        prop_assert_eq!((p.laser, p.distance_raw, p.azimuth_deg), (q.laser, q.distance_raw, q.azimuth_deg));
+                        prop_assert!(q.x.is_finite() && q.y.is_finite() && q.z.is_finite());
+                        let (dx, dy) = near[usize::from(p.laser.0)];
+                        let worst = dx.abs().max(dy.abs()) * (1.11 + f64::from(p.distance_m).abs() / 22.0);
+                        let moved = f64::from((p.x - q.x).abs().max((p.y - q.y).abs()).max((p.z - q.z).abs()));
+                        prop_assert!(moved <= worst + 1e-3, "moved {} m, at most {} m", moved, worst);
+                    }
+                }
+            }
+        }
+
         /// The firing table: groups of 8 one slot apart, two idle slots after the eighth group,
         /// 20 slots a sequence.
         #[test]
