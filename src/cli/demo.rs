@@ -425,26 +425,29 @@ pub fn run(args: DemoArgs) -> Result<ExitCode> {
     // 6. The gap workflow: the idealized model against the measurement.
     let t = Instant::now();
     let gap_dir = out.join("gap");
-    let mut a = vec!["gap".to_string(), "-o".into(), arg(&gap_dir)];
-    if reps.len() >= 2 {
-        a.push("--real".into());
-        for rep in &reps[..reps.len().div_ceil(2)] {
-            a.push(arg(&rec(rep)));
-        }
-        a.push("--validate".into());
-        for rep in &reps[reps.len().div_ceil(2)..] {
-            a.push(arg(&rec(rep)));
-        }
+    // A study file, so that each run keeps its own scene (each repetition has its own survey
+    // and its own pedestrian walk; the shorthand would give them all the first one's).
+    let study = out.join("gap-study.toml");
+    let mut text = format!(
+        "# The demo's gap study: the first runs fit, the others validate.\nmodel = {:?}\n",
+        arg(&std::path::absolute(inputs.root.join("idealized.toml"))?)
+    );
+    let fit = if reps.len() >= 2 {
+        reps.len().div_ceil(2)
     } else {
-        // One run: the workflow splits it in time into parameterization and validation.
-        a.extend(["--real".into(), arg(&rec(first))]);
+        1
+    };
+    for (k, rep) in reps.iter().enumerate() {
+        text.push_str(&format!(
+            "\n[[run]]\nrecording = {:?}\nscene = {:?}\nrole = \"{}\"\n",
+            arg(&std::path::absolute(rec(rep))?),
+            arg(&std::path::absolute(inputs.scene(rep))?),
+            if k < fit { "fit" } else { "validate" }
+        ));
     }
-    a.extend([
-        "--scene".into(),
-        arg(&inputs.scene(first)),
-        "--model".into(),
-        arg(&inputs.root.join("idealized.toml")),
-    ]);
+    std::fs::write(&study, text).with_context(|| format!("cannot write {}", study.display()))?;
+    // One run alone is split in time by the workflow (first half fits, second validates).
+    let mut a = vec!["gap".to_string(), arg(&study), "-o".into(), arg(&gap_dir)];
     if args.quick {
         a.extend(["--firings".into(), "200000".into()]);
     }
