@@ -413,7 +413,9 @@ mod tests {
             time: UtcNanos(t),
             payload: Payload::Serial(vec![tag]),
         };
-        // Stream 0 is not in time order (a capture's file order is kept); ties go to stream 0.
+        // Stream 0 is not in time order (a capture's file order is kept: its 25 follows its 30,
+        // before stream 1's 30 that ties with that 30 and so comes after it); ties go to
+        // stream 0.
         let a = vec![item(10, 0), item(30, 1), item(25, 2), item(50, 3)];
         let b = vec![item(5, 10), item(30, 11), item(40, 12)];
         let c: Vec<ReplayItem> = Vec::new();
@@ -423,7 +425,7 @@ mod tests {
                 _ => unreachable!(),
             })
             .collect();
-        assert_eq!(merged, vec![10, 0, 1, 11, 2, 12, 3]);
+        assert_eq!(merged, vec![10, 0, 1, 2, 11, 12, 3]);
     }
 
     /// An MCAP with a header and one zstd chunk holding `records`, claiming `size`.
