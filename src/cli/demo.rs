@@ -151,12 +151,9 @@ fn read_json(p: &Path) -> Result<Value> {
     serde_json::from_str(&text).with_context(|| format!("{} is not JSON", p.display()))
 }
 
+/// A number at `path` of a command's JSON, NaN when absent (printed as such).
 fn f(v: &Value, path: &[&str]) -> f64 {
-    let mut cur = v;
-    for k in path {
-        cur = &cur[*k];
-    }
-    cur.as_f64().unwrap_or(f64::NAN)
+    hilrig::report::plots::num(v, path).unwrap_or(f64::NAN)
 }
 
 /// Prints a stage's line: name, key figure, verdict, time.

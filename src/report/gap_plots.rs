@@ -1,7 +1,7 @@
 //! The gap workflow's plots: each round's candidates and the binned disagreement before and
 //! after the effect it added.
 
-use super::plots::{arr, e, num, range_of, svg, GREY, PASS, REAL, SIM};
+use super::plots::{arr, e, legend, num, range_of, svg, GREY, PASS, REAL, SIM};
 use plotters::prelude::*;
 use serde_json::Value;
 
@@ -153,12 +153,7 @@ pub fn gap_bins(feature: &str, before: &Value, after: Option<&Value>) -> Option<
             .label("model after")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], PASS.stroke_width(2)));
         }
-        c.configure_series_labels()
-            .position(SeriesLabelPosition::LowerLeft)
-            .border_style(GREY)
-            .background_style(WHITE.mix(0.9))
-            .draw()
-            .map_err(e)?;
+        legend(&mut c, SeriesLabelPosition::LowerLeft)?;
 
         let (y0, y1) = range_of(
             med.iter()
@@ -202,12 +197,7 @@ pub fn gap_bins(feature: &str, before: &Value, after: Option<&Value>) -> Option<
                 .label("spread after")
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], PASS.stroke_width(2)));
         }
-        r.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .border_style(GREY)
-            .background_style(WHITE.mix(0.9))
-            .draw()
-            .map_err(e)?;
+        legend(&mut r, SeriesLabelPosition::UpperRight)?;
         Ok(())
     })
 }

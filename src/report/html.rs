@@ -2,7 +2,7 @@
 //! reference data hold, what the simulation gets wrong and where, whether it is valid, and what
 //! the gap workflow found), each figure an inline SVG and each table plain HTML.
 
-use super::plots::{self, num};
+use super::plots::{self, arr, num};
 use super::{Input, Kind};
 use serde_json::Value;
 use std::fmt::Write;
@@ -25,12 +25,6 @@ fn n(v: Option<f64>, d: usize) -> String {
 
 fn s<'a>(v: &'a Value, k: &str) -> &'a str {
     v.get(k).and_then(Value::as_str).unwrap_or("")
-}
-
-fn arr<'a>(v: &'a Value, k: &str) -> &'a [Value] {
-    v.get(k)
-        .and_then(Value::as_array)
-        .map_or(&[], Vec::as_slice)
 }
 
 /// A figure: the SVG or a note why it is missing.

@@ -46,6 +46,19 @@ pub(super) fn range_of(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> 
     Some((lo - pad, hi + pad))
 }
 
+/// Draws a chart's legend at `pos` in the report's one style.
+pub(super) fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    c: &mut ChartContext<'a, DB, CT>,
+    pos: SeriesLabelPosition,
+) -> Result<(), String> {
+    c.configure_series_labels()
+        .position(pos)
+        .border_style(GREY)
+        .background_style(WHITE.mix(0.9))
+        .draw()
+        .map_err(e)
+}
+
 /// Draws into an SVG string of `w` x `h` pixels; `None` when drawing fails (it only fails on
 /// a plotters error, which the report shows as a missing figure with a note).
 pub(super) fn svg(
@@ -124,11 +137,7 @@ pub fn check_timeline(check: &Value) -> Option<String> {
         .map_err(e)?
         .label("horizontal sigma")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], REAL.stroke_width(2)));
-        c.configure_series_labels()
-            .border_style(GREY)
-            .background_style(WHITE.mix(0.9))
-            .draw()
-            .map_err(e)?;
+        legend(&mut c, SeriesLabelPosition::UpperRight)?;
 
         let mut s = ChartBuilder::on(&lower)
             .margin(8)
@@ -297,12 +306,7 @@ pub fn birds_eye(snapshot: &Value) -> Option<String> {
                 .legend(|(x, y)| TriangleMarker::new((x + 5, y), 5, BLACK.filled()));
             }
         }
-        c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .border_style(GREY)
-            .background_style(WHITE.mix(0.9))
-            .draw()
-            .map_err(e)?;
+        legend(&mut c, SeriesLabelPosition::UpperRight)?;
         Ok(())
     })
 }
@@ -422,12 +426,7 @@ pub fn calibration_curve(compares: &[(&str, &Value)]) -> Option<String> {
         .map_err(e)?
         .label(format!("admissible cell {adm:.2} m (smaller: refused)"))
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], FAIL.stroke_width(2)));
-        c.configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .border_style(GREY)
-            .background_style(WHITE.mix(0.9))
-            .draw()
-            .map_err(e)?;
+        legend(&mut c, SeriesLabelPosition::LowerRight)?;
         Ok(())
     })
 }

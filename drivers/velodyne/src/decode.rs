@@ -264,8 +264,18 @@ impl Decoder {
     /// Appends the packet's returns to `out`, in packet order (for dual return: per channel the
     /// last return, then the strongest, or one point of type `Both` when they coincide).
     pub fn decode_into(&self, pkt: &DataPacket, out: &mut Vec<Point>) -> Result<(), DecodeError> {
+        self.with_two_point(out, |out| self.decode_into_plain(pkt, out))
+    }
+
+    /// Runs `decode` and then the two-point pass over the points it appended, when the
+    /// calibration has near-point corrections.
+    fn with_two_point(
+        &self,
+        out: &mut Vec<Point>,
+        decode: impl FnOnce(&mut Vec<Point>) -> Result<(), DecodeError>,
+    ) -> Result<(), DecodeError> {
         let start = out.len();
-        let r = self.decode_into_plain(pkt, out);
+        let r = decode(out);
         if !self.calibration.two_point.is_empty() {
             self.apply_two_point(&mut out[start..]);
         }
@@ -376,12 +386,9 @@ impl Decoder {
         let mode = pkt.return_mode.mode();
         if self.model == Model::Vls128 && mode == Some(ReturnMode::Dual) {
             let rate = previous.and_then(|p| rate_between(p, pkt));
-            let start = out.len();
-            let r = self.decode_vls128(pkt, ReturnMode::Dual, rate, out);
-            if !self.calibration.two_point.is_empty() {
-                self.apply_two_point(&mut out[start..]);
-            }
-            return r;
+            return self.with_two_point(out, |out| {
+                self.decode_vls128(pkt, ReturnMode::Dual, rate, out)
+            });
         }
         self.decode_into(pkt, out)
     }
