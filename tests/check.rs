@@ -533,15 +533,31 @@ fn damaged_recordings_give_a_report_not_a_panic() {
         .unwrap();
 }
 
-/// With a heading limit below what the drive achieves everywhere, the stretches whose heading
-/// sigma exceeds it are marked `heading_uncertain`: not usable, yet no fault (exit 0); every
-/// trajectory sample above the limit lies in a mark, and none in a usable segment.
+/// With a heading limit between the best and the worst heading sigma of the drive, the
+/// stretches whose sigma exceeds it are marked `heading_uncertain`: not usable, yet no fault
+/// (exit 0); every trajectory sample above the limit lies in a mark, and none in a usable
+/// segment.
 #[test]
 fn stretches_with_an_uncertain_heading_are_marked_not_usable_without_a_fault() {
     let d = synth_and_record_edited(|t| t, "", 21, true);
     let rig_text = std::fs::read_to_string(demo_rig()).unwrap();
     let dbc = demo_rig().with_file_name("hilrig-ego.dbc");
-    let limit = 0.09;
+    // The limit halfway between the drive's best and worst heading sigma at the default rig.
+    let (_, _, traj) = check_with_trajectory(&d, None);
+    let sigmas: Vec<f64> = std::fs::read_to_string(&traj)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(5).unwrap().parse().unwrap())
+        .collect();
+    let (lo, hi) = sigmas
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+    assert!(
+        hi - lo > 0.01,
+        "heading sigma {lo}..{hi}°: too flat to test"
+    );
+    let limit = ((lo + hi) / 2.0 * 1000.0).round() / 1000.0;
     let tight = rig_text
         .replace(
             "max_heading_sigma_deg = 0.2",

@@ -7,7 +7,8 @@
 //!   max(max_a min_b ‖a − b‖, max_b min_a ‖b − a‖): the worst point.
 //!
 //! Nearest neighbours come from `kiddo`'s immutable k-d tree (a well-kept crate, exact queries,
-//! built once per scan and queried for every point of the other scan).
+//! built once per scan and queried for every point of the other scan). Querying in a spatial
+//! order instead of the scan's own was tried and gained nothing measurable.
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Point3;
@@ -48,8 +49,10 @@ pub fn distances(a: &[Point3<f64>], b: &[Point3<f64>]) -> Option<PointScores> {
     if a.is_empty() || b.is_empty() {
         return None;
     }
-    let ab = nearest(a, b)?;
-    let ba = nearest(b, a)?;
+    // The two directions are independent: each on its own core where one is free (in
+    // `compare`, scans are already spread over the cores and this adds nothing).
+    let (ab, ba) = rayon::join(|| nearest(a, b), || nearest(b, a));
+    let (ab, ba) = (ab?, ba?);
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
     Some(PointScores {

@@ -2,9 +2,9 @@
 //! and velocity (CTRV) motion model, followed by a Rauch-Tung-Striebel pass, so that every
 //! instant uses the measurements before and after it.
 //!
-//! State (rear-axle centre, local ENU frame): `[x, y, ψ, v, ω, a]`, heading ψ from east
-//! counter-clockwise, speed v along the heading (no side slip at parking speeds), yaw rate ω and
-//! longitudinal acceleration a; and two constants that `check` wants to know: the GNSS time
+//! State (rear-axle centre, local ENU frame): `[x, y, ψ, v, ω, a]` and the yaw acceleration α,
+//! heading ψ from east counter-clockwise, speed v along the heading (no side slip at parking
+//! speeds), yaw rate ω and longitudinal acceleration a; and two constants that `check` wants to know: the GNSS time
 //! offset δ (a fix stamped t describes the instant t - δ) and the antenna's forward lever arm,
 //! both fixed at their configured values unless [`Settings::estimate_offset_and_lever`] is on;
 //! and the slowly wandering part of the GNSS error, east and north (see [`GnssNoise`]).
@@ -13,7 +13,7 @@
 //! vehicle accelerates, which would read as a GNSS time offset.
 //! Measurements: the antenna's horizontal position (state position plus the rotated lever arm,
 //! with the receiver's per-epoch sigmas), CAN speed and CAN yaw rate. Jacobians are taken
-//! numerically: ten states, and the model stays readable.
+//! numerically: eleven states, and the model stays readable.
 //!
 //! Long file: the filter, the smoother, the choice of the GNSS noise model and the sampling of
 //! the result share one private state layout (the index constants, the state and covariance
@@ -25,7 +25,7 @@ use hilrig_stamp::UtcNanos;
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 
 /// Number of states.
-const N: usize = 10;
+const N: usize = 11;
 type S = SVector<f64, N>;
 type P = SMatrix<f64, N, N>;
 
@@ -35,6 +35,8 @@ const DELTA: usize = 6;
 const LEVER_X: usize = 7;
 /// Index of the GNSS error's slowly wandering east part (m); north follows it.
 const BIAS_E: usize = 8;
+/// Index of the yaw acceleration (rad/s²).
+const YAW_ACC: usize = 10;
 
 /// One GNSS antenna position in the local frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,8 +56,8 @@ pub struct Settings {
     pub lever: Vector2<f64>,
     /// Longitudinal jerk noise, m/s³ per √s.
     pub accel_noise: f64,
-    /// Yaw acceleration noise, rad/s² per √s.
-    pub yaw_accel_noise: f64,
+    /// Yaw jerk noise, rad/s³ per √s (see [`fit_yaw_jerk_noise`]).
+    pub yaw_jerk_noise: f64,
     /// CAN speed noise, m/s.
     pub speed_sigma: f64,
     /// CAN yaw-rate noise, rad/s.
@@ -100,7 +102,7 @@ impl Default for Settings {
         Settings {
             lever: Vector2::zeros(),
             accel_noise: 3.0,
-            yaw_accel_noise: 0.2,
+            yaw_jerk_noise: 3.0,
             speed_sigma: 0.03,
             yaw_rate_sigma: 0.005,
             estimate_offset_and_lever: false,
@@ -132,8 +134,9 @@ pub struct EgoTrajectory {
 }
 
 fn ctrv(x: &S, dt: f64) -> S {
-    let (px, py, psi, v, w, a) = (x[0], x[1], x[2], x[3], x[4], x[5]);
-    // The turn at constant rate with the mean speed of the interval.
+    let (px, py, psi, v, a, alpha) = (x[0], x[1], x[2], x[3], x[5], x[YAW_ACC]);
+    // The turn at the interval's mean rate and with its mean speed.
+    let w = x[4] + 0.5 * alpha * dt;
     let vm = v + 0.5 * a * dt;
     let (nx, ny) = if w.abs() > 1e-6 {
         (
@@ -148,6 +151,7 @@ fn ctrv(x: &S, dt: f64) -> S {
     out[1] = ny;
     out[2] = psi + w * dt;
     out[3] = v + a * dt;
+    out[4] = x[4] + alpha * dt;
     out
 }
 
@@ -226,6 +230,8 @@ struct Filtered {
     gnss: Vec<Option<GnssObs>>,
     /// Log-likelihood of the GNSS innovations (up to a constant).
     log_likelihood: f64,
+    /// Log-likelihood of the CAN yaw-rate innovations while moving (up to a constant).
+    yaw_log_likelihood: f64,
     /// States that carry variance.
     active: Vec<usize>,
 }
@@ -277,9 +283,10 @@ fn initial_state(
     };
     let b0 = share * gnss[0].sigma.component_mul(&gnss[0].sigma);
     let p = P::from_diagonal(&S::from_column_slice(&[
-        1.0, 1.0, 0.5, 1.0, 0.1, 1.0, var_delta, var_lever, b0.x, b0.y,
+        1.0, 1.0, 0.5, 1.0, 0.1, 1.0, var_delta, var_lever, b0.x, b0.y, 0.1,
     ]));
     let mut active: Vec<usize> = (0..6).collect();
+    active.push(YAW_ACC);
     if s.estimate_offset_and_lever {
         active.extend([DELTA, LEVER_X]);
     }
@@ -290,11 +297,14 @@ fn initial_state(
 }
 
 /// The process noise of a step of `dt` seconds (the GNSS wander's is added by the caller).
-/// White noise on the yaw acceleration and on the jerk, integrated over the step: the heading
-/// (speed) takes up what the yaw rate (acceleration) may have done within it, and no more
-/// (dt³/3, dt²/2, dt). Adding the noise to the rate alone would let a GNSS fix between two CAN
-/// samples turn the heading by what the rate might have become since the last sample, a leak
-/// that makes the heading follow the GNSS noise. Standing (`still`), the car cannot turn.
+/// White noise on the yaw jerk and on the longitudinal jerk, integrated over the step, so that
+/// heading, yaw rate and yaw acceleration (speed and acceleration) take up what the jerk may
+/// have done within it and no more (the dt⁵/20 … dt terms of an integrated white noise). A
+/// vehicle's yaw rate is smooth on the scale of a CAN interval: modelled with white noise on
+/// the yaw acceleration instead, the yaw rate would wander between two samples, and the
+/// heading with it (at 0.2 rad/s² per √s and 50 Hz, 0.13° in a second), so that the heading
+/// followed the GNSS noise rather than the integrated yaw rate. Standing (`still`), the car
+/// cannot turn.
 fn process_noise(dt: f64, still: bool, s: &Settings) -> P {
     let mut q = P::zeros();
     q[(0, 0)] = 1e-6 * dt;
@@ -304,12 +314,18 @@ fn process_noise(dt: f64, still: bool, s: &Settings) -> P {
     if still {
         q[(4, 4)] = STILL_YAW_SIGMA.powi(2) * dt;
     } else {
-        let qy = s.yaw_accel_noise.powi(2);
-        // The CTRV model's error while the yaw rate changes within a step.
-        q[(2, 2)] = 1e-7 * dt + qy * dt3;
-        q[(2, 4)] = qy * dt2;
-        q[(4, 2)] = qy * dt2;
-        q[(4, 4)] = qy * dt;
+        // [ψ, ω, α] of an integrated white jerk: qj · [[dt⁵/20, dt⁴/8, dt³/6],
+        // [dt⁴/8, dt³/3, dt²/2], [dt³/6, dt²/2, dt]].
+        let qj = s.yaw_jerk_noise.powi(2);
+        let (t5, t4, t3) = (dt.powi(5) / 20.0, dt.powi(4) / 8.0, dt.powi(3) / 6.0);
+        let m = [[t5, t4, t3], [t4, dt3, dt2], [t3, dt2, dt]];
+        let idx = [2, 4, YAW_ACC];
+        for (i, &a) in idx.iter().enumerate() {
+            for (j, &b) in idx.iter().enumerate() {
+                q[(a, b)] = qj * m[i][j];
+            }
+        }
+        q[(2, 2)] += 1e-7 * dt;
     }
     let qa = s.accel_noise.powi(2);
     q[(3, 3)] += qa * dt3;
@@ -377,11 +393,12 @@ fn filter(ev: &Events<'_>, s: &Settings, start: Option<&S>) -> Filtered {
         fs: Vec::with_capacity(n),
         gnss: Vec::with_capacity(n),
         log_likelihood: 0.0,
+        yaw_log_likelihood: 0.0,
         active,
     };
     let mut t_prev = events[0].0;
     // Whether the vehicle stands still since the last CAN sample. Standing, it cannot turn:
-    // the heading and yaw rate get no process noise (the yaw-acceleration noise of a moving
+    // the heading and yaw rate get no process noise (the yaw-jerk noise of a moving
     // car, leaking into the heading between CAN samples, would let the heading wander with
     // the GNSS noise seen through the lever arm while the vehicle waits).
     let mut still_now = false;
@@ -439,6 +456,9 @@ fn filter(ev: &Events<'_>, s: &Settings, start: Option<&S>) -> Filtered {
                 ));
                 let y = Vector2::new(v - x[3], w - x[4]);
                 let sm = h * p * h.transpose() + r;
+                if !*still && sm[(1, 1)] > 0.0 {
+                    out.yaw_log_likelihood -= 0.5 * (sm[(1, 1)].ln() + y.y * y.y / sm[(1, 1)]);
+                }
                 if let Some(si) = sm.try_inverse() {
                     let k = p * h.transpose() * si;
                     x += k * y;
@@ -455,6 +475,33 @@ fn filter(ev: &Events<'_>, s: &Settings, start: Option<&S>) -> Filtered {
         });
     }
     out
+}
+
+/// The yaw-jerk noises the motion model is chosen from, rad/s³ per √s.
+const YAW_JERK_NOISES: [f64; 7] = [0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0];
+
+/// How freely the yaw rate may change, as the drive's own CAN yaw rate shows it: among yaw-jerk
+/// noises from 0.1 to 100 rad/s³ per √s, the one under which the filter's yaw-rate innovations
+/// while moving are most likely (maximum likelihood, as for the GNSS noise in
+/// [`fit_gnss_noise`]). A car that swerves gets a larger noise, one that drives smooth arcs a
+/// smaller one; the heading between two CAN samples is then held to the yaw rate as tightly as
+/// the drive's yaw rate is smooth.
+pub fn fit_yaw_jerk_noise(gnss: &[GnssObs], motion: &[(UtcNanos, f64, f64)], s: &Settings) -> f64 {
+    let Ok(events) = Events::new(gnss, motion) else {
+        return s.yaw_jerk_noise;
+    };
+    let mut best = (f64::NEG_INFINITY, s.yaw_jerk_noise);
+    for &q in &YAW_JERK_NOISES {
+        let settings = Settings {
+            yaw_jerk_noise: q,
+            ..*s
+        };
+        let f = filter(&events, &settings, None);
+        if f.yaw_log_likelihood > best.0 {
+            best = (f.yaw_log_likelihood, q);
+        }
+    }
+    best.1
 }
 
 /// The correlation times the GNSS error model is chosen from, s (0: white).
@@ -581,7 +628,7 @@ impl EgoTrajectory {
         )
     }
 
-    /// State `[x, y, ψ, v, ω, a, δ, lever x, GNSS wander east, north]` and its covariance at `t` (propagated from the
+    /// State `[x, y, ψ, v, ω, a, δ, lever x, GNSS wander east, north, α]` and its covariance at `t` (propagated from the
     /// smoothed state before it).
     pub fn state_at(&self, t: UtcNanos) -> Option<(S, P)> {
         let k = self.index_at(t)?;

@@ -39,7 +39,7 @@ pub use report::{
 
 use super::noise::yaw_rate_noise;
 use super::run::Run;
-use super::trajectory::{fit_gnss_noise, EgoTrajectory, GnssObs, Settings};
+use super::trajectory::{fit_gnss_noise, fit_yaw_jerk_noise, EgoTrajectory, GnssObs, Settings};
 use crate::rig::Rig;
 use crate::scene::file::Wgs84;
 use crate::scene::geodesy::Enu;
@@ -163,6 +163,10 @@ fn check_into(
     // states, with the correlation time and share that the drive's own GNSS innovations make
     // most likely (white, if that is what they are), so that CAN motion carries the short term
     // and GNSS the long term.
+    let settings = Settings {
+        yaw_jerk_noise: fit_yaw_jerk_noise(&obs, &motion, &settings),
+        ..settings
+    };
     let settings = Settings {
         gnss_noise: fit_gnss_noise(&obs, &motion, &settings),
         ..settings
