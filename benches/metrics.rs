@@ -1,7 +1,9 @@
-//! Metric speed (issue 13, must-hold 8), on one core:
+//! Metric speed (issue 13, must-hold 8):
 //! - OCR^K of two 100 k-point scans (binning both, comparing the grids) in scan pairs per
-//!   second, against the bare baseline of hashing the same 200 k cell keys into a set;
-//! - the Chamfer and Hausdorff distances of 100 k against 100 k points in pairs per second.
+//!   second on one core, against the bare baseline of hashing the same 200 k cell keys into a
+//!   set;
+//! - the Chamfer and Hausdorff distances of 100 k against 100 k points in pairs per second (the
+//!   two directions run in parallel; `RAYON_NUM_THREADS=1` for one core).
 //!
 //! `cargo bench --bench metrics`; the ratios are printed from interleaved rounds so both sides
 //! see the same machine load.
