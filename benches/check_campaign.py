@@ -14,7 +14,8 @@
    rig file given to `check` saying 0.0, 0.3, 0.6 or 1.0 m: the estimate must be within 10 cm of
    the truth, or the check must say it cannot determine it.
 
-usage: python3 benches/check_campaign.py [CLEAN_DRIVES] [SEEDS_PER_FAULT]   (default 30 10)
+usage: python3 benches/check_campaign.py [CLEAN_DRIVES] [SEEDS_PER_FAULT] [FIRST_CLEAN_SEED]
+       (default 30 10 100; another first seed draws another set of clean drives)
 """
 import bisect
 import csv
@@ -29,6 +30,7 @@ import tempfile
 root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 n_clean = int(sys.argv[1]) if len(sys.argv) > 1 else 30
 n_fault = int(sys.argv[2]) if len(sys.argv) > 2 else 10
+first_seed = int(sys.argv[3]) if len(sys.argv) > 3 else 100
 subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=root, check=True)
 exe = os.path.join(root, "target", "release", "hilrig")
 base = open(os.path.join(root, "fixtures/parking/drive.toml")).read().replace(
@@ -163,7 +165,7 @@ with tempfile.TemporaryDirectory() as tmp:
     for k in range(n_clean):
         speed = 1.4 + 0.3 * (k % 5)
         start = STARTS[k % 3]
-        d, v = drive(tmp, f"clean{k}", "", 100 + k, speed, start)
+        d, v = drive(tmp, f"clean{k}", "", first_seed + k, speed, start)
         names = [f["name"] for f in v["faults"]]
         false += bool(names)
         for t in truths:
@@ -173,7 +175,7 @@ with tempfile.TemporaryDirectory() as tmp:
         usable = [abs(e) for e, _, u in h if u]
         worst_usable = max(worst_usable, p95(usable) if usable else 0.0)
         z = math.sqrt(sum((e / s) ** 2 for e, s, _ in h) / len(h))
-        print(f"clean seed {100 + k} {start} at {speed:.1f} m/s: faults {names}; heading error "
+        print(f"clean seed {first_seed + k} {start} at {speed:.1f} m/s: faults {names}; heading error "
               f"p95 {p95(usable):.3f}° in usable ({len(usable) / len(h):.0%} of the drive), "
               f"{p95([abs(e) for e, _, _ in h]):.3f}° overall, rms error/sigma {z:.2f}; "
               f"warnings {[w['name'] for w in v['warnings']]}")
