@@ -193,15 +193,22 @@ fn windows(spec: &GridSpec, k: usize, real: &[Cloud], sim: &[Cloud]) -> Vec<Opti
 }
 
 /// The run, its rig, trajectory and admissible cell, as `compare` needs them.
+/// The run's measured scans (and the damage they were read up to).
+type Measured = (Vec<Scan>, Option<String>);
+
 fn reference(
     run_path: &Path,
     rig: Option<&Rig>,
     scene: Option<&Scene>,
     trajectory: Option<Trajectory>,
-) -> Result<(Vec<u8>, Run, Rig, Trajectory, f64), CompareError> {
+) -> Result<(Measured, Run, Rig, Trajectory, f64), CompareError> {
     let input = CompareError::Input;
     let (bytes, run, rig) = crate::reference::run::load_with_rig(run_path, rig).map_err(input)?;
-    let (report, smoothed) = check_with_trajectory(&run, &rig, scene);
+    // The measured scans are read while the reference data are checked.
+    let ((report, smoothed), measured) = rayon::join(
+        || check_with_trajectory(&run, &rig, scene),
+        || read_scans(&bytes),
+    );
     if report.verdict == Verdict::Unusable {
         return Err(input(format!(
             "{}: the reference data cannot be judged ({}): see `hilrig check`",
@@ -216,7 +223,7 @@ fn reference(
             .and_then(|t| t.sampled(10_000_000))
             .ok_or_else(|| input(format!("{}: no RTK+CAN trajectory", run_path.display())))?,
     };
-    Ok((bytes, run, rig, trajectory, admissible))
+    Ok((measured, run, rig, trajectory, admissible))
 }
 
 /// The measured scans with their simulated twins (same stamp); an error naming both files and
@@ -290,7 +297,7 @@ pub fn compare(
         || reference(run_path, rig, scene, opts.trajectory.clone()),
         || read_simulation(sim_path),
     );
-    let (bytes, run, rig, trajectory, admissible) = reference?;
+    let ((real_scans, real_damage), run, rig, trajectory, admissible) = reference?;
     phase("reference checked, simulation read");
     let cell = opts.cell_m.unwrap_or(admissible);
     let spec = GridSpec::new(cell, opts.dims).map_err(|e| input(e.to_string()))?;
@@ -301,7 +308,6 @@ pub fn compare(
         return Err(CompareError::CellTooSmall { cell, admissible });
     }
     let (sim_scans, sim_damage) = simulated?;
-    let (real_scans, real_damage) = read_scans(&bytes);
     // A damaged file is compared as far as it can be read, and says so.
     let damage: Vec<String> = [(run_path, real_damage), (sim_path, sim_damage)]
         .into_iter()
