@@ -192,10 +192,11 @@ fn windows(spec: &GridSpec, k: usize, real: &[Cloud], sim: &[Cloud]) -> Vec<Opti
         .collect()
 }
 
-/// The run, its rig, trajectory and admissible cell, as `compare` needs them.
 /// The run's measured scans (and the damage they were read up to).
 type Measured = (Vec<Scan>, Option<String>);
 
+/// The run's measured scans, the run, its rig, trajectory and admissible cell, as `compare`
+/// needs them.
 fn reference(
     run_path: &Path,
     rig: Option<&Rig>,

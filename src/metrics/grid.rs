@@ -244,9 +244,14 @@ impl Occupancy {
 
     /// The occupied cells, sorted.
     pub fn occupied(&self) -> Vec<Cell> {
+        self.occupied_keys().iter().map(|&k| unpack(k)).collect()
+    }
+
+    /// The occupied cells' keys, sorted (borrowed, or gathered from `counts` at K = 1).
+    fn occupied_keys(&self) -> std::borrow::Cow<'_, [u64]> {
         match &self.occupied {
-            Some(keys) => keys.iter().map(|&k| unpack(k)).collect(),
-            None => self.counts.iter().map(|e| unpack(e.0)).collect(),
+            Some(keys) => keys.into(),
+            None => self.counts.iter().map(|e| e.0).collect::<Vec<_>>().into(),
         }
     }
 
@@ -318,12 +323,7 @@ pub fn compare(real: &Occupancy, sim: &Occupancy) -> GridScores {
     let (hit_both, dot) = shared_counts(&real.counts, &sim.counts);
     let both = match (&real.occupied, &sim.occupied) {
         (None, None) => hit_both,
-        (r, s) => {
-            let keys = |o: &Option<Vec<u64>>, c: &[(u64, u32)]| {
-                o.clone().unwrap_or_else(|| c.iter().map(|e| e.0).collect())
-            };
-            shared(&keys(r, &real.counts), &keys(s, &sim.counts))
-        }
+        _ => shared(&real.occupied_keys(), &sim.occupied_keys()),
     };
     let (r, s) = (real.occupied_len(), sim.occupied_len());
     let ratio = |n: usize, d: usize| (d > 0).then(|| n as f64 / d as f64);

@@ -4,8 +4,8 @@
 //!
 //! State (rear-axle centre, local ENU frame): `[x, y, ψ, v, ω, a]` and the yaw acceleration α,
 //! heading ψ from east counter-clockwise, speed v along the heading (no side slip at parking
-//! speeds), yaw rate ω and longitudinal acceleration a; and two constants that `check` wants to know: the GNSS time
-//! offset δ (a fix stamped t describes the instant t - δ) and the antenna's forward lever arm,
+//! speeds), yaw rate ω and longitudinal acceleration a; and two constants that `check` wants to
+//! know: the GNSS time offset δ (a fix stamped t describes the instant t - δ) and the antenna's forward lever arm,
 //! both fixed at their configured values unless [`Settings::estimate_offset_and_lever`] is on;
 //! and the slowly wandering part of the GNSS error, east and north (see [`GnssNoise`]).
 //! The acceleration matters: with speed held constant between CAN
@@ -487,18 +487,36 @@ const YAW_JERK_NOISES: [f64; 7] = [0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0];
 /// smaller one; the heading between two CAN samples is then held to the yaw rate as tightly as
 /// the drive's yaw rate is smooth.
 pub fn fit_yaw_jerk_noise(gnss: &[GnssObs], motion: &[(UtcNanos, f64, f64)], s: &Settings) -> f64 {
-    let Ok(events) = Events::new(gnss, motion) else {
-        return s.yaw_jerk_noise;
-    };
-    let mut best = (f64::NEG_INFINITY, s.yaw_jerk_noise);
-    for &q in &YAW_JERK_NOISES {
-        let settings = Settings {
-            yaw_jerk_noise: q,
-            ..*s
-        };
-        let f = filter(&events, &settings, None);
-        if f.yaw_log_likelihood > best.0 {
-            best = (f.yaw_log_likelihood, q);
+    Events::new(gnss, motion)
+        .ok()
+        .and_then(|events| {
+            most_likely(
+                &events,
+                YAW_JERK_NOISES,
+                |q| Settings {
+                    yaw_jerk_noise: q,
+                    ..*s
+                },
+                |f| f.yaw_log_likelihood,
+            )
+        })
+        .unwrap_or(s.yaw_jerk_noise)
+}
+
+/// Of the `candidates`, the first one under which the filter over `events` (with the settings
+/// `settings(candidate)`) scores highest by `score`, a log-likelihood; `None` when none scores
+/// above -∞.
+fn most_likely<T: Copy>(
+    events: &Events<'_>,
+    candidates: impl IntoIterator<Item = T>,
+    settings: impl Fn(T) -> Settings,
+    score: impl Fn(&Filtered) -> f64,
+) -> Option<T> {
+    let mut best: (f64, Option<T>) = (f64::NEG_INFINITY, None);
+    for c in candidates {
+        let l = score(&filter(events, &settings(c), None));
+        if l > best.0 {
+            best = (l, Some(c));
         }
     }
     best.1
@@ -519,32 +537,31 @@ pub fn fit_gnss_noise(
     motion: &[(UtcNanos, f64, f64)],
     s: &Settings,
 ) -> GnssNoise {
-    let Ok(events) = Events::new(gnss, motion) else {
-        return GnssNoise::WHITE;
-    };
-    let mut best = (f64::NEG_INFINITY, GnssNoise::WHITE);
-    for &tau in &CORRELATION_TIMES_S {
+    let models = CORRELATION_TIMES_S.iter().flat_map(|&tau| {
         let shares: &[f64] = if tau == 0.0 {
             &[0.0]
         } else {
             &CORRELATED_SHARES
         };
-        for &share in shares {
-            let model = GnssNoise {
-                correlation_s: tau,
-                correlated_share: share,
-            };
-            let settings = Settings {
-                gnss_noise: model,
-                ..*s
-            };
-            let f = filter(&events, &settings, None);
-            if f.log_likelihood > best.0 {
-                best = (f.log_likelihood, model);
-            }
-        }
-    }
-    best.1
+        shares.iter().map(move |&share| GnssNoise {
+            correlation_s: tau,
+            correlated_share: share,
+        })
+    });
+    Events::new(gnss, motion)
+        .ok()
+        .and_then(|events| {
+            most_likely(
+                &events,
+                models,
+                |model| Settings {
+                    gnss_noise: model,
+                    ..*s
+                },
+                |f| f.log_likelihood,
+            )
+        })
+        .unwrap_or(GnssNoise::WHITE)
 }
 
 impl EgoTrajectory {
@@ -628,8 +645,8 @@ impl EgoTrajectory {
         )
     }
 
-    /// State `[x, y, ψ, v, ω, a, δ, lever x, GNSS wander east, north, α]` and its covariance at `t` (propagated from the
-    /// smoothed state before it).
+    /// State `[x, y, ψ, v, ω, a, δ, lever x, GNSS wander east, north, α]` and its covariance at
+    /// `t` (propagated from the smoothed state before it).
     pub fn state_at(&self, t: UtcNanos) -> Option<(S, P)> {
         let k = self.index_at(t)?;
         let dt = (t.0 - self.times[k].0) as f64 * 1e-9;

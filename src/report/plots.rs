@@ -137,7 +137,7 @@ pub fn check_timeline(check: &Value) -> Option<String> {
         .map_err(e)?
         .label("horizontal sigma")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], REAL.stroke_width(2)));
-        legend(&mut c, SeriesLabelPosition::UpperRight)?;
+        legend(&mut c, SeriesLabelPosition::MiddleRight)?;
 
         let mut s = ChartBuilder::on(&lower)
             .margin(8)

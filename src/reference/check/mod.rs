@@ -158,15 +158,17 @@ fn check_into(
         .iter()
         .map(|(_, f)| f.rtk == RtkState::Fixed)
         .collect();
+    // How smoothly the yaw rate changes, as the drive's CAN yaw rate shows it: it decides how
+    // closely the heading follows the integrated yaw rate between GNSS fixes.
+    let settings = Settings {
+        yaw_jerk_noise: fit_yaw_jerk_noise(&obs, &motion, &settings),
+        ..settings
+    };
     // RTK errors wander over seconds: weighted as if independent, ten epochs a second would pull
     // the trajectory (and its heading) along their wander. The smoothing models the wander as
     // states, with the correlation time and share that the drive's own GNSS innovations make
     // most likely (white, if that is what they are), so that CAN motion carries the short term
     // and GNSS the long term.
-    let settings = Settings {
-        yaw_jerk_noise: fit_yaw_jerk_noise(&obs, &motion, &settings),
-        ..settings
-    };
     let settings = Settings {
         gnss_noise: fit_gnss_noise(&obs, &motion, &settings),
         ..settings
