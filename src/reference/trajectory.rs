@@ -15,9 +15,9 @@
 //! with the receiver's per-epoch sigmas), CAN speed and CAN yaw rate. Jacobians are taken
 //! numerically: eleven states, and the model stays readable.
 //!
-//! Long file: the filter, the smoother, the choice of the GNSS noise model and the sampling of
-//! the result share one private state layout (the index constants, the state and covariance
-//! types); split, each part would have to expose it.
+//! Long file: the filter, the smoother, the choice of the noise models (yaw jerk, GNSS) and the
+//! sampling of the result share one private state layout (the index constants, the state and
+//! covariance types); split, each part would have to expose it.
 
 use super::noise::standstill;
 use crate::scene::pose::{PoseSample, Trajectory};
