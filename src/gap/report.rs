@@ -210,6 +210,50 @@ pub(super) fn params_text(c: &Candidate) -> String {
         .join(", ")
 }
 
+/// The summary of a round that added nothing. Eligible candidates that were tried on the
+/// validation runs and not kept come first, each with both gains: an effect that fits the
+/// parameterization runs but does not carry over is a finding the engineer should see (a
+/// weak effect, or too few validation scans to show it), not something hidden behind the
+/// candidate with the largest gain. Without such trials, the best candidate and why it is not
+/// eligible.
+pub(super) fn no_effect_line(round: usize, candidates: &[Candidate], trials: &[Trial]) -> String {
+    let interval =
+        |i: Option<(f64, f64)>| i.map_or("n/a".into(), |(a, z)| format!("{a:.1}, {z:.1}"));
+    let tried: Vec<String> = trials
+        .iter()
+        .filter(|t| !t.kept)
+        .filter_map(|t| {
+            let c = candidates.iter().find(|c| c.effect == t.effect)?;
+            Some(format!(
+                "{} ({}) fits the parameterization runs (gain {:.1} nats [{}]) but did not improve the validation runs beyond their noise (gain {:.1} nats [{}])",
+                c.effect,
+                params_text(c),
+                c.gain,
+                interval(c.gain_interval),
+                t.gain,
+                interval(t.gain_interval)
+            ))
+        })
+        .collect();
+    if !tried.is_empty() {
+        return format!(
+            "no missing effect found in round {round}: {}",
+            tried.join("; ")
+        );
+    }
+    match candidates.first() {
+        Some(b) => format!(
+            "no missing effect found in round {round}: best candidate {} ({}) gain {:.1} nats [{}], {}",
+            b.effect,
+            params_text(b),
+            b.gain,
+            interval(b.gain_interval),
+            b.note.clone().unwrap_or_else(|| "not significant".into())
+        ),
+        None => format!("no missing effect found in round {round}: no candidate left"),
+    }
+}
+
 /// The one-line finding of a round.
 pub(super) fn summary_line(
     c: &Candidate,
@@ -246,4 +290,74 @@ pub(super) fn summary_line(
         ));
     }
     format!("{} on {runs} validation runs", parts.join("; "))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gap::candidates::Param;
+
+    fn candidate(effect: &'static str, value: f64, gain: f64, eligible: bool) -> Candidate {
+        Candidate {
+            effect,
+            fitted: None,
+            refitted: Vec::new(),
+            params: vec![Param {
+                name: "x",
+                value,
+                interval: None,
+            }],
+            gain,
+            gain_interval: Some((gain * 0.5, gain * 1.5)),
+            gain_per_1000_firings: 0.0,
+            above_floor: eligible,
+            eligible,
+            note: (!eligible).then(|| "fitted value below the resolution floor".to_owned()),
+        }
+    }
+
+    fn trial(effect: &'static str, kept: bool) -> Trial {
+        let stats = FiringStats {
+            residual_median_m: None,
+            residual_sigma_m: None,
+            measured_share: 0.0,
+            predicted_share: 0.0,
+            log_likelihood_per_1000: 0.0,
+        };
+        Trial {
+            effect,
+            gain: 340.0,
+            gain_interval: Some((-85.8, 796.7)),
+            before: stats.clone(),
+            after: stats,
+            kept,
+        }
+    }
+
+    /// The line names the candidate that was tried and failed validation, with both gains,
+    /// not the ineligible candidate ranked first by its parameterization gain.
+    #[test]
+    fn a_round_without_an_effect_names_what_failed_validation() {
+        let cands = [
+            candidate("mount_misalignment", 0.17, 5707.0, false),
+            candidate("beam_divergence", 1.3, 700.0, true),
+        ];
+        let line = no_effect_line(5, &cands, &[trial("beam_divergence", false)]);
+        assert!(
+            line.starts_with("no missing effect found in round 5: beam_divergence (x = 1.30)"),
+            "{line}"
+        );
+        assert!(line.contains("gain 700.0 nats [350.0, 1050.0]"), "{line}");
+        assert!(line.contains("did not improve the validation runs beyond their noise (gain 340.0 nats [-85.8, 796.7])"), "{line}");
+        assert!(!line.contains("mount_misalignment"), "{line}");
+
+        // Nothing tried: the best candidate and why it is not eligible.
+        let line = no_effect_line(2, &cands[..1], &[]);
+        assert!(line.contains("best candidate mount_misalignment"), "{line}");
+        assert!(line.contains("below the resolution floor"), "{line}");
+        assert_eq!(
+            no_effect_line(3, &[], &[]),
+            "no missing effect found in round 3: no candidate left"
+        );
+    }
 }

@@ -12,8 +12,8 @@ use super::candidates::{random_of, with_effect, Fitting};
 use super::likelihood::{self, Scales, Scored};
 use super::observe::{count_scans, evaluate, features, load_run, Feature, Obs, RunData};
 use super::report::{
-    describe, firing_stats, params_text, save, summary_line, GapReport, Round, RunInfo, RunMetrics,
-    Trial,
+    describe, firing_stats, no_effect_line, save, summary_line, GapReport, Round, RunInfo,
+    RunMetrics, Trial,
 };
 use super::study::{Role, Study};
 use super::GapError;
@@ -386,26 +386,9 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
             }
         }
         let Some((c, next)) = accepted else {
-            let best = candidates.first();
-            report.summary.push(match best {
-                Some(b) => format!(
-                    "no missing effect found in round {round}: best candidate {} ({}) {}",
-                    b.effect,
-                    params_text(b),
-                    if b.eligible {
-                        "did not improve the validation runs beyond their noise".to_owned()
-                    } else {
-                        format!(
-                            "gain {:.1} nats [{}], {}",
-                            b.gain,
-                            b.gain_interval
-                                .map_or("n/a".into(), |(a, z)| format!("{a:.1}, {z:.1}")),
-                            b.note.clone().unwrap_or_else(|| "not significant".into())
-                        )
-                    }
-                ),
-                None => format!("no missing effect found in round {round}: no candidate left"),
-            });
+            report
+                .summary
+                .push(no_effect_line(round, &candidates, &this.trials));
             report.rounds.push(this);
             break;
         };
