@@ -196,6 +196,7 @@ fn the_report_renders_in_chromium_without_network() {
         Some((w.parse().ok()?, h.parse().ok()?))
     };
     let mut required: Vec<String> = [
+        "glance",
         "topics",
         "rates",
         "clocks",

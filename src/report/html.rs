@@ -1,4 +1,5 @@
-//! The report page: sections in the order of the method (what was recorded, whether the
+//! The report page: a first table of outcomes ([`super::glance`]), then sections in the order of
+//! the method (what was recorded, whether the
 //! reference data hold, what the simulation gets wrong and where, whether it is valid, and what
 //! the gap workflow found), each figure an inline SVG and each table plain HTML.
 
@@ -94,6 +95,11 @@ reference supports (§5), statistical validation over repetitions (§8, Fig. 7).
         env!("CARGO_PKG_VERSION"),
         inputs.len()
     );
+    let glance = super::glance::rows(&checks, &cmps, &vals, &gaps, &esc);
+    if !glance.is_empty() {
+        out.push_str("<h2 id=\"section-glance\">At a glance</h2>\n<p class=\"note\">One line per step of the method; the sections below hold the evidence.</p>\n");
+        table(&mut out, "glance", &["step", "result"], &glance);
+    }
     recording(&mut out, &recs, &checks);
     check_section(&mut out, &checks);
     compare_section(&mut out, &cmps);

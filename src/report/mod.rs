@@ -13,6 +13,7 @@
 //! `rounds` and `start_model`, a recording's summary `channels` and `profile`.
 
 pub mod gap_plots;
+mod glance;
 mod html;
 pub mod plots;
 
