@@ -432,8 +432,11 @@ pub fn compare(
     })
 }
 
-/// The bird's-eye [`Snapshot`] of the scan with the most objects in view (the earliest of
-/// those), at the comparison's cell size; cells are taken in the ground plane even for voxels.
+/// The bird's-eye [`Snapshot`] of the scan with the most objects in view and, of those, the
+/// smallest mean distance to them (the earliest on a tie), at the comparison's cell size; cells
+/// are taken in the ground plane even for voxels. Near the objects the sensor resolves them
+/// best, so disagreements show as shapes rather than single points; the first scan with every
+/// object in view is often the drive's start, far from most of them.
 fn snapshot(
     rows: &[ScanRow],
     real: &[Cloud],
@@ -441,7 +444,16 @@ fn snapshot(
     roi: &Roi,
     spec: &GridSpec,
 ) -> Option<Snapshot> {
-    let i = (0..rows.len()).max_by_key(|&i| (rows[i].objects_in_view, std::cmp::Reverse(i)))?;
+    let i = (0..rows.len()).min_by(|&a, &b| {
+        let key = |i: usize| {
+            (
+                std::cmp::Reverse(rows[i].objects_in_view),
+                rows[i].mean_distance_m.unwrap_or(f64::INFINITY),
+            )
+        };
+        let ((na, da), (nb, db)) = (key(a), key(b));
+        na.cmp(&nb).then(da.total_cmp(&db)).then(a.cmp(&b))
+    })?;
     let (r, s) = (&real[i], &sim[i]);
     let thin = |p: &[Point3<f64>]| -> Vec<[f32; 2]> {
         let step = p.len().div_ceil(super::report::SNAPSHOT_POINTS).max(1);
