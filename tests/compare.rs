@@ -183,6 +183,11 @@ fn inputs_that_do_not_belong_together_and_bad_cells_are_refused() {
         (run1.clone(), vec!["-K", "0"], "at least one scan"),
         (
             run1.clone(),
+            vec!["--grid-phases", "0"],
+            "at least one grid",
+        ),
+        (
+            run1.clone(),
             vec!["--roi", "object:unicorn"],
             "no object of that name",
         ),

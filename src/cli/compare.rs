@@ -47,6 +47,11 @@ pub struct CompareArgs {
     /// exclusion: give --keep-ground).
     #[arg(long)]
     sensor_frame: bool,
+    /// Average each scan's cell metrics over this many grids spread over a cell, placed anew
+    /// from scan to scan (a wall on a cell boundary would otherwise halve OCR whatever the
+    /// model)
+    #[arg(long, default_value_t = hilrig::metrics::compare::DEFAULT_GRID_PHASES)]
+    grid_phases: usize,
     /// Write everything as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -186,6 +191,7 @@ pub fn run(args: CompareArgs) -> Result<ExitCode> {
         allow_small_cell: args.allow_small_cell,
         trajectory,
         sensor_frame: args.sensor_frame,
+        grid_phases: args.grid_phases,
     };
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(

@@ -292,6 +292,58 @@ pub(super) fn summary_line(
     format!("{} on {runs} validation runs", parts.join("; "))
 }
 
+/// Whether two eligible candidates explain the parameterization runs alike: each one's gain
+/// lies inside the other's bootstrap interval. Effects that act alike on a drive are
+/// confounded there (a time offset and motion distortion both shift a scan along the motion;
+/// at low speed the per-firing residuals away from edges barely tell them apart), and their
+/// ranking by gain is then an order, not evidence.
+pub(super) fn alike(a: &Candidate, b: &Candidate) -> bool {
+    let inside = |g: f64, i: Option<(f64, f64)>| i.is_some_and(|(lo, hi)| lo <= g && g <= hi);
+    a.eligible
+        && b.eligible
+        && a.effect != b.effect
+        && inside(a.gain, b.gain_interval)
+        && inside(b.gain, a.gain_interval)
+}
+
+/// A warning when other candidates explain the parameterization runs as well as the chosen
+/// one ([`alike`]), with their gains there and, where they were tried, on the validation
+/// runs: the engineer should know that the data hardly decided, and that a drive with other
+/// speeds or turns would separate the effects.
+pub(super) fn confounded_line(
+    chosen: &Candidate,
+    candidates: &[Candidate],
+    trials: &[Trial],
+) -> Option<String> {
+    let interval =
+        |i: Option<(f64, f64)>| i.map_or("n/a".into(), |(a, z)| format!("{a:.1}, {z:.1}"));
+    let describe = |c: &Candidate| {
+        let validation = trials.iter().rfind(|t| t.effect == c.effect).map_or_else(
+            || "not tried on the validation runs".to_owned(),
+            |t| format!("validation {:.1} [{}]", t.gain, interval(t.gain_interval)),
+        );
+        format!(
+            "{} (gain {:.1} nats [{}], {validation})",
+            c.effect,
+            c.gain,
+            interval(c.gain_interval)
+        )
+    };
+    let rivals: Vec<String> = candidates
+        .iter()
+        .filter(|c| alike(chosen, c))
+        .map(describe)
+        .collect();
+    (!rivals.is_empty()).then(|| {
+        format!(
+            "confounded: {} and {} explain the parameterization runs alike; {} was added as the one that improved the validation runs most, but these drives hardly tell the effects apart: treat the choice as open (drives with other speeds, speed changes or turns would separate them)",
+            describe(chosen),
+            rivals.join(", "),
+            chosen.effect
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -332,6 +384,26 @@ mod tests {
             after: stats,
             kept,
         }
+    }
+
+    #[test]
+    fn an_effect_as_good_as_the_chosen_one_is_named_as_confounded() {
+        // Gains 45 000 [9 000, 90 000] and 44 800 [20 000, 70 000]: each inside the other's.
+        let chosen = candidate("time_offset", -29.7, 45_000.0, true);
+        let mut rival = candidate("motion_distortion", 1.0, 44_800.0, true);
+        rival.gain_interval = Some((20_000.0, 70_000.0));
+        let weaker = candidate("mount_misalignment", 0.2, 10_000.0, true);
+        let tried = [trial("time_offset", true)];
+        let line =
+            confounded_line(&chosen, &[chosen.clone(), rival.clone(), weaker], &tried).unwrap();
+        assert!(line.starts_with("confounded: time_offset (gain 45000.0 nats [22500.0, 67500.0], validation 340.0 [-85.8, 796.7]) and motion_distortion (gain 44800.0 nats [20000.0, 70000.0], not tried on the validation runs)"), "{line}");
+        assert!(!line.contains("mount_misalignment"), "{line}");
+        // An ineligible rival, or one clearly weaker, is no confound.
+        rival.eligible = false;
+        assert!(confounded_line(&chosen, &[rival], &tried).is_none());
+        let far = candidate("range_bias", 0.01, 15_000.0, true);
+        assert!(!alike(&chosen, &far));
+        assert!(confounded_line(&chosen, &[far], &tried).is_none());
     }
 
     /// The line names the candidate that was tried and failed validation, with both gains,

@@ -8,12 +8,12 @@
 
 use super::bins::tables;
 use super::bootstrap::{self, Blocks};
-use super::candidates::{random_of, with_effect, Fitting};
+use super::candidates::{random_of, with_effect, Candidate, Fitting};
 use super::likelihood::{self, Scales, Scored};
 use super::observe::{count_scans, evaluate, features, load_run, Feature, Obs, RunData};
 use super::report::{
-    describe, firing_stats, no_effect_line, save, summary_line, GapReport, Round, RunInfo,
-    RunMetrics, Trial,
+    alike, confounded_line, describe, firing_stats, no_effect_line, save, summary_line, GapReport,
+    Round, RunInfo, RunMetrics, Trial,
 };
 use super::study::{Role, Study};
 use super::GapError;
@@ -161,6 +161,7 @@ fn run_metrics(
                 allow_small_cell: false,
                 trajectory: None,
                 sensor_frame: false,
+                grid_phases: crate::metrics::compare::DEFAULT_GRID_PHASES,
             },
             &quiet,
         )
@@ -357,8 +358,15 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
             scales: val_scales,
         } = val.evaluate(&model, None)?;
         let before = firing_stats(&val_obs, &val.feats, &val_scored);
-        let mut accepted = None;
+        // The first eligible candidate that improves the validation runs is added; but when
+        // others explain the parameterization runs as well as it does (confounded, see
+        // `alike`), their ranking is no evidence, and of those the one that improves the
+        // validation runs most is added.
+        let mut accepted: Option<(Candidate, ModelFile, f64)> = None;
         for c in candidates.iter().filter(|c| c.eligible) {
+            if accepted.as_ref().is_some_and(|(a, _, _)| !alike(a, c)) {
+                continue;
+            }
             let Some(effect) = c.fitted.clone() else {
                 continue;
             };
@@ -380,12 +388,11 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
                 after: firing_stats(&o2, &val.feats, &s2),
                 kept,
             });
-            if kept {
-                accepted = Some((c.clone(), next));
-                break;
+            if kept && accepted.as_ref().is_none_or(|(_, _, g)| gain > *g) {
+                accepted = Some((c.clone(), next, gain));
             }
         }
-        let Some((c, next)) = accepted else {
+        let Some((c, next, _)) = accepted else {
             report
                 .summary
                 .push(no_effect_line(round, &candidates, &this.trials));
@@ -404,10 +411,17 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
             this.metrics_after = Some(after.clone());
             metrics_now = Some(after);
         }
-        let trial = this.trials.last().cloned();
+        let trial = this
+            .trials
+            .iter()
+            .rfind(|t| t.kept && t.effect == c.effect)
+            .cloned();
         report
             .summary
             .push(summary_line(&c, trial.as_ref(), &this, val.runs.len()));
+        report
+            .summary
+            .extend(confounded_line(&c, &candidates, &this.trials));
         report.rounds.push(this);
         save(&opts.out, &model, &report)?;
         if round == opts.max_rounds {

@@ -69,7 +69,16 @@ pub struct Options {
     /// Compare in the sensor frame (each scan as the sensor saw it, no ego motion) instead of
     /// the scene frame. The region and the ground then cannot be applied: all points count.
     pub sensor_frame: bool,
+    /// The grid metrics are averaged over this many grids per window, spread over a cell and
+    /// moving on from window to window ([`grid_phase`], [`GridSpec::shifted`]).
+    pub grid_phases: usize,
 }
+
+/// Grids per window the cell metrics are averaged over unless told otherwise: of four
+/// placements a quarter of a cell apart, at most one has a given wall within a few
+/// centimetres of a boundary (a scan's own OCR then errs by at most a quarter of what that
+/// wall's cells weigh), at four times the binning.
+pub const DEFAULT_GRID_PHASES: usize = 4;
 
 /// An object counts as seen with this many measured points in a scan.
 pub const MIN_POINTS_SEEN: usize = 10;
@@ -168,8 +177,28 @@ fn residuals(real: &Cloud, sim: &Cloud) -> Residuals {
     r
 }
 
-/// The occupancy grids' scores of every window of K scans ending at each scan.
-fn windows(spec: &GridSpec, k: usize, real: &[Cloud], sim: &[Cloud]) -> Vec<Option<GridScores>> {
+/// Where the j-th of the `phases` grids of the window ending at scan `i` lies, as a fraction
+/// of a cell from the scene origin along every axis: (j + u_i) / N, with u_i = frac(½ + i/φ)
+/// (the golden-ratio sequence). A window's N grids are spread evenly over a cell, and from
+/// window to window the spread moves on, so that a drive's mean is taken over N times its
+/// scans' placements, as if the grid had been put down at random; no placement is favoured,
+/// in particular not the origin, where man-made scenes put their walls on round coordinates
+/// and round cell sizes would put the boundaries.
+fn grid_phase(i: usize, j: usize, phases: usize) -> f64 {
+    const INV_GOLDEN: f64 = 0.618_033_988_749_894_9;
+    let u = (0.5 + i as f64 * INV_GOLDEN).fract();
+    (j as f64 + u) / phases.max(1) as f64
+}
+
+/// The occupancy grids' scores of every window of K scans ending at each scan, averaged over
+/// `phases` shifted grids ([`grid_phase`]).
+fn windows(
+    spec: &GridSpec,
+    phases: usize,
+    k: usize,
+    real: &[Cloud],
+    sim: &[Cloud],
+) -> Vec<Option<GridScores>> {
     (0..real.len())
         .into_par_iter()
         .map(|i| {
@@ -184,10 +213,16 @@ fn windows(spec: &GridSpec, k: usize, real: &[Cloud], sim: &[Cloud]) -> Vec<Opti
                 .iter()
                 .map(|c| c.points.as_slice())
                 .collect();
-            Some(grid_compare(
-                &Occupancy::of(spec, &r).ok()?,
-                &Occupancy::of(spec, &s).ok()?,
-            ))
+            let scores = (0..phases.max(1))
+                .map(|j| {
+                    let g = spec.shifted(grid_phase(i, j, phases));
+                    Some(grid_compare(
+                        &Occupancy::of(&g, &r).ok()?,
+                        &Occupancy::of(&g, &s).ok()?,
+                    ))
+                })
+                .collect::<Option<Vec<GridScores>>>()?;
+            GridScores::mean(&scores)
         })
         .collect()
 }
@@ -305,6 +340,11 @@ pub fn compare(
     if opts.k == 0 {
         return Err(input("-K 0: a grid needs at least one scan".into()));
     }
+    if opts.grid_phases == 0 {
+        return Err(input(
+            "--grid-phases 0: the metrics need at least one grid".into(),
+        ));
+    }
     if cell < admissible - 1e-9 && !opts.allow_small_cell {
         return Err(CompareError::CellTooSmall { cell, admissible });
     }
@@ -374,7 +414,7 @@ pub fn compare(
         )));
     }
     phase("scans decoded");
-    let grids = windows(&spec, opts.k, &real, &sim);
+    let grids = windows(&spec, opts.grid_phases, opts.k, &real, &sim);
     phase("grids");
     let t0 = real[0].middle;
     let (rows, res): (Vec<ScanRow>, Vec<Residuals>) = (0..real.len())
@@ -408,14 +448,16 @@ pub fn compare(
         })
         .unzip();
     phase("rows");
-    let calibration = curve(&real, &sim, &opts, cell, admissible);
+    let calibration = curve(&real, &sim, &opts, (cell, &grids), admissible);
     phase("calibration curve");
     let summary = summarise(&rows, &res, &real, &sim, real_scans.len() - pairs.len());
-    let snapshot = snapshot(&rows, &real, &sim, &roi, &spec);
+    let grid_of = |i: usize| spec.shifted(grid_phase(i, 0, opts.grid_phases));
+    let snapshot = super::snapshot::snapshot(&rows, &real, &sim, &roi, &grid_of);
     Ok(Comparison {
         cell_m: cell,
         admissible_cell_m: admissible,
         k: opts.k,
+        grid_phases: opts.grid_phases,
         dims: opts.dims,
         region: match &opts.region {
             Region::All => "all".into(),
@@ -432,67 +474,15 @@ pub fn compare(
     })
 }
 
-/// The bird's-eye [`Snapshot`] of the scan with the most objects in view and, of those, the
-/// smallest mean distance to them (the earliest on a tie), at the comparison's cell size; cells
-/// are taken in the ground plane even for voxels. Near the objects the sensor resolves them
-/// best, so disagreements show as shapes rather than single points; the first scan with every
-/// object in view is often the drive's start, far from most of them.
-fn snapshot(
-    rows: &[ScanRow],
-    real: &[Cloud],
-    sim: &[Cloud],
-    roi: &Roi,
-    spec: &GridSpec,
-) -> Option<Snapshot> {
-    let i = (0..rows.len()).min_by(|&a, &b| {
-        let key = |i: usize| {
-            (
-                std::cmp::Reverse(rows[i].objects_in_view),
-                rows[i].mean_distance_m.unwrap_or(f64::INFINITY),
-            )
-        };
-        let ((na, da), (nb, db)) = (key(a), key(b));
-        na.cmp(&nb).then(da.total_cmp(&db)).then(a.cmp(&b))
-    })?;
-    let (r, s) = (&real[i], &sim[i]);
-    let thin = |p: &[Point3<f64>]| -> Vec<[f32; 2]> {
-        let step = p.len().div_ceil(super::report::SNAPSHOT_POINTS).max(1);
-        p.iter()
-            .step_by(step)
-            .map(|q| [q.x as f32, q.y as f32])
-            .collect()
-    };
-    let bev = GridSpec::new(spec.cell_m(), Dims::Bev).ok()?;
-    let cells = |p: &[Point3<f64>]| -> std::collections::BTreeSet<[i64; 3]> {
-        p.iter().map(|q| bev.cell(q)).collect()
-    };
-    let (cr, cs) = (cells(&r.points), cells(&s.points));
-    let corner = |c: &[i64; 3]| [c[0] as f64 * bev.cell_m(), c[1] as f64 * bev.cell_m()];
-    Some(Snapshot {
-        scan: i,
-        t_s: rows[i].t_s,
-        sensor: r.origin.map(|o| [o.x, o.y]),
-        real: thin(&r.points),
-        sim: thin(&s.points),
-        objects: roi
-            .boxes()
-            .iter()
-            .map(|(n, b)| (n.clone(), [b.min.x, b.min.y], [b.max.x, b.max.y]))
-            .collect(),
-        cell_m: bev.cell_m(),
-        only_real_cells: cr.difference(&cs).map(corner).collect(),
-        only_sim_cells: cs.difference(&cr).map(corner).collect(),
-        both_cells: cr.intersection(&cs).count(),
-    })
-}
-
 /// Mean OCR^K over the scans at each cell size of [`CURVE_CELLS_M`], the admissible and the
-/// chosen cell.
+/// chosen cell. The curve holds drive means only, and those need one grid per window (the
+/// placements move on from window to window, [`grid_phase`]); the chosen cell's point is the
+/// mean of `chosen`, the per-scan scores already computed, so that it equals the summary's.
 fn curve(
     real: &[Cloud],
     sim: &[Cloud],
     opts: &Options,
-    cell: f64,
+    (cell, chosen): (f64, &[Option<GridScores>]),
     admissible: f64,
 ) -> Vec<CurvePoint> {
     let mut cells: Vec<f64> = CURVE_CELLS_M.to_vec();
@@ -502,8 +492,11 @@ fn curve(
     cells
         .into_iter()
         .filter_map(|c| {
-            let spec = GridSpec::new(c, opts.dims).ok()?;
-            let w = windows(&spec, opts.k, real, sim);
+            let w = if (c - cell).abs() < 1e-9 {
+                chosen.to_vec()
+            } else {
+                windows(&GridSpec::new(c, opts.dims).ok()?, 1, opts.k, real, sim)
+            };
             Some(CurvePoint {
                 cell_m: c,
                 ocr_mean: mean(w.iter().flatten().filter_map(|g| g.ocr)),

@@ -1,7 +1,8 @@
 //! Metrics between a measured run and its re-simulation (Rosenberger et al. 2019, §5): grid
 //! metrics ([`grid`]: OCR^K, precision, IoU, cosine), point metrics ([`points`]: Chamfer,
 //! Hausdorff), regions of interest ([`roi`]) and the scan-by-scan comparison that `hilrig
-//! compare` runs ([`compare`]) and what it reports ([`report`]).
+//! compare` runs ([`compare`]), what it reports ([`report`]) and the bird's-eye view of one
+//! scan pair ([`snapshot`]).
 
 mod cloud;
 pub mod compare;
@@ -10,3 +11,4 @@ pub mod grid;
 pub mod points;
 pub mod report;
 pub mod roi;
+mod snapshot;

@@ -138,6 +138,8 @@ pub struct Comparison {
     pub admissible_cell_m: f64,
     /// Scans per grid.
     pub k: usize,
+    /// Shifted grids the cell metrics are the mean over (1: the grid at the scene origin).
+    pub grid_phases: usize,
     /// 2D or 3D.
     pub dims: Dims,
     /// The region, as given.

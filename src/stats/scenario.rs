@@ -475,6 +475,7 @@ impl Scenario {
             allow_small_cell: true,
             trajectory: Some(truth),
             sensor_frame: false,
+            grid_phases: crate::metrics::compare::DEFAULT_GRID_PHASES,
         };
         let c = compare(&run, &sim, Some(&rig), Some(&scene), opts, &quiet)
             .map_err(|e| format!("compare: {e}"))?;
