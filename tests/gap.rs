@@ -115,6 +115,9 @@ fn param(params: &serde_json::Value, name: &str) -> f64 {
 }
 
 const IDEALIZED: &str = "name = \"idealized\"\n";
+/// A start model that places each rotation at the pose of its first firing.
+const FRAME_BASED: &str =
+    "name = \"frame-based\"\n[[effect]]\nname = \"motion_distortion\"\nenabled = false\n";
 
 fn run_hidden(
     truth: &str,
@@ -210,12 +213,7 @@ fn a_hidden_time_offset_is_not_taken_for_mount_yaw_or_motion_distortion() {
 
 #[test]
 fn a_frame_based_start_model_finds_motion_distortion_not_a_time_offset() {
-    let (_d, out) = run_hidden(
-        IDEALIZED,
-        "name = \"frame-based\"\n[[effect]]\nname = \"motion_distortion\"\nenabled = false\n",
-        5,
-        &|t| t,
-    );
+    let (_d, out) = run_hidden(IDEALIZED, FRAME_BASED, 5, &|t| t);
     let report = out.report.unwrap();
     let f = found(&report);
     assert_eq!(
@@ -236,15 +234,10 @@ fn a_frame_based_start_model_finds_motion_distortion_not_a_time_offset() {
 /// confounded.
 #[test]
 fn at_walking_pace_motion_distortion_wins_on_the_validation_runs_and_the_confound_is_named() {
-    let (_d, out) = run_hidden(
-        IDEALIZED,
-        "name = \"frame-based\"\n[[effect]]\nname = \"motion_distortion\"\nenabled = false\n",
-        2862,
-        &|t| {
-            t.replace("cruise_speed_mps = 6.0", "cruise_speed_mps = 3.0")
-                .replace("start_speed_mps = 6.0\n", "")
-        },
-    );
+    let (_d, out) = run_hidden(IDEALIZED, FRAME_BASED, 2862, &|t| {
+        t.replace("cruise_speed_mps = 6.0", "cruise_speed_mps = 3.0")
+            .replace("start_speed_mps = 6.0\n", "")
+    });
     let report = out.report.unwrap();
     let f = found(&report);
     assert_eq!(

@@ -210,6 +210,11 @@ pub(super) fn params_text(c: &Candidate) -> String {
         .join(", ")
 }
 
+/// A bootstrap interval as "low, high" (one decimal), or "n/a".
+fn interval_text(i: Option<(f64, f64)>) -> String {
+    i.map_or("n/a".into(), |(a, z)| format!("{a:.1}, {z:.1}"))
+}
+
 /// The summary of a round that added nothing. Eligible candidates that were tried on the
 /// validation runs and not kept come first, each with both gains: an effect that fits the
 /// parameterization runs but does not carry over is a finding the engineer should see (a
@@ -217,8 +222,6 @@ pub(super) fn params_text(c: &Candidate) -> String {
 /// candidate with the largest gain. Without such trials, the best candidate and why it is not
 /// eligible.
 pub(super) fn no_effect_line(round: usize, candidates: &[Candidate], trials: &[Trial]) -> String {
-    let interval =
-        |i: Option<(f64, f64)>| i.map_or("n/a".into(), |(a, z)| format!("{a:.1}, {z:.1}"));
     let tried: Vec<String> = trials
         .iter()
         .filter(|t| !t.kept)
@@ -229,9 +232,9 @@ pub(super) fn no_effect_line(round: usize, candidates: &[Candidate], trials: &[T
                 c.effect,
                 params_text(c),
                 c.gain,
-                interval(c.gain_interval),
+                interval_text(c.gain_interval),
                 t.gain,
-                interval(t.gain_interval)
+                interval_text(t.gain_interval)
             ))
         })
         .collect();
@@ -247,7 +250,7 @@ pub(super) fn no_effect_line(round: usize, candidates: &[Candidate], trials: &[T
             b.effect,
             params_text(b),
             b.gain,
-            interval(b.gain_interval),
+            interval_text(b.gain_interval),
             b.note.clone().unwrap_or_else(|| "not significant".into())
         ),
         None => format!("no missing effect found in round {round}: no candidate left"),
@@ -315,18 +318,22 @@ pub(super) fn confounded_line(
     candidates: &[Candidate],
     trials: &[Trial],
 ) -> Option<String> {
-    let interval =
-        |i: Option<(f64, f64)>| i.map_or("n/a".into(), |(a, z)| format!("{a:.1}, {z:.1}"));
     let describe = |c: &Candidate| {
         let validation = trials.iter().rfind(|t| t.effect == c.effect).map_or_else(
             || "not tried on the validation runs".to_owned(),
-            |t| format!("validation {:.1} [{}]", t.gain, interval(t.gain_interval)),
+            |t| {
+                format!(
+                    "validation {:.1} [{}]",
+                    t.gain,
+                    interval_text(t.gain_interval)
+                )
+            },
         );
         format!(
             "{} (gain {:.1} nats [{}], {validation})",
             c.effect,
             c.gain,
-            interval(c.gain_interval)
+            interval_text(c.gain_interval)
         )
     };
     let rivals: Vec<String> = candidates

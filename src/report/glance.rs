@@ -115,47 +115,43 @@ pub(super) fn rows(
             esc(&checks_line(checks)),
         ]);
     }
-    if !cmps.is_empty() {
-        let lines: Vec<String> = cmps
-            .iter()
-            .map(|c| {
-                esc(&format!(
-                    "{}: OCR^K {} at a {} m cell",
-                    c.name,
-                    fixed(num(&c.value, &["summary", "ocr_mean"]), 3),
-                    fixed(num(&c.value, &["cell_m"]), 2)
-                ))
-            })
-            .collect();
-        rows.push(vec![
-            step("compare", "Measurement against re-simulation (§5)"),
-            lines.join("<br>"),
-        ]);
-    }
-    if !vals.is_empty() {
-        let lines: Vec<String> = vals
-            .iter()
-            .map(|v| {
-                let [g, y, r, b] = lights(&v.value);
-                esc(&format!(
-                    "{}: {} ({g} green, {y} yellow, {r} red, {b} black)",
-                    v.name,
-                    text(&v.value, "verdict")
-                ))
-            })
-            .collect();
-        rows.push(vec![
-            step("validate", "Statistical validation (§8, Fig. 7)"),
-            lines.join("<br>"),
-        ]);
-    }
-    if !gaps.is_empty() {
-        let lines: Vec<String> = gaps
-            .iter()
-            .map(|g| esc(&gap_line(&g.name, &g.value)))
-            .collect();
-        rows.push(vec![step("gap", "The gap workflow"), lines.join("<br>")]);
-    }
+    // One row per kind of input present: its step and a line per input.
+    let mut section =
+        |id: &str, title: &str, inputs: &[&Input], line: &dyn Fn(&Input) -> String| {
+            if !inputs.is_empty() {
+                let lines: Vec<String> = inputs.iter().map(|i| esc(&line(i))).collect();
+                rows.push(vec![step(id, title), lines.join("<br>")]);
+            }
+        };
+    section(
+        "compare",
+        "Measurement against re-simulation (§5)",
+        cmps,
+        &|c| {
+            format!(
+                "{}: OCR^K {} at a {} m cell",
+                c.name,
+                fixed(num(&c.value, &["summary", "ocr_mean"]), 3),
+                fixed(num(&c.value, &["cell_m"]), 2)
+            )
+        },
+    );
+    section(
+        "validate",
+        "Statistical validation (§8, Fig. 7)",
+        vals,
+        &|v| {
+            let [g, y, r, b] = lights(&v.value);
+            format!(
+                "{}: {} ({g} green, {y} yellow, {r} red, {b} black)",
+                v.name,
+                text(&v.value, "verdict")
+            )
+        },
+    );
+    section("gap", "The gap workflow", gaps, &|g| {
+        gap_line(&g.name, &g.value)
+    });
     rows
 }
 
