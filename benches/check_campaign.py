@@ -15,8 +15,12 @@
    the truth, or the check must say it cannot determine it.
 
 usage: python3 benches/check_campaign.py [CLEAN_DRIVES] [SEEDS_PER_FAULT] [FIRST_CLEAN_SEED]
-       (default 30 10 100; another first seed draws another set of clean drives)
+           [--gnss-sigma M] [--gnss-correlation S] [--gnss-rate HZ] [--can-rate HZ]
+           [--yaw-rate-noise RAD/S]
+       (default 30 10 100; another first seed draws another set of clean drives; the options
+       replace the parking drive's [gnss] and [can] stream settings: other receivers and cars)
 """
+import argparse
 import bisect
 import csv
 import datetime
@@ -28,13 +32,28 @@ import sys
 import tempfile
 
 root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-n_clean = int(sys.argv[1]) if len(sys.argv) > 1 else 30
-n_fault = int(sys.argv[2]) if len(sys.argv) > 2 else 10
-first_seed = int(sys.argv[3]) if len(sys.argv) > 3 else 100
+ap = argparse.ArgumentParser()
+ap.add_argument("n_clean", nargs="?", type=int, default=30)
+ap.add_argument("n_fault", nargs="?", type=int, default=10)
+ap.add_argument("first_seed", nargs="?", type=int, default=100)
+ap.add_argument("--gnss-sigma", type=float)
+ap.add_argument("--gnss-correlation", type=float)
+ap.add_argument("--gnss-rate", type=float)
+ap.add_argument("--can-rate", type=float)
+ap.add_argument("--yaw-rate-noise", type=float)
+args = ap.parse_args()
+n_clean, n_fault, first_seed = args.n_clean, args.n_fault, args.first_seed
 subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=root, check=True)
 exe = os.path.join(root, "target", "release", "hilrig")
 base = open(os.path.join(root, "fixtures/parking/drive.toml")).read().replace(
     'rig = "../../rigs/demo.toml"', f'rig = "{os.path.join(root, "rigs/demo.toml")}"')
+for old, value in [("sigma_horizontal_m = 0.010", args.gnss_sigma),
+                   ("correlation_s = 2.0", args.gnss_correlation),
+                   ("rate_hz = 10\n", args.gnss_rate), ("rate_hz = 50\n", args.can_rate),
+                   ("yaw_rate_sigma_rps = 0.002", args.yaw_rate_noise)]:
+    if value is not None:
+        assert old in base, old
+        base = base.replace(old, old.split("=")[0] + f"= {value}" + ("\n" if old.endswith("\n") else ""))
 CAN_LATENCY_MS = 1.0
 STARTS = ["standing", "moving", "turning"]
 

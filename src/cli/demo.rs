@@ -411,7 +411,7 @@ pub fn run(args: DemoArgs) -> Result<ExitCode> {
     let mut figure = Vec::new();
     for (name, _) in &models {
         let v = read_json(&val(name))?;
-        let (g, y, red, b) = count_lights(&v);
+        let [g, y, red, b] = hilrig::report::plots::lights(&v);
         figure.push(format!(
             "{name}: {g} green {y} yellow {red} red {b} black, {}",
             v["verdict"].as_str().unwrap_or("?")
@@ -494,24 +494,4 @@ pub fn run(args: DemoArgs) -> Result<ExitCode> {
         out.join("commands.sh").display()
     );
     Ok(ExitCode::SUCCESS)
-}
-
-/// Traffic lights in a `validate` JSON: green, yellow, red, black.
-fn count_lights(v: &Value) -> (usize, usize, usize, usize) {
-    let mut n = (0, 0, 0, 0);
-    let mut visit = |light: &str| match light {
-        "green" => n.0 += 1,
-        "yellow" => n.1 += 1,
-        "red" => n.2 += 1,
-        "black" => n.3 += 1,
-        _ => {}
-    };
-    if let Some(cells) = v["cells"].as_array() {
-        for c in cells {
-            if let Some(l) = c["light"].as_str() {
-                visit(l);
-            }
-        }
-    }
-    n
 }

@@ -2,20 +2,9 @@
 //! section that holds the evidence. A reviewer reads the verdicts first and the tables that
 //! support them after; without this, the page opened on the recordings' topic list.
 
-use super::plots::{arr, num};
+use super::plots::{arr, fixed, lights, num, text};
 use super::Input;
 use serde_json::Value;
-
-/// A value's text, or "".
-fn text<'a>(v: &'a Value, key: &str) -> &'a str {
-    v.get(key).and_then(Value::as_str).unwrap_or("")
-}
-
-/// `x` with `d` decimals, or a dash.
-fn fixed(x: Option<f64>, d: usize) -> String {
-    x.filter(|x| x.is_finite())
-        .map_or_else(|| "–".into(), |x| format!("{x:.d$}"))
-}
 
 /// The check line: runs passing, the worst ego accuracy, the admissible cells, faults named.
 fn checks_line(checks: &[&Input]) -> String {
@@ -57,21 +46,6 @@ fn checks_line(checks: &[&Input]) -> String {
         line.push_str(&format!("; faults: {}", faults.join(", ")));
     }
     line
-}
-
-/// Counts of green, yellow, red and black cells of a validation.
-fn lights(v: &Value) -> [usize; 4] {
-    let mut n = [0; 4];
-    for c in arr(v, "cells") {
-        match text(c, "light") {
-            "green" => n[0] += 1,
-            "yellow" => n[1] += 1,
-            "red" => n[2] += 1,
-            "black" => n[3] += 1,
-            _ => {}
-        }
-    }
-    n
 }
 
 /// The gap line: the effects added in order, and why the workflow stopped.

@@ -3,7 +3,7 @@
 //! reference data hold, what the simulation gets wrong and where, whether it is valid, and what
 //! the gap workflow found), each figure an inline SVG and each table plain HTML.
 
-use super::plots::{self, arr, num};
+use super::plots::{self, arr, fixed, num, text};
 use super::{Input, Kind};
 use serde_json::Value;
 use std::fmt::Write;
@@ -14,18 +14,6 @@ fn esc(s: &str) -> String {
         .replace('<', "&lt;")
         .replace('>', "&gt;")
         .replace('"', "&quot;")
-}
-
-/// A number with `d` decimals, or a dash.
-fn n(v: Option<f64>, d: usize) -> String {
-    match v {
-        Some(x) if x.is_finite() => format!("{x:.d$}"),
-        _ => "–".into(),
-    }
-}
-
-fn s<'a>(v: &'a Value, k: &str) -> &'a str {
-    v.get(k).and_then(Value::as_str).unwrap_or("")
 }
 
 /// A figure: the SVG or a note why it is missing.
@@ -124,10 +112,10 @@ fn recording(out: &mut String, recs: &[&Input], checks: &[&Input]) {
             let count = num(c, &["count"]);
             rows.push(vec![
                 esc(&r.name),
-                esc(s(c, "topic")),
-                esc(s(c, "message_type")),
-                n(count, 0),
-                n(count.zip(span).map(|(c, s)| c / s.max(1e-9)), 2),
+                esc(text(c, "topic")),
+                esc(text(c, "message_type")),
+                fixed(count, 0),
+                fixed(count.zip(span).map(|(c, s)| c / s.max(1e-9)), 2),
             ]);
         }
     }
@@ -144,11 +132,11 @@ fn recording(out: &mut String, recs: &[&Input], checks: &[&Input]) {
         for src in arr(&t, "sources") {
             rows.push(vec![
                 esc(&c.name),
-                esc(s(src, "source")),
-                n(num(src, &["rate_hz"]), 2),
-                n(num(src, &["jitter_ms"]), 2),
-                n(num(src, &["gaps"]), 0),
-                n(num(src, &["max_interval_ms"]), 1),
+                esc(text(src, "source")),
+                fixed(num(src, &["rate_hz"]), 2),
+                fixed(num(src, &["jitter_ms"]), 2),
+                fixed(num(src, &["gaps"]), 0),
+                fixed(num(src, &["max_interval_ms"]), 1),
             ]);
         }
     }
@@ -176,9 +164,9 @@ fn recording(out: &mut String, recs: &[&Input], checks: &[&Input]) {
                 rows.push(vec![
                     esc(&c.name),
                     esc(source),
-                    n(num(model, &["drift_ppm"]), 3),
-                    n(num(model, &["offset_ns"]).map(|x| x * 1e-6), 3),
-                    n(num(model, &["residual_p95_ns"]).map(|x| x * 1e-3), 1),
+                    fixed(num(model, &["drift_ppm"]), 3),
+                    fixed(num(model, &["offset_ns"]).map(|x| x * 1e-6), 3),
+                    fixed(num(model, &["residual_p95_ns"]).map(|x| x * 1e-3), 1),
                     esc(model.get("pps").and_then(Value::as_str).unwrap_or("")),
                 ]);
             }
@@ -212,16 +200,16 @@ fn check_section(out: &mut String, checks: &[&Input]) {
             let v = &c.value;
             vec![
                 esc(&c.name),
-                verdict(s(v, "verdict")),
-                n(num(v, &["duration_s"]), 1),
-                n(
+                verdict(text(v, "verdict")),
+                fixed(num(v, &["duration_s"]), 1),
+                fixed(
                     num(v, &["spatial", "rtk_fixed_share"]).map(|x| x * 100.0),
                     1,
                 ),
-                n(num(v, &["accuracy", "ego_m"]), 3),
-                n(num(v, &["accuracy", "heading_sigma_deg"]), 3),
-                n(num(v, &["accuracy", "reference_m"]), 3),
-                n(num(v, &["accuracy", "grid_cell_m"]), 2),
+                fixed(num(v, &["accuracy", "ego_m"]), 3),
+                fixed(num(v, &["accuracy", "heading_sigma_deg"]), 3),
+                fixed(num(v, &["accuracy", "reference_m"]), 3),
+                fixed(num(v, &["accuracy", "grid_cell_m"]), 2),
                 arr(v, "faults").len().to_string(),
             ]
         })
@@ -260,18 +248,18 @@ fn compare_section(out: &mut String, cmps: &[&Input]) {
             let v = &c.value;
             vec![
                 esc(&c.name),
-                n(num(v, &["cell_m"]), 2),
-                n(num(v, &["summary", "ocr_mean"]), 3),
-                n(num(v, &["summary", "precision_mean"]), 3),
-                n(num(v, &["summary", "iou_mean"]), 3),
-                n(num(v, &["summary", "chamfer_mean_m"]), 3),
-                n(num(v, &["summary", "range_diff_rms_m"]), 3),
-                n(num(v, &["summary", "only_sim_share"]).map(|x| x * 100.0), 1),
+                fixed(num(v, &["cell_m"]), 2),
+                fixed(num(v, &["summary", "ocr_mean"]), 3),
+                fixed(num(v, &["summary", "precision_mean"]), 3),
+                fixed(num(v, &["summary", "iou_mean"]), 3),
+                fixed(num(v, &["summary", "chamfer_mean_m"]), 3),
+                fixed(num(v, &["summary", "range_diff_rms_m"]), 3),
+                fixed(num(v, &["summary", "only_sim_share"]).map(|x| x * 100.0), 1),
                 format!(
                     "{} [{}, {}]",
-                    n(num(v, &["summary", "ocr_vs_distance", "rho"]), 2),
-                    n(num(v, &["summary", "ocr_vs_distance", "low"]), 2),
-                    n(num(v, &["summary", "ocr_vs_distance", "high"]), 2)
+                    fixed(num(v, &["summary", "ocr_vs_distance", "rho"]), 2),
+                    fixed(num(v, &["summary", "ocr_vs_distance", "low"]), 2),
+                    fixed(num(v, &["summary", "ocr_vs_distance", "high"]), 2)
                 ),
             ]
         })
@@ -320,7 +308,7 @@ fn compare_section(out: &mut String, cmps: &[&Input]) {
             &format!(
                 "Rosenberger et al. 2019, Fig. 5, for {} at a {} m cell: OCR, objects in view, ego speed and mean distance to the objects along the drive.",
                 esc(&c.name),
-                n(num(&c.value, &["cell_m"]), 2)
+                fixed(num(&c.value, &["cell_m"]), 2)
             ),
         );
     }
@@ -345,7 +333,7 @@ fn validate_section(out: &mut String, vals: &[&Input]) {
             out,
             "<h3>{}: verdict {}</h3>\n<p class=\"note\">1. Measurement validation: {}. 2. Scenario validation: {}. 3. Model validation: the matrix below.</p>\n",
             esc(&v.name),
-            verdict(s(val, "verdict")),
+            verdict(text(val, "verdict")),
             if val.get("measurement_pass").and_then(Value::as_bool).unwrap_or(false) {
                 "every simulation has its real twin".to_string()
             } else {
@@ -367,11 +355,11 @@ fn validate_section(out: &mut String, vals: &[&Input]) {
         let mut samples: Vec<&str> = Vec::new();
         let mut metrics: Vec<&str> = Vec::new();
         for c in cells {
-            if !samples.contains(&s(c, "sample")) {
-                samples.push(s(c, "sample"));
+            if !samples.contains(&text(c, "sample")) {
+                samples.push(text(c, "sample"));
             }
-            if !metrics.contains(&s(c, "metric")) {
-                metrics.push(s(c, "metric"));
+            if !metrics.contains(&text(c, "metric")) {
+                metrics.push(text(c, "metric"));
             }
         }
         let rows: Vec<Vec<String>> = samples
@@ -381,12 +369,12 @@ fn validate_section(out: &mut String, vals: &[&Input]) {
                 for m in &metrics {
                     let cell = cells
                         .iter()
-                        .find(|c| s(c, "sample") == *sample && s(c, "metric") == *m);
+                        .find(|c| text(c, "sample") == *sample && text(c, "metric") == *m);
                     row.push(match cell {
                         Some(c) => format!(
                             "{} AVM {}{}",
-                            light(s(c, "light")),
-                            n(num(c, &["avm"]), 3),
+                            light(text(c, "light")),
+                            fixed(num(c, &["avm"]), 3),
                             c.get("why_black")
                                 .and_then(Value::as_str)
                                 .map(|w| format!("<br><span class=\"note\">{}</span>", esc(w)))
@@ -416,7 +404,7 @@ fn gap_section(out: &mut String, gaps: &[&Input]) {
         let rounds = arr(v, "rounds");
         for (k, r) in rounds.iter().enumerate() {
             let round = num(r, &["round"]).unwrap_or(k as f64 + 1.0);
-            let chosen = s(r, "chosen");
+            let chosen = text(r, "chosen");
             let _ = writeln!(
                 out,
                 "<h3>Round {round:.0}: {}</h3>",
@@ -437,7 +425,7 @@ fn gap_section(out: &mut String, gaps: &[&Input]) {
             let disagreeing = |round: &Value, feature: &str| -> usize {
                 arr(round, "bins")
                     .iter()
-                    .filter(|b| s(b, "feature") == feature)
+                    .filter(|b| text(b, "feature") == feature)
                     .flat_map(|b| arr(b, "bins"))
                     .filter(|x| x.get("disagrees").and_then(Value::as_bool) == Some(true))
                     .count()
@@ -445,7 +433,7 @@ fn gap_section(out: &mut String, gaps: &[&Input]) {
             let next = rounds.get(k + 1);
             let feature = arr(r, "bins")
                 .iter()
-                .map(|b| s(b, "feature"))
+                .map(|b| text(b, "feature"))
                 .max_by_key(|f| {
                     let now = disagreeing(r, f);
                     let drop = next.map_or(0, |x| now.saturating_sub(disagreeing(x, f)));
@@ -456,7 +444,7 @@ fn gap_section(out: &mut String, gaps: &[&Input]) {
             let of = |round: &Value| {
                 arr(round, "bins")
                     .iter()
-                    .find(|b| s(b, "feature") == feature)
+                    .find(|b| text(b, "feature") == feature)
                     .cloned()
             };
             if let Some(before) = of(r) {
@@ -477,12 +465,12 @@ fn gap_section(out: &mut String, gaps: &[&Input]) {
                     let iv = p.get("interval").and_then(Value::as_array);
                     vec![
                         esc(chosen),
-                        esc(s(p, "name")),
-                        n(num(p, &["value"]), 5),
+                        esc(text(p, "name")),
+                        fixed(num(p, &["value"]), 5),
                         format!(
                             "[{}, {}]",
-                            n(iv.and_then(|a| a.first()?.as_f64()), 5),
-                            n(iv.and_then(|a| a.get(1)?.as_f64()), 5)
+                            fixed(iv.and_then(|a| a.first()?.as_f64()), 5),
+                            fixed(iv.and_then(|a| a.get(1)?.as_f64()), 5)
                         ),
                     ]
                 })
@@ -501,8 +489,8 @@ fn gap_section(out: &mut String, gaps: &[&Input]) {
                 for m in ["ocr", "precision", "iou"] {
                     rows.push(vec![
                         m.to_uppercase(),
-                        n(num(b, &[m]), 3),
-                        n(num(a, &[m]), 3),
+                        fixed(num(b, &[m]), 3),
+                        fixed(num(a, &[m]), 3),
                     ]);
                 }
                 let avm = |x: &Value, name: &str| {
@@ -515,14 +503,14 @@ fn gap_section(out: &mut String, gaps: &[&Input]) {
                     let name = p.get(0).and_then(Value::as_str).unwrap_or("");
                     rows.push(vec![
                         format!("AVM {}", esc(name)),
-                        n(avm(b, name), 3),
-                        n(avm(a, name), 3),
+                        fixed(avm(b, name), 3),
+                        fixed(avm(a, name), 3),
                     ]);
                 }
                 rows.push(vec![
                     "verdict".into(),
-                    esc(s(b, "verdict")),
-                    esc(s(a, "verdict")),
+                    esc(text(b, "verdict")),
+                    esc(text(a, "verdict")),
                 ]);
                 table(
                     out,

@@ -27,6 +27,32 @@ pub fn num(v: &Value, path: &[&str]) -> Option<f64> {
     cur.as_f64()
 }
 
+/// The string at `key`, or "".
+pub(super) fn text<'a>(v: &'a Value, key: &str) -> &'a str {
+    v.get(key).and_then(Value::as_str).unwrap_or("")
+}
+
+/// `x` with `d` decimals, or a dash where there is no finite number.
+pub(super) fn fixed(x: Option<f64>, d: usize) -> String {
+    x.filter(|x| x.is_finite())
+        .map_or_else(|| "–".into(), |x| format!("{x:.d$}"))
+}
+
+/// Counts of green, yellow, red and black cells in a `validate` JSON.
+pub fn lights(v: &Value) -> [usize; 4] {
+    let mut n = [0; 4];
+    for c in arr(v, "cells") {
+        match text(c, "light") {
+            "green" => n[0] += 1,
+            "yellow" => n[1] += 1,
+            "red" => n[2] += 1,
+            "black" => n[3] += 1,
+            _ => {}
+        }
+    }
+    n
+}
+
 pub(super) fn arr<'a>(v: &'a Value, key: &str) -> &'a [Value] {
     v.get(key)
         .and_then(Value::as_array)

@@ -173,6 +173,13 @@ fn check_into(
         gnss_noise: fit_gnss_noise(&obs, &motion, &settings),
         ..settings
     };
+    tracing::debug!(
+        "check: GNSS error wanders over {} s with {:.0} % of its variance; yaw jerk {} rad/s³/√s; yaw-rate noise {:.4} rad/s",
+        settings.gnss_noise.correlation_s,
+        settings.gnss_noise.correlated_share * 100.0,
+        settings.yaw_jerk_noise,
+        settings.yaw_rate_sigma
+    );
     let traj = match EgoTrajectory::smooth(&obs, &motion, &settings) {
         Ok(t) => t,
         Err(e) => return unusable(run, e.to_string(), sp),
