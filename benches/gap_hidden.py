@@ -19,11 +19,13 @@ extinction 0.004-0.03 /m and clutter 0.5-5 % per firing, with a detection thresh
 reflectivity) that truth and start model share.
 
 Other drives than the default: `--speed M/S` sets the cruise speed (default 6 m/s, the drive's
-own), `--standing` starts the drive from standstill instead of at cruise speed; the effects and
-the workflow stay the same (for the blind test's point: not only the drive the code was built on).
+own), `--standing` starts the drive from standstill instead of at cruise speed, `--rpm` and
+`--return-mode` set the lidar's spin (default 600) and return mode (default strongest); the
+effects and the workflow stay the same (for the blind test's point: not only the drive the code
+was built on).
 
 usage: benches/gap_hidden.py [--hilrig PATH] [--work DIR] [--seed N] [--speed M/S] [--standing]
-                             [CASE ...]
+                             [--rpm N] [--return-mode strongest|last|dual] [CASE ...]
   CASE: a name of CASES below (default: all), e.g. range_bias null-1 bias+dropout
 """
 import argparse
@@ -121,14 +123,18 @@ def run(cmd, **kw):
     return r
 
 
-def drive_file(work, speed, standing):
-    """The gap drive at another cruise speed or start, or the drive itself."""
-    if speed is None and not standing:
+def drive_file(work, speed, standing, rpm=None, return_mode=None):
+    """The gap drive at another cruise speed, start, spin rate or return mode, or the drive itself."""
+    if speed is None and not standing and rpm is None and return_mode is None:
         return DRIVE
     text = open(DRIVE).read().replace('rig = "../../rigs/demo.toml"', f'rig = "{RIG}"')
     if speed is not None:
         text = text.replace("cruise_speed_mps = 6.0", f"cruise_speed_mps = {speed}")
         text = text.replace("start_speed_mps = 6.0", f"start_speed_mps = {speed}")
+    if rpm is not None:
+        text = text.replace("rpm = 600", f"rpm = {rpm}")
+    if return_mode is not None:
+        text = text.replace('return_mode = "strongest"', f'return_mode = "{return_mode}"')
     if standing:
         text = text.replace("start_speed_mps = 6.0\n", "").replace(f"start_speed_mps = {speed}\n", "")
     path = os.path.join(work, "drive.toml")
@@ -178,13 +184,16 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--speed", type=float, default=None)
     ap.add_argument("--standing", action="store_true")
+    ap.add_argument("--rpm", type=int, default=None)
+    ap.add_argument("--return-mode", choices=["strongest", "last", "dual"], default=None)
     ap.add_argument("cases", nargs="*")
     a = ap.parse_args()
     names = a.cases or list(CASES)
     work = a.work or tempfile.mkdtemp(prefix="gap-hidden-")
     os.makedirs(work, exist_ok=True)
-    drive = drive_file(work, a.speed, a.standing)
-    print(f"work: {work}; drive: {a.speed or 6.0} m/s, {'from standstill' if a.standing else 'moving at the start'}")
+    drive = drive_file(work, a.speed, a.standing, a.rpm, a.return_mode)
+    print(f"work: {work}; drive: {a.speed or 6.0} m/s, {'from standstill' if a.standing else 'moving at the start'}"
+          f", lidar {a.rpm or 600} rpm, {a.return_mode or 'strongest'} return")
     print("| case | hidden (truth) | found, in order (fitted) | validation log-likelihood per 1000 firings | validation metrics before -> after |")
     print("|---|---|---|---|---|")
     for n in names:
