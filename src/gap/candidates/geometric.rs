@@ -111,6 +111,15 @@ impl Fitting<'_> {
         Ok((theta, intervals))
     }
 
+    /// A geometric effect fitted ([`Self::gauss_newton`]) and scored. `reference` holds, per
+    /// parameter, the standard uncertainty it inherits from the reference data (0 for none):
+    /// a lidar time offset is measured against the trajectory's timing, known only to the GNSS
+    /// offset's sigma, and a mount yaw against the smoothed heading, known only to its sigma.
+    /// The bootstrap sees neither (it resamples the lidar's firings, not the reference), so
+    /// each side of the reported 95 % interval is widened by 1.96 times it, in quadrature.
+    /// Repetitions of a drive pass the same places under the same sky, so their reference
+    /// errors need not average out: the largest of the runs' sigmas is taken, not a mean.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn geometric(
         &self,
         effect: &'static str,
@@ -118,6 +127,7 @@ impl Fitting<'_> {
         make: &dyn Fn(&[f64]) -> Effect,
         h: &[f64],
         max_step: &[f64],
+        reference: &[f64],
         floor: FloorTest<'_>,
     ) -> Result<Candidate, GapError> {
         let (theta, intervals) = match self.gauss_newton(make, h, max_step) {
@@ -125,7 +135,15 @@ impl Fitting<'_> {
             Err(e) => return Ok(Candidate::unfitted(effect, e.to_string())),
         };
         let fitted = make(&theta);
+        // The floor already stands for the reference's uncertainty: it is tested on the
+        // lidar's own interval.
         let above = floor(&theta, &intervals);
+        let intervals: Vec<Option<Interval>> = intervals
+            .into_iter()
+            .zip(&theta)
+            .zip(reference)
+            .map(|((i, &v), &r)| i.map(|i| widened(v, i, r)))
+            .collect();
         let model = with_effect(self.current, fitted.clone());
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
         let params = names
@@ -193,4 +211,28 @@ fn irls(rows: &[Row], s: f64, counts: &[u32]) -> Option<Vec<f64>> {
         delta = x.iter().copied().collect();
     }
     Some(delta)
+}
+
+/// `interval` about `value` with `sigma` more on each side: each half-width and 1.96 sigma in
+/// quadrature.
+fn widened(value: f64, (lo, hi): Interval, sigma: f64) -> Interval {
+    let extra = 1.96 * sigma.max(0.0);
+    let (below, above) = ((value - lo).max(0.0), (hi - value).max(0.0));
+    (value - below.hypot(extra), value + above.hypot(extra))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::widened;
+
+    #[test]
+    fn the_reference_widens_each_side_in_quadrature() {
+        // 2.0 with [1.9, 2.2] and a reference sigma of 0.1: 1.96 x 0.1 = 0.196 more on each
+        // side, in quadrature with 0.1 below and 0.2 above.
+        let (lo, hi) = widened(2.0, (1.9, 2.2), 0.1);
+        assert!((lo - (2.0 - (0.1f64.powi(2) + 0.196f64.powi(2)).sqrt())).abs() < 1e-12);
+        assert!((hi - (2.0 + (0.2f64.powi(2) + 0.196f64.powi(2)).sqrt())).abs() < 1e-12);
+        // No reference uncertainty: the interval stays.
+        assert_eq!(widened(2.0, (1.9, 2.2), 0.0), (1.9, 2.2));
+    }
 }

@@ -498,30 +498,33 @@ impl Fitting<'_> {
         if !has("time_offset") {
             progress("time_offset");
             // The trajectory's own timing is known only to the GNSS offset's uncertainty.
-            let time_floor = self
+            let time_sigma = self
                 .runs
                 .iter()
                 .map(|r| r.time_sigma_ms)
                 .filter(|s| s.is_finite())
-                .fold(1.0, f64::max);
+                .fold(0.0, f64::max);
+            let time_floor = time_sigma.max(1.0);
             out.push(self.geometric(
                 "time_offset",
                 &["offset_ms"],
                 &|t| Effect::TimeOffset { offset_ms: t[0] },
                 &[2.0],
                 &[60.0],
+                &[time_sigma],
                 &|t, i| clears(t[0], i[0], time_floor),
             )?);
         }
         if !has("mount_misalignment") {
             progress("mount_misalignment");
             // The trajectory's heading error turns the whole scan like a mount yaw.
-            let yaw_floor = self
+            let heading_sigma = self
                 .runs
                 .iter()
                 .map(|r| r.heading_sigma_deg)
                 .filter(|h| h.is_finite())
-                .fold(0.1, f64::max);
+                .fold(0.0, f64::max);
+            let yaw_floor = heading_sigma.max(0.1);
             out.push(self.geometric(
                 "mount_misalignment",
                 &["roll_deg", "pitch_deg", "yaw_deg"],
@@ -532,6 +535,7 @@ impl Fitting<'_> {
                 },
                 &[0.1, 0.1, 0.1],
                 &[3.0, 3.0, 3.0],
+                &[0.0, 0.0, heading_sigma],
                 &|t, i| {
                     clears(t[0], i[0], 0.1)
                         || clears(t[1], i[1], 0.1)
