@@ -11,6 +11,19 @@ use nalgebra::{DMatrix, DVector};
 /// A row of a linearised fit: bootstrap block, Jacobian row (intercept first), residual.
 type Row = (usize, Vec<f64>, f64);
 
+/// One parameter of a geometric effect, as the fit steps it.
+pub(super) struct Axis {
+    /// Its name in the effect.
+    pub name: &'static str,
+    /// The one-sided difference step of the Jacobian.
+    pub step: f64,
+    /// The largest Gauss-Newton step.
+    pub max_step: f64,
+    /// The standard uncertainty it inherits from the reference data (0 for none; see
+    /// [`Fitting::geometric`]).
+    pub reference_sigma: f64,
+}
+
 /// Whether fitted values (with their intervals) clear the effect's floor.
 pub(super) type FloorTest<'a> = &'a dyn Fn(&[f64], &[Option<Interval>]) -> bool;
 
@@ -23,10 +36,9 @@ impl Fitting<'_> {
     fn gauss_newton(
         &self,
         make: &dyn Fn(&[f64]) -> Effect,
-        h: &[f64],
-        max_step: &[f64],
+        axes: &[Axis],
     ) -> Result<(Vec<f64>, Vec<Option<Interval>>), GapError> {
-        let n = h.len();
+        let n = axes.len();
         let mut theta = vec![0.0; n];
         let mut last: Option<(Vec<Row>, Vec<f64>, f64)> = None;
         for _ in 0..5 {
@@ -34,7 +46,7 @@ impl Fitting<'_> {
             let mut stepped = Vec::with_capacity(n);
             for k in 0..n {
                 let mut t = theta.clone();
-                t[k] += h[k];
+                t[k] += axes[k].step;
                 stepped.push(self.cast(&with_effect(self.current, make(&t)))?);
             }
             let mut rows: Vec<Row> = Vec::new();
@@ -52,7 +64,7 @@ impl Fitting<'_> {
                             ok = false;
                             break;
                         }
-                        row.push(d / h[k]);
+                        row.push(d / axes[k].step);
                     }
                     if ok {
                         rows.push((
@@ -76,8 +88,8 @@ impl Fitting<'_> {
             };
             let mut done = true;
             for k in 0..n {
-                let d = delta[k + 1].clamp(-max_step[k], max_step[k]);
-                if d.abs() > 0.02 * h[k] {
+                let d = delta[k + 1].clamp(-axes[k].max_step, axes[k].max_step);
+                if d.abs() > 0.02 * axes[k].step {
                     done = false;
                 }
                 theta[k] += d;
@@ -104,33 +116,29 @@ impl Fitting<'_> {
         for k in 0..n {
             let mut v: Vec<f64> = boots
                 .iter()
-                .map(|b| at[k] - step[k + 1].clamp(-max_step[k], max_step[k]) + b[k + 1])
+                .map(|b| at[k] - step[k + 1].clamp(-axes[k].max_step, axes[k].max_step) + b[k + 1])
                 .collect();
             intervals.push(bootstrap::interval(&mut v));
         }
         Ok((theta, intervals))
     }
 
-    /// A geometric effect fitted ([`Self::gauss_newton`]) and scored. `reference` holds, per
-    /// parameter, the standard uncertainty it inherits from the reference data (0 for none):
+    /// A geometric effect fitted ([`Self::gauss_newton`]) and scored. Each axis's
+    /// `reference_sigma` is the standard uncertainty it inherits from the reference data:
     /// a lidar time offset is measured against the trajectory's timing, known only to the GNSS
     /// offset's sigma, and a mount yaw against the smoothed heading, known only to its sigma.
     /// The bootstrap sees neither (it resamples the lidar's firings, not the reference), so
     /// each side of the reported 95 % interval is widened by 1.96 times it, in quadrature.
     /// Repetitions of a drive pass the same places under the same sky, so their reference
     /// errors need not average out: the largest of the runs' sigmas is taken, not a mean.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn geometric(
         &self,
         effect: &'static str,
-        names: &[&'static str],
+        axes: &[Axis],
         make: &dyn Fn(&[f64]) -> Effect,
-        h: &[f64],
-        max_step: &[f64],
-        reference: &[f64],
         floor: FloorTest<'_>,
     ) -> Result<Candidate, GapError> {
-        let (theta, intervals) = match self.gauss_newton(make, h, max_step) {
+        let (theta, intervals) = match self.gauss_newton(make, axes) {
             Ok(x) => x,
             Err(e) => return Ok(Candidate::unfitted(effect, e.to_string())),
         };
@@ -141,17 +149,17 @@ impl Fitting<'_> {
         let intervals: Vec<Option<Interval>> = intervals
             .into_iter()
             .zip(&theta)
-            .zip(reference)
-            .map(|((i, &v), &r)| i.map(|i| widened(v, i, r)))
+            .zip(axes)
+            .map(|((i, &v), a)| i.map(|i| widened(v, i, a.reference_sigma)))
             .collect();
         let model = with_effect(self.current, fitted.clone());
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
-        let params = names
+        let params = axes
             .iter()
             .zip(&theta)
             .zip(intervals)
-            .map(|((name, v), i)| Param {
-                name,
+            .map(|((a, v), i)| Param {
+                name: a.name,
                 value: *v,
                 interval: i,
             })

@@ -27,6 +27,7 @@ mod geometric;
 mod weather;
 
 use detection::{power_at, sort_rows, sweep, sweep_ll};
+use geometric::Axis;
 
 use super::bootstrap::{self, Blocks};
 use super::likelihood::{self, Random, Scored};
@@ -470,6 +471,16 @@ impl Fitting<'_> {
         ))
     }
 
+    /// The largest finite value of `f` over the runs (0 when none is finite): a reference
+    /// uncertainty that the repetitions need not average out.
+    fn largest_over_runs(&self, f: impl Fn(&RunData) -> f64) -> f64 {
+        self.runs
+            .iter()
+            .map(f)
+            .filter(|x| x.is_finite())
+            .fold(0.0, f64::max)
+    }
+
     /// Every candidate the current model lacks, fitted and scored; `progress` is told the name
     /// of each as it starts.
     pub fn all(&self, progress: &dyn Fn(&str)) -> Result<Vec<Candidate>, GapError> {
@@ -498,44 +509,43 @@ impl Fitting<'_> {
         if !has("time_offset") {
             progress("time_offset");
             // The trajectory's own timing is known only to the GNSS offset's uncertainty.
-            let time_sigma = self
-                .runs
-                .iter()
-                .map(|r| r.time_sigma_ms)
-                .filter(|s| s.is_finite())
-                .fold(0.0, f64::max);
+            let time_sigma = self.largest_over_runs(|r| r.time_sigma_ms);
             let time_floor = time_sigma.max(1.0);
             out.push(self.geometric(
                 "time_offset",
-                &["offset_ms"],
+                &[Axis {
+                    name: "offset_ms",
+                    step: 2.0,
+                    max_step: 60.0,
+                    reference_sigma: time_sigma,
+                }],
                 &|t| Effect::TimeOffset { offset_ms: t[0] },
-                &[2.0],
-                &[60.0],
-                &[time_sigma],
                 &|t, i| clears(t[0], i[0], time_floor),
             )?);
         }
         if !has("mount_misalignment") {
             progress("mount_misalignment");
             // The trajectory's heading error turns the whole scan like a mount yaw.
-            let heading_sigma = self
-                .runs
-                .iter()
-                .map(|r| r.heading_sigma_deg)
-                .filter(|h| h.is_finite())
-                .fold(0.0, f64::max);
+            let heading_sigma = self.largest_over_runs(|r| r.heading_sigma_deg);
             let yaw_floor = heading_sigma.max(0.1);
+            let axis = |name, reference_sigma| Axis {
+                name,
+                step: 0.1,
+                max_step: 3.0,
+                reference_sigma,
+            };
             out.push(self.geometric(
                 "mount_misalignment",
-                &["roll_deg", "pitch_deg", "yaw_deg"],
+                &[
+                    axis("roll_deg", 0.0),
+                    axis("pitch_deg", 0.0),
+                    axis("yaw_deg", heading_sigma),
+                ],
                 &|t| Effect::MountMisalignment {
                     roll_deg: t[0],
                     pitch_deg: t[1],
                     yaw_deg: t[2],
                 },
-                &[0.1, 0.1, 0.1],
-                &[3.0, 3.0, 3.0],
-                &[0.0, 0.0, heading_sigma],
                 &|t, i| {
                     clears(t[0], i[0], 0.1)
                         || clears(t[1], i[1], 0.1)
