@@ -615,4 +615,155 @@ fn stretches_with_an_uncertain_heading_are_marked_not_usable_without_a_fault() {
         above > 0 && above < seen,
         "{above} of {seen} samples above the limit"
     );
+
+    // Downstream, the marked stretches are left out: the run passes, so `resim` casts all of
+    // it, and `compare` (with the same rig) leaves out exactly the scans that touch a mark.
+    let sim = d.dir.path().join("sim.mcap");
+    hilrig_ok(&[
+        "resim".as_ref(),
+        d.run.as_os_str(),
+        "--rig".as_ref(),
+        rig.as_os_str(),
+        "--scene".as_ref(),
+        d.rep.join("scene.toml").as_os_str(),
+        "--model".as_ref(),
+        fixture("parking/idealized.toml").as_os_str(),
+        "-o".as_ref(),
+        sim.as_os_str(),
+    ]);
+    let (scene, json) = (d.rep.join("scene.toml"), d.dir.path().join("compare.json"));
+    let compare = |rig: Option<&std::path::Path>| {
+        let mut args: Vec<&std::ffi::OsStr> = vec![
+            "compare".as_ref(),
+            d.run.as_os_str(),
+            sim.as_os_str(),
+            "--scene".as_ref(),
+            scene.as_os_str(),
+            "--json".as_ref(),
+            json.as_os_str(),
+        ];
+        if let Some(r) = rig {
+            args.extend(["--rig".as_ref(), r.as_os_str()]);
+        }
+        let out = hilrig_ok(&args);
+        let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        (String::from_utf8_lossy(&out.stdout).into_owned(), v)
+    };
+    let (_, all) = compare(None);
+    assert_eq!(all["left_out"], serde_json::json!([]));
+    let (text, kept) = compare(Some(&rig));
+    let left: u64 = kept["left_out"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["scans"].as_u64().unwrap())
+        .sum();
+    assert!(left > 0, "nothing left out: {text}");
+    assert!(text.contains("left out"), "{text}");
+    assert_eq!(
+        kept["summary"]["scans"].as_u64().unwrap() + left,
+        all["summary"]["scans"].as_u64().unwrap()
+    );
+    // Every scan compared lies clear of the marks (a scan's packets span 0.1 s from its
+    // stamp).
+    let start = iso_ns(v["start"].as_str().unwrap());
+    for row in kept["scans"].as_array().unwrap() {
+        let rel = (row["stamp_ns"].as_i64().unwrap() - start) as f64 * 1e-9;
+        assert!(
+            !marks
+                .iter()
+                .any(|m| m["from_s"].as_f64().unwrap() - 0.09 <= rel
+                    && rel <= m["to_s"].as_f64().unwrap()),
+            "scan at {rel:.2} s compared inside a mark"
+        );
+    }
+
+    // The gap workflow samples no firing from a marked stretch, and says what it left out.
+    let run = hilrig::gap::observe::load_run(
+        &d.run,
+        hilrig::scene::Scene::load(&scene).unwrap(),
+        &scene,
+        Some(&hilrig::rig::Rig::load(&rig).unwrap()),
+        hilrig::gap::study::Role::Fit,
+        None,
+        100_000,
+        false,
+    )
+    .unwrap();
+    assert_eq!(run.left_out.len(), marks.len());
+    assert!(!run.packets.is_empty());
+    for p in &run.packets {
+        let rel = (p.time.first_firing.0 - start) as f64 * 1e-9;
+        assert!(
+            !marks
+                .iter()
+                .any(|m| m["from_s"].as_f64().unwrap() - 0.002 <= rel
+                    && rel <= m["to_s"].as_f64().unwrap() + 0.002),
+            "a packet at {rel:.3} s sampled inside a mark"
+        );
+    }
+}
+
+/// UTC nanoseconds of an ISO 8601 time as `check` writes it (`2026-11-21T10:00:00.002Z`).
+fn iso_ns(iso: &str) -> i64 {
+    let (date, time) = iso.trim_end_matches('Z').split_once('T').unwrap();
+    let d: Vec<i64> = date.split('-').map(|x| x.parse().unwrap()).collect();
+    let days = hilrig_stamp::civil::days_from_civil(d[0], d[1] as u32, d[2] as u32).unwrap();
+    days * 86_400_000_000_000 + hilrig_stamp::civil::parse_hms(&time.replace(':', "")).unwrap()
+}
+
+/// A heading limit below the drive's best heading sigma marks every stretch: nothing is left to
+/// measure a model against, so the run fails (`nothing_usable`, exit 1) and `resim` refuses it.
+#[test]
+fn a_run_marked_not_usable_throughout_fails() {
+    let d = synth_and_record_edited(|t| t, "", 22, true);
+    let dbc = demo_rig().with_file_name("hilrig-ego.dbc");
+    let rig_text = std::fs::read_to_string(demo_rig())
+        .unwrap()
+        .replace(
+            "max_heading_sigma_deg = 0.2",
+            "max_heading_sigma_deg = 0.0001",
+        )
+        .replace(
+            "\"hilrig-ego.dbc\"",
+            &format!("{:?}", dbc.display().to_string()),
+        );
+    assert!(rig_text.contains("max_heading_sigma_deg = 0.0001"));
+    let rig = d.dir.path().join("tight.toml");
+    std::fs::write(&rig, rig_text).unwrap();
+    let (code, v, _) = check_with_trajectory(&d, Some(&rig));
+    assert_eq!(code, Some(1));
+    assert_eq!(names(&v), ["nothing_usable"]);
+    assert!(
+        faults(&v, "nothing_usable")[0]["detail"]
+            .as_str()
+            .unwrap()
+            .contains("heading_uncertain"),
+        "{v}"
+    );
+    assert!(v["segments"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|s| s["verdict"] == "fail"));
+    let out = std::process::Command::new(hilrig_bin())
+        .arg("resim")
+        .arg(&d.run)
+        .arg("--rig")
+        .arg(&rig)
+        .arg("--scene")
+        .arg(d.rep.join("scene.toml"))
+        .arg("--model")
+        .arg(fixture("parking/idealized.toml"))
+        .arg("-o")
+        .arg(d.dir.path().join("sim.mcap"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("nothing_usable") && err.contains("--force"),
+        "{err}"
+    );
+    assert!(!d.dir.path().join("sim.mcap").exists());
 }

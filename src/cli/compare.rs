@@ -112,6 +112,13 @@ fn text(c: &Comparison) -> String {
         c.region,
         if c.ground_excluded { ", ground left out" } else { "" }
     );
+    for l in &c.left_out {
+        let _ = writeln!(
+            out,
+            "left out {} scans at {:.1} .. {:.1} s: check marks the reference not usable there ({}: {})",
+            l.scans, l.from_s, l.to_s, l.reason, l.detail
+        );
+    }
     let _ = writeln!(
         out,
         "OCR^K mean {} (median {}), precision {}, IoU {}, cosine {}",

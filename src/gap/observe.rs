@@ -65,6 +65,9 @@ pub struct RunData {
     pub time_sigma_ms: f64,
     /// The sampled packets.
     pub packets: Vec<Sampled>,
+    /// Stretches left out, s after the run's start (as `check` reports them), with why: `check`
+    /// marked the reference not usable there, and its error would pass for a lidar effect.
+    pub left_out: Vec<(f64, f64, &'static str)>,
     /// Scans in the run (or its part).
     pub scans: usize,
     /// The range quantum of the sensor, m.
@@ -185,6 +188,7 @@ pub fn load_run(
         .get("clock_sync/lidar")
         .and_then(|m| m.get("pps"))
         .is_some_and(|p| p == "Locked");
+    let marked = report.not_usable();
     let (scans, _damage) = read_scans(&bytes);
     let (from, to) = part.unwrap_or((0, scans.len()));
     let scans = &scans[from.min(scans.len())..to.min(scans.len())];
@@ -214,7 +218,8 @@ pub fn load_run(
             let rate = previous
                 .as_ref()
                 .and_then(|q| hilrig_velodyne::decode::rate_between(q, &p));
-            if n.is_multiple_of(every) {
+            let usable = !marked.iter().any(|(a, b, _)| (*a..=*b).contains(&first));
+            if usable && n.is_multiple_of(every) {
                 packets.push(Sampled {
                     scan: k as u32,
                     packet: p.clone(),
@@ -248,6 +253,10 @@ pub fn load_run(
         heading_sigma_deg: report.accuracy.heading_sigma_deg,
         time_sigma_ms: report.spatial.gnss_time_offset_sigma_ms.unwrap_or(0.0),
         packets,
+        left_out: marked
+            .iter()
+            .map(|(_, _, m)| (m.from_s, m.to_s, m.name))
+            .collect(),
         scans: scans.len(),
         range_quantum_m: model.distance_resolution_m(),
     })

@@ -99,6 +99,9 @@ pub struct RunInfo {
     pub check: String,
     /// Firings sampled.
     pub sampled_firings: usize,
+    /// Stretches left out where `check` marked the reference not usable: from, to (s after
+    /// the run's start), why.
+    pub left_out: Vec<(f64, f64, &'static str)>,
 }
 
 /// Everything `gap.json` holds.
@@ -116,7 +119,8 @@ pub struct GapReport {
     pub rounds: Vec<Round>,
     /// Whether the workflow finished (false while running or when interrupted).
     pub finished: bool,
-    /// One line per effect found, or the evidence that none was.
+    /// Where the reference was not usable (a line per stretch left out), then one line per
+    /// effect found, or the evidence that none was.
     pub summary: Vec<String>,
 }
 

@@ -263,6 +263,7 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
             role: r.role,
             check: format!("{:?}", r.verdict).to_lowercase(),
             sampled_firings: r.packets.len() * super::observe::SLOTS,
+            left_out: r.left_out.clone(),
         })
         .collect();
     let fit = Set::new(fit_runs, fit_feats, 0x6a70);
@@ -307,6 +308,16 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
         finished: false,
         summary: Vec::new(),
     };
+    // What the workflow did not look at, first: a stretch whose reference is not usable would
+    // have shown its trajectory error as a lidar effect.
+    for r in &report.runs {
+        for (a, b, why) in &r.left_out {
+            report.summary.push(format!(
+                "{}: {a:.1} .. {b:.1} s left out ({why}: `check` marks the reference not usable there)",
+                r.name
+            ));
+        }
+    }
     save(&opts.out, &model, &report)?;
     let metrics_dir = opts.out.join("sim");
     let mut metrics_now = if opts.full_metrics && report.split.is_none() {

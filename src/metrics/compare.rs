@@ -16,8 +16,9 @@
 
 use super::cloud::{Cloud, Frame};
 use super::grid::{compare as grid_compare, Dims, GridScores, GridSpec, Occupancy};
+use super::pairing::usable_pairs;
 use super::points::distances;
-pub use super::report::{Comparison, CurvePoint, ObjectSeen, ScanRow, Snapshot, Summary};
+pub use super::report::{Comparison, CurvePoint, LeftOut, ObjectSeen, ScanRow, Snapshot, Summary};
 use super::roi::{Region, Roi};
 use crate::bag::scans::{read_scans, Scan};
 use crate::reference::check::{check_with_trajectory, Verdict};
@@ -27,10 +28,10 @@ use crate::scene::pose::{mounting_isometry, Trajectory};
 use crate::scene::Scene;
 use crate::stats::rank::spearman_with_interval;
 
+use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::Decoder;
 use nalgebra::Point3;
 use rayon::prelude::*;
-use std::collections::HashMap;
 use std::path::Path;
 
 /// Why two files cannot be compared.
@@ -230,14 +231,26 @@ fn windows(
 /// The run's measured scans (and the damage they were read up to).
 type Measured = (Vec<Scan>, Option<String>);
 
-/// The run's measured scans, the run, its rig, trajectory and admissible cell, as `compare`
-/// needs them.
+/// What `compare` takes from the run besides its scans.
+struct Reference {
+    run: Run,
+    rig: Rig,
+    trajectory: Trajectory,
+    /// The admissible cell, m.
+    admissible: f64,
+    /// Stretches `check` marked not usable on this trajectory (none on a trajectory file).
+    not_usable: Vec<LeftOut>,
+    /// Their windows.
+    windows: Vec<(UtcNanos, UtcNanos)>,
+}
+
+/// The run's measured scans and what else `compare` needs of it.
 fn reference(
     run_path: &Path,
     rig: Option<&Rig>,
     scene: Option<&Scene>,
     trajectory: Option<Trajectory>,
-) -> Result<(Measured, Run, Rig, Trajectory, f64), CompareError> {
+) -> Result<(Measured, Reference), CompareError> {
     let input = CompareError::Input;
     let (bytes, run, rig) = crate::reference::run::load_with_rig(run_path, rig).map_err(input)?;
     // The measured scans are read while the reference data are checked.
@@ -253,50 +266,58 @@ fn reference(
         )));
     }
     let admissible = report.accuracy.grid_cell_m;
+    // The marks judge the smoothed trajectory: on a trajectory file they do not apply.
+    let marks = if trajectory.is_some() {
+        Vec::new()
+    } else {
+        report.not_usable()
+    };
     let trajectory = match trajectory {
         Some(t) => t,
         None => smoothed
             .and_then(|t| t.sampled(10_000_000))
             .ok_or_else(|| input(format!("{}: no RTK+CAN trajectory", run_path.display())))?,
     };
-    Ok((measured, run, rig, trajectory, admissible))
+    Ok((
+        measured,
+        Reference {
+            run,
+            rig,
+            trajectory,
+            admissible,
+            windows: marks.iter().map(|(a, b, _)| (*a, *b)).collect(),
+            not_usable: marks
+                .into_iter()
+                .map(|(_, _, m)| LeftOut {
+                    reason: m.name,
+                    from_s: m.from_s,
+                    to_s: m.to_s,
+                    detail: m.detail.clone(),
+                    scans: 0,
+                })
+                .collect(),
+        },
+    ))
 }
 
-/// The measured scans with their simulated twins (same stamp); an error naming both files and
-/// their spans when there are none.
-fn pair_scans<'a>(
-    real_scans: &'a [Scan],
-    sim_scans: &'a [Scan],
-    run_path: &Path,
-    sim_path: &Path,
-) -> Result<Vec<(&'a Scan, &'a Scan)>, CompareError> {
+/// The grid of the options (the cell defaults to the admissible one), once the options are
+/// known to be sound and the cell not below the admissible one (unless allowed).
+fn grid_spec(opts: &Options, admissible: f64) -> Result<GridSpec, CompareError> {
     let input = CompareError::Input;
-    let by_stamp: HashMap<i64, usize> = sim_scans
-        .iter()
-        .enumerate()
-        .map(|(i, s)| (s.stamp.0, i))
-        .collect();
-    let pairs: Vec<(&Scan, &Scan)> = real_scans
-        .iter()
-        .filter_map(|r| by_stamp.get(&r.stamp.0).map(|&i| (r, &sim_scans[i])))
-        .collect();
-    if pairs.is_empty() {
-        let span = |s: &[Scan]| {
-            format!(
-                "{} .. {}",
-                hilrig_stamp::civil::iso8601_millis(s[0].stamp),
-                hilrig_stamp::civil::iso8601_millis(s[s.len() - 1].stamp)
-            )
-        };
-        return Err(input(format!(
-            "{} and {} share no scan (scan stamps {} and {}): the simulation is not a re-simulation of this run",
-            run_path.display(),
-            sim_path.display(),
-            span(real_scans),
-            span(sim_scans)
-        )));
+    let cell = opts.cell_m.unwrap_or(admissible);
+    let spec = GridSpec::new(cell, opts.dims).map_err(|e| input(e.to_string()))?;
+    if opts.k == 0 {
+        return Err(input("-K 0: a grid needs at least one scan".into()));
     }
-    Ok(pairs)
+    if opts.grid_phases == 0 {
+        return Err(input(
+            "--grid-phases 0: the metrics need at least one grid".into(),
+        ));
+    }
+    if cell < admissible - 1e-9 && !opts.allow_small_cell {
+        return Err(CompareError::CellTooSmall { cell, admissible });
+    }
+    Ok(spec)
 }
 
 /// The simulation's scans, and the damage they were read up to.
@@ -333,32 +354,21 @@ pub fn compare(
         || reference(run_path, rig, scene, opts.trajectory.clone()),
         || read_simulation(sim_path),
     );
-    let ((real_scans, real_damage), run, rig, trajectory, admissible) = reference?;
+    let ((real_scans, real_damage), mut reference) = reference?;
+    let admissible = reference.admissible;
     phase("reference checked, simulation read");
-    let cell = opts.cell_m.unwrap_or(admissible);
-    let spec = GridSpec::new(cell, opts.dims).map_err(|e| input(e.to_string()))?;
-    if opts.k == 0 {
-        return Err(input("-K 0: a grid needs at least one scan".into()));
-    }
-    if opts.grid_phases == 0 {
-        return Err(input(
-            "--grid-phases 0: the metrics need at least one grid".into(),
-        ));
-    }
-    if cell < admissible - 1e-9 && !opts.allow_small_cell {
-        return Err(CompareError::CellTooSmall { cell, admissible });
-    }
+    let spec = grid_spec(&opts, admissible)?;
+    let cell = spec.cell_m();
     let (sim_scans, sim_damage) = simulated?;
     // A damaged file is compared as far as it can be read, and says so.
     let damage: Vec<String> = [(run_path, real_damage), (sim_path, sim_damage)]
         .into_iter()
         .filter_map(|(p, d)| {
-            d.map(|d| {
-                format!(
-                    "{}: read up to damage ({d}); compared what could be read",
-                    p.display()
-                )
-            })
+            let d = d?;
+            Some(format!(
+                "{}: read up to damage ({d}); compared what could be read",
+                p.display()
+            ))
         })
         .collect();
     if real_scans.is_empty() || sim_scans.is_empty() {
@@ -373,8 +383,14 @@ pub fn compare(
         )));
     }
     phase("scans read");
-    let pairs = pair_scans(&real_scans, &sim_scans, run_path, sim_path)?;
-    let (lidar, model, calibration) = rig.lidar_sensor().map_err(input)?;
+    let (pairs, n_paired) = usable_pairs(
+        (&real_scans, run_path),
+        (&sim_scans, sim_path),
+        &reference.windows,
+        &mut reference.not_usable,
+    )
+    .map_err(input)?;
+    let (lidar, model, calibration) = reference.rig.lidar_sensor().map_err(input)?;
     let decoder = Decoder::with_calibration(model, calibration);
     if opts.sensor_frame && (opts.region != Region::All || opts.exclude_ground) {
         return Err(input(
@@ -385,8 +401,9 @@ pub fn compare(
     let frame = Frame {
         decoder: &decoder,
         mount: mounting_isometry(&lidar.mounting),
-        trajectory: &trajectory,
-        pps_locked: run
+        trajectory: &reference.trajectory,
+        pps_locked: reference
+            .run
             .metadata
             .get("clock_sync/lidar")
             .and_then(|m| m.get("pps"))
@@ -425,7 +442,8 @@ pub fn compare(
             let res = residuals(r, s);
             let per = |x: f64| (res.both > 0).then(|| x / res.both as f64);
             let mut hint = 0;
-            let speed = trajectory
+            let speed = reference
+                .trajectory
                 .velocity_at(r.middle, &mut hint)
                 .map_or(0.0, |v| v.xy().norm());
             let row = ScanRow {
@@ -450,7 +468,7 @@ pub fn compare(
     phase("rows");
     let calibration = curve(&real, &sim, &opts, (cell, &grids), admissible);
     phase("calibration curve");
-    let summary = summarise(&rows, &res, &real, &sim, real_scans.len() - pairs.len());
+    let summary = summarise(&rows, &res, &real, &sim, real_scans.len() - n_paired);
     let grid_of = |i: usize| spec.shifted(grid_phase(i, 0, opts.grid_phases));
     let snapshot = super::snapshot::snapshot(&rows, &real, &sim, &roi, &grid_of);
     Ok(Comparison {
@@ -459,13 +477,14 @@ pub fn compare(
         k: opts.k,
         grid_phases: opts.grid_phases,
         dims: opts.dims,
-        region: match &opts.region {
-            Region::All => "all".into(),
-            Region::Objects => "objects".into(),
-            Region::Object(n) => format!("object:{n}"),
-        },
+        region: opts.region.to_string(),
         ground_excluded: opts.exclude_ground,
         damage,
+        left_out: reference
+            .not_usable
+            .into_iter()
+            .filter(|l| l.scans > 0)
+            .collect(),
         frame: if opts.sensor_frame { "sensor" } else { "scene" },
         scans: rows,
         calibration,

@@ -129,6 +129,21 @@ pub struct Summary {
     pub ocr_vs_distance: Option<Correlation>,
 }
 
+/// Scans `compare` left out because `check` marked the reference not usable where they lie.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct LeftOut {
+    /// Why the stretch is not usable (the mark's name, e.g. `heading_uncertain`).
+    pub reason: &'static str,
+    /// The marked stretch, s after the run's start (as `check` reports it).
+    pub from_s: f64,
+    /// Its end, s.
+    pub to_s: f64,
+    /// The check's numbers behind it.
+    pub detail: String,
+    /// Paired scans within it.
+    pub scans: usize,
+}
+
 /// Everything `compare` found.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Comparison {
@@ -146,6 +161,8 @@ pub struct Comparison {
     pub region: String,
     /// Inputs read only up to damage, and where.
     pub damage: Vec<String>,
+    /// Stretches whose scans were left out: the reference is not usable there.
+    pub left_out: Vec<LeftOut>,
     /// Ground left out.
     pub ground_excluded: bool,
     /// The frame the points were compared in: "scene" or "sensor".

@@ -167,6 +167,17 @@ impl Roi {
     }
 }
 
+/// As `--roi` takes it (and the reports write it): `all`, `objects`, `object:NAME`.
+impl std::fmt::Display for Region {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Region::All => f.write_str("all"),
+            Region::Objects => f.write_str("objects"),
+            Region::Object(n) => write!(f, "object:{n}"),
+        }
+    }
+}
+
 impl std::str::FromStr for Region {
     type Err = String;
     fn from_str(s: &str) -> Result<Region, String> {
@@ -179,5 +190,26 @@ impl std::str::FromStr for Region {
                 .map(|n| Region::Object(n.to_owned()))
                 .ok_or_else(|| format!("region '{s}': one of all, objects, object:NAME")),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Region;
+
+    /// A region reads back from what it writes; `range` is read as `all`; a bare `object:` and
+    /// an unknown word are refused.
+    #[test]
+    fn regions_round_trip_through_their_text() {
+        for r in [
+            Region::All,
+            Region::Objects,
+            Region::Object("car 3".into()),
+        ] {
+            assert_eq!(r.to_string().parse::<Region>(), Ok(r));
+        }
+        assert_eq!("range".parse::<Region>(), Ok(Region::All));
+        assert!("object:".parse::<Region>().is_err());
+        assert!("cars".parse::<Region>().is_err());
     }
 }

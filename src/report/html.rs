@@ -246,8 +246,16 @@ fn compare_section(out: &mut String, cmps: &[&Input]) {
         .iter()
         .map(|c| {
             let v = &c.value;
+            let left_out: f64 = arr(v, "left_out")
+                .iter()
+                .filter_map(|l| num(l, &["scans"]))
+                .sum();
             vec![
                 esc(&c.name),
+                format!(
+                    "{} ({left_out:.0})",
+                    fixed(num(v, &["summary", "scans"]), 0)
+                ),
                 fixed(num(v, &["cell_m"]), 2),
                 fixed(num(v, &["summary", "ocr_mean"]), 3),
                 fixed(num(v, &["summary", "precision_mean"]), 3),
@@ -269,6 +277,7 @@ fn compare_section(out: &mut String, cmps: &[&Input]) {
         "compare-summary",
         &[
             "comparison",
+            "scans (left out: reference not usable)",
             "cell, m",
             "OCR^K",
             "precision",

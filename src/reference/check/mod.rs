@@ -228,7 +228,28 @@ fn check_into(
         fixed: &fixed,
     };
     let acc = budget::accuracy(run, th, &sp, &tm, &traj, &errors, &log);
-    let segments = faults::segments(&log.faults, &log.marks, start, end);
+    let mut segments = faults::segments(&log.faults, &log.marks, start, end);
+    // Marks take stretches out without failing the run; when they take out all of it, nothing
+    // is left to measure a model against, and a run that passes would be re-simulated and
+    // compared on nothing but reference error.
+    if log.faults.is_empty()
+        && !segments.is_empty()
+        && segments.iter().all(|g| g.verdict != Verdict::Pass)
+    {
+        let mut why: Vec<&str> = log.marks.iter().map(|m| m.name).collect();
+        why.sort_unstable();
+        why.dedup();
+        log.fault(
+            "nothing_usable",
+            start,
+            end,
+            format!(
+                "every stretch of the run is marked not usable ({}): no stretch is left to measure a model against",
+                why.join(", ")
+            ),
+        );
+        segments = faults::segments(&log.faults, &log.marks, start, end);
+    }
     *trajectory_out = Some(traj);
     let verdict = if log.faults.is_empty() {
         Verdict::Pass

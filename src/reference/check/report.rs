@@ -32,7 +32,8 @@ impl Verdict {
 pub struct Fault {
     /// What it is (`rtk_float`, `rtk_none`, `sigma_spike`, `correction_age`, `jump`,
     /// `can_speed_scale`, `gnss_time_offset`, `lever_arm`, `lidar_not_pps_locked`,
-    /// `lidar_clock_residual`, `lidar_gap`, `gnss_gap`, `can_gap`).
+    /// `lidar_clock_residual`, `lidar_gap`, `gnss_gap`, `can_gap`, `nothing_usable`), or for a
+    /// mark, why its stretch is not usable (`heading_uncertain`).
     pub name: &'static str,
     /// Start (UTC).
     pub from: String,
@@ -300,6 +301,16 @@ pub struct Report {
 }
 
 impl Report {
+    /// The stretches marked not usable (from, to, the mark): where the reference is too
+    /// uncertain to measure a model against, so that `compare` and the gap workflow leave
+    /// them out (a re-simulation there would show the reference's error as the model's).
+    pub fn not_usable(&self) -> Vec<(UtcNanos, UtcNanos, &Fault)> {
+        self.marks
+            .iter()
+            .map(|m| (m.window.0, m.window.1, m))
+            .collect()
+    }
+
     /// The readable report.
     pub fn text(&self) -> String {
         use std::fmt::Write;
