@@ -201,11 +201,7 @@ mod tests {
     /// an unknown word are refused.
     #[test]
     fn regions_round_trip_through_their_text() {
-        for r in [
-            Region::All,
-            Region::Objects,
-            Region::Object("car 3".into()),
-        ] {
+        for r in [Region::All, Region::Objects, Region::Object("car 3".into())] {
             assert_eq!(r.to_string().parse::<Region>(), Ok(r));
         }
         assert_eq!("range".parse::<Region>(), Ok(Region::All));
