@@ -5,7 +5,8 @@
 //! The repetition (fixtures/parking/rep-01, or the capture given as the first argument) is
 //! recorded and re-simulated with the idealized model by the `hilrig` binary. Then, in
 //! alternating rounds so that every figure sees the same machine load:
-//! - `resim` of the run (the binary, wall time);
+//! - `resim` of the run (the binary, wall time), with the idealized model and with the parking
+//!   truth model (whose beam divergence casts 3 x 3 sub-rays a firing);
 //! - `compare` of the run with its re-simulation (the binary, wall time);
 //! - reading both files: every chunk decompressed and every lidar scan message parsed
 //!   (`read_scans`, one file per core, as `compare` reads them);
@@ -90,7 +91,10 @@ fn main() {
     );
     let rounds: usize = args.get(2).and_then(|r| r.parse().ok()).unwrap_or(5);
     let rig = root.join("rigs/demo.toml");
-    let model = root.join("fixtures/parking/idealized.toml");
+    let (idealized, truth) = (
+        root.join("fixtures/parking/idealized.toml"),
+        root.join("fixtures/parking/truth-model.toml"),
+    );
     let dir = tempfile::tempdir().expect("temporary directory");
     let (run, sim) = (dir.path().join("run.mcap"), dir.path().join("sim.mcap"));
     hilrig(&[
@@ -102,7 +106,7 @@ fn main() {
         "-o".as_ref(),
         run.as_os_str(),
     ]);
-    let resim = || {
+    let resim = |model: &Path, out: &Path| {
         hilrig(&[
             "resim".as_ref(),
             run.as_os_str(),
@@ -111,10 +115,11 @@ fn main() {
             "--model".as_ref(),
             model.as_os_str(),
             "-o".as_ref(),
-            sim.as_os_str(),
+            out.as_os_str(),
         ]);
     };
-    resim();
+    resim(&idealized, &sim);
+    let sim_truth = dir.path().join("sim-truth.mcap");
     let compare = || {
         hilrig(&[
             "compare".as_ref(),
@@ -126,11 +131,12 @@ fn main() {
     };
     // The demo rig's lidar, as compare decodes it (the built-in VLP-16 geometry).
     let decoder = Decoder::new(Model::Vlp16);
-    let (mut t_resim, mut t_compare, mut t_read, mut t_decode) =
-        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut t_resim, mut t_truth, mut t_compare, mut t_read, mut t_decode) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut points = 0;
     for _ in 0..rounds {
-        t_resim.push(timed(resim));
+        t_resim.push(timed(|| resim(&idealized, &sim)));
+        t_truth.push(timed(|| resim(&truth, &sim_truth)));
         t_compare.push(timed(compare));
         t_read.push(timed(|| {
             let (a, b) = rayon::join(|| read(&run), || read(&sim));
@@ -141,8 +147,9 @@ fn main() {
             points = decode(&decoder, &a) + decode(&decoder, &b);
         }));
     }
-    let (r, c, rd, dc) = (
+    let (r, rt, c, rd, dc) = (
         median(t_resim),
+        median(t_truth),
         median(t_compare),
         median(t_read),
         median(t_decode),
@@ -154,6 +161,11 @@ fn main() {
         rayon::current_num_threads()
     );
     println!("resim (idealized model)       {r:.3} s  1.00 of resim");
+    println!(
+        "resim (truth model)           {rt:.3} s  {:.2} of resim; compare is {:.2} of it",
+        rt / r,
+        c / rt
+    );
     println!(
         "compare                       {c:.3} s  {:.2} of resim",
         c / r

@@ -812,6 +812,8 @@ fn lidar_ports_that_match_nothing_are_an_error_naming_the_capture_s_ports() {
             && stderr.contains("8308 (1 datagrams)"),
         "{stderr}"
     );
+    // No "0 lost" for a lidar that never came.
+    assert!(!stderr.contains("packets lost"), "{stderr}");
 }
 
 /// A rig whose `gnss.port` names another device than the capture's serial interface: the

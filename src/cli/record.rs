@@ -43,7 +43,15 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
             r.max_ns * 1e-3
         );
     }
-    eprintln!("{out}: lidar packets lost: {}", summary.lidar_lost);
+    let lidar_recorded = summary
+        .counts
+        .get(hilrig::bag::topics::VELODYNE_PACKETS)
+        .is_some_and(|&n| n > 0);
+    // Losses are counted among the packets that came: with none, "0 lost" would read as a
+    // clean lidar recording.
+    if lidar_recorded {
+        eprintln!("{out}: lidar packets lost: {}", summary.lidar_lost);
+    }
     for e in &summary.input_errors {
         eprintln!("error: {e} (everything before it was recorded)");
     }
@@ -71,13 +79,10 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
     // A rig with a lidar whose ports match nothing in the captures records no lidar at all:
     // say where the captures' UDP traffic went instead of reporting nothing lost.
     // (Inputs without any UDP traffic, such as CAN and GNSS logs, have no lidar to miss.)
-    let no_lidar = rig.lidar.as_ref().filter(|_| {
-        !summary.other_udp_ports.is_empty()
-            && summary
-                .counts
-                .get(hilrig::bag::topics::VELODYNE_PACKETS)
-                .is_none_or(|&n| n == 0)
-    });
+    let no_lidar = rig
+        .lidar
+        .as_ref()
+        .filter(|_| !summary.other_udp_ports.is_empty() && !lidar_recorded);
     if let Some(l) = no_lidar {
         let ports: Vec<String> = summary
             .other_udp_ports
