@@ -87,6 +87,11 @@ fn the_demo_runs_every_stage_and_writes_the_report() {
     assert!(inputs
         .iter()
         .all(|i| i["sha256"].as_str().is_some_and(|h| h.len() == 64)));
+    // What each run contributes: its usable share (the parking drives are usable throughout)
+    // and the scans compare left out.
+    let html = std::fs::read_to_string(d.join("report.html")).unwrap();
+    assert!(html.contains("usable, %") && html.contains("<td>100</td>"));
+    assert!(html.contains("scans (left out: reference not usable)"));
 }
 
 /// `hilrig report` on its own refuses what is not one of the JSON kinds, and names the file.

@@ -192,6 +192,19 @@ fn verdict(v: &str) -> String {
     format!("<span class=\"{class}\">{}</span>", esc(v))
 }
 
+/// The share of a checked run that its segments call usable, %: marked and failing stretches
+/// are left out of the metrics, so this is what the run contributes.
+fn usable_percent(check: &Value) -> Option<f64> {
+    let usable: f64 = arr(check, "segments")
+        .iter()
+        .filter(|g| text(g, "verdict") == "pass")
+        .filter_map(|g| Some(num(g, &["to_s"])? - num(g, &["from_s"])?))
+        .sum();
+    num(check, &["duration_s"])
+        .filter(|&d| d > 0.0)
+        .map(|d| 100.0 * usable / d)
+}
+
 fn check_section(out: &mut String, checks: &[&Input]) {
     out.push_str("<h2 id=\"section-check\">Reference data (Rosenberger et al. 2019, §6)</h2>\n<p class=\"note\">Each run's trajectory and timing are checked before anything is re-simulated; the grid cell of the metrics follows from the accuracy found (at least ten times the reference accuracy).</p>\n");
     let rows: Vec<Vec<String>> = checks
@@ -202,6 +215,7 @@ fn check_section(out: &mut String, checks: &[&Input]) {
                 esc(&c.name),
                 verdict(text(v, "verdict")),
                 fixed(num(v, &["duration_s"]), 1),
+                fixed(usable_percent(v), 0),
                 fixed(
                     num(v, &["spatial", "rtk_fixed_share"]).map(|x| x * 100.0),
                     1,
@@ -221,6 +235,7 @@ fn check_section(out: &mut String, checks: &[&Input]) {
             "run",
             "verdict",
             "duration, s",
+            "usable, %",
             "RTK fixed, %",
             "ego accuracy, m",
             "heading σ, °",
@@ -565,4 +580,23 @@ fn inputs_section(out: &mut String, inputs: &[Input]) {
         }
     }
     table(out, "inputs", &["file", "kind", "bytes", "SHA-256"], &rows);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::usable_percent;
+    use serde_json::json;
+
+    /// Usable is the passing segments' share of the run: 2 s marked and 1 s failing of 10 s
+    /// leave 70 %; a run without duration has none.
+    #[test]
+    fn the_usable_share_counts_passing_segments_only() {
+        let check = json!({"duration_s": 10.0, "segments": [
+            {"from_s": 0.0, "to_s": 2.0, "verdict": "unusable"},
+            {"from_s": 2.0, "to_s": 6.0, "verdict": "pass"},
+            {"from_s": 6.0, "to_s": 7.0, "verdict": "fail"},
+            {"from_s": 7.0, "to_s": 10.0, "verdict": "pass"}]});
+        assert!((usable_percent(&check).unwrap() - 70.0).abs() < 1e-9);
+        assert_eq!(usable_percent(&json!({"verdict": "unusable"})), None);
+    }
 }
