@@ -692,6 +692,36 @@ fn stretches_with_an_uncertain_heading_are_marked_not_usable_without_a_fault() {
     .unwrap();
     assert_eq!(run.left_out.len(), marks.len());
     assert!(!run.packets.is_empty());
+    // A part of the run (here its first two scans) lists only the marks within it.
+    let part = hilrig::gap::observe::load_run(
+        &d.run,
+        hilrig::scene::Scene::load(&scene).unwrap(),
+        &scene,
+        Some(&hilrig::rig::Rig::load(&rig).unwrap()),
+        hilrig::gap::study::Role::Fit,
+        Some((0, 2)),
+        1_000,
+        false,
+    )
+    .unwrap();
+    // (The two scans span the run's first 0.2 s or so: marks from before 0.15 s are in, marks
+    // from after 0.3 s are not.)
+    assert!(
+        marks.iter().any(|m| m["from_s"].as_f64().unwrap() < 0.15),
+        "no mark at the start to test the part with"
+    );
+    let starts: Vec<f64> = part.left_out.iter().map(|l| l.0).collect();
+    println!(
+        "marks from {:?} s; in the first two scans {starts:?}",
+        marks.iter().map(|m| &m["from_s"]).collect::<Vec<_>>()
+    );
+    for m in marks {
+        let from = m["from_s"].as_f64().unwrap();
+        if from < 0.15 {
+            assert!(starts.contains(&from), "{from} missing from {starts:?}");
+        }
+    }
+    assert!(starts.iter().all(|&f| f <= 0.3), "{starts:?}");
     for p in &run.packets {
         let rel = (p.time.first_firing.0 - start) as f64 * 1e-9;
         assert!(

@@ -188,7 +188,6 @@ pub fn load_run(
         .get("clock_sync/lidar")
         .and_then(|m| m.get("pps"))
         .is_some_and(|p| p == "Locked");
-    let marked = report.not_usable();
     let (scans, _damage) = read_scans(&bytes);
     let (from, to) = part.unwrap_or((0, scans.len()));
     let scans = &scans[from.min(scans.len())..to.min(scans.len())];
@@ -198,6 +197,20 @@ pub fn load_run(
             path.display()
         )));
     }
+    // The marks within this part of the run (host times; a mark is at least 100 ms long, and
+    // the sensor's clock is within a millisecond of them).
+    let (first, last) = (
+        scans[0].stamp,
+        scans[scans.len() - 1]
+            .packets
+            .last()
+            .map_or(scans[scans.len() - 1].stamp, |p| p.0),
+    );
+    let marked: Vec<_> = report
+        .not_usable()
+        .into_iter()
+        .filter(|(a, b, _)| *a <= last && first <= *b)
+        .collect();
     let total: usize = scans.iter().map(|s| s.packets.len()).sum();
     let every = (total * SLOTS).div_ceil(firings.max(SLOTS)).max(1);
     let mut packets = Vec::new();
