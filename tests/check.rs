@@ -679,31 +679,24 @@ fn stretches_with_an_uncertain_heading_are_marked_not_usable_without_a_fault() {
     }
 
     // The gap workflow samples no firing from a marked stretch, and says what it left out.
-    let run = hilrig::gap::observe::load_run(
-        &d.run,
-        hilrig::scene::Scene::load(&scene).unwrap(),
-        &scene,
-        Some(&hilrig::rig::Rig::load(&rig).unwrap()),
-        hilrig::gap::study::Role::Fit,
-        None,
-        100_000,
-        false,
-    )
-    .unwrap();
+    let load = |part: Option<(usize, usize)>, firings: usize| {
+        hilrig::gap::observe::load_run(
+            &d.run,
+            hilrig::scene::Scene::load(&scene).unwrap(),
+            &scene,
+            Some(&hilrig::rig::Rig::load(&rig).unwrap()),
+            hilrig::gap::study::Role::Fit,
+            part,
+            firings,
+            false,
+        )
+        .unwrap()
+    };
+    let run = load(None, 100_000);
     assert_eq!(run.left_out.len(), marks.len());
     assert!(!run.packets.is_empty());
     // A part of the run (here its first two scans) lists only the marks within it.
-    let part = hilrig::gap::observe::load_run(
-        &d.run,
-        hilrig::scene::Scene::load(&scene).unwrap(),
-        &scene,
-        Some(&hilrig::rig::Rig::load(&rig).unwrap()),
-        hilrig::gap::study::Role::Fit,
-        Some((0, 2)),
-        1_000,
-        false,
-    )
-    .unwrap();
+    let part = load(Some((0, 2)), 1_000);
     // (The two scans span the run's first 0.2 s or so: marks from before 0.15 s are in, marks
     // from after 0.3 s are not.)
     assert!(
