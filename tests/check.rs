@@ -703,7 +703,7 @@ fn stretches_with_an_uncertain_heading_are_marked_not_usable_without_a_fault() {
         marks.iter().any(|m| m["from_s"].as_f64().unwrap() < 0.15),
         "no mark at the start to test the part with"
     );
-    let starts: Vec<f64> = part.left_out.iter().map(|l| l.0).collect();
+    let starts: Vec<f64> = part.left_out.iter().map(|l| l.from_s).collect();
     println!(
         "marks from {:?} s; in the first two scans {starts:?}",
         marks.iter().map(|m| &m["from_s"]).collect::<Vec<_>>()

@@ -20,6 +20,15 @@ pub struct Scan {
     pub packets: Vec<(UtcNanos, [u8; DATA_PACKET_SIZE])>,
 }
 
+impl Scan {
+    /// Its first and last packet's receive stamps (the scan's stamp for a scan without
+    /// packets).
+    pub fn span(&self) -> (UtcNanos, UtcNanos) {
+        let last = self.packets.last().map_or(self.stamp, |p| p.0);
+        (self.stamp.min(last), self.stamp.max(last))
+    }
+}
+
 /// The scans of an MCAP's bytes, in file order, and what stopped the reading early (damage), if
 /// anything. A scan that does not decode is an error naming the topic.
 pub fn read_scans(bytes: &[u8]) -> (Vec<Scan>, Option<String>) {

@@ -116,7 +116,7 @@ fn text(c: &Comparison) -> String {
         let _ = writeln!(
             out,
             "left out {} scans at {:.1} .. {:.1} s: check marks the reference not usable there ({}: {})",
-            l.scans, l.from_s, l.to_s, l.reason, l.detail
+            l.scans, l.mark.from_s, l.mark.to_s, l.mark.name, l.mark.detail
         );
     }
     let _ = writeln!(

@@ -11,7 +11,7 @@
 use super::study::Role;
 use super::GapError;
 use crate::bag::scans::{read_scans, sensor_time};
-use crate::reference::check::{check_with_trajectory, Verdict};
+use crate::reference::check::{check_with_trajectory, Fault, Verdict};
 use crate::rig::Rig;
 use crate::scene::pose::Trajectory;
 use crate::scene::Scene;
@@ -65,9 +65,9 @@ pub struct RunData {
     pub time_sigma_ms: f64,
     /// The sampled packets.
     pub packets: Vec<Sampled>,
-    /// Stretches left out, s after the run's start (as `check` reports them), with why: `check`
-    /// marked the reference not usable there, and its error would pass for a lidar effect.
-    pub left_out: Vec<(f64, f64, &'static str)>,
+    /// Stretches left out (`check`'s marks within the run or its part): the reference is not
+    /// usable there, and its error would pass for a lidar effect.
+    pub left_out: Vec<Fault>,
     /// Scans in the run (or its part).
     pub scans: usize,
     /// The range quantum of the sensor, m.
@@ -199,17 +199,12 @@ pub fn load_run(
     }
     // The marks within this part of the run (host times; a mark is at least 100 ms long, and
     // the sensor's clock is within a millisecond of them).
-    let (first, last) = (
-        scans[0].stamp,
-        scans[scans.len() - 1]
-            .packets
-            .last()
-            .map_or(scans[scans.len() - 1].stamp, |p| p.0),
-    );
-    let marked: Vec<_> = report
-        .not_usable()
-        .into_iter()
-        .filter(|(a, b, _)| *a <= last && first <= *b)
+    let (part_from, part_to) = (scans[0].span().0, scans[scans.len() - 1].span().1);
+    let marked: Vec<Fault> = report
+        .marks
+        .iter()
+        .filter(|m| m.window().0 <= part_to && part_from <= m.window().1)
+        .cloned()
         .collect();
     let total: usize = scans.iter().map(|s| s.packets.len()).sum();
     let every = (total * SLOTS).div_ceil(firings.max(SLOTS)).max(1);
@@ -231,7 +226,10 @@ pub fn load_run(
             let rate = previous
                 .as_ref()
                 .and_then(|q| hilrig_velodyne::decode::rate_between(q, &p));
-            let usable = !marked.iter().any(|(a, b, _)| (*a..=*b).contains(&first));
+            let usable = !marked.iter().any(|m| {
+                let (a, b) = m.window();
+                (a..=b).contains(&first)
+            });
             if usable && n.is_multiple_of(every) {
                 packets.push(Sampled {
                     scan: k as u32,
@@ -266,10 +264,7 @@ pub fn load_run(
         heading_sigma_deg: report.accuracy.heading_sigma_deg,
         time_sigma_ms: report.spatial.gnss_time_offset_sigma_ms.unwrap_or(0.0),
         packets,
-        left_out: marked
-            .iter()
-            .map(|(_, _, m)| (m.from_s, m.to_s, m.name))
-            .collect(),
+        left_out: marked,
         scans: scans.len(),
         range_quantum_m: model.distance_resolution_m(),
     })

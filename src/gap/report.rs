@@ -99,9 +99,8 @@ pub struct RunInfo {
     pub check: String,
     /// Firings sampled.
     pub sampled_firings: usize,
-    /// Stretches left out where `check` marked the reference not usable: from, to (s after
-    /// the run's start), why.
-    pub left_out: Vec<(f64, f64, &'static str)>,
+    /// Stretches left out where `check` marked the reference not usable (its marks).
+    pub left_out: Vec<crate::reference::check::Fault>,
 }
 
 /// Everything `gap.json` holds.

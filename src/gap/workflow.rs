@@ -311,10 +311,10 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
     // What the workflow did not look at, first: a stretch whose reference is not usable would
     // have shown its trajectory error as a lidar effect.
     for r in &report.runs {
-        for (a, b, why) in &r.left_out {
+        for m in &r.left_out {
             report.summary.push(format!(
-                "{}: {a:.1} .. {b:.1} s left out ({why}: `check` marks the reference not usable there)",
-                r.name
+                "{}: {:.1} .. {:.1} s left out ({}: `check` marks the reference not usable there)",
+                r.name, m.from_s, m.to_s, m.name
             ));
         }
     }

@@ -28,7 +28,6 @@ use crate::scene::pose::{mounting_isometry, Trajectory};
 use crate::scene::Scene;
 use crate::stats::rank::spearman_with_interval;
 
-use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::Decoder;
 use nalgebra::Point3;
 use rayon::prelude::*;
@@ -240,8 +239,6 @@ struct Reference {
     admissible: f64,
     /// Stretches `check` marked not usable on this trajectory (none on a trajectory file).
     not_usable: Vec<LeftOut>,
-    /// Their windows.
-    windows: Vec<(UtcNanos, UtcNanos)>,
 }
 
 /// The run's measured scans and what else `compare` needs of it.
@@ -270,7 +267,7 @@ fn reference(
     let marks = if trajectory.is_some() {
         Vec::new()
     } else {
-        report.not_usable()
+        report.marks
     };
     let trajectory = match trajectory {
         Some(t) => t,
@@ -285,16 +282,9 @@ fn reference(
             rig,
             trajectory,
             admissible,
-            windows: marks.iter().map(|(a, b, _)| (*a, *b)).collect(),
             not_usable: marks
                 .into_iter()
-                .map(|(_, _, m)| LeftOut {
-                    reason: m.name,
-                    from_s: m.from_s,
-                    to_s: m.to_s,
-                    detail: m.detail.clone(),
-                    scans: 0,
-                })
+                .map(|mark| LeftOut { mark, scans: 0 })
                 .collect(),
         },
     ))
@@ -386,7 +376,6 @@ pub fn compare(
     let (pairs, n_paired) = usable_pairs(
         (&real_scans, run_path),
         (&sim_scans, sim_path),
-        &reference.windows,
         &mut reference.not_usable,
     )
     .map_err(input)?;

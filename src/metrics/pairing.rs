@@ -4,7 +4,6 @@
 
 use super::report::LeftOut;
 use crate::bag::scans::Scan;
-use hilrig_stamp::UtcNanos;
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -47,20 +46,16 @@ pub(super) fn pair_scans<'a>(
     Ok(pairs)
 }
 
-/// The pairs whose measured scan lies clear of every window in `windows`; each window's entry
-/// of `left_out` counts the pairs it took out.
-fn leave_out_marked<'a>(
-    pairs: Vec<Pair<'a>>,
-    windows: &[(UtcNanos, UtcNanos)],
-    left_out: &mut [LeftOut],
-) -> Vec<Pair<'a>> {
+/// The pairs whose measured scan lies clear of every mark of `left_out`; each mark's entry
+/// counts the pairs it took out.
+fn leave_out_marked<'a>(pairs: Vec<Pair<'a>>, left_out: &mut [LeftOut]) -> Vec<Pair<'a>> {
     pairs
         .into_iter()
         .filter(|(r, _)| {
-            let last = r.packets.last().map_or(r.stamp, |p| p.0);
-            let (a, b) = (r.stamp.min(last), r.stamp.max(last));
+            let (a, b) = r.span();
             let mut keep = true;
-            for (w, l) in windows.iter().zip(left_out.iter_mut()) {
+            for l in left_out.iter_mut() {
+                let w = l.mark.window();
                 if a <= w.1 && w.0 <= b {
                     l.scans += 1;
                     keep = false;
@@ -72,24 +67,23 @@ fn leave_out_marked<'a>(
 }
 
 /// The measured scans (of the run at the path) with their simulated twins, less those that touch
-/// a marked window (`left_out` counts them per window), and how many pairs there were before;
-/// an error when no scan pairs, or when every pair lies in a marked stretch.
+/// a mark of `left_out` (which counts them per mark), and how many pairs there were before; an
+/// error when no scan pairs, or when every pair lies in a marked stretch.
 pub(super) fn usable_pairs<'a>(
     (real_scans, run_path): (&'a [Scan], &Path),
     (sim_scans, sim_path): (&'a [Scan], &Path),
-    windows: &[(UtcNanos, UtcNanos)],
     left_out: &mut [LeftOut],
 ) -> Result<(Vec<Pair<'a>>, usize), String> {
     let paired = pair_scans(real_scans, sim_scans, run_path, sim_path)?;
     let n = paired.len();
-    let pairs = leave_out_marked(paired, windows, left_out);
+    let pairs = leave_out_marked(paired, left_out);
     if pairs.is_empty() {
         return Err(format!(
             "{}: every paired scan lies where `check` marks the reference not usable ({}): nothing is left to compare; see `hilrig check`",
             run_path.display(),
             left_out
                 .iter()
-                .map(|l| format!("{} {:.1}-{:.1} s", l.reason, l.from_s, l.to_s))
+                .map(|l| format!("{} {:.1}-{:.1} s", l.mark.name, l.mark.from_s, l.mark.to_s))
                 .collect::<Vec<_>>()
                 .join(", ")
         ));

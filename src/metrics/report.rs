@@ -3,6 +3,7 @@
 
 use super::grid::{Dims, GridScores};
 use super::points::PointScores;
+use crate::reference::check::Fault;
 use crate::stats::rank::Correlation;
 
 /// An object's points in one scan.
@@ -132,14 +133,9 @@ pub struct Summary {
 /// Scans `compare` left out because `check` marked the reference not usable where they lie.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct LeftOut {
-    /// Why the stretch is not usable (the mark's name, e.g. `heading_uncertain`).
-    pub reason: &'static str,
-    /// The marked stretch, s after the run's start (as `check` reports it).
-    pub from_s: f64,
-    /// Its end, s.
-    pub to_s: f64,
-    /// The check's numbers behind it.
-    pub detail: String,
+    /// The mark, as `check` reports it (name, stretch, the numbers behind it).
+    #[serde(flatten)]
+    pub mark: Fault,
     /// Paired scans within it.
     pub scans: usize,
 }

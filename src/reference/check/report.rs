@@ -291,6 +291,8 @@ pub struct Report {
     /// Stretches taken out although nothing is wrong with the data: the reference is too
     /// uncertain there (`heading_uncertain`: the smoother's heading sigma above the limit, as at
     /// the start of a drive before the vehicle has moved far enough to show its heading).
+    /// `compare` and the gap workflow leave them out: a re-simulation there would show the
+    /// reference's error as the model's.
     pub marks: Vec<Fault>,
     /// What could not be decided on this drive, and what would decide it.
     pub warnings: Vec<Warning>,
@@ -300,17 +302,14 @@ pub struct Report {
     pub damage: Option<String>,
 }
 
-impl Report {
-    /// The stretches marked not usable (from, to, the mark): where the reference is too
-    /// uncertain to measure a model against, so that `compare` and the gap workflow leave
-    /// them out (a re-simulation there would show the reference's error as the model's).
-    pub fn not_usable(&self) -> Vec<(UtcNanos, UtcNanos, &Fault)> {
-        self.marks
-            .iter()
-            .map(|m| (m.window.0, m.window.1, m))
-            .collect()
+impl Fault {
+    /// Its start and end, UTC.
+    pub fn window(&self) -> (UtcNanos, UtcNanos) {
+        self.window
     }
+}
 
+impl Report {
     /// The readable report.
     pub fn text(&self) -> String {
         use std::fmt::Write;
