@@ -61,15 +61,21 @@ pub type Visitor<'a> = dyn FnMut(Event<'_>) -> Result<(), String> + 'a;
 
 /// Walks the data section of an MCAP held in memory and hands every message, metadata record
 /// and attachment to `each`, in file order. `Err` says what stopped the reading (damage, or an
-/// error `each` returned); everything before it has been handed over.
+/// error `each` returned) and, where a record was at fault, at which byte of the file that
+/// record starts; everything before it has been handed over.
 pub fn read(bytes: &[u8], each: &mut Visitor<'_>) -> Result<(), String> {
     let options = mcap::sans_io::LinearReaderOptions::default()
         .with_skip_end_magic(true)
         .with_emit_chunks(true)
         .with_record_length_limit(bytes.len());
     let mut channels = mcap::read::ChannelAccumulator::<'static>::default();
+    // Records follow the magic back to back: opcode (1 byte), length (8), body.
+    let mut at = mcap::MAGIC.len();
     records(bytes, options, &mut |op, body| {
+        let here = at;
+        at += 9 + body.len();
         data_record(op, body, &mut channels, each)
+            .map_err(|e| format!("{e} (in the record at byte {here})"))
     })?;
     // Every record of the data section was read; a file cut after it (in its summary or
     // footer) still lost its index, and a reader that trusts the index finds nothing.
@@ -321,5 +327,30 @@ mod tests {
         let (n, r) = count(&bytes[..bytes.len() - 3]);
         assert_eq!(n, 5);
         assert!(r.unwrap_err().contains("closing magic"));
+    }
+
+    /// Damage inside a record is located: a chunk whose header claims one byte more than it
+    /// holds is named with the byte its record starts at (the chunk index's offset).
+    #[test]
+    fn a_damaged_chunk_is_named_with_its_byte_offset() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.mcap");
+        let mut bag =
+            crate::bag::BagWriter::create(&path, &crate::bag::BagOptions::default()).unwrap();
+        let t = hilrig_stamp::UtcNanos(1_000_000_000);
+        bag.write("/x", &crate::bag::msgs::can_frame_type(), t, t, &[7u8; 16])
+            .unwrap();
+        bag.finish().unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+        let chunk = summary.chunk_indexes[0].chunk_start_offset as usize;
+        // opcode, record length, start and end time, then the uncompressed size.
+        bytes[chunk + 1 + 8 + 16] += 1;
+        let err = read(&bytes, &mut |_| Ok(())).unwrap_err();
+        assert!(err.contains("bytes uncompressed but holds"), "{err}");
+        assert!(
+            err.ends_with(&format!("(in the record at byte {chunk})")),
+            "{err}"
+        );
     }
 }

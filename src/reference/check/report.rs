@@ -322,6 +322,9 @@ impl Report {
         let _ = writeln!(s, "verdict: {v}");
         if let Some(u) = &self.unusable {
             let _ = writeln!(s, "  {u}");
+            if let Some(d) = &self.damage {
+                let _ = writeln!(s, "recording damaged: {d}");
+            }
             if self.spatial.epochs > 0 {
                 let sp = &self.spatial;
                 let _ = writeln!(
