@@ -10,7 +10,7 @@
 
 use super::study::Role;
 use super::GapError;
-use crate::bag::scans::{read_scans, sensor_time};
+use crate::bag::scans::{sensor_time, ScanStream};
 use crate::reference::check::{check_with_trajectory, Fault, Verdict};
 use crate::rig::Rig;
 use crate::scene::pose::Trajectory;
@@ -162,7 +162,7 @@ pub fn load_run(
     force: bool,
 ) -> Result<RunData, GapError> {
     let input = GapError::Input;
-    let (bytes, run, rig) = crate::reference::run::load_with_rig(path, rig).map_err(input)?;
+    let (run, rig) = crate::reference::run::load_with_rig(path, rig).map_err(input)?;
     let (report, smoothed) = check_with_trajectory(&run, &rig, Some(&scene));
     if report.verdict != Verdict::Pass && !force {
         return Err(GapError::Refused {
@@ -188,10 +188,10 @@ pub fn load_run(
         .get("clock_sync/lidar")
         .and_then(|m| m.get("pps"))
         .is_some_and(|p| p == "Locked");
-    let (scans, _damage) = read_scans(&bytes);
-    let (from, to) = part.unwrap_or((0, scans.len()));
-    let scans = &scans[from.min(scans.len())..to.min(scans.len())];
-    if scans.is_empty() {
+    let (from, to) = part.unwrap_or((0, run.scans.len()));
+    let (from, to) = (from.min(run.scans.len()), to.min(run.scans.len()));
+    let index = &run.scans[from..to];
+    if index.is_empty() {
         return Err(input(format!(
             "{}: no /velodyne_packets to re-simulate",
             path.display()
@@ -199,19 +199,21 @@ pub fn load_run(
     }
     // The marks within this part of the run (host times; a mark is at least 100 ms long, and
     // the sensor's clock is within a millisecond of them).
-    let (part_from, part_to) = (scans[0].span().0, scans[scans.len() - 1].span().1);
+    let (part_from, part_to) = (index[0].span.0, index[index.len() - 1].span.1);
     let marked: Vec<Fault> = report
         .marks
         .iter()
         .filter(|m| m.window().0 <= part_to && part_from <= m.window().1)
         .cloned()
         .collect();
-    let total: usize = scans.iter().map(|s| s.packets.len()).sum();
+    let total: usize = index.iter().map(|s| s.packets as usize).sum();
     let every = (total * SLOTS).div_ceil(firings.max(SLOTS)).max(1);
     let mut packets = Vec::new();
     let mut previous: Option<DataPacket> = None;
     let mut n = 0usize;
-    for (k, scan) in scans.iter().enumerate() {
+    // The scans are streamed: only the sample is kept.
+    let mut stream = ScanStream::open(path).map_err(|e| input(e.to_string()))?;
+    for (k, scan) in stream.by_ref().skip(from).take(to - from).enumerate() {
         let mut rotation_start = None;
         for (t, b) in &scan.packets {
             let Ok(p) = DataPacket::decode(&b[..]) else {
@@ -245,6 +247,7 @@ pub fn load_run(
             n += 1;
         }
     }
+    drop(stream);
     let file = path.file_name().map_or_else(
         || path.display().to_string(),
         |f| f.to_string_lossy().into(),
@@ -265,16 +268,15 @@ pub fn load_run(
         time_sigma_ms: report.spatial.gnss_time_offset_sigma_ms.unwrap_or(0.0),
         packets,
         left_out: marked,
-        scans: scans.len(),
+        scans: to - from,
         range_quantum_m: model.distance_resolution_m(),
     })
 }
 
 /// The scans of a recording (for splitting a single run in time).
 pub fn count_scans(path: &Path) -> Result<usize, GapError> {
-    let bytes = std::fs::read(path)
-        .map_err(|e| GapError::Input(format!("cannot read {}: {e}", path.display())))?;
-    Ok(read_scans(&bytes).0.len())
+    let stream = ScanStream::open(path).map_err(|e| GapError::Input(e.to_string()))?;
+    Ok(stream.count())
 }
 
 /// The model without its random parts (noise, dropout, intensity noise, clutter): what it

@@ -14,13 +14,14 @@
 //! The cell must not be smaller than the admissible cell `check` derives from the reference
 //! accuracy (§6): below it the metric measures the reference's errors, not the model's.
 
-use super::cloud::{Cloud, Frame};
-use super::grid::{compare as grid_compare, Dims, GridScores, GridSpec, Occupancy};
-use super::pairing::usable_pairs;
-use super::points::distances;
+use super::cloud::Frame;
+use super::grid::{Dims, GridScores, GridSpec};
+use super::measure::{measure, Measured, Residuals};
+use super::pairing::{Pair, Pairs};
 pub use super::report::{Comparison, CurvePoint, LeftOut, ObjectSeen, ScanRow, Snapshot, Summary};
 use super::roi::{Region, Roi};
-use crate::bag::scans::{read_scans, Scan};
+use super::windows::{grid_phase, windows, CurveSums, PointPair};
+use crate::bag::scans::ScanStream;
 use crate::reference::check::{check_with_trajectory, Verdict};
 use crate::reference::run::Run;
 use crate::rig::Rig;
@@ -28,6 +29,7 @@ use crate::scene::pose::{mounting_isometry, Trajectory};
 use crate::scene::Scene;
 use crate::stats::rank::spearman_with_interval;
 
+use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::Decoder;
 use nalgebra::Point3;
 use rayon::prelude::*;
@@ -80,155 +82,13 @@ pub struct Options {
 /// wall's cells weigh), at four times the binning.
 pub const DEFAULT_GRID_PHASES: usize = 4;
 
-/// An object counts as seen with this many measured points in a scan.
-pub const MIN_POINTS_SEEN: usize = 10;
-
-/// Cell sizes of the calibration curve, m.
-pub const CURVE_CELLS_M: [f64; 9] = [0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0];
+pub use super::measure::MIN_POINTS_SEEN;
+pub use super::windows::CURVE_CELLS_M;
 
 fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
     let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
     (n > 0).then(|| s / n as f64)
 }
-
-fn extent(points: &[Point3<f64>]) -> f64 {
-    if points.is_empty() {
-        return 0.0;
-    }
-    let (mut lo, mut hi) = (points[0], points[0]);
-    for p in points {
-        lo = lo.inf(p);
-        hi = hi.sup(p);
-    }
-    (hi - lo).norm()
-}
-
-/// What the sensor saw of the objects in one scan pair.
-fn objects_seen(roi: &Roi, real: &Cloud, sim: &Cloud) -> Vec<ObjectSeen> {
-    let margin = 0.2;
-    roi.boxes()
-        .iter()
-        .filter_map(|(name, b)| {
-            let r: Vec<&(Point3<f64>, f32)> = real
-                .all
-                .iter()
-                .filter(|(p, _)| b.contains(p, margin))
-                .collect();
-            if r.len() < MIN_POINTS_SEEN {
-                return None;
-            }
-            let s: Vec<Point3<f64>> = sim
-                .all
-                .iter()
-                .filter(|(p, _)| b.contains(p, margin))
-                .map(|(p, _)| *p)
-                .collect();
-            let rp: Vec<Point3<f64>> = r.iter().map(|(p, _)| *p).collect();
-            Some(ObjectSeen {
-                name: name.clone(),
-                real_points: r.len(),
-                sim_points: s.len(),
-                range_m: r.iter().map(|(_, d)| f64::from(*d)).sum::<f64>() / r.len() as f64,
-                real_extent_m: extent(&rp),
-                sim_extent_m: extent(&s),
-            })
-        })
-        .collect()
-}
-
-/// The range residuals of one scan pair: their sum and sum of squares over the firings both
-/// have, and the returns only one has.
-#[derive(Clone, Copy, Default)]
-struct Residuals {
-    sum: f64,
-    sum2: f64,
-    both: usize,
-    only_real: usize,
-    only_sim: usize,
-}
-
-/// Simulated minus measured range of the firings both have, and the returns only one has.
-fn residuals(real: &Cloud, sim: &Cloud) -> Residuals {
-    let mut r = Residuals::default();
-    let (a, b) = (&real.firings, &sim.firings);
-    let (mut i, mut j) = (0, 0);
-    while i < a.len() && j < b.len() {
-        match a[i].0.cmp(&b[j].0) {
-            std::cmp::Ordering::Less => {
-                r.only_real += 1;
-                i += 1;
-            }
-            std::cmp::Ordering::Greater => {
-                r.only_sim += 1;
-                j += 1;
-            }
-            std::cmp::Ordering::Equal => {
-                let diff = f64::from(b[j].1) - f64::from(a[i].1);
-                r.sum += diff;
-                r.sum2 += diff * diff;
-                r.both += 1;
-                i += 1;
-                j += 1;
-            }
-        }
-    }
-    r.only_real += a.len() - i;
-    r.only_sim += b.len() - j;
-    r
-}
-
-/// Where the j-th of the `phases` grids of the window ending at scan `i` lies, as a fraction
-/// of a cell from the scene origin along every axis: (j + u_i) / N, with u_i = frac(½ + i/φ)
-/// (the golden-ratio sequence). A window's N grids are spread evenly over a cell, and from
-/// window to window the spread moves on, so that a drive's mean is taken over N times its
-/// scans' placements, as if the grid had been put down at random; no placement is favoured,
-/// in particular not the origin, where man-made scenes put their walls on round coordinates
-/// and round cell sizes would put the boundaries.
-fn grid_phase(i: usize, j: usize, phases: usize) -> f64 {
-    const INV_GOLDEN: f64 = 0.618_033_988_749_894_9;
-    let u = (0.5 + i as f64 * INV_GOLDEN).fract();
-    (j as f64 + u) / phases.max(1) as f64
-}
-
-/// The occupancy grids' scores of every window of K scans ending at each scan, averaged over
-/// `phases` shifted grids ([`grid_phase`]).
-fn windows(
-    spec: &GridSpec,
-    phases: usize,
-    k: usize,
-    real: &[Cloud],
-    sim: &[Cloud],
-) -> Vec<Option<GridScores>> {
-    (0..real.len())
-        .into_par_iter()
-        .map(|i| {
-            if i + 1 < k {
-                return None;
-            }
-            let r: Vec<&[Point3<f64>]> = real[i + 1 - k..=i]
-                .iter()
-                .map(|c| c.points.as_slice())
-                .collect();
-            let s: Vec<&[Point3<f64>]> = sim[i + 1 - k..=i]
-                .iter()
-                .map(|c| c.points.as_slice())
-                .collect();
-            let scores = (0..phases.max(1))
-                .map(|j| {
-                    let g = spec.shifted(grid_phase(i, j, phases));
-                    Some(grid_compare(
-                        &Occupancy::of(&g, &r).ok()?,
-                        &Occupancy::of(&g, &s).ok()?,
-                    ))
-                })
-                .collect::<Option<Vec<GridScores>>>()?;
-            GridScores::mean(&scores)
-        })
-        .collect()
-}
-
-/// The run's measured scans (and the damage they were read up to).
-type Measured = (Vec<Scan>, Option<String>);
 
 /// What `compare` takes from the run besides its scans.
 struct Reference {
@@ -241,20 +101,17 @@ struct Reference {
     not_usable: Vec<LeftOut>,
 }
 
-/// The run's measured scans and what else `compare` needs of it.
+/// What `compare` needs of the run besides its scans: the run read as a stream (its scans only
+/// indexed), checked, and its trajectory.
 fn reference(
     run_path: &Path,
     rig: Option<&Rig>,
     scene: Option<&Scene>,
     trajectory: Option<Trajectory>,
-) -> Result<(Measured, Reference), CompareError> {
+) -> Result<Reference, CompareError> {
     let input = CompareError::Input;
-    let (bytes, run, rig) = crate::reference::run::load_with_rig(run_path, rig).map_err(input)?;
-    // The measured scans are read while the reference data are checked.
-    let ((report, smoothed), measured) = rayon::join(
-        || check_with_trajectory(&run, &rig, scene),
-        || read_scans(&bytes),
-    );
+    let (run, rig) = crate::reference::run::load_with_rig(run_path, rig).map_err(input)?;
+    let (report, smoothed) = check_with_trajectory(&run, &rig, scene);
     if report.verdict == Verdict::Unusable {
         return Err(input(format!(
             "{}: the reference data cannot be judged ({}): see `hilrig check`",
@@ -275,19 +132,16 @@ fn reference(
             .and_then(|t| t.sampled(10_000_000))
             .ok_or_else(|| input(format!("{}: no RTK+CAN trajectory", run_path.display())))?,
     };
-    Ok((
-        measured,
-        Reference {
-            run,
-            rig,
-            trajectory,
-            admissible,
-            not_usable: marks
-                .into_iter()
-                .map(|mark| LeftOut { mark, scans: 0 })
-                .collect(),
-        },
-    ))
+    Ok(Reference {
+        run,
+        rig,
+        trajectory,
+        admissible,
+        not_usable: marks
+            .into_iter()
+            .map(|mark| LeftOut { mark, scans: 0 })
+            .collect(),
+    })
 }
 
 /// The grid of the options (the cell defaults to the admissible one), once the options are
@@ -310,19 +164,105 @@ fn grid_spec(opts: &Options, admissible: f64) -> Result<GridSpec, CompareError> 
     Ok(spec)
 }
 
-/// The simulation's scans, and the damage they were read up to.
-fn read_simulation(sim_path: &Path) -> Result<(Vec<Scan>, Option<String>), CompareError> {
-    let input = CompareError::Input;
-    let sim_bytes = std::fs::read(sim_path)
-        .map_err(|e| input(format!("cannot read {}: {e}", sim_path.display())))?;
-    if !sim_bytes.starts_with(mcap::MAGIC) {
-        return Err(input(format!("{}: not an MCAP file", sim_path.display())));
+/// Scan pairs decoded and measured together: enough to keep every core busy, few enough that
+/// a 128-beam sensor's clouds stay a few hundred megabytes.
+const BATCH_PAIRS: usize = 8;
+
+/// The scan the snapshot shows: the most objects in view and, of those, the smallest mean
+/// distance to them (the earliest on a tie), kept with its points as the drive streams by.
+struct SnapshotPick {
+    index: usize,
+    key: (usize, f64),
+    real: Vec<Point3<f64>>,
+    sim: Vec<Point3<f64>>,
+    origin: Option<Point3<f64>>,
+}
+
+impl SnapshotPick {
+    /// A row's key: objects in view, mean distance to them.
+    fn key(row: &ScanRow) -> (usize, f64) {
+        (
+            row.objects_in_view,
+            row.mean_distance_m.unwrap_or(f64::INFINITY),
+        )
     }
-    Ok(read_scans(&sim_bytes))
+
+    /// Whether a row beats the pick so far (more objects, then nearer; ties keep the earlier).
+    fn beaten_by(this: Option<&SnapshotPick>, row: &ScanRow) -> bool {
+        let key = SnapshotPick::key(row);
+        this.is_none_or(|p| key.0 > p.key.0 || (key.0 == p.key.0 && key.1 < p.key.1))
+    }
+}
+
+/// The running results of the streamed pass.
+#[derive(Default)]
+struct Tally {
+    rows: Vec<ScanRow>,
+    res: Vec<Residuals>,
+    returns: (usize, usize),
+    any_real_point: bool,
+    pick: Option<SnapshotPick>,
+    t0: Option<UtcNanos>,
+}
+
+impl Tally {
+    /// The rows of a measured batch, with its windows' grid scores.
+    fn add(
+        &mut self,
+        measured: Vec<Measured>,
+        grids: Vec<Option<GridScores>>,
+        trajectory: &Trajectory,
+    ) -> Vec<PointPair> {
+        let mut clouds = Vec::with_capacity(measured.len());
+        for (m, grid) in measured.into_iter().zip(grids) {
+            let t0 = *self.t0.get_or_insert(m.middle);
+            let per = |x: f64| (m.res.both > 0).then(|| x / m.res.both as f64);
+            let mut hint = 0;
+            let speed = trajectory
+                .velocity_at(m.middle, &mut hint)
+                .map_or(0.0, |v| v.xy().norm());
+            let row = ScanRow {
+                t_s: (m.middle.0 - t0.0) as f64 * 1e-9,
+                stamp_ns: m.stamp.0,
+                ego_speed_mps: speed,
+                objects_in_view: m.objects.len(),
+                mean_distance_m: mean(m.objects.iter().map(|o| o.range_m)),
+                real_points: m.real.len(),
+                sim_points: m.sim.len(),
+                grid,
+                points: m.points,
+                range_diff_mean_m: per(m.res.sum),
+                range_diff_rms_m: per(m.res.sum2).map(f64::sqrt),
+                only_real: m.res.only_real,
+                only_sim: m.res.only_sim,
+                objects: m.objects,
+            };
+            self.any_real_point |= !m.real.is_empty();
+            self.returns.0 += m.returns.0;
+            self.returns.1 += m.returns.1;
+            self.res.push(m.res);
+            if SnapshotPick::beaten_by(self.pick.as_ref(), &row) {
+                self.pick = Some(SnapshotPick {
+                    index: self.rows.len(),
+                    key: SnapshotPick::key(&row),
+                    real: m.real.clone(),
+                    sim: m.sim.clone(),
+                    origin: m.origin,
+                });
+            }
+            self.rows.push(row);
+            clouds.push((m.real, m.sim));
+        }
+        clouds
+    }
 }
 
 /// Compares the run at `run_path` with its re-simulation at `sim_path`. `progress(done, total)`
 /// is called as scans are decoded.
+///
+/// Both files are streamed: a first pass reads the run's reference data (and indexes its
+/// scans), a second walks both files' scans together, so that memory holds the last K scan
+/// pairs and a batch, never the drive.
 pub fn compare(
     run_path: &Path,
     sim_path: &Path,
@@ -339,46 +279,21 @@ pub fn compare(
             started.elapsed().as_secs_f64()
         )
     };
-    // The simulation is read while the run's reference data are checked.
-    let (reference, simulated) = rayon::join(
-        || reference(run_path, rig, scene, opts.trajectory.clone()),
-        || read_simulation(sim_path),
-    );
-    let ((real_scans, real_damage), mut reference) = reference?;
+    let mut sim_stream = ScanStream::open(sim_path).map_err(|e| input(e.to_string()))?;
+    let mut reference = reference(run_path, rig, scene, opts.trajectory.clone())?;
     let admissible = reference.admissible;
-    phase("reference checked, simulation read");
+    phase("reference checked");
     let spec = grid_spec(&opts, admissible)?;
     let cell = spec.cell_m();
-    let (sim_scans, sim_damage) = simulated?;
-    // A damaged file is compared as far as it can be read, and says so.
-    let damage: Vec<String> = [(run_path, real_damage), (sim_path, sim_damage)]
-        .into_iter()
-        .filter_map(|(p, d)| {
-            let d = d?;
-            Some(format!(
-                "{}: read up to damage ({d}); compared what could be read",
-                p.display()
-            ))
-        })
-        .collect();
-    if real_scans.is_empty() || sim_scans.is_empty() {
+    let (Some(first_scan), Some(last_scan)) =
+        (reference.run.scans.first(), reference.run.scans.last())
+    else {
         return Err(input(format!(
             "no lidar scans (/velodyne_packets) in {}",
-            if real_scans.is_empty() {
-                run_path
-            } else {
-                sim_path
-            }
-            .display()
+            run_path.display()
         )));
-    }
-    phase("scans read");
-    let (pairs, n_paired) = usable_pairs(
-        (&real_scans, run_path),
-        (&sim_scans, sim_path),
-        &mut reference.not_usable,
-    )
-    .map_err(input)?;
+    };
+    let real_span = Some((first_scan.stamp, last_scan.stamp));
     let (lidar, model, calibration) = reference.rig.lidar_sensor().map_err(input)?;
     let decoder = Decoder::with_calibration(model, calibration);
     if opts.sensor_frame && (opts.region != Region::All || opts.exclude_ground) {
@@ -400,66 +315,65 @@ pub fn compare(
         roi: &roi,
         sensor_frame: opts.sensor_frame,
     };
-    let total = pairs.len() as u64;
-    let done = std::sync::atomic::AtomicU64::new(0);
-    let clouds: Vec<(Cloud, Cloud)> = pairs
-        .par_iter()
-        .map(|(r, s)| {
-            let c = (frame.cloud(r), frame.cloud(s));
-            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress(n, total);
-            c
-        })
-        .collect();
-    let (real, sim): (Vec<Cloud>, Vec<Cloud>) = clouds.into_iter().unzip();
-    if real.iter().all(|c| c.points.is_empty()) {
+    let total = reference.run.scans.len() as u64;
+    let mut real_stream = ScanStream::open(run_path).map_err(|e| input(e.to_string()))?;
+    let mut pairs = Pairs::new(
+        real_stream.by_ref(),
+        &reference.run.scans,
+        sim_stream.by_ref(),
+        &mut reference.not_usable,
+    );
+    let mut curve = CurveSums::new(cell, admissible, opts.dims);
+    let tally = measure_all(
+        &mut pairs,
+        (&frame, &roi),
+        (&spec, &opts),
+        &mut curve,
+        &|n| progress(n, total),
+    );
+    let paired = pairs.paired;
+    if let Some(e) = pairs.finish_error(tally.rows.len(), (run_path, real_span), sim_path) {
+        return Err(input(e));
+    }
+    // A damaged file is compared as far as it can be read, and says so.
+    let damage: Vec<String> = [
+        (run_path, real_stream.finish()),
+        (sim_path, sim_stream.finish()),
+    ]
+    .into_iter()
+    .filter_map(|(p, d)| {
+        let d = d?;
+        Some(format!(
+            "{}: read up to damage ({d}); compared what could be read",
+            p.display()
+        ))
+    })
+    .collect();
+    if !tally.any_real_point {
         return Err(input(format!(
             "{}: no measured point lies in the region {:?} on the trajectory",
             run_path.display(),
             opts.region
         )));
     }
-    phase("scans decoded");
-    let grids = windows(&spec, opts.grid_phases, opts.k, &real, &sim);
-    phase("grids");
-    let t0 = real[0].middle;
-    let (rows, res): (Vec<ScanRow>, Vec<Residuals>) = (0..real.len())
-        .into_par_iter()
-        .map(|i| {
-            let (r, s) = (&real[i], &sim[i]);
-            let objects = objects_seen(&roi, r, s);
-            let res = residuals(r, s);
-            let per = |x: f64| (res.both > 0).then(|| x / res.both as f64);
-            let mut hint = 0;
-            let speed = reference
-                .trajectory
-                .velocity_at(r.middle, &mut hint)
-                .map_or(0.0, |v| v.xy().norm());
-            let row = ScanRow {
-                t_s: (r.middle.0 - t0.0) as f64 * 1e-9,
-                stamp_ns: pairs[i].0.stamp.0,
-                ego_speed_mps: speed,
-                objects_in_view: objects.len(),
-                mean_distance_m: mean(objects.iter().map(|o| o.range_m)),
-                real_points: r.points.len(),
-                sim_points: s.points.len(),
-                grid: grids[i],
-                points: distances(&r.points, &s.points),
-                range_diff_mean_m: per(res.sum),
-                range_diff_rms_m: per(res.sum2).map(f64::sqrt),
-                only_real: res.only_real,
-                only_sim: res.only_sim,
-                objects,
-            };
-            (row, res)
-        })
-        .unzip();
-    phase("rows");
-    let calibration = curve(&real, &sim, &opts, (cell, &grids), admissible);
-    phase("calibration curve");
-    let summary = summarise(&rows, &res, &real, &sim, real_scans.len() - n_paired);
-    let grid_of = |i: usize| spec.shifted(grid_phase(i, 0, opts.grid_phases));
-    let snapshot = super::snapshot::snapshot(&rows, &real, &sim, &roi, &grid_of);
+    phase("scans measured");
+    let rows = tally.rows;
+    let calibration = curve.points(&rows, cell, admissible);
+    let summary = summarise(
+        &rows,
+        &tally.res,
+        tally.returns,
+        reference.run.scans.len() - paired,
+    );
+    let snapshot = tally.pick.map(|p| {
+        super::snapshot::snapshot(
+            (p.index, &rows[p.index]),
+            (&p.real, &p.sim),
+            p.origin,
+            &roi,
+            &spec.shifted(grid_phase(p.index, 0, opts.grid_phases)),
+        )
+    });
     Ok(Comparison {
         cell_m: cell,
         admissible_cell_m: admissible,
@@ -482,43 +396,69 @@ pub fn compare(
     })
 }
 
-/// Mean OCR^K over the scans at each cell size of [`CURVE_CELLS_M`], the admissible and the
-/// chosen cell. The curve holds drive means only, and those need one grid per window (the
-/// placements move on from window to window, [`grid_phase`]); the chosen cell's point is the
-/// mean of `chosen`, the per-scan scores already computed, so that it equals the summary's.
-fn curve(
-    real: &[Cloud],
-    sim: &[Cloud],
-    opts: &Options,
-    (cell, chosen): (f64, &[Option<GridScores>]),
-    admissible: f64,
-) -> Vec<CurvePoint> {
-    let mut cells: Vec<f64> = CURVE_CELLS_M.to_vec();
-    cells.extend([cell, admissible]);
-    cells.sort_by(f64::total_cmp);
-    cells.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
-    cells
-        .into_iter()
-        .filter_map(|c| {
-            let w = if (c - cell).abs() < 1e-9 {
-                chosen.to_vec()
-            } else {
-                windows(&GridSpec::new(c, opts.dims).ok()?, 1, opts.k, real, sim)
-            };
-            Some(CurvePoint {
-                cell_m: c,
-                ocr_mean: mean(w.iter().flatten().filter_map(|g| g.ocr)),
-                admissible: c >= admissible - 1e-9,
+/// Measures every pair of `pairs` in batches: decoded and measured in parallel, then the
+/// windows ending at the batch's scans (over the K - 1 pairs before it and the batch) at the
+/// chosen cell and at the calibration curve's cells, then the rows.
+fn measure_all(
+    pairs: &mut dyn Iterator<Item = Pair>,
+    (frame, roi): (&Frame<'_>, &Roi),
+    (spec, opts): (&GridSpec, &Options),
+    curve: &mut CurveSums,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Tally {
+    let mut tally = Tally::default();
+    // The last K - 1 pairs' points before the batch.
+    let mut history: std::collections::VecDeque<PointPair> = std::collections::VecDeque::new();
+    let done = std::sync::atomic::AtomicU64::new(0);
+    loop {
+        let batch: Vec<Pair> = pairs.take(BATCH_PAIRS).collect();
+        if batch.is_empty() {
+            break;
+        }
+        let measured: Vec<Measured> = batch
+            .par_iter()
+            .map(|p| {
+                let m = measure(frame, roi, p);
+                progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
+                m
             })
-        })
-        .collect()
+            .collect();
+        drop(batch);
+        let first = tally.rows.len() - history.len();
+        let (real, sim): (Vec<_>, Vec<_>) = history
+            .iter()
+            .map(|(r, s)| (r.as_slice(), s.as_slice()))
+            .chain(
+                measured
+                    .iter()
+                    .map(|m| (m.real.as_slice(), m.sim.as_slice())),
+            )
+            .unzip();
+        let ends = history.len()..real.len();
+        let grids = windows(
+            spec,
+            opts.grid_phases,
+            opts.k,
+            (&real, &sim),
+            first,
+            ends.clone(),
+        );
+        curve.add(opts.k, (&real, &sim), first, &ends);
+        drop((real, sim));
+        for c in tally.add(measured, grids, frame.trajectory) {
+            history.push_back(c);
+            if history.len() >= opts.k {
+                history.pop_front();
+            }
+        }
+    }
+    tally
 }
 
 fn summarise(
     rows: &[ScanRow],
     res: &[Residuals],
-    real: &[Cloud],
-    sim: &[Cloud],
+    (real_returns, sim_returns): (usize, usize),
     unpaired: usize,
 ) -> Summary {
     let grid = |f: fn(&GridScores) -> Option<f64>| {
@@ -534,11 +474,6 @@ fn summarise(
     });
     let only_r: usize = res.iter().map(|r| r.only_real).sum();
     let only_s: usize = res.iter().map(|r| r.only_sim).sum();
-    let (real_returns, sim_returns): (usize, usize) = real
-        .iter()
-        .zip(sim)
-        .map(|(r, s)| (r.firings.len(), s.firings.len()))
-        .fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     let trend: (Vec<f64>, Vec<f64>) = rows
         .iter()
         .filter_map(|r| Some((r.grid?.ocr?, r.mean_distance_m?)))

@@ -1,15 +1,18 @@
 //! Metrics between a measured run and its re-simulation (Rosenberger et al. 2019, §5): grid
 //! metrics ([`grid`]: OCR^K, precision, IoU, cosine), point metrics ([`points`]: Chamfer,
 //! Hausdorff), regions of interest ([`roi`]) and the scan-by-scan comparison that `hilrig
-//! compare` runs ([`compare`]) on the scans [`pairing`] pairs, what it reports ([`report`]) and the bird's-eye view of one
-//! scan pair ([`snapshot`]).
+//! compare` runs ([`compare`]) on the scans [`pairing`] pairs as both files stream by: each pair measured by
+//! itself ([`measure`]), the grids of windows of K scans ([`windows`]), what it reports
+//! ([`report`]) and the bird's-eye view of one scan pair ([`snapshot`]).
 
 mod cloud;
 pub mod compare;
 pub mod features;
 pub mod grid;
+mod measure;
 mod pairing;
 pub mod points;
 pub mod report;
 pub mod roi;
 mod snapshot;
+mod windows;

@@ -1,92 +1,213 @@
 //! Scan pairing: each measured scan with its simulated twin (a re-simulation keeps every
 //! measured scan's stamp), less the scans that lie where `check` marked the reference not
 //! usable.
+//!
+//! Both files are streams, so the twins are found by merging: a re-simulation writes its scans
+//! in the run's order, possibly without some of them, so its scans are a subsequence of the
+//! run's. Where the run's scan and the simulation's next scan differ, the run's index (the
+//! position of every measured stamp, from the first pass over the run) says which one has no
+//! twin: a simulated stamp still ahead in the run means the measured scan has none; any other
+//! (behind, or not in the run at all) means the simulated one has none.
 
 use super::report::LeftOut;
 use crate::bag::scans::Scan;
+use crate::reference::run::ScanIndex;
+use hilrig_stamp::UtcNanos;
 use std::collections::HashMap;
+use std::iter::Peekable;
 use std::path::Path;
 
 /// A measured scan and its simulated twin.
-pub(super) type Pair<'a> = (&'a Scan, &'a Scan);
+pub(super) type Pair = (Scan, Scan);
 
-/// The measured scans with their simulated twins (same stamp); an error naming both files and
-/// their spans when there are none.
-pub(super) fn pair_scans<'a>(
-    real_scans: &'a [Scan],
-    sim_scans: &'a [Scan],
-    run_path: &Path,
-    sim_path: &Path,
-) -> Result<Vec<Pair<'a>>, String> {
-    let by_stamp: HashMap<i64, usize> = sim_scans
-        .iter()
-        .enumerate()
-        .map(|(i, s)| (s.stamp.0, i))
-        .collect();
-    let pairs: Vec<Pair<'a>> = real_scans
-        .iter()
-        .filter_map(|r| by_stamp.get(&r.stamp.0).map(|&i| (r, &sim_scans[i])))
-        .collect();
-    if pairs.is_empty() {
-        let span = |s: &[Scan]| {
-            format!(
-                "{} .. {}",
-                hilrig_stamp::civil::iso8601_millis(s[0].stamp),
-                hilrig_stamp::civil::iso8601_millis(s[s.len() - 1].stamp)
-            )
-        };
-        return Err(format!(
-            "{} and {} share no scan (scan stamps {} and {}): the simulation is not a re-simulation of this run",
-            run_path.display(),
-            sim_path.display(),
-            span(real_scans),
-            span(sim_scans)
-        ));
-    }
-    Ok(pairs)
+/// The measured scans of a stream with their simulated twins from another, less those that
+/// touch a mark of `left_out` (which counts them per mark).
+pub(super) struct Pairs<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> {
+    real: R,
+    sim: Peekable<S>,
+    /// Position of each measured stamp in the run (the first, for a stamp seen twice).
+    position: HashMap<i64, usize>,
+    /// Measured scans taken so far.
+    at: usize,
+    left_out: &'a mut [LeftOut],
+    /// Pairs found (kept or left out).
+    pub(super) paired: usize,
+    /// The simulation's first and last stamp seen.
+    sim_span: Option<(UtcNanos, UtcNanos)>,
 }
 
-/// The pairs whose measured scan lies clear of every mark of `left_out`; each mark's entry
-/// counts the pairs it took out.
-fn leave_out_marked<'a>(pairs: Vec<Pair<'a>>, left_out: &mut [LeftOut]) -> Vec<Pair<'a>> {
-    pairs
-        .into_iter()
-        .filter(|(r, _)| {
-            let (a, b) = r.span();
-            let mut keep = true;
-            for l in left_out.iter_mut() {
-                let w = l.mark.window();
-                if a <= w.1 && w.0 <= b {
-                    l.scans += 1;
-                    keep = false;
-                }
+impl<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Pairs<'a, R, S> {
+    /// Pairs the scans of `real` (whose stamps `index` lists in file order) with those of
+    /// `sim`.
+    pub(super) fn new(real: R, index: &[ScanIndex], sim: S, left_out: &'a mut [LeftOut]) -> Self {
+        let mut position = HashMap::with_capacity(index.len());
+        for (i, s) in index.iter().enumerate() {
+            position.entry(s.stamp.0).or_insert(i);
+        }
+        Pairs {
+            real,
+            sim: sim.peekable(),
+            position,
+            at: 0,
+            left_out,
+            paired: 0,
+            sim_span: None,
+        }
+    }
+
+    /// Whether the measured scan touches a mark (counted there).
+    fn marked(&mut self, r: &Scan) -> bool {
+        let (a, b) = r.span();
+        let mut marked = false;
+        for l in self.left_out.iter_mut() {
+            let w = l.mark.window();
+            if a <= w.1 && w.0 <= b {
+                l.scans += 1;
+                marked = true;
             }
-            keep
-        })
-        .collect()
+        }
+        marked
+    }
+
+    /// The next simulated scan, noting its stamp.
+    fn next_sim(&mut self) -> Option<Scan> {
+        let s = self.sim.next()?;
+        self.sim_span = Some(match self.sim_span {
+            None => (s.stamp, s.stamp),
+            Some((a, _)) => (a, s.stamp),
+        });
+        Some(s)
+    }
+
+    /// The error to give when the streams are through: none paired at all, or every pair in a
+    /// marked stretch. `real_span` is the run's first and last scan stamp.
+    pub(super) fn finish_error(
+        &mut self,
+        kept: usize,
+        (run_path, real_span): (&Path, Option<(UtcNanos, UtcNanos)>),
+        sim_path: &Path,
+    ) -> Option<String> {
+        if self.paired == 0 {
+            // The rest of the simulation, for its span.
+            while self.next_sim().is_some() {}
+            let span = |s: Option<(UtcNanos, UtcNanos)>| {
+                s.map_or("none".to_owned(), |(a, b)| {
+                    format!(
+                        "{} .. {}",
+                        hilrig_stamp::civil::iso8601_millis(a),
+                        hilrig_stamp::civil::iso8601_millis(b)
+                    )
+                })
+            };
+            return Some(format!(
+                "{} and {} share no scan (scan stamps {} and {}): the simulation is not a re-simulation of this run",
+                run_path.display(),
+                sim_path.display(),
+                span(real_span),
+                span(self.sim_span)
+            ));
+        }
+        if kept == 0 {
+            return Some(format!(
+                "{}: every paired scan lies where `check` marks the reference not usable ({}): nothing is left to compare; see `hilrig check`",
+                run_path.display(),
+                self.left_out
+                    .iter()
+                    .map(|l| format!("{} {:.1}-{:.1} s", l.mark.name, l.mark.from_s, l.mark.to_s))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        None
+    }
 }
 
-/// The measured scans (of the run at the path) with their simulated twins, less those that touch
-/// a mark of `left_out` (which counts them per mark), and how many pairs there were before; an
-/// error when no scan pairs, or when every pair lies in a marked stretch.
-pub(super) fn usable_pairs<'a>(
-    (real_scans, run_path): (&'a [Scan], &Path),
-    (sim_scans, sim_path): (&'a [Scan], &Path),
-    left_out: &mut [LeftOut],
-) -> Result<(Vec<Pair<'a>>, usize), String> {
-    let paired = pair_scans(real_scans, sim_scans, run_path, sim_path)?;
-    let n = paired.len();
-    let pairs = leave_out_marked(paired, left_out);
-    if pairs.is_empty() {
-        return Err(format!(
-            "{}: every paired scan lies where `check` marks the reference not usable ({}): nothing is left to compare; see `hilrig check`",
-            run_path.display(),
-            left_out
-                .iter()
-                .map(|l| format!("{} {:.1}-{:.1} s", l.mark.name, l.mark.from_s, l.mark.to_s))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ));
+impl<R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Iterator for Pairs<'_, R, S> {
+    type Item = Pair;
+
+    fn next(&mut self) -> Option<Pair> {
+        loop {
+            let r = self.real.next()?;
+            let here = self.at;
+            self.at += 1;
+            // Simulated scans without a twin at or after this measured scan are passed over.
+            let twin = loop {
+                let Some(s) = self.sim.peek() else {
+                    break None;
+                };
+                if s.stamp == r.stamp {
+                    break self.next_sim();
+                }
+                match self.position.get(&s.stamp.0) {
+                    // Its twin is still ahead: this measured scan has none.
+                    Some(&p) if p > here => break None,
+                    _ => {
+                        self.next_sim();
+                    }
+                }
+            };
+            let Some(s) = twin else { continue };
+            self.paired += 1;
+            if self.marked(&r) {
+                continue;
+            }
+            return Some((r, s));
+        }
     }
-    Ok((pairs, n))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scan(t: i64) -> Scan {
+        Scan {
+            log_time: t as u64,
+            publish_time: t as u64,
+            stamp: UtcNanos(t),
+            packets: Vec::new(),
+        }
+    }
+
+    fn index(stamps: &[i64]) -> Vec<ScanIndex> {
+        stamps
+            .iter()
+            .map(|&t| ScanIndex {
+                stamp: UtcNanos(t),
+                packets: 0,
+                span: (UtcNanos(t), UtcNanos(t)),
+            })
+            .collect()
+    }
+
+    fn pair(real: &[i64], sim: &[i64]) -> (Vec<i64>, usize) {
+        let mut left_out: Vec<LeftOut> = Vec::new();
+        let mut p = Pairs::new(
+            real.iter().map(|&t| scan(t)),
+            &index(real),
+            sim.iter().map(|&t| scan(t)),
+            &mut left_out,
+        );
+        let got: Vec<i64> = p
+            .by_ref()
+            .map(|(r, s)| {
+                assert_eq!(r.stamp, s.stamp);
+                r.stamp.0
+            })
+            .collect();
+        (got, p.paired)
+    }
+
+    /// A simulation that lacks scans, or holds scans the run does not, pairs every twin; the
+    /// run's order need not be sorted by stamp (a clock step back), only shared.
+    #[test]
+    fn twins_are_found_in_a_subsequence_in_the_runs_order() {
+        assert_eq!(pair(&[1, 2, 3, 4], &[1, 2, 3, 4]), (vec![1, 2, 3, 4], 4));
+        assert_eq!(pair(&[1, 2, 3, 4], &[2, 4]), (vec![2, 4], 2));
+        assert_eq!(pair(&[1, 2, 3, 4], &[0, 2, 9, 3, 5]), (vec![2, 3], 2));
+        // Stamps that step back in the run (a re-synchronised clock).
+        assert_eq!(pair(&[5, 6, 2, 3], &[5, 2, 3]), (vec![5, 2, 3], 3));
+        assert_eq!(pair(&[1, 2], &[7, 8]), (vec![], 0));
+        assert_eq!(pair(&[], &[1]), (vec![], 0));
+    }
 }

@@ -3,7 +3,7 @@
 //! timing, position-packet PPS states, clock-synchronisation metadata and the rig file.
 
 use crate::bag::cdr::CdrReader;
-use crate::bag::read::{read, Event};
+use crate::bag::read::{read, read_stream, Event};
 use crate::bag::topics;
 use hilrig_gnss::{Fix, GnssStream};
 use hilrig_stamp::UtcNanos;
@@ -31,6 +31,17 @@ pub struct PacketTime {
     pub sensor_us: u32,
 }
 
+/// One lidar scan of a run, without its packets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ScanIndex {
+    /// The scan header's stamp.
+    pub stamp: UtcNanos,
+    /// Its data packets.
+    pub packets: u32,
+    /// Its first and last packet's receive stamps (as [`crate::bag::scans::Scan::span`]).
+    pub span: (UtcNanos, UtcNanos),
+}
+
 /// A run, read from an MCAP recording.
 #[derive(Clone, Debug, Default)]
 pub struct Run {
@@ -42,6 +53,9 @@ pub struct Run {
     pub can_frames: Vec<(UtcNanos, u32)>,
     /// Lidar data packets.
     pub packets: Vec<PacketTime>,
+    /// The lidar scans (`/velodyne_packets` messages) in file order: where each lies and how
+    /// many packets it holds, without the packets.
+    pub scans: Vec<ScanIndex>,
     /// Position packets: log time and PPS state.
     pub pps: Vec<(UtcNanos, PpsStatus)>,
     /// Metadata records by name.
@@ -68,18 +82,14 @@ pub enum RunError {
     NotMcap(String),
 }
 
-/// A recording's bytes, the run read from them, and its rig: `rig` when given, else the rig
-/// file the recorder attached. What re-simulation and comparison start from; the error says
-/// what is wrong and with which file.
+/// The run of a recording and its rig: `rig` when given, else the rig file the recorder
+/// attached. What re-simulation and comparison start from; the error says what is wrong and
+/// with which file. The recording is read as a stream: its scans are indexed, not kept.
 pub fn load_with_rig(
     path: &Path,
     rig: Option<&crate::rig::Rig>,
-) -> Result<(Vec<u8>, Run, crate::rig::Rig), String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    if !bytes.starts_with(mcap::MAGIC) {
-        return Err(format!("{}: not an MCAP recording", path.display()));
-    }
-    let run = Run::from_bytes(&bytes);
+) -> Result<(Run, crate::rig::Rig), String> {
+    let run = Run::read(path).map_err(|e| e.to_string())?;
     let rig = match (rig, &run.rig_toml) {
         (Some(r), _) => r.clone(),
         (None, Some(text)) => {
@@ -93,125 +103,166 @@ pub fn load_with_rig(
             ))
         }
     };
-    Ok((bytes, run, rig))
+    Ok((run, rig))
 }
 
-impl Run {
-    /// Reads a recording.
-    pub fn read(path: &Path) -> Result<Run, RunError> {
-        let bytes = std::fs::read(path).map_err(|source| RunError::Io {
-            path: path.display().to_string(),
-            source,
-        })?;
-        if !bytes.starts_with(mcap::MAGIC) {
-            return Err(RunError::NotMcap(path.display().to_string()));
-        }
-        Ok(Run::from_bytes(&bytes))
-    }
+/// Collects a [`Run`] from the events of a recording, in file order.
+#[derive(Default)]
+struct Collector {
+    run: Run,
+    nmea: GnssStream,
+    ubx: GnssStream,
+    fixes: Vec<Fix>,
+}
 
-    /// Reads a recording held in memory (a damaged one up to the damage).
-    pub fn from_bytes(bytes: &[u8]) -> Run {
-        let mut run = Run::default();
-        let mut nmea = GnssStream::default();
-        let mut ubx = GnssStream::default();
-        let mut fixes = Vec::new();
-        let result = read(bytes, &mut |event| {
-            match event {
-                Event::Metadata { name, values } => {
-                    run.metadata.insert(name.to_owned(), values.clone());
-                }
-                Event::Attachment { name, data } => {
-                    if name == "rig.toml" {
-                        run.rig_toml = String::from_utf8(data.to_vec()).ok();
-                    }
-                }
-                Event::Message(m) => {
-                    let host = UtcNanos(m.publish_time as i64);
-                    // Every message of the recorder's topics starts with a std_msgs/Header.
-                    let Some(mut c) = CdrReader::new(m.data) else {
-                        return Ok(());
-                    };
-                    if c.header().is_none() {
-                        return Ok(());
-                    }
-                    match m.channel.topic.as_str() {
-                        topics::GNSS_NMEA => {
-                            if let Some(s) = c.string() {
-                                let line = format!("{s}\r\n");
-                                nmea.push(line.as_bytes(), &mut fixes);
-                                run.fixes.extend(fixes.drain(..).map(|f| (host, f)));
-                            }
-                        }
-                        topics::GNSS_UBX => {
-                            if let Some(n) = c.u32() {
-                                if let Some(b) = c.bytes(n as usize) {
-                                    ubx.push(b, &mut fixes);
-                                    run.fixes.extend(fixes.drain(..).map(|f| (host, f)));
-                                }
-                            }
-                        }
-                        topics::CAN_FRAMES
-                            if m.channel
-                                .schema
-                                .as_ref()
-                                .is_some_and(|s| s.name == "can_msgs/msg/Frame") =>
-                        {
-                            if let Some(id) = c.u32() {
-                                run.can_frames.push((host, id));
-                            }
-                        }
-                        topics::EGO_TWIST => {
-                            let v: Option<Vec<f64>> = (0..6).map(|_| c.f64()).collect();
-                            if let Some(v) = v {
-                                run.motion.push(Motion {
-                                    t: UtcNanos(m.log_time as i64),
-                                    speed: v[0],
-                                    yaw_rate: v[5],
-                                });
-                            }
-                        }
-                        topics::VELODYNE_PACKETS => {
-                            let n = c.u32().unwrap_or(0);
-                            for _ in 0..n {
-                                let (Some(stamp), Some(data)) =
-                                    (c.time(), c.bytes(DATA_PACKET_SIZE))
-                                else {
-                                    break;
-                                };
-                                let sensor_us = u32::from_le_bytes([
-                                    data[1200], data[1201], data[1202], data[1203],
-                                ]);
-                                run.packets.push(PacketTime {
-                                    host: stamp,
-                                    sensor_us,
-                                });
-                            }
-                        }
-                        topics::VELODYNE_POSITION => {
-                            if let Some(n) = c.u32() {
-                                if let Some(Ok(p)) = c.bytes(n as usize).map(PositionPacket::decode)
-                                {
-                                    run.pps.push((
-                                        UtcNanos(m.log_time as i64),
-                                        PpsStatus::from_byte(p.pps_byte, true),
-                                    ));
-                                }
-                            }
-                        }
-                        _ => {}
-                    }
+impl Collector {
+    fn event(&mut self, event: Event<'_>) {
+        let run = &mut self.run;
+        match event {
+            Event::Metadata { name, values } => {
+                run.metadata.insert(name.to_owned(), values.clone());
+            }
+            Event::Attachment { name, data } => {
+                if name == "rig.toml" {
+                    run.rig_toml = String::from_utf8(data.to_vec()).ok();
                 }
             }
-            Ok(())
-        });
-        nmea.finish(&mut fixes);
-        ubx.finish(&mut fixes);
+            Event::Message(m) => {
+                let host = UtcNanos(m.publish_time as i64);
+                // Every message of the recorder's topics starts with a std_msgs/Header.
+                let Some(mut c) = CdrReader::new(m.data) else {
+                    return;
+                };
+                let Some(stamp) = c.header() else {
+                    return;
+                };
+                match m.channel.topic.as_str() {
+                    topics::GNSS_NMEA => {
+                        if let Some(s) = c.string() {
+                            let line = format!("{s}\r\n");
+                            self.nmea.push(line.as_bytes(), &mut self.fixes);
+                            run.fixes.extend(self.fixes.drain(..).map(|f| (host, f)));
+                        }
+                    }
+                    topics::GNSS_UBX => {
+                        if let Some(n) = c.u32() {
+                            if let Some(b) = c.bytes(n as usize) {
+                                self.ubx.push(b, &mut self.fixes);
+                                run.fixes.extend(self.fixes.drain(..).map(|f| (host, f)));
+                            }
+                        }
+                    }
+                    topics::CAN_FRAMES
+                        if m.channel
+                            .schema
+                            .as_ref()
+                            .is_some_and(|s| s.name == "can_msgs/msg/Frame") =>
+                    {
+                        if let Some(id) = c.u32() {
+                            run.can_frames.push((host, id));
+                        }
+                    }
+                    topics::EGO_TWIST => {
+                        let v: Option<Vec<f64>> = (0..6).map(|_| c.f64()).collect();
+                        if let Some(v) = v {
+                            run.motion.push(Motion {
+                                t: UtcNanos(m.log_time as i64),
+                                speed: v[0],
+                                yaw_rate: v[5],
+                            });
+                        }
+                    }
+                    topics::VELODYNE_PACKETS => {
+                        let n = c.u32().unwrap_or(0);
+                        let first = run.packets.len();
+                        for _ in 0..n {
+                            let (Some(stamp), Some(data)) = (c.time(), c.bytes(DATA_PACKET_SIZE))
+                            else {
+                                break;
+                            };
+                            let sensor_us = u32::from_le_bytes([
+                                data[1200], data[1201], data[1202], data[1203],
+                            ]);
+                            run.packets.push(PacketTime {
+                                host: stamp,
+                                sensor_us,
+                            });
+                        }
+                        let packets = &run.packets[first..];
+                        let last = packets.last().map_or(stamp, |p| p.host);
+                        run.scans.push(ScanIndex {
+                            stamp,
+                            packets: packets.len() as u32,
+                            span: (stamp.min(last), stamp.max(last)),
+                        });
+                    }
+                    topics::VELODYNE_POSITION => {
+                        if let Some(n) = c.u32() {
+                            if let Some(Ok(p)) = c.bytes(n as usize).map(PositionPacket::decode) {
+                                run.pps.push((
+                                    UtcNanos(m.log_time as i64),
+                                    PpsStatus::from_byte(p.pps_byte, true),
+                                ));
+                            }
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+
+    fn finish(mut self, result: Result<(), String>) -> Run {
+        let mut run = self.run;
+        self.nmea.finish(&mut self.fixes);
+        self.ubx.finish(&mut self.fixes);
         let last = run.fixes.last().map_or(UtcNanos(0), |f| f.0);
-        run.fixes.extend(fixes.drain(..).map(|f| (last, f)));
+        run.fixes.extend(self.fixes.drain(..).map(|f| (last, f)));
         run.damage = result.err();
         run.fixes.sort_by_key(|(h, f)| f.time.unwrap_or(*h));
         run.motion.sort_by_key(|m| m.t);
         run.packets.sort_by_key(|p| p.host);
         run
+    }
+}
+
+impl Run {
+    /// Reads a recording, as a stream: memory grows with its GNSS, CAN and packet-timing
+    /// records, not with its lidar data.
+    pub fn read(path: &Path) -> Result<Run, RunError> {
+        let io = |source| RunError::Io {
+            path: path.display().to_string(),
+            source,
+        };
+        let mut file = std::fs::File::open(path).map_err(io)?;
+        let len = file.metadata().map_err(io)?.len();
+        let mut magic = [0u8; 8];
+        {
+            use std::io::{Read, Seek};
+            if file.read_exact(&mut magic).is_err() || magic[..] != mcap::MAGIC[..] {
+                return Err(RunError::NotMcap(path.display().to_string()));
+            }
+            file.rewind().map_err(io)?;
+        }
+        let mut collector = Collector::default();
+        let result = read_stream(
+            std::io::BufReader::with_capacity(1 << 20, file),
+            len,
+            &mut |event| {
+                collector.event(event);
+                Ok(())
+            },
+        );
+        Ok(collector.finish(result))
+    }
+
+    /// Reads a recording held in memory (a damaged one up to the damage).
+    pub fn from_bytes(bytes: &[u8]) -> Run {
+        let mut collector = Collector::default();
+        let result = read(bytes, &mut |event| {
+            collector.event(event);
+            Ok(())
+        });
+        collector.finish(result)
     }
 }

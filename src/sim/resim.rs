@@ -12,7 +12,7 @@
 
 use super::lidar::{LidarSim, PacketTime, SimStats};
 use super::model::ModelFile;
-use crate::bag::scans::sensor_time;
+use crate::bag::scans::{sensor_time, Scan, ScanStream};
 use crate::bag::topics;
 use crate::bag::{msgs, BagOptions, BagWriter};
 use crate::reference::check::{check_with_trajectory, Report, Verdict};
@@ -83,7 +83,7 @@ pub fn resim(
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<ResimSummary, ResimError> {
     let input = |e: String| ResimError::Input(e);
-    let (bytes, run, rig) = crate::reference::run::load_with_rig(run_path, rig).map_err(input)?;
+    let (run, rig) = crate::reference::run::load_with_rig(run_path, rig).map_err(input)?;
     let rig = &rig;
     let (report, smoothed) = check_with_trajectory(&run, rig, Some(scene));
     let mut summary = ResimSummary {
@@ -92,6 +92,15 @@ pub fn resim(
     };
     if report.verdict != Verdict::Pass && !force {
         return Err(ResimError::Refused(Box::new(report)));
+    }
+    if run.scans.is_empty() {
+        return Err(input(format!(
+            "{}: no /velodyne_packets to re-simulate{}",
+            run_path.display(),
+            run.damage
+                .as_ref()
+                .map_or(String::new(), |d| format!(" ({d})"))
+        )));
     }
     let (trajectory, source) = match poses {
         PoseSource::File(t, name) => (t, format!("file {name}")),
@@ -114,19 +123,10 @@ pub fn resim(
         .get("clock_sync/lidar")
         .and_then(|m| m.get("pps"))
         .is_some_and(|p| p == "Locked");
+    let total = run.scans.len() as u64;
+    let first_log = run.scans[0].stamp;
+    let scans = ScanStream::open(run_path).map_err(|e| input(e.to_string()))?;
 
-    // The recorded scans.
-    let (scans, damage) = crate::bag::scans::read_scans(&bytes);
-    if scans.is_empty() {
-        return Err(input(format!(
-            "{}: no /velodyne_packets to re-simulate{}",
-            run_path.display(),
-            damage.map_or(String::new(), |d| format!(" ({d})"))
-        )));
-    }
-
-    let mut bag = BagWriter::create(out, &BagOptions::default())
-        .map_err(|e| ResimError::Output(e.to_string()))?;
     let mut meta = BTreeMap::new();
     meta.insert("model".to_owned(), model.name.clone());
     meta.insert("model_toml".to_owned(), model.to_toml());
@@ -144,135 +144,268 @@ pub fn resim(
     );
     meta.insert("seed".to_owned(), seed.to_string());
     meta.insert("check_verdict".to_owned(), format!("{:?}", report.verdict));
-    bag.metadata("sim", meta)
-        .map_err(|e| ResimError::Output(e.to_string()))?;
-    let first_log = UtcNanos(scans[0].log_time as i64);
-    bag.attach(
-        "model.toml",
-        "application/toml",
-        model.to_toml().as_bytes(),
-        first_log,
-    )
-    .map_err(|e| ResimError::Output(e.to_string()))?;
+    let writer = Writer::start(out, meta, model.to_toml(), first_log)?;
     let decoder = Decoder::with_calibration(sensor, calibration);
-    let total = scans.len() as u64;
-    // All packets of all scans at once (both cores busy whatever the scan size), then the scans'
-    // messages in parallel, then written in order.
-    let mut jobs = Vec::new();
-    let mut previous: Option<DataPacket> = None;
-    for (k, scan) in scans.iter().enumerate() {
-        let mut rates = Vec::with_capacity(scan.packets.len());
-        let firsts: Vec<Option<UtcNanos>> = scan
-            .packets
-            .iter()
-            .map(|(t, b)| {
-                let p = DataPacket::decode(&b[..]).ok();
-                // The rate since the packet before (what a dual-return VLS-128 packet needs).
-                rates.push(
-                    p.as_ref()
-                        .zip(previous.as_ref())
-                        .and_then(|(p, q)| hilrig_velodyne::decode::rate_between(q, p)),
-                );
-                if p.is_some() {
-                    previous.clone_from(&p);
-                }
-                p.map(|p| {
-                    if pps_locked {
-                        sensor_time(p.timestamp_us, *t)
-                    } else {
-                        *t
-                    }
-                })
-            })
-            .collect();
-        let rotation_start = firsts
-            .iter()
-            .flatten()
-            .next()
-            .copied()
-            .unwrap_or(scan.stamp);
-        for (i, (first, rate)) in firsts.into_iter().zip(rates).enumerate() {
-            jobs.push((k, i, first, rotation_start, rate));
+    let cast = Caster {
+        sim: &sim,
+        trajectory: &trajectory,
+        decoder: &decoder,
+        frame_id: &lidar.frame_id,
+        pps_locked,
+        seed,
+    };
+    // Scans in batches of about BATCH_PACKETS packets: both cores busy whatever the scan size,
+    // while the reader decompresses the next scans and the writer compresses the last ones.
+    let mut state = CastState::default();
+    let mut batch: Vec<Scan> = Vec::new();
+    let mut in_batch = 0usize;
+    let mut done = 0u64;
+    let mut flush = |batch: &mut Vec<Scan>, summary: &mut ResimSummary| -> Result<(), ResimError> {
+        let messages = cast.batch(batch, &mut state, &mut summary.stats);
+        for (scan, m) in batch.iter().zip(messages) {
+            summary.scans += 1;
+            summary.packets += scan.packets.len() as u64;
+            writer.send(m)?;
+        }
+        done += batch.len() as u64;
+        progress(done, total);
+        batch.clear();
+        Ok(())
+    };
+    for scan in scans {
+        in_batch += scan.packets.len();
+        batch.push(scan);
+        if in_batch >= BATCH_PACKETS {
+            flush(&mut batch, &mut summary)?;
+            in_batch = 0;
         }
     }
-    let simulated: Vec<([u8; DATA_PACKET_SIZE], SimStats)> = jobs
-        .par_iter()
-        .enumerate()
-        .map(|(n, &(k, i, first, rotation_start, rotation_rate))| {
-            let b = &scans[k].packets[i].1;
-            let mut st = SimStats::default();
-            let out = match (DataPacket::decode(&b[..]), first) {
-                (Ok(p), Some(first)) => sim
-                    .simulate(
-                        &p,
-                        PacketTime {
-                            first_firing: first,
-                            rotation_start,
-                            rotation_rate,
-                        },
-                        &trajectory,
-                        seed ^ n as u64,
-                        &mut st,
-                    )
-                    .encode(),
-                _ => *b,
-            };
-            (out, st)
-        })
-        .collect();
-    for (_, st) in &simulated {
-        summary.stats.firings += st.firings;
-        summary.stats.returns += st.returns;
-        summary.stats.outside_trajectory += st.outside_trajectory;
-    }
-    let mut offsets = Vec::with_capacity(scans.len());
-    let mut at = 0;
-    for scan in &scans {
-        offsets.push(at);
-        at += scan.packets.len();
-    }
-    let messages: Vec<(Vec<u8>, Vec<u8>)> = scans
-        .par_iter()
-        .zip(offsets.par_iter())
-        .map(|(scan, &o)| {
-            let list: Vec<(UtcNanos, &[u8; DATA_PACKET_SIZE])> = scan
+    flush(&mut batch, &mut summary)?;
+    writer.finish()?;
+    Ok(summary)
+}
+
+/// Packets cast per batch: a few VLP-16 rotations, half a VLS-128 rotation; tens of
+/// megabytes of scans and messages at most.
+const BATCH_PACKETS: usize = 256;
+
+/// What is carried from batch to batch: the packet before (a dual-return VLS-128 packet takes
+/// its rotation rate from it) and the packets cast so far (each packet's seed is the run's
+/// seed and its index, so the result does not depend on the batching).
+#[derive(Default)]
+struct CastState {
+    previous: Option<DataPacket>,
+    packets: u64,
+}
+
+/// One scan's simulated messages: log and publish time, the VelodyneScan, the viewing cloud.
+struct ScanMessages {
+    log: UtcNanos,
+    publish: UtcNanos,
+    packets_cdr: Vec<u8>,
+    cloud_cdr: Vec<u8>,
+}
+
+/// Casts batches of recorded scans.
+struct Caster<'a> {
+    sim: &'a LidarSim<'a>,
+    trajectory: &'a Trajectory,
+    decoder: &'a Decoder,
+    frame_id: &'a str,
+    pps_locked: bool,
+    seed: u64,
+}
+
+impl Caster<'_> {
+    /// The simulated messages of `scans`, in order; the firing counts added to `stats`.
+    fn batch(
+        &self,
+        scans: &[Scan],
+        state: &mut CastState,
+        stats: &mut SimStats,
+    ) -> Vec<ScanMessages> {
+        // All packets of the batch at once, then the scans' messages in parallel.
+        let mut jobs = Vec::new();
+        for (k, scan) in scans.iter().enumerate() {
+            let mut rates = Vec::with_capacity(scan.packets.len());
+            let firsts: Vec<Option<UtcNanos>> = scan
                 .packets
                 .iter()
-                .zip(&simulated[o..o + scan.packets.len()])
-                .map(|((t, _), (b, _))| (*t, b))
+                .map(|(t, b)| {
+                    let p = DataPacket::decode(&b[..]).ok();
+                    // The rate since the packet before (what a dual-return VLS-128 packet needs).
+                    rates.push(
+                        p.as_ref()
+                            .zip(state.previous.as_ref())
+                            .and_then(|(p, q)| hilrig_velodyne::decode::rate_between(q, p)),
+                    );
+                    if p.is_some() {
+                        state.previous.clone_from(&p);
+                    }
+                    p.map(|p| {
+                        if self.pps_locked {
+                            sensor_time(p.timestamp_us, *t)
+                        } else {
+                            *t
+                        }
+                    })
+                })
                 .collect();
-            (
-                msgs::velodyne_scan(scan.stamp, &lidar.frame_id, &list),
-                crate::record::messages::cloud_cdr(&decoder, scan.stamp, &lidar.frame_id, &list),
-            )
-        })
-        .collect();
-    for (k, (scan, (packets_cdr, cloud_cdr))) in scans.iter().zip(&messages).enumerate() {
-        let (log, publish) = (
-            UtcNanos(scan.log_time as i64),
-            UtcNanos(scan.publish_time as i64),
-        );
-        bag.write(
-            topics::VELODYNE_PACKETS,
-            &msgs::velodyne_scan_type(),
-            log,
-            publish,
-            packets_cdr,
-        )
-        .map_err(|e| ResimError::Output(e.to_string()))?;
-        bag.write(
-            SIM_POINTS,
-            &msgs::point_cloud2_type(),
-            log,
-            publish,
-            cloud_cdr,
-        )
-        .map_err(|e| ResimError::Output(e.to_string()))?;
-        summary.scans += 1;
-        summary.packets += scan.packets.len() as u64;
-        progress(k as u64 + 1, total);
+            let rotation_start = firsts
+                .iter()
+                .flatten()
+                .next()
+                .copied()
+                .unwrap_or(scan.stamp);
+            for (i, (first, rate)) in firsts.into_iter().zip(rates).enumerate() {
+                jobs.push((k, i, first, rotation_start, rate, state.packets));
+                state.packets += 1;
+            }
+        }
+        let simulated: Vec<([u8; DATA_PACKET_SIZE], SimStats)> = jobs
+            .par_iter()
+            .map(|&(k, i, first, rotation_start, rotation_rate, n)| {
+                let b = &scans[k].packets[i].1;
+                let mut st = SimStats::default();
+                let out = match (DataPacket::decode(&b[..]), first) {
+                    (Ok(p), Some(first)) => self
+                        .sim
+                        .simulate(
+                            &p,
+                            PacketTime {
+                                first_firing: first,
+                                rotation_start,
+                                rotation_rate,
+                            },
+                            self.trajectory,
+                            self.seed ^ n,
+                            &mut st,
+                        )
+                        .encode(),
+                    _ => *b,
+                };
+                (out, st)
+            })
+            .collect();
+        for (_, st) in &simulated {
+            stats.firings += st.firings;
+            stats.returns += st.returns;
+            stats.outside_trajectory += st.outside_trajectory;
+        }
+        let mut offsets = Vec::with_capacity(scans.len());
+        let mut at = 0;
+        for scan in scans {
+            offsets.push(at);
+            at += scan.packets.len();
+        }
+        scans
+            .par_iter()
+            .zip(offsets.par_iter())
+            .map(|(scan, &o)| {
+                let list: Vec<(UtcNanos, &[u8; DATA_PACKET_SIZE])> = scan
+                    .packets
+                    .iter()
+                    .zip(&simulated[o..o + scan.packets.len()])
+                    .map(|((t, _), (b, _))| (*t, b))
+                    .collect();
+                ScanMessages {
+                    log: UtcNanos(scan.log_time as i64),
+                    publish: UtcNanos(scan.publish_time as i64),
+                    packets_cdr: msgs::velodyne_scan(scan.stamp, self.frame_id, &list),
+                    cloud_cdr: crate::record::messages::cloud_cdr(
+                        self.decoder,
+                        scan.stamp,
+                        self.frame_id,
+                        &list,
+                    ),
+                }
+            })
+            .collect()
     }
-    bag.finish()
-        .map_err(|e| ResimError::Output(e.to_string()))?;
-    Ok(summary)
+}
+
+/// The simulation's file, written on a thread of its own (chunks are compressed there while
+/// the next scans are cast).
+struct Writer {
+    tx: Option<std::sync::mpsc::SyncSender<ScanMessages>>,
+    thread: Option<std::thread::JoinHandle<Result<(), String>>>,
+}
+
+/// Scans the writer may lag behind the casting.
+const WRITE_AHEAD_SCANS: usize = 16;
+
+impl Writer {
+    /// Creates `out` with the simulation's metadata and the model attached.
+    fn start(
+        out: &Path,
+        meta: BTreeMap<String, String>,
+        model_toml: String,
+        first_log: UtcNanos,
+    ) -> Result<Writer, ResimError> {
+        let output = |e: String| ResimError::Output(e);
+        let mut bag =
+            BagWriter::create(out, &BagOptions::default()).map_err(|e| output(e.to_string()))?;
+        bag.metadata("sim", meta)
+            .map_err(|e| output(e.to_string()))?;
+        bag.attach(
+            "model.toml",
+            "application/toml",
+            model_toml.as_bytes(),
+            first_log,
+        )
+        .map_err(|e| output(e.to_string()))?;
+        let (tx, rx) = std::sync::mpsc::sync_channel::<ScanMessages>(WRITE_AHEAD_SCANS);
+        let thread = std::thread::Builder::new()
+            .name("resim writer".into())
+            .spawn(move || -> Result<(), String> {
+                for m in rx {
+                    bag.write(
+                        topics::VELODYNE_PACKETS,
+                        &msgs::velodyne_scan_type(),
+                        m.log,
+                        m.publish,
+                        &m.packets_cdr,
+                    )
+                    .map_err(|e| e.to_string())?;
+                    bag.write(
+                        SIM_POINTS,
+                        &msgs::point_cloud2_type(),
+                        m.log,
+                        m.publish,
+                        &m.cloud_cdr,
+                    )
+                    .map_err(|e| e.to_string())?;
+                }
+                bag.finish().map(|_| ()).map_err(|e| e.to_string())
+            })
+            .map_err(|e| output(e.to_string()))?;
+        Ok(Writer {
+            tx: Some(tx),
+            thread: Some(thread),
+        })
+    }
+
+    /// Hands one scan's messages to the writer; an error when writing failed.
+    fn send(&self, m: ScanMessages) -> Result<(), ResimError> {
+        let Some(tx) = &self.tx else {
+            return Err(ResimError::Output("the writer has stopped".into()));
+        };
+        if tx.send(m).is_err() {
+            // The writer stopped on an error: its reason comes with `finish`.
+            return Err(ResimError::Output(
+                "writing stopped (see the error that follows)".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Waits for the last messages and closes the file.
+    fn finish(mut self) -> Result<(), ResimError> {
+        self.tx = None;
+        match self.thread.take().map(std::thread::JoinHandle::join) {
+            Some(Ok(r)) => r.map_err(ResimError::Output),
+            Some(Err(_)) => Err(ResimError::Output("the writer thread failed".into())),
+            None => Ok(()),
+        }
+    }
 }

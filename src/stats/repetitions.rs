@@ -2,7 +2,7 @@
 //! reduced to one value per run, scenario sample and feature; then [`super::validate`].
 
 use super::validate::{cell, verdict, Cell, Phase, Verdict};
-use crate::bag::scans::read_scans;
+use crate::bag::scans::{Scan, ScanStream};
 use crate::metrics::features::{scan_features, ScanFeatures, FEATURES};
 use crate::rig::Rig;
 use hilrig_velodyne::Decoder;
@@ -47,22 +47,31 @@ struct Loaded {
     scans: Vec<ScanFeatures>,
 }
 
+/// Scans whose features are computed together (both cores busy, a few scans in memory).
+const BATCH_SCANS: usize = 16;
+
 fn load(path: &Path, decoder: &Decoder) -> Result<Loaded, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    if !bytes.starts_with(mcap::MAGIC) {
-        return Err(format!("{}: not an MCAP file", path.display()));
+    let mut stream = ScanStream::open(path).map_err(|e| e.to_string())?;
+    let mut scans = Vec::new();
+    loop {
+        let batch: Vec<Scan> = stream.by_ref().take(BATCH_SCANS).collect();
+        if batch.is_empty() {
+            break;
+        }
+        scans.extend(scan_features(&batch, decoder));
     }
-    let (scans, damage) = read_scans(&bytes);
+    let damage = stream.finish();
     if scans.is_empty() {
         return Err(format!(
-            "{}: no lidar scans (/velodyne_packets)",
-            path.display()
+            "{}: no lidar scans (/velodyne_packets){}",
+            path.display(),
+            damage.map_or(String::new(), |d| format!(" ({d})"))
         ));
     }
     Ok(Loaded {
         damage: damage.map(|d| format!("{}: read up to damage ({d})", path.display())),
         name: path.display().to_string(),
-        scans: scan_features(&scans, decoder),
+        scans,
     })
 }
 
@@ -100,7 +109,7 @@ pub fn validate(
     }
     let rig = match rig {
         Some(r) => r.clone(),
-        None => crate::reference::run::load_with_rig(&reals[0], None)?.2,
+        None => crate::reference::run::load_with_rig(&reals[0], None)?.1,
     };
     let (_, model, calibration) = rig.lidar_sensor()?;
     let decoder = Decoder::with_calibration(model, calibration);
