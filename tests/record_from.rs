@@ -864,3 +864,318 @@ fn a_gnss_port_the_capture_does_not_have_is_named_in_a_note() {
         .iter()
         .any(|c| c.topic == "/gnss/nmea" && c.count > 0));
 }
+
+/// A rig file in `dir` with only a lidar of `model` on the default ports.
+fn lidar_rig(dir: &std::path::Path, model: &str) -> std::path::PathBuf {
+    let rig = dir.join("rig.toml");
+    std::fs::write(
+        &rig,
+        format!("name = \"lidar-only\"\n[lidar]\nmodel = \"{model}\"\n"),
+    )
+    .unwrap();
+    rig
+}
+
+/// Records a generated capture of `model` in `mode` with a rig of that model: every data
+/// packet is in `/velodyne_packets`, byte for byte and in order (read back with the project's
+/// checked MCAP reader), nothing is rejected (printed, and `lidar_rejected` 0 in the file's
+/// `hilrig/end`), nothing is lost, exit 0. (Before the check knew the models, the VLS-128's
+/// and HDL-64E's bank flags had every packet dropped without a word.)
+fn records_every_packet(model: Model, mode: ReturnMode) {
+    let drive = common::lidar_capture(model, mode, 240, true);
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("drive.pcapng");
+    std::fs::write(&input, &drive.capture).unwrap();
+    let out = dir.path().join("drive.mcap");
+    let st = common::record_from(&lidar_rig(dir.path(), model.name()), &[&input], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(0), "{model} {mode:?}: {stderr}");
+    assert!(!stderr.contains("not recorded"), "{stderr}");
+    assert!(stderr.contains("lidar packets lost: 0"), "{stderr}");
+    // Every packet of the capture, read independently of the recorder (the capture reader).
+    assert_eq!(common::lidar_data(&input), drive.payloads);
+    let got = common::lidar_data(&out);
+    assert_eq!(
+        got.len(),
+        drive.payloads.len(),
+        "{model} {mode:?}: data packets"
+    );
+    assert!(
+        got == drive.payloads,
+        "{model} {mode:?}: byte for byte, in order"
+    );
+    let rejects = common::recorded_rejects(&out);
+    assert!(rejects.is_empty(), "{model} {mode:?}: {rejects:?}");
+}
+
+#[test]
+fn vlp16_records_every_packet() {
+    records_every_packet(Model::Vlp16, ReturnMode::Strongest);
+    records_every_packet(Model::Vlp16, ReturnMode::Dual);
+}
+
+#[test]
+fn puck_hires_records_every_packet() {
+    records_every_packet(Model::PuckHiRes, ReturnMode::Last);
+}
+
+#[test]
+fn vlp32c_records_every_packet() {
+    records_every_packet(Model::Vlp32c, ReturnMode::Strongest);
+}
+
+#[test]
+fn vlp32a_and_vlp32b_record_every_packet() {
+    records_every_packet(Model::Vlp32a, ReturnMode::Strongest);
+    records_every_packet(Model::Vlp32b, ReturnMode::Dual);
+}
+
+#[test]
+fn hdl32e_records_every_packet() {
+    records_every_packet(Model::Hdl32e, ReturnMode::Strongest);
+}
+
+/// The VLS-128's packets carry all four bank flags (`FF EE`, `FF DD`, `FF CC`, `FF BB`).
+#[test]
+fn vls128_single_return_records_every_packet() {
+    let drive = common::lidar_capture(Model::Vls128, ReturnMode::Strongest, 1, false);
+    let flags: std::collections::BTreeSet<u8> =
+        (0..12).map(|b| drive.payloads[0][b * 100 + 1]).collect();
+    assert_eq!(
+        flags.into_iter().collect::<Vec<_>>(),
+        [0xBB, 0xCC, 0xDD, 0xEE]
+    );
+    records_every_packet(Model::Vls128, ReturnMode::Strongest);
+}
+
+#[test]
+fn vls128_dual_return_records_every_packet() {
+    records_every_packet(Model::Vls128, ReturnMode::Dual);
+}
+
+/// The HDL-64E's packets carry upper- and lower-bank flags (`FF EE`, `FF DD`).
+#[test]
+fn hdl64e_s2_and_s3_record_every_packet() {
+    records_every_packet(Model::Hdl64eS2, ReturnMode::Strongest);
+    records_every_packet(Model::Hdl64eS3, ReturnMode::Strongest);
+    records_every_packet(Model::Hdl64eS3, ReturnMode::Dual);
+}
+
+/// Loss is counted in the packet period of the stream's return mode: a dual-return VLS-128
+/// packet covers one firing sequence, not three, so one packet missing is one lost (it was
+/// counted in three-sequence periods, where a gap of two sequences rounds to no loss).
+#[test]
+fn a_packet_missing_from_a_dual_return_vls128_stream_is_counted_lost() {
+    let drive = common::lidar_capture(Model::Vls128, ReturnMode::Dual, 200, true);
+    let dir = tempfile::tempdir().unwrap();
+    // The same capture without its 101st data packet (the position packet is record 0).
+    let input = dir.path().join("gap.pcapng");
+    let mut w = hilrig::capture::PcapngWriter::new(Vec::new(), "test").unwrap();
+    let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
+    let mut r = hilrig::capture::Demux::new(
+        hilrig::capture::CaptureReader::new(std::io::Cursor::new(drive.capture.clone())).unwrap(),
+    );
+    let mut n = 0;
+    while let Some(item) = r.next_item() {
+        let item = item.unwrap();
+        let hilrig::capture::demux::Packet::Udp { src, dst, payload } = item.packet else {
+            panic!("only UDP in the capture");
+        };
+        n += 1;
+        if n == 102 {
+            continue;
+        }
+        w.write_packet(eth, item.time, &udp_ethernet_frame(src, dst, payload))
+            .unwrap();
+    }
+    std::fs::write(&input, w.finish().unwrap()).unwrap();
+    let out = dir.path().join("gap.mcap");
+    let st = common::record_from(&lidar_rig(dir.path(), "vls128"), &[&input], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("lidar packets lost: 1\n"), "{stderr}");
+    assert_eq!(common::lidar_data(&out).len(), 199);
+}
+
+/// A VLP-16's packets on the port of a rig whose lidar is a VLS-128: an error that names what
+/// the packets' product byte says and what the rig says, exit status 2, and no output at all
+/// (neither the MCAP nor a `.active` left behind).
+#[test]
+fn another_sensor_s_packets_are_an_error_naming_both_and_write_nothing() {
+    let drive = common::lidar_capture(Model::Vlp16, ReturnMode::Strongest, 50, true);
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("vlp16.pcapng");
+    std::fs::write(&input, &drive.capture).unwrap();
+    let out = dir.path().join("out.mcap");
+    let st = common::record_from(&lidar_rig(dir.path(), "vls128"), &[&input], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("none of the 50 lidar data packets in the input could be recorded as the rig's vls128's, so nothing was written")
+            && stderr.contains("another sensor (product byte 0x22): 50")
+            && stderr.contains(
+                "product byte 0x22 at byte 1205 is a vlp16's, not the vls128's (0xa1)"
+            )
+            && stderr.contains("vlp16.pcapng byte "),
+        "{stderr}"
+    );
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("mcap"))
+        .collect();
+    assert!(left.is_empty(), "half-written output left behind: {left:?}");
+}
+
+/// A capture whose clock was never set (1970) resolves its packets' hour from a position
+/// packet's RMC, even one that comes after them; without any, no packet can be placed in
+/// time, and that is the error, naming the reason.
+#[test]
+fn packets_without_an_hour_are_recorded_once_an_rmc_gives_it_and_an_error_without() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = lidar_rig(dir.path(), "vls128");
+    let unset = 5_000_000_000; // 5 s after 1970-01-01
+    let drive = common::lidar_capture_at(Model::Vls128, ReturnMode::Strongest, 60, false, unset);
+    let input = dir.path().join("unset.pcapng");
+    std::fs::write(&input, &drive.capture).unwrap();
+    let out = dir.path().join("unset.mcap");
+    let st = common::record_from(&rig, &[&input], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("no hour for the timestamp: 60")
+            && stderr.contains("no position packet with a valid RMC"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    // The same packets followed by a position packet with an RMC (in a second capture).
+    let rmc = common::lidar_capture_at(
+        Model::Vls128,
+        ReturnMode::Strongest,
+        0,
+        true,
+        unset + 1_000_000_000,
+    );
+    let later = dir.path().join("rmc.pcapng");
+    std::fs::write(&later, &rmc.capture).unwrap();
+    let st = common::record_from(&rig, &[&input, &later], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(0), "{stderr}");
+    assert_eq!(common::lidar_data(&out), drive.payloads);
+}
+
+/// Malformed lidar packets among good ones: every good one is recorded; the bad ones are
+/// counted per reason, printed with where the first of each was and what was wrong, written
+/// into the file's `hilrig/end` metadata, and the exit status is 1.
+#[test]
+fn malformed_packets_among_good_ones_are_counted_per_reason_and_exit_1() {
+    let drive = common::lidar_capture(Model::Vls128, ReturnMode::Strongest, 300, true);
+    let stranger = common::lidar_capture(Model::Vlp16, ReturnMode::Strongest, 1, false);
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("mixed.pcapng");
+    let ep = |port| SocketAddrV4::new(Ipv4Addr::new(192, 168, 1, 201), port);
+    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
+    let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
+    // Received as the drive's packets are: 100 µs after their first firing, one VLS-128
+    // packet period (60 slots of 2.89 µs) apart.
+    let t = |i: usize| UtcNanos(T0 + 100_000 + i as i64 * 173_400);
+    // What goes in after good packet i: (i, payload), and the counts expected per reason.
+    let good = &drive.payloads;
+    let mut bad: Vec<(usize, Vec<u8>)> = Vec::new();
+    for i in [10, 90, 200] {
+        bad.push((i, good[i][..1000].to_vec())); // cut short
+    }
+    for i in [20, 21] {
+        let mut p = good[i].clone();
+        p[400] = 0x00; // block 4's flag FF EE -> 00 EE
+        bad.push((i, p));
+    }
+    let mut p = good[150].clone();
+    p[1102..1104].copy_from_slice(&40_000u16.to_le_bytes()); // block 11's azimuth
+    bad.push((150, p));
+    for i in [50, 51, 52, 53] {
+        bad.push((i, stranger.payloads[0].clone()));
+    }
+    let mut p = good[250].clone();
+    p[1204] = 0x00; // no return mode
+    bad.push((250, p));
+    let mut written = 0;
+    for (i, g) in good.iter().enumerate() {
+        w.write_packet(eth, t(i), &udp_ethernet_frame(ep(2368), ep(2368), g))
+            .unwrap();
+        written += 1;
+        for (_, b) in bad.iter().filter(|(at, _)| *at == i) {
+            w.write_packet(eth, t(i), &udp_ethernet_frame(ep(2368), ep(2368), b))
+                .unwrap();
+            written += 1;
+        }
+    }
+    assert_eq!(written, 300 + 11);
+    std::fs::write(&input, w.finish().unwrap()).unwrap();
+    let out = dir.path().join("mixed.mcap");
+    let st = common::record_from(&lidar_rig(dir.path(), "vls128"), &[&input], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    println!("{stderr}");
+    assert_eq!(st.status.code(), Some(1), "{stderr}");
+    assert!(
+        common::lidar_data(&out) == *good,
+        "every good packet, in order"
+    );
+    for line in [
+        "error: ",
+        "11 lidar packets were not recorded",
+        "  wrong size: 3 (first: ",
+        "wrong payload size: expected 1206 bytes, got 1000",
+        "  bad block flag: 2 (first: ",
+        "block 4 at byte 400 has flag 0xee00, which no Velodyne sensor writes",
+        "  azimuth out of range: 1 (first: ",
+        "block 11 azimuth at byte 1102 is 40000",
+        "  another sensor (product byte 0x22): 4 (first: ",
+        "product byte 0x22 at byte 1205 is a vlp16's",
+        "  unsupported return mode: 1 (first: ",
+        "mixed.pcapng byte ",
+    ] {
+        assert!(stderr.contains(line), "{line:?} in {stderr}");
+    }
+    let r = common::recorded_rejects(&out);
+    use hilrig::record::rejects::RejectReason as R;
+    let counts: Vec<(R, u64)> = r.counts.clone().into_iter().collect();
+    assert_eq!(
+        counts,
+        [
+            (R::WrongSize, 3),
+            (R::BadBlockFlag, 2),
+            (R::AzimuthOutOfRange, 1),
+            (R::UnsupportedReturnMode, 1),
+            (R::OtherSensor(0x22), 4),
+        ]
+    );
+    assert!(r.first[&R::BadBlockFlag].contains("block 4 at byte 400"));
+}
+
+/// `record --from` of the real VLS-128 capture (../shared/data, re-wrapped from tier4/nebula's
+/// decoder ground truth): all 2,193 data packets are recorded, as `hilrig decode` reads them.
+#[test]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
+fn the_real_vls128_capture_records_all_2193_data_packets() {
+    let capture = common::real_data().join("velodyne/vls128.pcap");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("vls128.mcap");
+    let st = common::record_from(&lidar_rig(dir.path(), "vls128"), &[&capture], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    println!("{stderr}");
+    assert_eq!(st.status.code(), Some(0), "{stderr}");
+    let want = common::lidar_data(&capture);
+    assert_eq!(want.len(), 2193, "the capture's data packets (README)");
+    let got = common::lidar_data(&out);
+    assert_eq!(got.len(), 2193);
+    assert!(got == want, "byte for byte, in order");
+    assert!(common::recorded_rejects(&out).is_empty());
+    // What `hilrig decode` reads of the same capture.
+    let (summary, _) =
+        common::decode_file(&capture, &hilrig::decode::lidar::LidarOptions::default());
+    assert_eq!(summary.data_packets, 2193);
+}

@@ -1,6 +1,7 @@
 //! Any bytes as a Velodyne data or position packet, decoded as every model (the VLS-128 also
-//! after a previous packet, as its dual mode decodes): errors are fine, panics are not, and
-//! whatever decodes re-encodes to the same bytes.
+//! after a previous packet, as its dual mode decodes) and checked as every model the way the
+//! recorder checks them: errors are fine, panics are not, whatever decodes re-encodes to the
+//! same bytes, and whatever the recorder's check accepts the packet layer decodes.
 #![no_main]
 use hilrig_velodyne::{DataPacket, Decoder, Model, PositionPacket};
 use libfuzzer_sys::fuzz_target;
@@ -25,7 +26,13 @@ fuzz_target!(|data: &[u8]| {
             buf[1204] = 0x39; // dual return
         }
     }
-    if let Ok(p) = DataPacket::decode(&buf) {
+    let decoded = DataPacket::decode(&buf);
+    for m in Model::ALL {
+        if hilrig_velodyne::check::data_packet(&buf, m).is_ok() {
+            assert!(decoded.is_ok(), "{m}: the recorder would keep a packet nothing decodes");
+        }
+    }
+    if let Ok(p) = decoded {
         assert_eq!(&p.encode()[..], &buf[..]);
         for m in Model::ALL {
             let d = Decoder::new(m);

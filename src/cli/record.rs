@@ -55,6 +55,16 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
     for e in &summary.input_errors {
         eprintln!("error: {e} (everything before it was recorded)");
     }
+    let rejects = &summary.lidar_rejects;
+    if !rejects.is_empty() {
+        eprintln!(
+            "error: {out}: {} lidar packets were not recorded (counted in the file's hilrig/end metadata):",
+            rejects.total()
+        );
+        for line in rejects.lines() {
+            eprintln!("  {line}");
+        }
+    }
     // The rig's GNSS port is where the live receiver is; a capture brings its own serial
     // interfaces, which are read whatever their names. Say so when they differ.
     if let Some(g) = &rig.gnss {
@@ -95,11 +105,13 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
             ports.join(", ")
         );
     }
-    Ok(if summary.input_errors.is_empty() && no_lidar.is_none() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
-    })
+    Ok(
+        if summary.input_errors.is_empty() && no_lidar.is_none() && rejects.is_empty() {
+            ExitCode::SUCCESS
+        } else {
+            ExitCode::from(1)
+        },
+    )
 }
 
 fn live(rig: &hilrig::rig::Rig, text: &str, output: Option<PathBuf>) -> Result<ExitCode> {
@@ -112,7 +124,18 @@ fn live(rig: &hilrig::rig::Rig, text: &str, output: Option<PathBuf>) -> Result<E
     for (topic, n) in &summary.counts {
         eprintln!("{}: {topic}: {n} messages", output.display());
     }
-    Ok(if summary.dropped() == 0 {
+    let rejects = &summary.lidar_rejects;
+    if !rejects.is_empty() {
+        eprintln!(
+            "error: {}: {} lidar packets were not recorded (counted in the file's hilrig/end metadata):",
+            output.display(),
+            rejects.total()
+        );
+        for line in rejects.lines() {
+            eprintln!("  {line}");
+        }
+    }
+    Ok(if summary.dropped() == 0 && rejects.is_empty() {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)

@@ -347,7 +347,9 @@ pub fn decode_capture<R: Read + Send + 'static>(
 fn note_problem(summary: &mut LidarSummary, offset: u64, error: DecodeError) {
     let key = match &error {
         DecodeError::WrongSize { .. } => "wrong payload size",
-        DecodeError::BadBlockFlag { .. } => "bad block flag",
+        DecodeError::BadBlockFlag { .. }
+        | DecodeError::ForeignBankFlag { .. }
+        | DecodeError::BankPairMismatch { .. } => "bad block flag",
         DecodeError::AzimuthOutOfRange { .. } => "azimuth above 36000",
         DecodeError::UnsupportedProduct(_) => "unsupported product",
         DecodeError::UnsupportedReturnMode(_) => "unsupported return mode",

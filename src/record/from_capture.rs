@@ -18,6 +18,7 @@ use crate::bag::topics;
 use crate::bag::{BagError, BagWriter};
 use crate::record::clock::{ClockEstimator, ClockModel};
 use crate::record::messages::{cloud_cdr, nav_sat_fix};
+use crate::record::rejects::{LidarRejects, RejectReason};
 use crate::rig::Rig;
 use hilrig_can::ego::{EgoSample, EgoTracker, Quantity};
 use hilrig_can::Database;
@@ -27,8 +28,9 @@ use hilrig_gnss::epoch::{Fix, NmeaEpochs, UbxEpochs};
 use hilrig_gnss::framer::{Frame, Framer, Item};
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::clock::HourResolver;
+use hilrig_velodyne::source::PacketPort;
 use hilrig_velodyne::{
-    Decoder, Model, PositionPacket, RawDataPacket, RotationAssembler, DATA_PACKET_SIZE,
+    Decoder, Model, PositionPacket, RawDataPacket, ReturnMode, RotationAssembler,
     POSITION_PACKET_SIZE,
 };
 use std::collections::BTreeMap;
@@ -60,6 +62,19 @@ pub enum RecordError {
     /// A rig part (DBC, calibration, ego mapping) is unusable.
     #[error("rig: {0}")]
     Rig(String),
+    /// Every lidar data packet of the inputs was rejected: the rig's lidar would be missing
+    /// from the recording, so none is written.
+    #[error(
+        "none of the {} lidar data packets in the input could be recorded as the rig's {model}'s, so nothing was written: {}",
+        rejects.data_packets(),
+        rejects.lines().join("; ")
+    )]
+    LidarRejected {
+        /// The rig's lidar model.
+        model: Model,
+        /// The packets rejected, per reason.
+        rejects: LidarRejects,
+    },
 }
 
 /// What a `--from` recording did.
@@ -73,6 +88,8 @@ pub struct RecordSummary {
     pub lidar_lost: u64,
     /// Inputs that ended early (truncated), with the error.
     pub input_errors: Vec<String>,
+    /// Lidar packets not recorded, per reason (any makes `record` exit 1).
+    pub lidar_rejects: LidarRejects,
     /// UDP datagrams that went to no lidar port of the rig, by destination port.
     pub other_udp_ports: BTreeMap<u16, u64>,
     /// Names of the captures' serial interfaces that carried bytes (read as the GNSS stream,
@@ -82,6 +99,8 @@ pub struct RecordSummary {
 
 struct Context<'a> {
     rig: &'a Rig,
+    /// The rig's lidar model: data packets are checked to be its.
+    model: Option<Model>,
     decoder: Option<Decoder>,
     db: Option<Database>,
     ego: Option<EgoTracker>,
@@ -98,6 +117,10 @@ struct Sources {
     first_fix: Option<UtcNanos>,
     /// PPS byte of the last position packet.
     pps_byte: Option<u8>,
+    /// Lidar data packets that passed the model's check (pass 1: whether any will be recorded).
+    lidar_checked: u64,
+    /// Lidar packets left out, per reason.
+    rejects: LidarRejects,
 }
 
 /// A serial interface's framer and epoch assemblers, with the receive time of the last frame:
@@ -124,6 +147,8 @@ impl Sources {
             framers: BTreeMap::new(),
             first_fix: None,
             pps_byte: None,
+            lidar_checked: 0,
+            rejects: LidarRejects::default(),
         }
     }
 }
@@ -133,7 +158,12 @@ struct Output<'a> {
     bag: BagWriter,
     lidar: Option<ClockModel>,
     gnss: Option<ClockModel>,
+    /// Rotation assembly, started at the first packet (whose return mode sets the packet
+    /// period that loss is counted in).
     rotation: Option<RotationAssembler<RawDataPacket>>,
+    /// Where rotations are cut (hundredths of a degree), and the lidar's model (None: the rig
+    /// has no lidar).
+    cut: Option<(u16, Model)>,
     /// Decoder for /points (None: not written).
     points: Option<Decoder>,
     frame_lidar: String,
@@ -141,6 +171,26 @@ struct Output<'a> {
     last_speed: Option<f64>,
     last_yaw: Option<f64>,
     rig: &'a Rig,
+}
+
+impl Output<'_> {
+    /// Adds a data packet to the current rotation; gives the rotation it completed. The first
+    /// packet starts the assembler with the period its return mode gives (a dual-return packet
+    /// covers a third, or half, of a single-return one's time).
+    fn rotate(
+        &mut self,
+        packet: hilrig_stamp::Stamped<RawDataPacket>,
+    ) -> Option<hilrig_velodyne::Rotation<RawDataPacket>> {
+        if self.rotation.is_none() {
+            let (cut, model) = self.cut?;
+            let mode = hilrig_velodyne::packet::ReturnModeByte(packet.value.0[1204])
+                .mode()
+                .unwrap_or(ReturnMode::Strongest);
+            let period = Decoder::new(model).packet_period_us(mode);
+            self.rotation = Some(RotationAssembler::new(cut, period));
+        }
+        self.rotation.as_mut()?.push(packet)
+    }
 }
 
 fn sync(model: Option<ClockModel>, sensor: UtcNanos) -> UtcNanos {
@@ -189,29 +239,57 @@ impl Context<'_> {
             let host = item.time;
             match item.packet {
                 Packet::Udp { dst, payload, .. } => {
-                    let Some(l) = lidar else { continue };
-                    if dst.port() == l.position_port && payload.len() == POSITION_PACKET_SIZE {
-                        if let Ok(p) = PositionPacket::decode(payload) {
-                            src.hours.handle_position(&p, host);
-                            src.pps_byte = Some(p.pps_byte);
-                            if let Some(o) = out.as_deref_mut() {
-                                o.bag.write(
-                                    topics::VELODYNE_POSITION,
-                                    &msgs::raw_packet_type(),
-                                    host,
-                                    host,
-                                    &msgs::raw_packet(host, &o.frame_lidar, payload),
-                                )?;
+                    let (Some(l), Some(model)) = (lidar, self.model) else {
+                        continue;
+                    };
+                    let port = dst.port();
+                    let at = || format!("{} byte {}", path.display(), item.offset);
+                    // A 512-byte datagram to a shared port is a position packet.
+                    if port == l.position_port
+                        && (payload.len() == POSITION_PACKET_SIZE || port != l.data_port)
+                    {
+                        let p = match PositionPacket::decode(payload) {
+                            Ok(p) => p,
+                            Err(e) => {
+                                src.rejects
+                                    .add(RejectReason::of(PacketPort::Position, &e), || {
+                                        format!("{}: {e}", at())
+                                    });
+                                continue;
                             }
-                        }
-                    } else if dst.port() == l.data_port && payload.len() == DATA_PACKET_SIZE {
-                        // Validated but not decoded: the recorder writes the bytes as received.
-                        let Ok(raw) = RawDataPacket::check(payload) else {
-                            continue;
                         };
-                        let Some((sensor, hour_source)) =
-                            src.hours.resolve(RawDataPacket::timestamp_of(raw), host)
-                        else {
+                        src.hours.handle_position(&p, host);
+                        src.pps_byte = Some(p.pps_byte);
+                        if let Some(o) = out.as_deref_mut() {
+                            o.bag.write(
+                                topics::VELODYNE_POSITION,
+                                &msgs::raw_packet_type(),
+                                host,
+                                host,
+                                &msgs::raw_packet(host, &o.frame_lidar, payload),
+                            )?;
+                        }
+                    } else if port == l.data_port {
+                        // Validated but not decoded: the recorder writes the bytes as received.
+                        let raw = match RawDataPacket::check(payload, model) {
+                            Ok(raw) => raw,
+                            Err(e) => {
+                                src.rejects.add(RejectReason::of(PacketPort::Data, &e), || {
+                                    format!("{}: {e}", at())
+                                });
+                                continue;
+                            }
+                        };
+                        src.lidar_checked += 1;
+                        let toh = RawDataPacket::timestamp_of(raw);
+                        let Some((sensor, hour_source)) = src.hours.resolve(toh, host) else {
+                            src.rejects.add(RejectReason::NoHour, || {
+                                format!(
+                                    "{}: timestamp {toh} µs past an unknown hour: no position packet with a valid RMC, and the capture's clock reads {} (before 2000: unset)",
+                                    at(),
+                                    hilrig_stamp::civil::iso8601_millis(host)
+                                )
+                            });
                             continue;
                         };
                         // The hour moving from the host clock to the RMC can shift sensor times
@@ -227,21 +305,20 @@ impl Context<'_> {
                             None => src.lidar_clock.handle(sensor, host),
                             Some(o) => {
                                 let t = sync(o.lidar, sensor);
-                                if let Some(rot) = o.rotation.as_mut() {
-                                    if let Some(done) = rot.push(hilrig_stamp::Stamped {
-                                        host,
-                                        sensor: Some(t),
-                                        value: RawDataPacket(Box::new(*raw)),
-                                    }) {
-                                        write_scan(o, &done.packets)?;
-                                    }
+                                let packet = hilrig_stamp::Stamped {
+                                    host,
+                                    sensor: Some(t),
+                                    value: RawDataPacket(Box::new(*raw)),
+                                };
+                                if let Some(done) = o.rotate(packet) {
+                                    write_scan(o, &done.packets)?;
                                 }
                             }
                         }
                     } else if out.is_none() {
                         // Counted once (in the first pass), to say where the traffic went when
                         // the rig's ports match nothing.
-                        *summary.other_udp_ports.entry(dst.port()).or_default() += 1;
+                        *summary.other_udp_ports.entry(port).or_default() += 1;
                     }
                 }
                 Packet::Serial(bytes) => {
@@ -635,6 +712,7 @@ pub fn record_from(
     };
     let ctx = Context {
         rig,
+        model,
         decoder: model.map(|m| match &calibration {
             Some(c) => Decoder::with_calibration(m, c.clone()),
             None => Decoder::new(m),
@@ -653,6 +731,21 @@ pub fn record_from(
     let first_fix = src.first_fix;
     let pass1_pps = src.pps_byte;
     let pass1_hour_source = src.hour_source;
+    // Pass 1 has seen every lidar packet: when none will be recorded, say why before writing
+    // anything. Pass 2 resolves hours with the RMC pass 1 found (if any) from the start, so
+    // pass 1's "no hour" rejects stand only when there was none.
+    if let Some(m) = model {
+        let mut rejects = std::mem::take(&mut src.rejects);
+        if src.hours.has_rmc() {
+            rejects.counts.remove(&RejectReason::NoHour);
+            rejects.first.remove(&RejectReason::NoHour);
+        }
+        let no_hour = rejects.counts.get(&RejectReason::NoHour).copied();
+        let recordable = src.lidar_checked - no_hour.unwrap_or(0);
+        if recordable == 0 && rejects.data_packets() > 0 {
+            return Err(RecordError::LidarRejected { model: m, rejects });
+        }
+    }
     let lidar_model = src.lidar_clock.model();
     let gnss_model = src.gnss_clock.model();
     for (name, est) in [("lidar", &src.lidar_clock), ("gnss", &src.gnss_clock)] {
@@ -666,31 +759,29 @@ pub fn record_from(
     let rec = &rig.recording;
     let options = rec.bag_options();
     let bag = BagWriter::create(output, &options)?;
-    let period = ctx
-        .decoder
-        .as_ref()
-        .map(|d| d.packet_period_us(hilrig_velodyne::ReturnMode::Strongest));
-    let mut out =
-        Output {
-            bag,
-            lidar: lidar_model,
-            gnss: gnss_model,
-            rotation: rig.lidar.as_ref().zip(period).map(|(l, p)| {
-                RotationAssembler::new((l.cut_azimuth_deg * 100.0).round() as u16, p)
-            }),
-            points: ctx.decoder.clone().filter(|_| rig.recording.points),
-            frame_lidar: rig
-                .lidar
-                .as_ref()
-                .map_or("velodyne".into(), |l| l.frame_id.clone()),
-            frame_gnss: rig
-                .gnss
-                .as_ref()
-                .map_or("gnss".into(), |g| g.frame_id.clone()),
-            last_speed: None,
-            last_yaw: None,
-            rig,
-        };
+    let mut out = Output {
+        bag,
+        lidar: lidar_model,
+        gnss: gnss_model,
+        rotation: None,
+        cut: rig
+            .lidar
+            .as_ref()
+            .zip(model)
+            .map(|(l, m)| ((l.cut_azimuth_deg * 100.0).round() as u16, m)),
+        points: ctx.decoder.clone().filter(|_| rig.recording.points),
+        frame_lidar: rig
+            .lidar
+            .as_ref()
+            .map_or("velodyne".into(), |l| l.frame_id.clone()),
+        frame_gnss: rig
+            .gnss
+            .as_ref()
+            .map_or("gnss".into(), |g| g.frame_id.clone()),
+        last_speed: None,
+        last_yaw: None,
+        rig,
+    };
     let start = UtcNanos::EPOCH;
     out.bag
         .attach("rig.toml", "application/toml", rig_text.as_bytes(), start)?;
@@ -766,12 +857,16 @@ pub fn record_from(
         }
         summary.lidar_lost = rot.loss().lost;
     }
+    summary.lidar_rejects = std::mem::take(&mut src.rejects);
     let mut meta = BTreeMap::new();
     meta.insert(
         "lidar_lost_packets".to_owned(),
         summary.lidar_lost.to_string(),
     );
     meta.insert("input_errors".to_owned(), summary.input_errors.join("; "));
+    if model.is_some() {
+        summary.lidar_rejects.write_metadata(&mut meta);
+    }
     out.bag.metadata("hilrig/end", meta)?;
     summary.counts = out.bag.finish()?;
     Ok(summary)

@@ -16,13 +16,14 @@
 use crate::bag::msgs::{self, MessageType};
 use crate::bag::{BagError, BagWriter};
 use crate::record::clock::ClockEstimator;
+use crate::record::rejects::{LidarRejects, RejectReason};
 use crate::rig::Rig;
 use hilrig_gnss::epoch::{NmeaEpochs, UbxEpochs};
 use hilrig_gnss::framer::{Frame, Framer, Item};
 use hilrig_stamp::{Stamped, UtcNanos};
 use hilrig_velodyne::clock::HourResolver;
 use hilrig_velodyne::source::{LidarItem, LidarSource, DEFAULT_RECV_BUFFER};
-use hilrig_velodyne::{Model, RotationAssembler};
+use hilrig_velodyne::{Model, ReturnMode, RotationAssembler};
 use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -89,6 +90,8 @@ pub struct LiveSummary {
     pub counts: BTreeMap<String, u64>,
     /// Health per source at the end.
     pub health: BTreeMap<String, [u64; 6]>,
+    /// Lidar packets not recorded, per reason (any makes `record` exit 1).
+    pub lidar_rejects: LidarRejects,
 }
 
 /// Why the recorder stopped with an error.
@@ -231,6 +234,7 @@ pub async fn record_live(
         .as_ref()
         .and_then(|l| l.model.parse::<Model>().ok());
     let mut health: BTreeMap<&'static str, Arc<Health>> = BTreeMap::new();
+    let rejects: Arc<Mutex<LidarRejects>> = Arc::default();
     let mut tasks = Vec::new();
 
     // Open every source before writing anything: a wrong port stops the recorder at start.
@@ -249,22 +253,26 @@ pub async fn record_live(
         .map_err(source_error("lidar"))?;
         let h = Arc::new(Health::default());
         health.insert("lidar", h.clone());
-        let period = hilrig_velodyne::Decoder::new(model)
-            .packet_period_us(hilrig_velodyne::ReturnMode::Strongest);
         let cut = (l.cut_azimuth_deg * 100.0).round() as u16;
         tasks.push(tokio::spawn(lidar_task(
             source,
-            l.frame_id.clone(),
-            cut,
-            period,
+            LidarSettings {
+                frame: l.frame_id.clone(),
+                cut,
+                model,
+                points: rig
+                    .recording
+                    .points
+                    .then(|| hilrig_velodyne::Decoder::new(model)),
+            },
             tx.clone(),
-            h,
-            clocks.clone(),
+            LidarShared {
+                health: h,
+                clocks: clocks.clone(),
+                pps: pps.clone(),
+                rejects: rejects.clone(),
+            },
             shutdown.clone(),
-            rig.recording
-                .points
-                .then(|| hilrig_velodyne::Decoder::new(model)),
-            pps.clone(),
         )));
     }
     if let Some(g) = &rig.gnss {
@@ -311,12 +319,13 @@ pub async fn record_live(
 
     let printer = {
         let health = health.clone();
+        let rejects = rejects.clone();
         tokio::spawn(async move {
             let mut tick = tokio::time::interval(Duration::from_secs(5));
             tick.tick().await;
             loop {
                 tick.tick().await;
-                print_health(&health);
+                print_health(&health, &rejects);
             }
         })
     };
@@ -367,16 +376,25 @@ pub async fn record_live(
         end.insert(format!("{name}_lost"), v[4].to_string());
         summary.health.insert(name.to_string(), v);
     }
+    summary.lidar_rejects = rejects.lock().map(|r| r.clone()).unwrap_or_default();
+    if rig.lidar.is_some() {
+        summary.lidar_rejects.write_metadata(&mut end);
+    }
     bag.metadata("hilrig/end", end)?;
-    print_health(&health);
+    print_health(&health, &rejects);
     summary.counts = bag.finish()?;
     Ok(summary)
 }
 
-fn print_health(health: &BTreeMap<&'static str, Arc<Health>>) {
+fn print_health(health: &BTreeMap<&'static str, Arc<Health>>, rejects: &Mutex<LidarRejects>) {
     for (name, h) in health {
+        // The lidar's decode errors are its rejected packets: say why, per reason.
+        let why = match rejects.lock() {
+            Ok(r) if *name == "lidar" && !r.is_empty() => format!(" ({})", r.brief()),
+            _ => String::new(),
+        };
         eprintln!(
-            "{name}: received {}, written {}, dropped {}, decode errors {}, lost {}, reconnects {}",
+            "{name}: received {}, written {}, dropped {}, decode errors {}{why}, lost {}, reconnects {}",
             h.received.load(Ordering::Relaxed),
             h.queued.load(Ordering::Relaxed),
             h.dropped.load(Ordering::Relaxed),
@@ -433,31 +451,56 @@ fn send_scan(
     }
 }
 
-#[allow(clippy::too_many_arguments)]
+/// What the lidar task is set up with.
+struct LidarSettings {
+    /// Frame id of the messages.
+    frame: String,
+    /// Where rotations are cut, hundredths of a degree.
+    cut: u16,
+    /// The rig's model (the packet period that loss is counted in).
+    model: Model,
+    /// Decoder for /points, if written.
+    points: Option<hilrig_velodyne::Decoder>,
+}
+
+/// What the lidar task shares with the recorder.
+struct LidarShared {
+    health: Arc<Health>,
+    clocks: Arc<Mutex<BTreeMap<&'static str, ClockEstimator>>>,
+    pps: Arc<Mutex<Option<u8>>>,
+    rejects: Arc<Mutex<LidarRejects>>,
+}
+
 async fn lidar_task(
     mut source: LidarSource,
-    frame: String,
-    cut: u16,
-    period_us: f64,
+    settings: LidarSettings,
     tx: SyncSender<Event>,
-    h: Arc<Health>,
-    clocks: Arc<Mutex<BTreeMap<&'static str, ClockEstimator>>>,
+    shared: LidarShared,
     mut shutdown: tokio::sync::watch::Receiver<bool>,
-    points: Option<hilrig_velodyne::Decoder>,
-    pps: Arc<Mutex<Option<u8>>>,
 ) {
+    let LidarSettings {
+        frame,
+        cut,
+        model,
+        points,
+    } = settings;
+    let h = &shared.health;
     let mut hours = HourResolver::default();
     let mut hour_source = None;
-    let mut rotation = RotationAssembler::new(cut, period_us);
+    // Started at the first packet, whose return mode sets the packet period (a dual-return
+    // packet covers a third, or half, of a single-return one's time).
+    let mut rotation: Option<RotationAssembler> = None;
     let t = types();
     loop {
         let item = tokio::select! {
             item = source.next() => item,
             _ = shutdown.changed() => {
-                if let Some(done) = rotation.finish() {
-                    send_scan(&tx, &h, &frame, points.as_ref(), &done.packets);
+                if let Some(rotation) = rotation.as_mut() {
+                    if let Some(done) = rotation.finish() {
+                        send_scan(&tx, h, &frame, points.as_ref(), &done.packets);
+                    }
+                    h.lost.store(rotation.loss().lost, Ordering::Relaxed);
                 }
-                h.lost.store(rotation.loss().lost, Ordering::Relaxed);
                 return;
             }
         };
@@ -466,13 +509,13 @@ async fn lidar_task(
         match item {
             LidarItem::Position(p) => {
                 hours.handle_position(&p.value, p.host);
-                if let Ok(mut b) = pps.lock() {
+                if let Ok(mut b) = shared.pps.lock() {
                     *b = Some(p.value.pps_byte);
                 }
                 let cdr = msgs::raw_packet(p.host, &frame, &p.value.encode());
                 send(
                     &tx,
-                    &h,
+                    h,
                     Event {
                         topic: crate::bag::topics::VELODYNE_POSITION,
                         ty: &t["raw"],
@@ -486,7 +529,7 @@ async fn lidar_task(
                 let resolved = hours.resolve(d.value.timestamp_us, d.host);
                 let synced = match resolved {
                     Some((s, src)) => {
-                        let mut c = clocks.lock().unwrap_or_else(|e| e.into_inner());
+                        let mut c = shared.clocks.lock().unwrap_or_else(|e| e.into_inner());
                         // The hour moving from the host clock to the RMC can shift sensor times
                         // by hours: the pairs from before belong to another line.
                         if hour_source.replace(src).is_some_and(|prev| prev != src) {
@@ -498,17 +541,31 @@ async fn lidar_task(
                     }
                     None => d.host,
                 };
+                let rotation = rotation.get_or_insert_with(|| {
+                    let mode = d.value.return_mode.mode().unwrap_or(ReturnMode::Strongest);
+                    let period = hilrig_velodyne::Decoder::new(model).packet_period_us(mode);
+                    RotationAssembler::new(cut, period)
+                });
                 if let Some(done) = rotation.push(Stamped {
                     host: d.host,
                     sensor: Some(synced),
                     value: d.value,
                 }) {
                     h.lost.store(rotation.loss().lost, Ordering::Relaxed);
-                    send_scan(&tx, &h, &frame, points.as_ref(), &done.packets);
+                    send_scan(&tx, h, &frame, points.as_ref(), &done.packets);
                 }
             }
-            LidarItem::Rejected { .. } => {
+            LidarItem::Rejected { host, port, error } => {
                 h.decode_errors.fetch_add(1, Ordering::Relaxed);
+                let reason = RejectReason::of(port, &error);
+                let mut r = shared.rejects.lock().unwrap_or_else(|e| e.into_inner());
+                let at = hilrig_stamp::civil::iso8601_millis(host);
+                if !r.counts.contains_key(&reason) {
+                    // The first of each reason at once: on the vehicle, a wrong rig file or a
+                    // second sensor on the port should not wait for the end of the drive.
+                    eprintln!("lidar: packet received at {at} not recorded: {error} (further ones are counted)");
+                }
+                r.add(reason, || format!("received at {at}: {error}"));
             }
         }
     }

@@ -4,6 +4,8 @@
 //!   byte logs) in two passes, clock models first;
 //! - [`live`]: `hilrig record --rig R` on the vehicle, one task per source and a writer thread;
 //! - [`clock`]: the per-source clock models (lower envelope of host - sensor) both use;
+//! - [`rejects`]: the lidar packets left out, counted per reason, printed and written into the
+//!   recording;
 //! - [`messages`]: topic names and the conversion of driver output into the contract's ROS 2
 //!   messages, so that both recorders write the same bytes.
 //!
@@ -13,5 +15,6 @@ pub mod clock;
 pub mod from_capture;
 pub mod live;
 pub mod messages;
+pub mod rejects;
 
 pub use from_capture::{record_from, RecordError, RecordSummary};

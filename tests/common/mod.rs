@@ -276,3 +276,131 @@ pub fn interop_script(script: &str, args: &[&std::ffi::OsStr]) -> Vec<u8> {
     );
     out.stdout
 }
+
+/// A generated lidar capture: the pcapng bytes and the data packets' payloads in it, in order.
+pub struct LidarCapture {
+    pub capture: Vec<u8>,
+    pub payloads: Vec<Vec<u8>>,
+}
+
+/// `packets` data packets of `model` in `mode` as the project's encoder writes them (the
+/// VLS-128's four bank flags, the HDL-64E's two), turning at 10 Hz from 2025-11-21T04:40Z on,
+/// each to UDP port 2368 of an Ethernet pcapng, received 100 µs after its first firing; with
+/// `rmc`, a position packet (port 8308, a valid GPRMC) first.
+pub fn lidar_capture(
+    model: hilrig::velodyne::Model,
+    mode: hilrig::velodyne::ReturnMode,
+    packets: usize,
+    rmc: bool,
+) -> LidarCapture {
+    lidar_capture_at(model, mode, packets, rmc, 1_763_700_000_000_000_000)
+}
+
+/// [`lidar_capture`] starting at `t0` (UTC ns): a capture's clock that was never set reads 1970.
+pub fn lidar_capture_at(
+    model: hilrig::velodyne::Model,
+    mode: hilrig::velodyne::ReturnMode,
+    packets: usize,
+    rmc: bool,
+    t0: i64,
+) -> LidarCapture {
+    use hilrig::capture::writer::udp_ethernet_frame;
+    use hilrig::capture::{LinkType, PcapngWriter, UtcNanos};
+    use hilrig::velodyne::{Channel, PacketEncoder, PositionPacket, PpsStatus, Sequence};
+    use std::net::{Ipv4Addr, SocketAddrV4};
+    let ep = |port| SocketAddrV4::new(Ipv4Addr::new(192, 168, 1, 201), port);
+    let mut w = PcapngWriter::new(Vec::new(), "hilrig tests/common").unwrap();
+    let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
+    // The sensor's time of the first firing: the true time (the capture's clock may be unset).
+    let sensor0 = 1_763_700_000_000_000_000i64;
+    if rmc {
+        let body = "GPRMC,044000.00,A,4807.0380,N,01131.0000,E,0.0,0.0,211125,,,A";
+        let toh = (UtcNanos(sensor0).nanos_past_hour() / 1000) as u32;
+        let p = PositionPacket::new(toh, PpsStatus::Locked, &nmea(body));
+        w.write_packet(
+            eth,
+            UtcNanos(t0 - 1_000_000),
+            &udp_ethernet_frame(ep(8308), ep(8308), &p.encode()),
+        )
+        .unwrap();
+    }
+    let seq_us = model.timing().sequence_us;
+    let mut enc = PacketEncoder::new(model, mode);
+    let mut payloads = Vec::new();
+    let mut k = 0usize;
+    let mut first_of_packet = 0usize;
+    while payloads.len() < packets {
+        let t_ns = (k as f64 * seq_us * 1000.0) as i64;
+        let strongest: Vec<Channel> = (0..model.lasers())
+            .map(|l| Channel {
+                distance: (1000 + (k * 7 + l * 13) % 20_000) as u16,
+                reflectivity: (k + l) as u8,
+            })
+            .collect();
+        let last = (mode == hilrig::velodyne::ReturnMode::Dual).then(|| {
+            strongest
+                .iter()
+                .map(|c| Channel {
+                    distance: c.distance + 300 * (k % 2) as u16,
+                    ..*c
+                })
+                .collect()
+        });
+        let seq = Sequence {
+            azimuth: ((t_ns as f64 * 1e-9 * 10.0 * 36_000.0) as u64 % 36_000) as u16,
+            strongest,
+            last,
+        };
+        let toh = (UtcNanos(sensor0 + t_ns).nanos_past_hour() / 1000) as u32;
+        if k.is_multiple_of(enc.sequences_per_packet()) {
+            first_of_packet = k;
+        }
+        if let Some(p) = enc.push(&seq, toh).unwrap() {
+            let first_ns = (first_of_packet as f64 * seq_us * 1000.0) as i64;
+            let bytes = p.encode().to_vec();
+            w.write_packet(
+                eth,
+                UtcNanos(t0 + first_ns + 100_000),
+                &udp_ethernet_frame(ep(2368), ep(2368), &bytes),
+            )
+            .unwrap();
+            payloads.push(bytes);
+        }
+        k += 1;
+    }
+    LidarCapture {
+        capture: w.finish().unwrap(),
+        payloads,
+    }
+}
+
+/// An NMEA sentence with its checksum and line end.
+pub fn nmea(body: &str) -> String {
+    hilrig::gnss::framer::nmea_sentence(body)
+}
+
+/// The lidar data packets of a capture or recording, in the order replay would send them (the
+/// project's checked MCAP reader for recordings).
+pub fn lidar_data(path: &std::path::Path) -> Vec<Vec<u8>> {
+    let (items, damage) = hilrig::replay::load(path, 2368, 8308).unwrap();
+    assert!(damage.is_none(), "{}: {damage:?}", path.display());
+    items
+        .into_iter()
+        .filter_map(|i| match i.payload {
+            hilrig::replay::Payload::LidarData(b) => Some(b),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The lidar packets a recording says it left out (its `hilrig/end` metadata).
+pub fn recorded_rejects(path: &std::path::Path) -> hilrig::record::rejects::LidarRejects {
+    let info = hilrig::bag::info::info(path).unwrap();
+    let end = info
+        .metadata
+        .get("hilrig/end")
+        .expect("hilrig/end metadata");
+    hilrig::record::rejects::LidarRejects::from_metadata(end)
+        .unwrap()
+        .expect("lidar reject counts in hilrig/end")
+}

@@ -71,6 +71,11 @@ impl HourResolver {
         }
     }
 
+    /// Whether a valid RMC has been seen: from then on every timestamp resolves.
+    pub fn has_rmc(&self) -> bool {
+        self.rmc.is_some()
+    }
+
     /// Absolute time of a data packet stamped `toh_us`, received at `host`, or `None` when
     /// neither an RMC nor a plausible host clock gives the hour.
     pub fn resolve(&self, toh_us: u32, host: UtcNanos) -> Option<(UtcNanos, HourSource)> {

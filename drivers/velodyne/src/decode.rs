@@ -167,6 +167,26 @@ fn azimuth_span(a: u16, b: u16) -> f64 {
     f64::from((i32::from(b % 36_000) - i32::from(a % 36_000)).rem_euclid(36_000))
 }
 
+/// Why block `block`'s flag does not fit `model`: another model's bank flag, or no Velodyne
+/// flag at all.
+fn flag_error(model: Model, block: usize, flag: u16) -> DecodeError {
+    let offset = block * crate::packet::BLOCK_SIZE;
+    if FLAGS_BANK.contains(&flag) {
+        DecodeError::ForeignBankFlag {
+            block,
+            offset,
+            got: flag,
+            model,
+        }
+    } else {
+        DecodeError::BadBlockFlag {
+            block,
+            offset,
+            got: flag,
+        }
+    }
+}
+
 /// The rotation rate between two packets, hundredths of a degree per µs, from their first
 /// blocks' azimuths and their stamps; `None` when the stamps are not a few ms apart in order
 /// (a gap, a new hour, packets from different spins).
@@ -307,11 +327,7 @@ impl Decoder {
             .find(|(_, b)| b.flag != FLAG_UPPER)
         {
             // Only the VLS-128 (and the HDL-64E) use the other banks' flags.
-            return Err(DecodeError::BadBlockFlag {
-                block,
-                offset: block * crate::packet::BLOCK_SIZE,
-                got: b.flag,
-            });
+            return Err(flag_error(self.model, block, b.flag));
         }
         let dual = mode == ReturnMode::Dual;
         let columns = if dual { BLOCKS / 2 } else { BLOCKS };
@@ -402,11 +418,7 @@ impl Decoder {
             FLAGS_BANK[..2]
                 .iter()
                 .position(|f| *f == flag)
-                .ok_or(DecodeError::BadBlockFlag {
-                    block: b,
-                    offset: b * crate::packet::BLOCK_SIZE,
-                    got: flag,
-                })
+                .ok_or_else(|| flag_error(self.model, b, flag))
         };
         let rate = hdl64e_rate(self.model, pkt);
         let dual = hdl64e_dual(pkt);
@@ -415,10 +427,11 @@ impl Decoder {
             for i in (0..BLOCKS).filter(|i| i % 4 < 2) {
                 let k = bank(i)?;
                 if bank(i + 2)? != k {
-                    return Err(DecodeError::BadBlockFlag {
+                    return Err(DecodeError::BankPairMismatch {
                         block: i + 2,
                         offset: (i + 2) * crate::packet::BLOCK_SIZE,
                         got: pkt.blocks[i + 2].flag,
+                        pair: pkt.blocks[i].flag,
                     });
                 }
                 for j in 0..CHANNELS {
@@ -501,10 +514,11 @@ impl Decoder {
             for pair in 0..4 {
                 let (lb, sb) = (2 * pair, 2 * pair + 1);
                 if banks[lb] != banks[sb] {
-                    return Err(DecodeError::BadBlockFlag {
+                    return Err(DecodeError::BankPairMismatch {
                         block: sb,
                         offset: sb * crate::packet::BLOCK_SIZE,
                         got: pkt.blocks[sb].flag,
+                        pair: pkt.blocks[lb].flag,
                     });
                 }
                 for ch in 0..CHANNELS {

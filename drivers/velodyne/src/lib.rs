@@ -5,11 +5,13 @@
 //! is passed in), which is what the tests, the fuzzers, the simulator and replay use. The tokio
 //! UDP source ([`source`], feature `tokio`) is a thin shell that only moves bytes and stamps them.
 //!
-//! Supported: VLP-16, Puck Hi-Res, VLP-32C, HDL-32E, in strongest, last and dual return.
+//! Supported: VLP-16, Puck Hi-Res, VLP-32A/B/C, HDL-32E, VLS-128, HDL-64E S2/S3, in strongest,
+//! last and dual return.
 
 #![warn(missing_docs)]
 
 pub mod calibration;
+pub mod check;
 pub mod clock;
 pub mod decode;
 pub mod encode;

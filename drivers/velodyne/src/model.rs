@@ -37,6 +37,15 @@ pub enum Model {
     Hdl64eS3,
 }
 
+/// Block flag of the upper laser bank, the only one 16/32-laser models use (`FF EE` on the
+/// wire; [`crate::packet`] has the layout).
+pub const FLAG_UPPER: u16 = 0xEEFF;
+/// The block flags of the VLS-128's four banks of 32 lasers (`FF EE`, `FF DD`, `FF CC`,
+/// `FF BB` on the wire), in laser order; the HDL-64E's lower bank writes the second.
+pub const FLAGS_BANK: [u16; 4] = [FLAG_UPPER, 0xDDFF, 0xCCFF, 0xBBFF];
+/// The HDL-64E's block flags: upper bank (`FF EE`) and lower bank (`FF DD`).
+pub const FLAGS_BANK_64E: [u16; 2] = [FLAGS_BANK[0], FLAGS_BANK[1]];
+
 /// The factory byte of a data packet (byte 1205).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ProductId(pub u8);
@@ -337,6 +346,50 @@ impl Model {
             Model::Vls128 => ProductId::VLS128,
             // The HDL-64E writes status bytes there, not a product id.
             Model::Hdl64eS2 | Model::Hdl64eS3 => ProductId(0),
+        }
+    }
+
+    /// Whether a packet with product byte `id` can come from this model: a recorder that knows
+    /// its sensor rejects what another sensor on the same port sends.
+    ///
+    /// Besides its own byte, the VLP-16 may write 0x21 (early firmware writes the HDL-32E's
+    /// byte, see [`Model::from_product`]) and the HDL-32E 0x00 (firmware that leaves the
+    /// factory bytes unset, as its return-mode byte, which [`crate::Decoder`] reads as single
+    /// return). The HDL-64E has no product byte (status bytes are there): any byte fits.
+    pub fn sends_product(self, id: ProductId) -> bool {
+        match self {
+            Model::Hdl64eS2 | Model::Hdl64eS3 => true,
+            Model::Vlp16 => id == ProductId::VLP16 || id == ProductId::HDL32E,
+            Model::Hdl32e => id == ProductId::HDL32E || id == ProductId(0),
+            m => id == m.product(),
+        }
+    }
+
+    /// The block flags this model writes: the four banks' on the VLS-128, the upper and lower
+    /// bank's on the HDL-64E, the upper bank's (`FF EE`) on the others.
+    pub fn block_flags(self) -> &'static [u16] {
+        match self {
+            Model::Vls128 => &FLAGS_BANK,
+            Model::Hdl64eS2 | Model::Hdl64eS3 => &FLAGS_BANK_64E,
+            _ => &FLAGS_BANK[..1],
+        }
+    }
+
+    /// What a product byte names, for messages: the model(s) hilrig knows it as, or the
+    /// Velodyne product hilrig does not decode.
+    pub fn describe_product(id: ProductId) -> String {
+        if let Some(m) = Model::from_product(id) {
+            return format!("a {m}'s");
+        }
+        let models = Model::ambiguous_product(id);
+        if !models.is_empty() {
+            let names: Vec<&str> = models.iter().map(|m| m.name()).collect();
+            return format!("a {}'s", names.join(" or "));
+        }
+        match id.0 {
+            0x31 => "a Velarray's (not decoded by hilrig)".to_owned(),
+            0x40 => "a VLP-128's (not decoded by hilrig)".to_owned(),
+            _ => "no Velodyne model hilrig knows".to_owned(),
         }
     }
 

@@ -20,11 +20,9 @@ pub const BLOCKS: usize = 12;
 pub const CHANNELS: usize = 32;
 /// Bytes per block.
 pub const BLOCK_SIZE: usize = 100;
-/// Block flag of the upper laser bank, the only one 16/32-laser models use.
-pub const FLAG_UPPER: u16 = 0xEEFF;
-/// The block flags of the VLS-128's four banks of 32 lasers (`FF EE`, `FF DD`, `FF CC`,
-/// `FF BB` on the wire), in laser order; the HDL-64E's lower bank writes the second.
-pub const FLAGS_BANK: [u16; 4] = [FLAG_UPPER, 0xDDFF, 0xCCFF, 0xBBFF];
+// The block flags: which model writes which is a fact of the models (`Model::block_flags`),
+// so they are defined there.
+pub use crate::model::{FLAGS_BANK, FLAGS_BANK_64E, FLAG_UPPER};
 
 /// The return mode byte (1204).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

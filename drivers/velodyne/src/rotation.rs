@@ -6,6 +6,7 @@
 //! fixed time (the firing cycle times the columns per packet), so a gap of n periods is n - 1
 //! lost packets. Time jumps (sensor re-synchronised, clock reset) are counted apart, not as loss.
 
+use crate::model::Model;
 use crate::packet::{DataPacket, DATA_PACKET_SIZE};
 use hilrig_stamp::Stamped;
 
@@ -28,47 +29,24 @@ impl RotationPacket for DataPacket {
     }
 }
 
-/// A data packet's payload as received (already checked to be a valid data packet).
+/// A data packet's payload as received, checked to be a packet of the rig's model.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RawDataPacket(pub Box<[u8; DATA_PACKET_SIZE]>);
 
 impl RawDataPacket {
-    /// Wraps a payload after checking size, block flags and azimuths (as [`DataPacket::decode`]
-    /// does, without decoding the channels).
-    pub fn new(bytes: &[u8]) -> Result<RawDataPacket, crate::DecodeError> {
-        let arr = RawDataPacket::check(bytes)?;
+    /// Wraps a payload after checking that it is a data packet `model` sends
+    /// ([`crate::check::data_packet`]).
+    pub fn new(bytes: &[u8], model: Model) -> Result<RawDataPacket, crate::DecodeError> {
+        let arr = RawDataPacket::check(bytes, model)?;
         Ok(RawDataPacket(Box::new(*arr)))
     }
 
     /// The checks of [`RawDataPacket::new`] without copying; gives the payload as an array.
-    pub fn check(bytes: &[u8]) -> Result<&[u8; DATA_PACKET_SIZE], crate::DecodeError> {
-        let arr: &[u8; DATA_PACKET_SIZE] =
-            bytes
-                .try_into()
-                .map_err(|_| crate::DecodeError::WrongSize {
-                    expected: DATA_PACKET_SIZE,
-                    got: bytes.len(),
-                })?;
-        for i in 0..crate::packet::BLOCKS {
-            let o = i * crate::packet::BLOCK_SIZE;
-            let flag = u16::from_le_bytes([arr[o], arr[o + 1]]);
-            if flag != crate::packet::FLAG_UPPER {
-                return Err(crate::DecodeError::BadBlockFlag {
-                    block: i,
-                    offset: o,
-                    got: flag,
-                });
-            }
-            let az = u16::from_le_bytes([arr[o + 2], arr[o + 3]]);
-            if az > 36_000 {
-                return Err(crate::DecodeError::AzimuthOutOfRange {
-                    block: i,
-                    offset: o + 2,
-                    got: az,
-                });
-            }
-        }
-        Ok(arr)
+    pub fn check(
+        bytes: &[u8],
+        model: Model,
+    ) -> Result<&[u8; DATA_PACKET_SIZE], crate::DecodeError> {
+        crate::check::data_packet(bytes, model)
     }
 
     /// Sensor timestamp of a checked payload, microseconds past the hour.

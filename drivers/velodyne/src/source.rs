@@ -158,9 +158,20 @@ pub enum LidarItem {
     Rejected {
         /// Receive time.
         host: UtcNanos,
+        /// The socket it came in on.
+        port: PacketPort,
         /// Why.
         error: DecodeError,
     },
+}
+
+/// Which of the sensor's sockets a datagram came in on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum PacketPort {
+    /// The data port (1206-byte data packets).
+    Data,
+    /// The position port (512-byte position packets).
+    Position,
 }
 
 /// Counters of the lidar source.
@@ -192,7 +203,9 @@ pub struct LidarSource {
 
 impl LidarSource {
     /// Binds the data port and, if given, the position port. `model` fixes the packet period for
-    /// loss counting; otherwise it is taken from the first packet's product byte.
+    /// loss counting (otherwise it is taken from the first packet's product byte), and data
+    /// packets are checked to be that model's ([`crate::check::data_packet`]): another sensor's
+    /// packets on the port come out as [`LidarItem::Rejected`].
     pub fn bind(
         data: SocketAddr,
         position: Option<SocketAddr>,
@@ -231,14 +244,20 @@ impl LidarSource {
         };
         if is_data {
             let bytes = &self.data_buf[..d.len];
-            if bytes.len() != DATA_PACKET_SIZE {
+            let checked = match self.model {
+                Some(m) => crate::check::data_packet(bytes, m).map(|_| ()),
+                None if bytes.len() != DATA_PACKET_SIZE => Err(DecodeError::WrongSize {
+                    expected: DATA_PACKET_SIZE,
+                    got: bytes.len(),
+                }),
+                None => Ok(()),
+            };
+            if let Err(error) = checked {
                 self.stats.rejected += 1;
                 return Ok(LidarItem::Rejected {
                     host: d.host,
-                    error: DecodeError::WrongSize {
-                        expected: DATA_PACKET_SIZE,
-                        got: bytes.len(),
-                    },
+                    port: PacketPort::Data,
+                    error,
                 });
             }
             match DataPacket::decode(bytes) {
@@ -268,6 +287,7 @@ impl LidarSource {
                     self.stats.rejected += 1;
                     Ok(LidarItem::Rejected {
                         host: d.host,
+                        port: PacketPort::Data,
                         error,
                     })
                 }
@@ -278,6 +298,7 @@ impl LidarSource {
                 self.stats.rejected += 1;
                 return Ok(LidarItem::Rejected {
                     host: d.host,
+                    port: PacketPort::Position,
                     error: DecodeError::WrongSize {
                         expected: POSITION_PACKET_SIZE,
                         got: bytes.len(),
@@ -293,6 +314,7 @@ impl LidarSource {
                     self.stats.rejected += 1;
                     Ok(LidarItem::Rejected {
                         host: d.host,
+                        port: PacketPort::Position,
                         error,
                     })
                 }

@@ -1,0 +1,281 @@
+//! Lidar packets the recorder left out, counted per reason.
+//!
+//! Both recorders (`--from` and live) keep one [`LidarRejects`]: printed at the end (and in the
+//! live health lines), written into the recording's `hilrig/end` metadata and read back from it
+//! through the same type, so that a recording says itself what it is missing and why. Any
+//! rejected packet makes `hilrig record` exit 1.
+
+use hilrig_velodyne::source::PacketPort;
+use hilrig_velodyne::DecodeError;
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// Why a lidar packet was not recorded: the cause without the packet's details, the key the
+/// packets are counted by.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum RejectReason {
+    /// A data-port payload that is not 1206 bytes.
+    WrongSize,
+    /// A block flag that no Velodyne sensor writes (malformed bytes).
+    BadBlockFlag,
+    /// A bank flag of another model (the VLS-128's banks on a 32-laser sensor's port).
+    ForeignBankFlag,
+    /// A block azimuth above 36000.
+    AzimuthOutOfRange,
+    /// A return-mode byte no decoder reads.
+    UnsupportedReturnMode,
+    /// Another sensor's packet: the product byte found.
+    OtherSensor(u8),
+    /// A timestamp whose hour nothing gives: no position packet with a valid RMC, and the
+    /// capture's clock before 2000 (unset).
+    NoHour,
+    /// A position-port datagram that is not a position packet.
+    PositionPacket,
+    /// Anything else the driver refuses.
+    Other,
+}
+
+impl RejectReason {
+    /// The reason a packet from `port` was refused with `error`.
+    pub fn of(port: PacketPort, error: &DecodeError) -> RejectReason {
+        if port == PacketPort::Position {
+            return RejectReason::PositionPacket;
+        }
+        match error {
+            DecodeError::WrongSize { .. } => RejectReason::WrongSize,
+            DecodeError::BadBlockFlag { .. } => RejectReason::BadBlockFlag,
+            DecodeError::ForeignBankFlag { .. } => RejectReason::ForeignBankFlag,
+            DecodeError::AzimuthOutOfRange { .. } => RejectReason::AzimuthOutOfRange,
+            DecodeError::UnsupportedReturnMode(_) => RejectReason::UnsupportedReturnMode,
+            DecodeError::OtherSensor { got, .. } => RejectReason::OtherSensor(*got),
+            _ => RejectReason::Other,
+        }
+    }
+
+    /// The name in the metadata (`wrong_size`, `other_sensor_0x22`, ...).
+    pub fn key(self) -> String {
+        match self {
+            RejectReason::WrongSize => "wrong_size".into(),
+            RejectReason::BadBlockFlag => "bad_block_flag".into(),
+            RejectReason::ForeignBankFlag => "foreign_bank_flag".into(),
+            RejectReason::AzimuthOutOfRange => "azimuth_out_of_range".into(),
+            RejectReason::UnsupportedReturnMode => "unsupported_return_mode".into(),
+            RejectReason::OtherSensor(p) => format!("other_sensor_{p:#04x}"),
+            RejectReason::NoHour => "no_hour".into(),
+            RejectReason::PositionPacket => "position_packet".into(),
+            RejectReason::Other => "other".into(),
+        }
+    }
+
+    /// The reason named by [`RejectReason::key`].
+    pub fn from_key(key: &str) -> Option<RejectReason> {
+        Some(match key {
+            "wrong_size" => RejectReason::WrongSize,
+            "bad_block_flag" => RejectReason::BadBlockFlag,
+            "foreign_bank_flag" => RejectReason::ForeignBankFlag,
+            "azimuth_out_of_range" => RejectReason::AzimuthOutOfRange,
+            "unsupported_return_mode" => RejectReason::UnsupportedReturnMode,
+            "no_hour" => RejectReason::NoHour,
+            "position_packet" => RejectReason::PositionPacket,
+            "other" => RejectReason::Other,
+            k => {
+                let hex = k.strip_prefix("other_sensor_0x")?;
+                RejectReason::OtherSensor(u8::from_str_radix(hex, 16).ok()?)
+            }
+        })
+    }
+
+    /// Whether the reason concerns a data packet (not a position packet).
+    pub fn is_data(self) -> bool {
+        self != RejectReason::PositionPacket
+    }
+}
+
+impl fmt::Display for RejectReason {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RejectReason::WrongSize => f.write_str("wrong size"),
+            RejectReason::BadBlockFlag => f.write_str("bad block flag"),
+            RejectReason::ForeignBankFlag => f.write_str("another model's bank flag"),
+            RejectReason::AzimuthOutOfRange => f.write_str("azimuth out of range"),
+            RejectReason::UnsupportedReturnMode => f.write_str("unsupported return mode"),
+            RejectReason::OtherSensor(p) => write!(f, "another sensor (product byte {p:#04x})"),
+            RejectReason::NoHour => f.write_str("no hour for the timestamp"),
+            RejectReason::PositionPacket => f.write_str("bad position packet"),
+            RejectReason::Other => f.write_str("other"),
+        }
+    }
+}
+
+/// Metadata key of the total (in `hilrig/end`); per reason `lidar_rejected.KEY`, and its first
+/// packet `lidar_rejected.KEY.first`.
+const TOTAL: &str = "lidar_rejected";
+
+/// The lidar packets a recording left out: counts per reason and, per reason, where the first
+/// one was and what was wrong with it (the full error: offsets, expected and found values).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LidarRejects {
+    /// Packets per reason.
+    pub counts: BTreeMap<RejectReason, u64>,
+    /// The first packet of each reason: where (file and byte offset, or receive time) and why.
+    pub first: BTreeMap<RejectReason, String>,
+}
+
+impl LidarRejects {
+    /// Counts one packet; `describe` says where it was and why (called for a reason's first
+    /// packet only, so counting stays cheap).
+    pub fn add(&mut self, reason: RejectReason, describe: impl FnOnce() -> String) {
+        *self.counts.entry(reason).or_default() += 1;
+        self.first.entry(reason).or_insert_with(describe);
+    }
+
+    /// Packets rejected, data and position.
+    pub fn total(&self) -> u64 {
+        self.counts.values().sum()
+    }
+
+    /// Data packets rejected.
+    pub fn data_packets(&self) -> u64 {
+        self.counts
+            .iter()
+            .filter(|(r, _)| r.is_data())
+            .map(|(_, n)| n)
+            .sum()
+    }
+
+    /// Nothing rejected.
+    pub fn is_empty(&self) -> bool {
+        self.counts.is_empty()
+    }
+
+    /// The counts in one line (`bad block flag 3, wrong size 1`), for health lines.
+    pub fn brief(&self) -> String {
+        self.counts
+            .iter()
+            .map(|(r, n)| format!("{r} {n}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// One line per reason with its count and first packet, for the end of a recording.
+    pub fn lines(&self) -> Vec<String> {
+        self.counts
+            .iter()
+            .map(|(r, n)| match self.first.get(r) {
+                Some(first) => format!("{r}: {n} (first: {first})"),
+                None => format!("{r}: {n}"),
+            })
+            .collect()
+    }
+
+    /// Writes the counts into `meta` (the `hilrig/end` metadata); the total always, so that a
+    /// recording without rejects says so.
+    pub fn write_metadata(&self, meta: &mut BTreeMap<String, String>) {
+        meta.insert(TOTAL.to_owned(), self.total().to_string());
+        for (r, n) in &self.counts {
+            meta.insert(format!("{TOTAL}.{}", r.key()), n.to_string());
+        }
+        for (r, first) in &self.first {
+            meta.insert(format!("{TOTAL}.{}.first", r.key()), first.clone());
+        }
+    }
+
+    /// Reads what [`LidarRejects::write_metadata`] wrote; `None` when the metadata has no
+    /// reject counts (a recording by an older hilrig), an error naming the entry that does not
+    /// read.
+    pub fn from_metadata(meta: &BTreeMap<String, String>) -> Result<Option<LidarRejects>, String> {
+        let Some(total) = meta.get(TOTAL) else {
+            return Ok(None);
+        };
+        let mut out = LidarRejects::default();
+        let prefix = format!("{TOTAL}.");
+        for (k, v) in meta {
+            let Some(rest) = k.strip_prefix(&prefix) else {
+                continue;
+            };
+            let (key, first) = match rest.strip_suffix(".first") {
+                Some(key) => (key, true),
+                None => (rest, false),
+            };
+            let reason = RejectReason::from_key(key)
+                .ok_or_else(|| format!("metadata {k}: no reject reason is called {key}"))?;
+            if first {
+                out.first.insert(reason, v.clone());
+            } else {
+                let n = v
+                    .parse()
+                    .map_err(|_| format!("metadata {k}: {v:?} is not a count"))?;
+                out.counts.insert(reason, n);
+            }
+        }
+        let total: u64 = total
+            .parse()
+            .map_err(|_| format!("metadata {TOTAL}: {total:?} is not a count"))?;
+        if total != out.total() {
+            return Err(format!(
+                "metadata {TOTAL} is {total} but the reasons add up to {}",
+                out.total()
+            ));
+        }
+        Ok(Some(out))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hilrig_velodyne::Model;
+
+    #[test]
+    fn reasons_round_trip_through_the_metadata() {
+        let mut r = LidarRejects::default();
+        let other = DecodeError::OtherSensor {
+            got: 0x22,
+            expected: Model::Vls128,
+        };
+        for i in 0..3 {
+            r.add(RejectReason::of(PacketPort::Data, &other), || {
+                format!("a.pcap byte {}: {other}", 24 + 1250 * i)
+            });
+        }
+        r.add(RejectReason::NoHour, || "b".into());
+        r.add(
+            RejectReason::of(
+                PacketPort::Position,
+                &DecodeError::WrongSize {
+                    expected: 512,
+                    got: 3,
+                },
+            ),
+            || "c".into(),
+        );
+        assert_eq!(r.total(), 5);
+        assert_eq!(r.data_packets(), 4);
+        // The first packet of a reason is kept, not the latest.
+        assert_eq!(
+            r.first[&RejectReason::OtherSensor(0x22)],
+            format!("a.pcap byte 24: {other}")
+        );
+        let mut meta = BTreeMap::new();
+        r.write_metadata(&mut meta);
+        assert_eq!(meta["lidar_rejected.other_sensor_0x22"], "3");
+        assert_eq!(LidarRejects::from_metadata(&meta), Ok(Some(r.clone())));
+        assert!(r.brief().contains("another sensor (product byte 0x22) 3"));
+        meta.insert("lidar_rejected".into(), "6".into());
+        assert!(LidarRejects::from_metadata(&meta).is_err());
+        assert_eq!(LidarRejects::from_metadata(&BTreeMap::new()), Ok(None));
+        for reason in [
+            RejectReason::WrongSize,
+            RejectReason::BadBlockFlag,
+            RejectReason::ForeignBankFlag,
+            RejectReason::AzimuthOutOfRange,
+            RejectReason::UnsupportedReturnMode,
+            RejectReason::OtherSensor(0xA1),
+            RejectReason::NoHour,
+            RejectReason::PositionPacket,
+            RejectReason::Other,
+        ] {
+            assert_eq!(RejectReason::from_key(&reason.key()), Some(reason));
+        }
+    }
+}
