@@ -291,3 +291,41 @@ fn synth_refuses_a_path_no_car_can_drive_and_writes_nothing() {
     assert_eq!(out.status.code(), Some(2));
     assert_eq!(std::fs::read_dir(&out_dir).unwrap().count(), 0);
 }
+
+/// Every committed repetition, recorded with the demo rig, passes `check` with its surveyed
+/// scene: the bundled drives have every source (lidar data, GNSS fixes, CAN ego motion) and
+/// a reference accurate enough, so that what the tests and the demo compare is the model.
+#[test]
+fn every_committed_repetition_passes_check() {
+    let dir = tempfile::tempdir().unwrap();
+    for n in 1..=REPS {
+        let run = dir.path().join(format!("run{n}.mcap"));
+        let rec = record_from(&demo_rig(), &[&rep(n).join("drive.pcapng.zst")], &run);
+        assert!(
+            rec.status.success(),
+            "rep {n}: {}",
+            String::from_utf8_lossy(&rec.stderr)
+        );
+        let json = dir.path().join(format!("check{n}.json"));
+        let out = std::process::Command::new(hilrig_bin())
+            .arg("check")
+            .arg(&run)
+            .arg("--scene")
+            .arg(rep(n).join("scene.toml"))
+            .arg("--json")
+            .arg(&json)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(out.status.code(), Some(0), "rep {n}: {text}");
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(v["verdict"], "pass", "rep {n}");
+        assert_eq!(v["faults"], serde_json::json!([]), "rep {n}: {text}");
+        assert!(v["temporal"]["sources"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|s| s["source"] == "lidar" && s["count"].as_u64().unwrap() > 1000));
+    }
+}

@@ -5,8 +5,9 @@
 //! spline that loops between close waypoints, a hairpin taken at cruise speed) makes a
 //! trajectory with yaw rates and accelerations that no vehicle, GNSS receiver or yaw-rate
 //! sensor would produce; `check` then finds jumps in a drive that was meant to be clean, and
-//! the user looks for a bug in the wrong place. Such a drive is refused before anything is
-//! written, with the place and the numbers.
+//! the user looks for a bug in the wrong place. `synth` refuses such a drive before anything
+//! is written, with the place and the numbers ([`super::drive::DriveFile::drivable`] says
+//! which limits refuse a drive and which are only named).
 //!
 //! The limits are those of a road-going passenger car at the edge of what it can physically
 //! do, not of comfortable driving: a drive between the two is odd but possible, and is kept.
@@ -144,34 +145,30 @@ pub fn beyond(points: &[PathPoint], limits: &CarLimits) -> Vec<Exceedance> {
         Quantity::Curvature,
         Quantity::CurvatureRate,
     ];
-    let mut out: Vec<Exceedance> = Vec::new();
+    // Each exceedance with its value as compared: NaN counts as beyond every number.
+    let mut out: Vec<(f64, Exceedance)> = Vec::new();
     for q in quantities {
         let limit = q.limit(limits);
-        let mut worst: Option<Exceedance> = None;
+        let mut worst: Option<(f64, Exceedance)> = None;
         for p in points {
             let value = q.value(p);
-            // `!(value <= limit)`: NaN is beyond every limit.
-            if !(value <= limit) && worst.is_none_or(|w| !(value <= w.value)) {
-                worst = Some(Exceedance {
-                    quantity: q,
-                    value,
-                    limit,
-                    at: *p,
-                });
-                if value.is_nan() {
-                    break;
-                }
+            let key = if value.is_nan() { f64::INFINITY } else { value };
+            if key > limit && worst.as_ref().is_none_or(|w| key > w.0) {
+                worst = Some((
+                    key,
+                    Exceedance {
+                        quantity: q,
+                        value,
+                        limit,
+                        at: *p,
+                    },
+                ));
             }
         }
         out.extend(worst);
     }
-    out.sort_by(|a, b| {
-        let excess = |e: &Exceedance| e.value / e.limit;
-        excess(b)
-            .partial_cmp(&excess(a))
-            .unwrap_or(std::cmp::Ordering::Less)
-    });
-    out
+    out.sort_by(|a, b| (b.0 / b.1.limit).total_cmp(&(a.0 / a.1.limit)));
+    out.into_iter().map(|(_, e)| e).collect()
 }
 
 impl std::fmt::Display for Exceedance {
