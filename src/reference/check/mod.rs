@@ -8,6 +8,9 @@
 //! which parts of the drive are usable and why the others are not.
 //!
 //! What is measured and how:
+//! - sources: a run without lidar data packets, GNSS fixes or CAN ego motion fails with a fault
+//!   per missing source (without GNSS or CAN there is no trajectory, and only the receiver's
+//!   own accuracy is measured);
 //! - spatial: RTK state per epoch, the receiver's sigmas (GST/UBX), correction age, jumps (GNSS
 //!   epochs that the smoothed GNSS+CAN trajectory cannot explain once the systematic errors below
 //!   are taken out), GNSS against CAN: speed scale by regressing GNSS speed on CAN speed (and
@@ -20,10 +23,10 @@
 //!   interpolation between them would cost.
 //!
 //! One file per kind of measurement, each a function over the run (and the smoothed trajectory)
-//! that returns its part of the [`Report`]: [`spatial`] (the receiver's own accuracy),
-//! [`consistency`] (GNSS against CAN), [`temporal`], [`budget`] (accuracy and grid cell);
-//! [`faults`] keeps the faults and cuts the run into segments; [`report`] is the report and
-//! its text. [`check`] composes them.
+//! that returns its part of the [`Report`]: [`sources`] (what the run lacks), [`spatial`] (the
+//! receiver's own accuracy), [`consistency`] (GNSS against CAN), [`temporal`], [`budget`]
+//! (accuracy and grid cell); [`names`] names the faults, [`faults`] keeps them and cuts the run
+//! into segments; [`report`] is the report and its text. [`check`] composes them.
 
 mod budget;
 mod consistency;
