@@ -9,6 +9,7 @@ time is measured around the process (best of three, to ride out a noisy shared m
 
 usage: benches/check_duration.py [MINUTES]
 """
+import math
 import os
 import subprocess
 import sys
@@ -20,19 +21,25 @@ minutes = float(sys.argv[1]) if len(sys.argv) > 1 else 10.0
 subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=root, check=True)
 exe = os.path.join(root, "target", "release", "hilrig")
 
-# A serpentine inside the parking scene's 120 m ground: legs of 100 m, 8 m apart.
+# A serpentine inside the parking scene's 120 m ground: legs of 100 m, 6 m apart, joined by half
+# circles of 3 m (a car turns on that; `synth` refuses a path tighter than a car can turn), with
+# waypoints every 2.5 m along the legs and every 45 degrees around the turns (2.3 m apart: a
+# Catmull-Rom spline through corners or unevenly spaced waypoints loops).
 speed = 2.2
-legs = max(1, int(minutes * 60 * speed / 108))
-points = []
-for i in range(legs + 1):
-    y = -40 + 8 * (i % 11)
-    xs = (-50.0, 50.0) if i % 2 == 0 else (50.0, -50.0)
-    points += [[xs[0], y], [xs[1], y]]
-# Round the corners: the spline needs distinct points.
+leg_m = 100 + math.pi * 3
+legs = max(1, int(minutes * 60 * speed / leg_m) + 1)
+if legs > 16:
+    sys.exit(f"at most {16 * leg_m / speed / 60:.0f} minutes of serpentine fit the scene")
 way = []
-for p in points:
-    if not way or way[-1] != p:
-        way.append(p)
+for i in range(legs):
+    y = -45.0 + 6 * i
+    xs = [-50.0 + 2.5 * k for k in range(41)]
+    way += [[x, y] for x in (xs if i % 2 == 0 else xs[::-1])]
+    if i + 1 < legs:
+        side = 1 if i % 2 == 0 else -1
+        for a in (-45, 0, 45):
+            r = math.radians(a)
+            way.append([round(50.0 * side + side * 3 * math.cos(r), 3), round(y + 3 + 3 * math.sin(r), 3)])
 
 with tempfile.TemporaryDirectory() as d:
     drive = os.path.join(d, "drive.toml")

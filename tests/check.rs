@@ -416,9 +416,11 @@ fn gpsd_states(name: &str) {
         .arg(&json)
         .output()
         .unwrap();
-    // No CAN in a receiver log: the run is unusable for re-simulation, the GNSS part is reported.
-    assert_eq!(out.status.code(), Some(2));
+    // No CAN and no lidar in a receiver log: the run fails for the two missing sources, and
+    // the GNSS part is reported (with the receiver's own faults).
+    assert_eq!(out.status.code(), Some(1));
     let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(names(&v)[..2], ["no_lidar_data", "no_ego_motion"]);
     let ours: std::collections::BTreeMap<String, String> = v["spatial"]["rtk_epochs"]
         .as_array()
         .unwrap()
@@ -789,4 +791,290 @@ fn a_run_marked_not_usable_throughout_fails() {
         "{err}"
     );
     assert!(!d.dir.path().join("sim.mcap").exists());
+}
+
+/// The capture `src` without the packets of its interfaces of link type `drop` (the interface
+/// itself stays declared): what a silent serial line or CAN bus leaves in a capture.
+fn capture_without(
+    src: &std::path::Path,
+    drop: hilrig::capture::LinkType,
+    out: &std::path::Path,
+) -> usize {
+    use hilrig::capture::{CaptureReader, PcapngWriter};
+    let mut r =
+        CaptureReader::new(std::io::BufReader::new(std::fs::File::open(src).unwrap())).unwrap();
+    let mut w = PcapngWriter::new(Vec::new(), "tests/check.rs").unwrap();
+    let (mut declared, mut dropped) = (0usize, 0usize);
+    while let Some(rec) = r.next_record() {
+        let rec = rec.unwrap();
+        let (interface, link, time, data) = (rec.interface, rec.link, rec.time, rec.data.to_vec());
+        while declared <= interface as usize {
+            let i = r.interfaces()[declared].clone();
+            w.add_interface(i.link, i.name.as_deref().unwrap_or(""))
+                .unwrap();
+            declared += 1;
+        }
+        if link == drop {
+            dropped += 1;
+        } else {
+            w.write_packet(interface, time, &data).unwrap();
+        }
+    }
+    std::fs::write(out, w.finish().unwrap()).unwrap();
+    dropped
+}
+
+/// `check` of `run` with the surveyed scene: exit code, stdout, JSON report.
+fn check_json(d: &SynthRun, run: &std::path::Path, name: &str) -> (Option<i32>, String, Value) {
+    let json = d.dir.path().join(format!("{name}.json"));
+    let out = Command::new(hilrig_bin())
+        .arg("check")
+        .arg(run)
+        .arg("--scene")
+        .arg(d.rep.join("scene.toml"))
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        v,
+    )
+}
+
+/// `hilrig resim` and `hilrig gap` on `run`, without and with `--force`: exit codes and
+/// standard errors.
+fn resim_and_gap(d: &SynthRun, run: &std::path::Path) -> [(Option<i32>, String, bool); 4] {
+    let scene = d.rep.join("scene.toml");
+    let model = fixture("parking/idealized.toml");
+    let go = |args: &[&std::ffi::OsStr], out: &std::path::Path| {
+        let o = Command::new(hilrig_bin()).args(args).output().unwrap();
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+            out.exists(),
+        )
+    };
+    let sim = d.dir.path().join("sim.mcap");
+    let gap_out = d.dir.path().join("gap");
+    let resim = |force: bool| {
+        let mut a: Vec<&std::ffi::OsStr> = vec![
+            "resim".as_ref(),
+            run.as_os_str(),
+            "--scene".as_ref(),
+            scene.as_os_str(),
+            "--model".as_ref(),
+            model.as_os_str(),
+            "-o".as_ref(),
+            sim.as_os_str(),
+        ];
+        if force {
+            a.push("--force".as_ref());
+        }
+        go(&a, &sim)
+    };
+    let gap = |force: bool| {
+        let mut a: Vec<&std::ffi::OsStr> = vec![
+            "gap".as_ref(),
+            "--real".as_ref(),
+            run.as_os_str(),
+            "--scene".as_ref(),
+            scene.as_os_str(),
+            "--model".as_ref(),
+            model.as_os_str(),
+            "--no-full-metrics".as_ref(),
+            "-o".as_ref(),
+            gap_out.as_os_str(),
+        ];
+        if force {
+            a.push("--force".as_ref());
+        }
+        go(&a, &gap_out.join("gap.json"))
+    };
+    [resim(false), resim(true), gap(false), gap(true)]
+}
+
+/// A recording made with the wrong lidar data port in the rig (the user's case: `record` said
+/// so and exited 1, `check` then passed it): `check` fails it with `no_lidar_data`, naming
+/// /velodyne_packets in the fault, its JSON and the report page; `resim` and `gap` refuse it,
+/// and with `--force` still stop, saying there are no /velodyne_packets.
+#[test]
+fn a_run_without_lidar_data_fails_and_is_not_re_simulated() {
+    let d = synth_and_record("", 31, true);
+    let dbc = demo_rig().with_file_name("hilrig-ego.dbc");
+    let rig_text = std::fs::read_to_string(demo_rig())
+        .unwrap()
+        .replace("data_port = 2368", "data_port = 2369")
+        .replace(
+            "\"hilrig-ego.dbc\"",
+            &format!("{:?}", dbc.display().to_string()),
+        );
+    assert!(rig_text.contains("data_port = 2369"));
+    let rig = d.dir.path().join("wrong-port.toml");
+    std::fs::write(&rig, rig_text).unwrap();
+    let run = d.dir.path().join("no-lidar.mcap");
+    let rec = record_from(&rig, &[&d.rep.join("drive.pcapng")], &run);
+    assert_eq!(
+        rec.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&rec.stderr)
+    );
+    assert!(run.exists());
+
+    let (code, text, v) = check_json(&d, &run, "no-lidar");
+    assert_eq!(code, Some(1), "{text}");
+    assert_eq!(v["verdict"], "fail");
+    // The reference itself is fine: the missing lidar is the only fault.
+    assert_eq!(names(&v), ["no_lidar_data"], "{text}");
+    let f = faults(&v, "no_lidar_data")[0];
+    assert_eq!(f["topics"], serde_json::json!(["/velodyne_packets"]));
+    let detail = f["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("/velodyne_packets") && detail.contains("2369"),
+        "{detail}"
+    );
+    // It spans the run, and so fails every segment.
+    assert_eq!(f["from_s"], 0.0);
+    assert_eq!(
+        f["to_s"].as_f64(),
+        v["duration_s"].as_f64().map(|x| (x * 1e3).round() / 1e3)
+    );
+    assert!(v["segments"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|s| s["verdict"] == "fail" && s["reasons"] == serde_json::json!(["no_lidar_data"])));
+    assert!(
+        text.contains("verdict: FAIL") && text.contains("no_lidar_data"),
+        "{text}"
+    );
+
+    // The report shows it: in the first table's check line and on the check timeline.
+    let html = d.dir.path().join("report.html");
+    hilrig_ok(&[
+        "report".as_ref(),
+        d.dir.path().join("no-lidar.json").as_os_str(),
+        "-o".as_ref(),
+        html.as_os_str(),
+    ]);
+    let page = std::fs::read_to_string(&html).unwrap();
+    assert!(page.contains("faults: no_lidar_data"), "glance line");
+    assert!(
+        page.matches("no_lidar_data").count() >= 2,
+        "the timeline names it too"
+    );
+
+    let [resim, resim_forced, gap, gap_forced] = resim_and_gap(&d, &run);
+    assert_eq!(resim.0, Some(1), "{}", resim.1);
+    assert!(
+        resim.1.contains("no_lidar_data") && resim.1.contains("--force"),
+        "{}",
+        resim.1
+    );
+    assert!(resim_forced.0.is_some_and(|c| c != 0), "{}", resim_forced.1);
+    assert!(
+        resim_forced.1.contains("no /velodyne_packets"),
+        "{}",
+        resim_forced.1
+    );
+    assert_eq!(gap.0, Some(2), "{}", gap.1);
+    assert!(gap.1.contains("no_lidar_data"), "{}", gap.1);
+    assert!(gap_forced.0.is_some_and(|c| c != 0), "{}", gap_forced.1);
+    assert!(
+        gap_forced.1.contains("no /velodyne_packets"),
+        "{}",
+        gap_forced.1
+    );
+    for (code, err, written) in [resim, resim_forced, gap, gap_forced] {
+        assert!(!written, "{code:?}: output written: {err}");
+    }
+}
+
+/// Recordings whose capture lost its GNSS serial stream, or its CAN frames: `check` fails
+/// each with one fault that names the missing source's topics (exit 1, in the JSON and the
+/// text), measures what it still can (the receiver's RTK states without CAN), and `resim`
+/// and `gap` refuse the run, forced or not.
+#[test]
+fn runs_without_gnss_fixes_or_ego_motion_fail_naming_the_topic() {
+    use hilrig::capture::LinkType;
+    let d = synth_and_record("", 32, true);
+    let cases = [
+        (
+            LinkType::USER0,
+            "no_gnss_fixes",
+            vec!["/gnss/nmea", "/gnss/ubx"],
+            "no RTK+CAN trajectory",
+        ),
+        (
+            LinkType::CAN_SOCKETCAN,
+            "no_ego_motion",
+            vec!["/ego/twist"],
+            "no RTK+CAN trajectory",
+        ),
+    ];
+    for (link, name, topics, forced_reason) in cases {
+        let capture = d.dir.path().join(format!("{name}.pcapng"));
+        let dropped = capture_without(&d.rep.join("drive.pcapng"), link, &capture);
+        assert!(dropped > 100, "{name}: {dropped} packets dropped");
+        let run = d.dir.path().join(format!("{name}.mcap"));
+        // `record` takes what there is (its exit says nothing about a silent serial line).
+        record_from(&demo_rig(), &[&capture], &run);
+        assert!(run.exists());
+        let (code, text, v) = check_json(&d, &run, name);
+        assert_eq!(code, Some(1), "{name}: {text}");
+        assert_eq!(v["verdict"], "fail");
+        assert_eq!(names(&v), [name], "{text}");
+        let f = faults(&v, name)[0];
+        assert_eq!(f["topics"], serde_json::json!(topics), "{name}");
+        for t in &topics {
+            assert!(f["detail"].as_str().unwrap().contains(t), "{name}: {f}");
+        }
+        assert!(
+            text.contains("verdict: FAIL") && text.contains(name),
+            "{text}"
+        );
+        assert!(text.contains("no reference trajectory"), "{text}");
+        // The fault spans what the run holds: the other sources' 20-odd seconds.
+        assert!(v["duration_s"].as_f64().unwrap() > 15.0, "{name}");
+        assert!(f["to_s"].as_f64().unwrap() > 15.0, "{name}: {f}");
+        if name == "no_ego_motion" {
+            // The receiver's own accuracy is still measured.
+            assert!(v["spatial"]["epochs"].as_u64().unwrap() > 100, "{name}");
+        }
+        let [resim, resim_forced, gap, gap_forced] = resim_and_gap(&d, &run);
+        assert_eq!(resim.0, Some(1), "{name}: {}", resim.1);
+        assert!(
+            resim.1.contains(name) && resim.1.contains("--force"),
+            "{name}: {}",
+            resim.1
+        );
+        assert!(
+            resim_forced.0.is_some_and(|c| c != 0),
+            "{name}: {}",
+            resim_forced.1
+        );
+        assert!(
+            resim_forced.1.contains(forced_reason),
+            "{name}: {}",
+            resim_forced.1
+        );
+        assert_eq!(gap.0, Some(2), "{name}: {}", gap.1);
+        assert!(gap.1.contains(name), "{name}: {}", gap.1);
+        assert!(
+            gap_forced.0.is_some_and(|c| c != 0),
+            "{name}: {}",
+            gap_forced.1
+        );
+        assert!(
+            gap_forced.1.contains(forced_reason),
+            "{name}: {}",
+            gap_forced.1
+        );
+        for (code, err, written) in [resim, resim_forced, gap, gap_forced] {
+            assert!(!written, "{name} {code:?}: output written: {err}");
+        }
+    }
 }

@@ -199,11 +199,10 @@ fn repetition_one_is_reproduced_byte_for_byte() {
         .arg(dir.path())
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    // A drive a car can do, as planned and as driven.
+    assert!(!stderr.contains("beyond what a car can do"), "{stderr}");
     for f in [
         "drive.pcapng.zst",
         "truth.csv",
@@ -214,5 +213,119 @@ fn repetition_one_is_reproduced_byte_for_byte() {
         let a = std::fs::read(dir.path().join("rep-01").join(f)).unwrap();
         let b = std::fs::read(rep(1).join(f)).unwrap();
         assert!(a == b, "rep-01/{f} differs from what synth makes now");
+    }
+}
+
+/// Waypoints whose spline loops (a user's drive: 7.9 rad/s at 8.8 m/s, which `check` then
+/// failed with 48 jumps): `synth` refuses the drive with exit 2, names the stretch between the
+/// two waypoints where it loops and the values against a car's limits, and writes nothing: no
+/// output directory, and nothing into one that exists.
+#[test]
+fn synth_refuses_a_path_no_car_can_drive_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(fixture("parking/drive.toml"))
+        .unwrap()
+        .replace(
+            "rig = \"../../rigs/demo.toml\"",
+            &format!("rig = {:?}", demo_rig().display().to_string()),
+        )
+        .replace(
+            "waypoints = [[-16.0, 0.0], [-6.0, 0.0], [-1.0, 0.4], [1.6, 1.8], [2.5, 3.6], [2.55, 4.8]]",
+            "waypoints = [[-30.0, 0.0], [-6.0, 0.0], [-4.0, 1.0], [-5.0, 2.0], [-6.0, 0.5], [14.0, 1.0]]",
+        )
+        .replace("cruise_speed_mps = 2.2", "cruise_speed_mps = 8.8");
+    assert!(text.contains("[-4.0, 1.0], [-5.0, 2.0]") && text.contains("8.8"));
+    let drive = dir.path().join("drive.toml");
+    std::fs::write(&drive, text).unwrap();
+    let synth = |out: &std::path::Path| {
+        std::process::Command::new(hilrig_bin())
+            .args(["synth", "--scene"])
+            .arg(fixture("parking/scene.toml"))
+            .arg("--drive")
+            .arg(&drive)
+            .arg("--truth")
+            .arg(fixture("parking/idealized.toml"))
+            .args(["--reps", "2", "-o"])
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let out_dir = dir.path().join("out");
+    let out = synth(&out_dir);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("drive.toml") && err.contains("no car can drive this path"),
+        "{err}"
+    );
+    // The loop lies between waypoints 2 and 4 (counted from 0); the message names the stretch
+    // with both waypoints' coordinates.
+    assert!(
+        err.contains("between waypoint 2 [-4, 1] and waypoint 3 [-5, 2]")
+            || err.contains("between waypoint 3 [-5, 2] and waypoint 4 [-6, 0.5]"),
+        "{err}"
+    );
+    // The values against the limits, with the speed it is driven at there.
+    let number_before = |unit: &str| -> f64 {
+        let at = err
+            .find(unit)
+            .unwrap_or_else(|| panic!("no '{unit}' in {err}"));
+        err[..at]
+            .rsplit(' ')
+            .find(|w| !w.is_empty())
+            .and_then(|w| w.parse().ok())
+            .unwrap_or_else(|| panic!("no number before '{unit}' in {err}"))
+    };
+    assert!(err.contains("lateral acceleration"), "{err}");
+    assert!(number_before(" m/s² (") > 8.83, "{err}");
+    assert!(err.contains("above the 8.8 m/s² (0.9 g)"), "{err}");
+    assert!(
+        err.contains("yaw rate") && number_before(" rad/s (") > 2.0,
+        "{err}"
+    );
+    assert!(err.contains("below the 2.2 m"), "{err}");
+    assert!(!out_dir.exists(), "an output directory was created");
+    // Into an existing directory, nothing is written either.
+    std::fs::create_dir(&out_dir).unwrap();
+    let out = synth(&out_dir);
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(std::fs::read_dir(&out_dir).unwrap().count(), 0);
+}
+
+/// Every committed repetition, recorded with the demo rig, passes `check` with its surveyed
+/// scene: the bundled drives have every source (lidar data, GNSS fixes, CAN ego motion) and
+/// a reference accurate enough, so that what the tests and the demo compare is the model.
+#[test]
+fn every_committed_repetition_passes_check() {
+    let dir = tempfile::tempdir().unwrap();
+    for n in 1..=REPS {
+        let run = dir.path().join(format!("run{n}.mcap"));
+        let rec = record_from(&demo_rig(), &[&rep(n).join("drive.pcapng.zst")], &run);
+        assert!(
+            rec.status.success(),
+            "rep {n}: {}",
+            String::from_utf8_lossy(&rec.stderr)
+        );
+        let json = dir.path().join(format!("check{n}.json"));
+        let out = std::process::Command::new(hilrig_bin())
+            .arg("check")
+            .arg(&run)
+            .arg("--scene")
+            .arg(rep(n).join("scene.toml"))
+            .arg("--json")
+            .arg(&json)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(out.status.code(), Some(0), "rep {n}: {text}");
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(v["verdict"], "pass", "rep {n}");
+        assert_eq!(v["faults"], serde_json::json!([]), "rep {n}: {text}");
+        assert!(v["temporal"]["sources"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|s| s["source"] == "lidar" && s["count"].as_u64().unwrap() > 1000));
     }
 }

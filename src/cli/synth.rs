@@ -55,6 +55,10 @@ pub fn run(args: SynthArgs) -> Result<ExitCode> {
         compress: args.compress,
         errors: !args.no_errors,
     };
+    // A drive no car can drive is refused before anything is written.
+    drive
+        .drivable()
+        .with_context(|| args.drive.display().to_string())?;
     std::fs::create_dir_all(&args.output)
         .with_context(|| format!("cannot create {}", args.output.display()))?;
     std::fs::write(args.output.join("truth-model.toml"), truth.to_toml())?;
@@ -81,6 +85,14 @@ pub fn run(args: SynthArgs) -> Result<ExitCode> {
             s.return_share * 100.0,
             s.yield_stop_s
         ));
+        for w in &s.beyond_car {
+            bar.suspend(|| {
+                eprintln!(
+                    "{}: warning: as driven (the driver model's steering, the human variation drawn for it), this repetition goes beyond what a car can do: {w}",
+                    dir.display()
+                );
+            });
+        }
         bar.inc(1);
     }
     bar.finish_and_clear();

@@ -28,6 +28,7 @@
 //! driver that turns it into a trajectory share their types; split, the format would be documented
 //! in one file and interpreted in another.
 
+use super::drivable::{beyond, Exceedance, PathPoint, Quantity, PASSENGER_CAR};
 use crate::scene::pose::{PoseSample, Trajectory};
 use hilrig_stamp::UtcNanos;
 use nalgebra::{Vector2, Vector3};
@@ -442,6 +443,8 @@ pub struct Driven {
     pub yield_stop: Option<(UtcNanos, UtcNanos)>,
     /// Drive start and end.
     pub span: (UtcNanos, UtcNanos),
+    /// The limits of a car this repetition exceeds as driven (see [`DriveFile::drivable`]).
+    pub beyond_car: Vec<Exceedance>,
 }
 
 /// Why a drive cannot be driven.
@@ -455,6 +458,53 @@ pub enum DriveError {
         /// What.
         what: String,
     },
+    /// The path as planned, at the speeds the drive passes it, is beyond what a car can do: a
+    /// trajectory no vehicle makes, which `check` would then find fault with.
+    #[error("drive '{name}': no car can drive this path: {}. Move or add waypoints so that the path turns more gently there (a spline through close or doubling-back waypoints loops), or lower cruise_speed_mps", beyond_text(.exceeded, .waypoints))]
+    Undrivable {
+        /// Drive name.
+        name: String,
+        /// Each limit exceeded, where it is exceeded most, the largest excess first.
+        exceeded: Vec<Exceedance>,
+        /// The drive's waypoints (to name the stretch each excess lies in).
+        waypoints: Vec<[f64; 2]>,
+    },
+}
+
+/// The limits exceeded and where: the stretch of the path (the two waypoints around it,
+/// counted from 0 as in the file) and the point, once for the limits exceeded at the same point.
+pub fn beyond_text(exceeded: &[Exceedance], waypoints: &[[f64; 2]]) -> String {
+    let wp = |i: usize| {
+        waypoints
+            .get(i)
+            .map_or_else(String::new, |w| format!(" [{}, {}]", w[0], w[1]))
+    };
+    let mut places: Vec<(PathPoint, Vec<String>)> = Vec::new();
+    for e in exceeded {
+        match places.iter_mut().find(|(p, _)| *p == e.at) {
+            Some((_, what)) => what.push(e.to_string()),
+            None => places.push((e.at, vec![e.to_string()])),
+        }
+    }
+    places
+        .iter()
+        .map(|(p, what)| {
+            format!(
+                "between waypoint {}{} and waypoint {}{} (counted from 0; {:.1} m along the path, at [{:.2}, {:.2}], passed at {:.1} m/s on a radius of {:.2} m): {}",
+                p.segment,
+                wp(p.segment),
+                p.segment + 1,
+                wp(p.segment + 1),
+                p.s_m,
+                p.position[0],
+                p.position[1],
+                p.speed_mps,
+                1.0 / p.curvature_per_m.abs(),
+                what.join(", ")
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 fn catmull_rom(points: &[Vector2<f64>], per_segment: usize) -> Vec<Vector2<f64>> {
@@ -584,6 +634,94 @@ impl Polyline {
     }
 }
 
+/// Catmull-Rom points per stretch between two waypoints.
+const SPLINE_POINTS_PER_SEGMENT: usize = 200;
+
+/// Spacing of the driven path's points, m.
+const PATH_STEP_M: f64 = 0.02;
+
+/// Half the arc length over which the change of curvature is measured, m: a quarter of the
+/// steering transition, short enough to see the steepest part of its ramp.
+const CURVATURE_CHANGE_HALF_M: f64 = STEER_TRANSITION_M / 4.0;
+
+/// The path as driven, point by point: curvature and its change from the steered path, the
+/// speed it is passed at from the speed profile `samples` (time, arc length, speed), and the
+/// stretch between two waypoints each point came from (`planned`: the spline, whose
+/// [`SPLINE_POINTS_PER_SEGMENT`] points per stretch the driven points were laid along, one
+/// every [`PATH_STEP_M`]).
+fn as_driven(
+    path: &Polyline,
+    planned: &Polyline,
+    stretches: usize,
+    samples: &[(f64, f64, f64)],
+) -> Vec<PathPoint> {
+    let n = path.pts.len();
+    // Headings of the path's pieces, unwrapped, and the curvature at each point between two.
+    let mut heading: Vec<f64> = Vec::with_capacity(n.saturating_sub(1));
+    for w in path.pts.windows(2) {
+        let d = w[1] - w[0];
+        let mut h = d.y.atan2(d.x);
+        if let Some(&prev) = heading.last() {
+            h = prev + (h - prev + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+        }
+        heading.push(h);
+    }
+    let mut curvature = vec![0.0; n];
+    for i in 1..n.saturating_sub(1) {
+        let ds = (path.s[i + 1] - path.s[i - 1]) / 2.0;
+        if ds > 1e-9 {
+            curvature[i] = (heading[i] - heading[i - 1]) / ds;
+        }
+    }
+    if n >= 3 {
+        curvature[0] = curvature[1];
+        curvature[n - 1] = curvature[n - 2];
+    }
+    // The speed at an arc length: the speed profile with arc length increasing (the fastest
+    // sample where the vehicle stands), linear in between.
+    let mut profile: Vec<(f64, f64)> = Vec::with_capacity(samples.len());
+    for &(_, s, v) in samples {
+        match profile.last_mut() {
+            Some(last) if s <= last.0 => last.1 = last.1.max(v),
+            _ => profile.push((s, v)),
+        }
+    }
+    let speed_at = |s: f64| -> f64 {
+        let k = profile.partition_point(|p| p.0 < s);
+        match (k.checked_sub(1).map(|j| profile[j]), profile.get(k)) {
+            (Some(a), Some(b)) if b.0 > a.0 => a.1 + (b.1 - a.1) * (s - a.0) / (b.0 - a.0),
+            (_, Some(b)) => b.1,
+            (Some(a), None) => a.1,
+            (None, None) => 0.0,
+        }
+    };
+    let half = ((CURVATURE_CHANGE_HALF_M / PATH_STEP_M).round() as usize).max(1);
+    (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(half), (i + half).min(n - 1));
+            let change = if path.s[b] - path.s[a] > 1e-9 {
+                (curvature[b] - curvature[a]) / (path.s[b] - path.s[a])
+            } else {
+                0.0
+            };
+            let along_plan = (i as f64 * PATH_STEP_M).min(planned.length());
+            let on_spline = planned
+                .s
+                .partition_point(|&x| x <= along_plan)
+                .saturating_sub(1);
+            PathPoint {
+                s_m: path.s[i],
+                position: [path.pts[i].x, path.pts[i].y],
+                speed_mps: speed_at(path.s[i]),
+                curvature_per_m: curvature[i],
+                curvature_change_per_m2: change,
+                segment: (on_spline / SPLINE_POINTS_PER_SEGMENT).min(stretches.saturating_sub(1)),
+            }
+        })
+        .collect()
+}
+
 impl DriveFile {
     /// Reads a drive file.
     pub fn load(path: &std::path::Path) -> Result<DriveFile, String> {
@@ -597,6 +735,88 @@ impl DriveFile {
             ));
         }
         Ok(d)
+    }
+
+    /// Every number of the path, the walkers, the yield and the variation is finite: TOML reads
+    /// `nan` and `inf`, and one of them in a waypoint would make a path of NaN, which no check
+    /// downstream can locate. The error names the field (and the waypoint, counted from 0).
+    fn finite(&self) -> Result<(), String> {
+        let p = &self.path;
+        for (i, w) in p.waypoints.iter().enumerate() {
+            if !w.iter().all(|x| x.is_finite()) {
+                return Err(format!(
+                    "waypoint {i} (counted from 0) is [{}, {}]: a waypoint is two finite numbers, metres in the scene's local frame",
+                    w[0], w[1]
+                ));
+            }
+        }
+        let mut fields: Vec<(String, f64)> = vec![
+            ("path.cruise_speed_mps".into(), p.cruise_speed_mps),
+            ("path.acceleration_mps2".into(), p.acceleration_mps2),
+            ("path.deceleration_mps2".into(), p.deceleration_mps2),
+            ("path.lead_in_s".into(), p.lead_in_s),
+            ("path.start_speed_mps".into(), p.start_speed_mps),
+            ("path.lead_out_s".into(), p.lead_out_s),
+            ("variation.lateral_m".into(), self.variation.lateral_m),
+            ("variation.speed_factor".into(), self.variation.speed_factor),
+            (
+                "variation.walker_start_s".into(),
+                self.variation.walker_start_s,
+            ),
+            (
+                "variation.walker_speed_factor".into(),
+                self.variation.walker_speed_factor,
+            ),
+        ];
+        for w in &self.walkers {
+            let f = |k: &str| format!("walker '{}' {k}", w.actor);
+            fields.extend([
+                (f("from[0]"), w.from[0]),
+                (f("from[1]"), w.from[1]),
+                (f("to[0]"), w.to[0]),
+                (f("to[1]"), w.to[1]),
+                (f("speed_mps"), w.speed_mps),
+                (f("start_s"), w.start_s),
+            ]);
+        }
+        if let Some(y) = &self.yield_to {
+            fields.extend([
+                ("yield_to.stop_at_m".into(), y.stop_at_m),
+                ("yield_to.clearance_m".into(), y.clearance_m),
+            ]);
+        }
+        match fields.iter().find(|(_, x)| !x.is_finite()) {
+            Some((name, x)) => Err(format!("{name} = {x}: must be a finite number")),
+            None => Ok(()),
+        }
+    }
+
+    /// Whether a car can drive the path as planned: drives it without human variation and
+    /// refuses it when it turns tighter than a car can turn, or faster through a turn than a
+    /// car's tyres hold or its yaw rate reaches (see [`super::drivable`]). The change of
+    /// curvature is checked too, but not refused: the driver model sets it, not the waypoints
+    /// (it steers into every turn over [`STEER_TRANSITION_M`], whatever the speed, and at
+    /// town speed that is faster than a car steers: fixtures/gap at 6 m/s enters its bend at
+    /// 1.5 1/(m·s)); it stays in [`Driven::beyond_car`] for `synth` to report, with every
+    /// limit a repetition's human variation takes it beyond.
+    pub fn drivable(&self) -> Result<(), DriveError> {
+        use rand::SeedableRng;
+        // Without variation nothing is drawn: the generator only has to exist.
+        let planned = self.drive(&mut rand_chacha::ChaCha8Rng::seed_from_u64(0), false)?;
+        let exceeded: Vec<Exceedance> = planned
+            .beyond_car
+            .into_iter()
+            .filter(|e| e.quantity != Quantity::CurvatureRate)
+            .collect();
+        if exceeded.is_empty() {
+            Ok(())
+        } else {
+            Err(DriveError::Undrivable {
+                name: self.name.clone(),
+                exceeded,
+                waypoints: self.path.waypoints.clone(),
+            })
+        }
     }
 
     /// Drives the path once, with human variation drawn from `rng` (none when `vary` is false).
@@ -613,6 +833,7 @@ impl DriveFile {
         if p.waypoints.len() < 2 {
             return Err(bad("the path needs at least two waypoints".into()));
         }
+        self.finite().map_err(bad)?;
         if !(p.cruise_speed_mps > 0.0 && p.acceleration_mps2 > 0.0 && p.deceleration_mps2 > 0.0) {
             return Err(bad("speeds and accelerations must be positive".into()));
         }
@@ -641,7 +862,7 @@ impl DriveFile {
             .iter()
             .map(|w| Vector2::new(w[0], w[1]))
             .collect();
-        let planned = Polyline::new(catmull_rom(&wps, 200));
+        let planned = Polyline::new(catmull_rom(&wps, SPLINE_POINTS_PER_SEGMENT));
         let length = planned.length();
         // The driver's deviation: two smooth half-waves along the path, zero at both ends, plus
         // a final offset that grows in smoothly (nobody parks on the same centimetre twice).
@@ -650,9 +871,9 @@ impl DriveFile {
             gauss(v.lateral_m * 0.5),
             gauss(v.lateral_m * 0.5),
         );
-        let driven_pts: Vec<Vector2<f64>> = (0..=(length / 0.02).ceil() as usize)
+        let driven_pts: Vec<Vector2<f64>> = (0..=(length / PATH_STEP_M).ceil() as usize)
             .map(|k| {
-                let s = (k as f64 * 0.02).min(length);
+                let s = (k as f64 * PATH_STEP_M).min(length);
                 let (pos, tan) = planned.at(s);
                 let normal = Vector2::new(-tan.y, tan.x);
                 let x = s / length;
@@ -780,6 +1001,10 @@ impl DriveFile {
                 return Err(bad("the drive does not finish within 59 minutes".into()));
             }
         }
+        let beyond_car = beyond(
+            &as_driven(&path, &planned, wps.len() - 1, &samples),
+            &PASSENGER_CAR,
+        );
         let t_arrive = t;
         while t < t_arrive + p.lead_out_s {
             t += 0.01;
@@ -834,12 +1059,14 @@ impl DriveFile {
             walkers,
             yield_stop: stop.map(|(a, b)| (ns(a), ns(b))),
             span,
+            beyond_car,
         })
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::drivable::MAX_LATERAL_ACCELERATION_MPS2;
     use super::*;
     use rand::SeedableRng;
 
@@ -885,6 +1112,138 @@ stop_at_m = 4.0
             .map(|w| (w[1].1 - w[0].1).abs() / 0.01)
             .fold(0.0, f64::max);
         assert!(worst < 5.0, "yaw acceleration {worst} rad/s²");
+    }
+
+    /// `DRIVE` without its walker, along `waypoints` at `speed`.
+    fn plain(waypoints: &str, speed: f64) -> DriveFile {
+        let text = DRIVE
+            .replace(
+                "waypoints = [[-10.0, 0.0], [0.0, 0.0], [5.0, 3.0], [6.0, 8.0]]",
+                &format!("waypoints = {waypoints}"),
+            )
+            .replace(
+                "cruise_speed_mps = 2.0",
+                &format!("cruise_speed_mps = {speed:?}\nacceleration_mps2 = 2.0"),
+            );
+        let text = text.split("[[walker]]").next().unwrap();
+        toml::from_str(text).unwrap()
+    }
+
+    /// What a car does is driven without a word: a 20 m bend at 8 m/s (0.33 g), a parking
+    /// manoeuvre at 2 m/s (the parking fixture's path: a 2.6 m radius into the slot), and every
+    /// drive of fixtures/ as planned.
+    #[test]
+    fn drives_a_car_can_do_are_accepted() {
+        // A straight east, a quarter circle of 20 m, a straight north: a waypoint every 15° of
+        // the circle (5.2 m apart) and as far apart along the straights (a Catmull-Rom spline
+        // through unevenly spaced waypoints overshoots).
+        let step = 2.0 * 20.0 * 7.5f64.to_radians().sin();
+        let mut w: Vec<String> = (0..6)
+            .map(|k| format!("[{}, 0.0]", -step * f64::from(6 - k)))
+            .collect();
+        for k in 0..=6 {
+            let a = (f64::from(k) * 15.0).to_radians();
+            w.push(format!("[{}, {}]", 20.0 * a.sin(), 20.0 * (1.0 - a.cos())));
+        }
+        w.extend((1..=6).map(|k| format!("[20.0, {}]", 20.0 + step * f64::from(k))));
+        let bend = plain(&format!("[{}]", w.join(", ")), 8.0);
+        bend.drivable().unwrap();
+        let d = bend
+            .drive(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), false)
+            .unwrap();
+        assert_eq!(d.beyond_car, vec![]);
+        // It does turn as fast as 8 m/s on 20 m make it (0.4 rad/s; the spline waves about
+        // the circle between its waypoints, up to a third tighter).
+        let yaw = d.motion.iter().map(|m| m.1.abs()).fold(0.0, f64::max);
+        assert!((0.38..0.6).contains(&yaw), "yaw rate {yaw}");
+        let parking = plain(
+            "[[-16.0, 0.0], [-6.0, 0.0], [-1.0, 0.4], [1.6, 1.8], [2.5, 3.6], [2.55, 4.8]]",
+            2.0,
+        );
+        parking.drivable().unwrap();
+        let d = parking
+            .drive(&mut rand_chacha::ChaCha8Rng::seed_from_u64(1), false)
+            .unwrap();
+        assert_eq!(d.beyond_car, vec![]);
+        for f in ["parking", "gap", "efast"] {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("fixtures")
+                .join(f)
+                .join("drive.toml");
+            let d = DriveFile::load(&path).unwrap();
+            d.drivable()
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        }
+    }
+
+    /// Waypoints that make the spline loop, driven at 8.8 m/s (the reported drive): refused,
+    /// naming the stretch between the waypoints where it loops, and the values against the
+    /// limits. The same path at walking pace is still too tight for any car.
+    #[test]
+    fn a_loop_is_refused_with_the_waypoints_and_the_values() {
+        let looping = "[[-20.0, 0.0], [0.0, 0.0], [2.0, 1.0], [1.0, 2.0], [0.0, 0.5], [20.0, 1.0]]";
+        let Err(e) = plain(looping, 8.8).drivable() else {
+            panic!("a loop at 8.8 m/s was accepted");
+        };
+        let DriveError::Undrivable { exceeded, .. } = &e else {
+            panic!("{e}");
+        };
+        let q: Vec<Quantity> = exceeded.iter().map(|x| x.quantity).collect();
+        assert!(q.contains(&Quantity::LateralAcceleration), "{q:?}");
+        assert!(q.contains(&Quantity::YawRate) && q.contains(&Quantity::Curvature));
+        assert!(!q.contains(&Quantity::CurvatureRate), "{q:?}");
+        let lateral = exceeded
+            .iter()
+            .find(|x| x.quantity == Quantity::LateralAcceleration)
+            .unwrap();
+        // The loop lies between waypoints 2 and 4; it is driven near cruise speed.
+        assert!((2..=3).contains(&lateral.at.segment), "{lateral:?}");
+        assert!(lateral.at.speed_mps > 4.0, "{lateral:?}");
+        assert!(
+            lateral.value > 5.0 * MAX_LATERAL_ACCELERATION_MPS2,
+            "{lateral}"
+        );
+        let text = e.to_string();
+        let k = lateral.at.segment;
+        let named = format!(
+            "between waypoint {k} [{}, {}] and waypoint {} [{}, {}]",
+            plain(looping, 1.0).path.waypoints[k][0],
+            plain(looping, 1.0).path.waypoints[k][1],
+            k + 1,
+            plain(looping, 1.0).path.waypoints[k + 1][0],
+            plain(looping, 1.0).path.waypoints[k + 1][1],
+        );
+        assert!(text.contains(&named), "{text}");
+        assert!(
+            text.contains("lateral acceleration") && text.contains("above the 8.8 m/s²"),
+            "{text}"
+        );
+        // At 1 m/s the tyres would hold it; the turning radius still does not.
+        let Err(DriveError::Undrivable { exceeded, .. }) = plain(looping, 1.0).drivable() else {
+            panic!("a loop at 1 m/s was accepted");
+        };
+        assert_eq!(exceeded[0].quantity, Quantity::Curvature, "{exceeded:?}");
+    }
+
+    /// A waypoint or a speed that is not a finite number is named; no path of NaN is driven.
+    #[test]
+    fn a_waypoint_that_is_not_a_number_is_named() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let e = plain("[[-10.0, 0.0], [0.0, 0.0], [nan, 3.0], [6.0, 8.0]]", 2.0)
+            .drive(&mut rng, false)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("waypoint 2") && e.contains("NaN"), "{e}");
+        let e = plain("[[-10.0, 0.0], [0.0, -inf]]", 2.0)
+            .drivable()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("waypoint 1") && e.contains("-inf"), "{e}");
+        let e = plain("[[-10.0, 0.0], [0.0, 0.0]]", f64::INFINITY)
+            .drivable()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("path.cruise_speed_mps = inf"), "{e}");
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! Simulation: the lidar model (Rosenberger et al. 2019, Table 1: idealized ray casting plus named effects), the
 //! spinning-sensor schedule, and the synthesis of whole measured drives.
 
+pub mod drivable;
 pub mod drive;
 pub mod lidar;
 pub mod model;

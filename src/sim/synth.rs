@@ -13,7 +13,7 @@
 //! Randomness comes from ChaCha8 streams seeded from `(seed, repetition, purpose)`, so a
 //! repetition is reproducible on its own and independent of thread scheduling.
 
-use super::drive::{DriveFile, Driven};
+use super::drive::{beyond_text, DriveFile, Driven};
 use super::lidar::{LidarSim, SimStats};
 use super::model::ModelFile;
 use super::spin::Spin;
@@ -95,6 +95,12 @@ pub struct RepSummary {
     pub yield_stop_s: f64,
     /// Firings with a return / all firings.
     pub return_share: f64,
+    /// The limits of a car this repetition goes beyond as driven, each where it does so most:
+    /// the change of curvature where the driver model steers faster than a car can, and any
+    /// limit the human variation drawn for it takes a drive that is within them as planned
+    /// beyond (a faster or tighter line). Not refused (the plan is a car's), but named.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub beyond_car: Vec<String>,
 }
 
 fn stream_rng(seed: u64, rep: u32, purpose: u64) -> ChaCha8Rng {
@@ -135,16 +141,17 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         .ok_or_else(|| input("no [lidar]".into()))?;
     let gnss_cfg = rig.gnss.as_ref().ok_or_else(|| input("no [gnss]".into()))?;
     let can_cfg = rig.can.as_ref().ok_or_else(|| input("no [can]".into()))?;
-
-    std::fs::create_dir_all(dir).map_err(|source| SynthError::Io {
-        path: dir.to_owned(),
-        source,
-    })?;
+    // Nothing is written for a drive no car can drive.
+    job.drive.drivable().map_err(|e| input(e.to_string()))?;
     let errors = job.errors;
     let mut driven: Driven = job
         .drive
         .drive(&mut stream_rng(job.seed, rep, 1), errors)
         .map_err(|e| input(e.to_string()))?;
+    std::fs::create_dir_all(dir).map_err(|source| SynthError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
     // The truth is the file: everything below uses the trajectory as `truth.csv` holds it, so
     // that re-simulating from that file casts bit-identical rays.
     let truth_csv = driven.ego.to_csv();
@@ -215,6 +222,11 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         yield_stop_s: driven
             .yield_stop
             .map_or(0.0, |(a, b)| (b.0 - a.0) as f64 * 1e-9),
+        beyond_car: driven
+            .beyond_car
+            .iter()
+            .map(|e| beyond_text(std::slice::from_ref(e), &job.drive.path.waypoints))
+            .collect(),
         ..RepSummary::default()
     };
     let (mut firings, mut returns) = (0u64, 0u64);

@@ -4,6 +4,7 @@
 //! the smallest admissible grid cell: max(min cell, factor × reference accuracy).
 
 use super::faults::FaultLog;
+use super::names::FaultName;
 use super::report::{Accuracy, Spatial, Stats, Temporal};
 use crate::reference::run::Run;
 use crate::reference::trajectory::EgoTrajectory;
@@ -51,7 +52,7 @@ pub(super) fn heading(
         }
         t = hilrig_stamp::UtcNanos(t.0 + STEP);
     }
-    log.mark_runs("heading_uncertain", &flagged, STEP, |_, worst| {
+    log.mark_runs(FaultName::HeadingUncertain, &flagged, STEP, |_, worst| {
         format!(
             "heading sigma up to {worst:.2}° (limit {:.2}°): {:.3} m at {:.0} m range; the heading shows once the vehicle drives a few metres",
             th.max_heading_sigma_deg,
@@ -121,7 +122,7 @@ pub(super) fn accuracy(
         // A time offset within its limit is not distinguishable from the estimate's own noise
         // (a few ms); one beyond it counts in full.
         temporal_m: v_p95
-            * (if log.has("gnss_time_offset") {
+            * (if log.has(FaultName::GnssTimeOffset) {
                 offset_s.powi(2)
             } else {
                 0.0
@@ -137,7 +138,7 @@ pub(super) fn accuracy(
     if sp.sigma_horizontal_m.n == 0 {
         acc.trajectory_m = sp.residual_m.rms * (mean_nis / 2.0).max(1.0).sqrt();
     }
-    if log.has("lever_arm") {
+    if log.has(FaultName::LeverArm) {
         acc.lever_arm_m = (sp.lever_arm_x_measured_m.unwrap_or(0.0) - sp.lever_arm_x_rig_m).abs();
     }
     acc.ego_m = (acc.trajectory_m.powi(2)

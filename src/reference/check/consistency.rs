@@ -9,6 +9,7 @@
 //! - yaw rate against the GNSS course rate over a second, speed residuals, travelled distance.
 
 use super::faults::{secs, FaultLog};
+use super::names::FaultName;
 use super::report::{Spatial, Stats, Warning};
 use crate::reference::noise::{correlation_factor, integrated_autocorrelation};
 use crate::reference::run::{Motion, Run};
@@ -93,14 +94,14 @@ pub(super) fn gnss_against_can(
     let span = moving_span.unwrap_or((start, end));
     match fit.delta {
         None => warnings.push(Warning {
-            name: "gnss_time_offset",
+            name: FaultName::GnssTimeOffset,
             detail: "not determinable on this drive: it needs at least a second of driving \
                      with speed changes (starting, braking) on RTK-fixed epochs"
                 .into(),
         }),
         Some((d, sd)) => match decide(d * 1e3, sd * 1e3, limit) {
             Decision::Beyond => log.fault(
-                "gnss_time_offset",
+                FaultName::GnssTimeOffset,
                 span.0,
                 span.1,
                 format!(
@@ -111,7 +112,7 @@ pub(super) fn gnss_against_can(
                 ),
             ),
             Decision::Undecided => warnings.push(Warning {
-                name: "gnss_time_offset",
+                name: FaultName::GnssTimeOffset,
                 detail: format!(
                     "{:+.1} ± {:.1} ms (1 sigma): not determinable against the {limit:.0} ms limit on this drive; more speed changes (starting, braking) on RTK-fixed epochs would decide it",
                     d * 1e3,
@@ -136,7 +137,7 @@ pub(super) fn gnss_against_can(
                 Decision::Beyond => {
                     let span = turn_span.unwrap_or((start, end));
                     log.fault(
-                        "lever_arm",
+                        FaultName::LeverArm,
                         span.0,
                         span.1,
                         format!(
@@ -146,7 +147,7 @@ pub(super) fn gnss_against_can(
                     );
                 }
                 Decision::Undecided => warnings.push(Warning {
-                    name: "lever_arm",
+                    name: FaultName::LeverArm,
                     detail: format!(
                         "antenna x {x:.2} ± {sx:.2} m (1 sigma) against {:.2} m in the rig file: not determinable against the {limit:.2} m limit from {n_turn} turning epochs; longer turns at speed (yaw rate above 0.1 rad/s) would decide it",
                         sp.lever_arm_x_rig_m
@@ -156,7 +157,7 @@ pub(super) fn gnss_against_can(
             }
         }
         _ => warnings.push(Warning {
-            name: "lever_arm",
+            name: FaultName::LeverArm,
             detail: format!(
                 "not determinable on this drive ({n_turn} RTK-fixed epochs in turns): it needs turns at speed (yaw rate above 0.1 rad/s, above 0.5 m/s) for at least a second"
             ),
@@ -270,7 +271,7 @@ fn speed_scale(
             let limit = inp.th.max_speed_scale_error;
             match decide(scale - 1.0, sigma, limit) {
                 Decision::Beyond => log.fault(
-                    "can_speed_scale",
+                    FaultName::CanSpeedScale,
                     span.0,
                     span.1,
                     format!(
@@ -282,7 +283,7 @@ fn speed_scale(
                     ),
                 ),
                 Decision::Undecided => warnings.push(Warning {
-                    name: "can_speed_scale",
+                    name: FaultName::CanSpeedScale,
                     detail: format!(
                         "{scale:.4} ± {sigma:.4} (1 sigma) from {n_straight} straight-driving epochs: not determinable against the {:.1} % limit; longer straight driving at a steady speed would decide it",
                         limit * 100.0
@@ -293,7 +294,7 @@ fn speed_scale(
         }
     } else {
         warnings.push(Warning {
-            name: "can_speed_scale",
+            name: FaultName::CanSpeedScale,
             detail: format!(
                 "not determinable on this drive ({n_straight} straight-driving epochs, 20 needed): it needs a few seconds of straight driving above 0.3 m/s on RTK-fixed epochs"
             ),
@@ -406,7 +407,7 @@ fn jumps(inp: &Inputs<'_>, traj: &EgoTrajectory, sp: &mut Spatial, log: &mut Fau
         .map(|(r, _)| (r.t, r.error.norm()))
         .collect();
     sp.jumps = jumps.len();
-    log.runs("jump", &jumps, inp.gnss_period, |n, worst| {
+    log.runs(FaultName::Jump, &jumps, inp.gnss_period, |n, worst| {
         format!(
             "{n} fixed epochs more than {:.0} sigma off the trajectory that CAN speed and yaw rate allow (worst {worst:.3} m)",
             inp.th.max_jump_sigma

@@ -3,6 +3,7 @@
 //! overlap them, so the engineer sees which parts of the drive are usable and why the others
 //! are not.
 
+use super::names::FaultName;
 use super::report::{Fault, Segment, Verdict};
 use hilrig_stamp::UtcNanos;
 
@@ -42,14 +43,15 @@ impl FaultLog {
     }
 
     /// Whether a fault of this name was raised.
-    pub(super) fn has(&self, name: &str) -> bool {
+    pub(super) fn has(&self, name: FaultName) -> bool {
         self.faults.iter().any(|f| f.name == name)
     }
 
     /// A located finding (fault or mark).
-    fn located(&self, name: &'static str, from: UtcNanos, to: UtcNanos, detail: String) -> Fault {
+    fn located(&self, name: FaultName, from: UtcNanos, to: UtcNanos, detail: String) -> Fault {
         Fault {
             name,
+            topics: name.topics(),
             from: iso(from),
             to: iso(to),
             from_s: secs_ms(self.start, from),
@@ -60,25 +62,13 @@ impl FaultLog {
     }
 
     /// Records one fault.
-    pub(super) fn fault(
-        &mut self,
-        name: &'static str,
-        from: UtcNanos,
-        to: UtcNanos,
-        detail: String,
-    ) {
+    pub(super) fn fault(&mut self, name: FaultName, from: UtcNanos, to: UtcNanos, detail: String) {
         let f = self.located(name, from, to, detail);
         self.faults.push(f);
     }
 
     /// Marks one stretch not usable (not a fault: the run's verdict stays).
-    pub(super) fn mark(
-        &mut self,
-        name: &'static str,
-        from: UtcNanos,
-        to: UtcNanos,
-        detail: String,
-    ) {
+    pub(super) fn mark(&mut self, name: FaultName, from: UtcNanos, to: UtcNanos, detail: String) {
         let m = self.located(name, from, to, detail);
         self.marks.push(m);
     }
@@ -86,7 +76,7 @@ impl FaultLog {
     /// Faults for runs of consecutive flagged samples (a run ends after `gap` without a flag).
     pub(super) fn runs(
         &mut self,
-        name: &'static str,
+        name: FaultName,
         flagged: &[(UtcNanos, f64)],
         period: i64,
         describe: impl Fn(usize, f64) -> String,
@@ -99,7 +89,7 @@ impl FaultLog {
     /// Marks for runs of consecutive flagged samples, as [`FaultLog::runs`] makes faults.
     pub(super) fn mark_runs(
         &mut self,
-        name: &'static str,
+        name: FaultName,
         flagged: &[(UtcNanos, f64)],
         period: i64,
         describe: impl Fn(usize, f64) -> String,
@@ -133,7 +123,7 @@ fn spans(flagged: &[(UtcNanos, f64)], period: i64) -> Vec<(UtcNanos, UtcNanos, u
 }
 
 /// A fault (`true`) or mark (`false`) of some name entering (+1) or leaving (-1) the cells.
-type Edge = ((bool, &'static str), i32);
+type Edge = ((bool, FaultName), i32);
 
 /// One-second segments from `start` to `end` (a last piece under 50 ms joins the one before
 /// it), each failing with the faults that overlap it (or not usable with the marks that overlap
@@ -193,7 +183,7 @@ pub(super) fn segments(
     }
     edges.entry(0).or_default();
     edges.entry(n).or_default();
-    let mut active: std::collections::BTreeMap<(bool, &'static str), i32> = Default::default();
+    let mut active: std::collections::BTreeMap<(bool, FaultName), i32> = Default::default();
     let mut segments: Vec<Segment> = Vec::new();
     let points: Vec<(i64, Vec<Edge>)> = edges.into_iter().collect();
     for w in points.windows(2) {
@@ -207,7 +197,7 @@ pub(super) fn segments(
             continue;
         }
         let faulty = active.keys().any(|k| k.0);
-        let mut reasons: Vec<&'static str> = active.keys().map(|k| k.1).collect();
+        let mut reasons: Vec<FaultName> = active.keys().map(|k| k.1).collect();
         reasons.sort_unstable();
         reasons.dedup();
         let verdict = if reasons.is_empty() {
@@ -235,9 +225,10 @@ pub(super) fn segments(
 mod tests {
     use super::*;
 
-    fn fault(name: &'static str, a: i64, b: i64) -> Fault {
+    fn fault(name: FaultName, a: i64, b: i64) -> Fault {
         Fault {
             name,
+            topics: &[],
             from: String::new(),
             to: String::new(),
             from_s: 0.0,
@@ -252,15 +243,15 @@ mod tests {
         faults: &[Fault],
         start: UtcNanos,
         end: UtcNanos,
-    ) -> Vec<(f64, f64, Vec<&'static str>)> {
-        let mut out: Vec<(f64, f64, Vec<&'static str>)> = Vec::new();
+    ) -> Vec<(f64, f64, Vec<FaultName>)> {
+        let mut out: Vec<(f64, f64, Vec<FaultName>)> = Vec::new();
         let mut t = start;
         while t < end {
             let mut e = UtcNanos((t.0 + 1_000_000_000).min(end.0));
             if end.0 - e.0 < 50_000_000 {
                 e = end;
             }
-            let mut r: Vec<&'static str> = faults
+            let mut r: Vec<FaultName> = faults
                 .iter()
                 .filter(|f| f.window.0 < e && f.window.1 >= t)
                 .map(|f| f.name)
@@ -283,23 +274,23 @@ mod tests {
             (20 * s + 30_000_000, vec![]),
             (
                 20 * s + 300_000_000,
-                vec![fault("a", 3 * s + 400_000_000, 5 * s)],
+                vec![fault(FaultName::RtkFloat, 3 * s + 400_000_000, 5 * s)],
             ),
             (
                 12 * s,
                 vec![
-                    fault("a", 2 * s, 4 * s),
-                    fault("b", 3 * s + 1, 9 * s + 999_999_999),
-                    fault("a", 6 * s, 6 * s),
-                    fault("c", -5 * s, 0),
-                    fault("d", 11 * s + 999_000_000, 30 * s),
+                    fault(FaultName::RtkFloat, 2 * s, 4 * s),
+                    fault(FaultName::Jump, 3 * s + 1, 9 * s + 999_999_999),
+                    fault(FaultName::RtkFloat, 6 * s, 6 * s),
+                    fault(FaultName::LidarGap, -5 * s, 0),
+                    fault(FaultName::CanGap, 11 * s + 999_000_000, 30 * s),
                 ],
             ),
-            (40_000_000, vec![fault("e", 0, 1)]),
+            (40_000_000, vec![fault(FaultName::GnssGap, 0, 1)]),
         ];
         for (len, faults) in cases {
             let (a, b) = (UtcNanos(0), UtcNanos(len));
-            let got: Vec<(f64, f64, Vec<&'static str>)> = segments(&faults, &[], a, b)
+            let got: Vec<(f64, f64, Vec<FaultName>)> = segments(&faults, &[], a, b)
                 .into_iter()
                 .map(|g| (g.from_s, g.to_s, g.reasons))
                 .collect();
@@ -313,8 +304,13 @@ mod tests {
     fn fifty_years_are_segmented_at_once() {
         let s = 1_000_000_000i64;
         let end = UtcNanos(50 * 365 * 86_400 * s);
-        let segs = segments(&[fault("a", 10 * s, 20 * s)], &[], UtcNanos(0), end);
+        let segs = segments(
+            &[fault(FaultName::RtkFloat, 10 * s, 20 * s)],
+            &[],
+            UtcNanos(0),
+            end,
+        );
         assert_eq!(segs.len(), 3);
-        assert_eq!(segs[1].reasons, vec!["a"]);
+        assert_eq!(segs[1].reasons, vec![FaultName::RtkFloat]);
     }
 }

@@ -8,6 +8,9 @@
 //! which parts of the drive are usable and why the others are not.
 //!
 //! What is measured and how:
+//! - sources: a run without lidar data packets, GNSS fixes or CAN ego motion fails with a fault
+//!   per missing source (without GNSS or CAN there is no trajectory, and only the receiver's
+//!   own accuracy is measured);
 //! - spatial: RTK state per epoch, the receiver's sigmas (GST/UBX), correction age, jumps (GNSS
 //!   epochs that the smoothed GNSS+CAN trajectory cannot explain once the systematic errors below
 //!   are taken out), GNSS against CAN: speed scale by regressing GNSS speed on CAN speed (and
@@ -20,18 +23,21 @@
 //!   interpolation between them would cost.
 //!
 //! One file per kind of measurement, each a function over the run (and the smoothed trajectory)
-//! that returns its part of the [`Report`]: [`spatial`] (the receiver's own accuracy),
-//! [`consistency`] (GNSS against CAN), [`temporal`], [`budget`] (accuracy and grid cell);
-//! [`faults`] keeps the faults and cuts the run into segments; [`report`] is the report and
-//! its text. [`check`] composes them.
+//! that returns its part of the [`Report`]: [`sources`] (what the run lacks), [`spatial`] (the
+//! receiver's own accuracy), [`consistency`] (GNSS against CAN), [`temporal`], [`budget`]
+//! (accuracy and grid cell); [`names`] names the faults, [`faults`] keeps them and cuts the run
+//! into segments; [`report`] is the report and its text. [`check`] composes them.
 
 mod budget;
 mod consistency;
 mod faults;
+mod names;
 pub mod report;
+mod sources;
 mod spatial;
 mod temporal;
 
+pub use names::FaultName;
 pub use report::{
     Accuracy, Fault, Report, RtkEpoch, Segment, SourceTiming, Spatial, Stats, Temporal, Verdict,
     Warning,
@@ -86,6 +92,85 @@ fn unusable(run: &Run, why: String, spatial: Spatial) -> Report {
     }
 }
 
+/// The report of a run without GNSS fixes or without CAN ego motion: there is no trajectory,
+/// so nothing but the receiver's own accuracy (when there are fixes) can be measured. It fails
+/// with one fault per missing source, and the receiver's faults, over the stretch the run holds
+/// data for; `unusable` says what could not be measured.
+fn without_trajectory(
+    run: &Run,
+    rig: &Rig,
+    epochs: &[(UtcNanos, &hilrig_gnss::Fix)],
+    missing: Vec<(FaultName, String)>,
+) -> Report {
+    let span = data_span(run);
+    let (start, end) = span.unwrap_or((UtcNanos(0), UtcNanos(0)));
+    let mut log = FaultLog::new(start);
+    let what: Vec<&str> = missing
+        .iter()
+        .filter(|(n, _)| *n != FaultName::NoLidarData)
+        .map(|(n, _)| match n {
+            FaultName::NoGnssFixes => "GNSS fixes",
+            _ => "CAN ego motion",
+        })
+        .collect();
+    for (name, detail) in missing {
+        log.fault(name, start, end, detail);
+    }
+    let mut sp = Spatial::default();
+    if !epochs.is_empty() {
+        let times: Vec<UtcNanos> = epochs.iter().map(|e| e.0).collect();
+        let period = temporal::median_interval(&times).unwrap_or(100_000_000);
+        sp = spatial::receiver(epochs, &rig.thresholds, start, period, &mut log);
+        sp.lever_arm_x_rig_m = rig.gnss.as_ref().map_or(0.0, |g| g.antenna.x);
+    }
+    if span.is_none() {
+        // Nothing recorded at all: no instant to name.
+        for f in &mut log.faults {
+            f.from.clear();
+            f.to.clear();
+        }
+    }
+    Report {
+        verdict: Verdict::Fail,
+        unusable: Some(format!(
+            "no reference trajectory without {}: {}",
+            what.join(" and "),
+            if epochs.is_empty() {
+                "nothing else was measured"
+            } else {
+                "only the receiver's own accuracy was measured"
+            }
+        )),
+        start: span.map_or(String::new(), |_| iso(start)),
+        duration_s: secs(start, end),
+        spatial: sp,
+        temporal: Temporal::default(),
+        accuracy: Accuracy::default(),
+        segments: faults::segments(&log.faults, &[], start, end),
+        faults: log.faults,
+        marks: Vec::new(),
+        warnings: Vec::new(),
+        damage: run.damage.clone(),
+    }
+}
+
+/// The first and last instant of anything the run holds (GNSS, CAN, lidar), if it holds
+/// anything.
+fn data_span(run: &Run) -> Option<(UtcNanos, UtcNanos)> {
+    let times = run
+        .fixes
+        .iter()
+        .map(|(h, f)| f.time.unwrap_or(*h))
+        .chain(run.motion.iter().map(|m| m.t))
+        .chain(run.can_frames.iter().map(|c| c.0))
+        .chain(run.packets.iter().map(|p| p.host))
+        .chain(run.pps.iter().map(|p| p.0));
+    times.fold(None, |span, t| match span {
+        None => Some((t, t)),
+        Some((a, b)) => Some((a.min(t), b.max(t))),
+    })
+}
+
 /// The run's first and last instant over GNSS, CAN and lidar.
 fn run_span(run: &Run, epochs: &[(UtcNanos, &hilrig_gnss::Fix)]) -> (UtcNanos, UtcNanos) {
     let mut all_times: Vec<UtcNanos> = vec![epochs[0].0, epochs[epochs.len() - 1].0];
@@ -109,31 +194,22 @@ fn check_into(
     let th = &rig.thresholds;
     // Epochs with a position and a time.
     let epochs = gnss_epochs(run);
-    if epochs.len() < 2 {
-        return unusable(
-            run,
-            format!(
-                "{} GNSS epochs with a position (is there a /gnss/nmea or /gnss/ubx stream?)",
-                epochs.len()
-            ),
-            Spatial::default(),
-        );
+    let missing = sources::missing(run, epochs.len(), rig);
+    if epochs.len() < 2 || run.motion.len() < 2 {
+        return without_trajectory(run, rig, &epochs, missing);
     }
     let (start, end) = run_span(run, &epochs);
     let mut log = FaultLog::new(start);
+    // A run without lidar data is measured all the same (its reference may be fine), and fails.
+    for (name, detail) in missing {
+        log.fault(name, start, end, detail);
+    }
     let enu = Enu::new(&local_origin(&epochs, scene));
     let gnss_period = temporal::median_interval(&epochs.iter().map(|e| e.0).collect::<Vec<_>>())
         .unwrap_or(100_000_000);
 
     let mut sp = spatial::receiver(&epochs, th, start, gnss_period, &mut log);
     sp.lever_arm_x_rig_m = rig.gnss.as_ref().map_or(0.0, |g| g.antenna.x);
-    if run.motion.len() < 2 {
-        return unusable(
-            run,
-            "no ego motion (/ego/twist): the rig needs a CAN speed and yaw-rate mapping".into(),
-            sp,
-        );
-    }
 
     // The smoothed trajectory with the rig's lever arm.
     let lever = rig
@@ -236,11 +312,11 @@ fn check_into(
         && !segments.is_empty()
         && segments.iter().all(|g| g.verdict != Verdict::Pass)
     {
-        let mut why: Vec<&str> = log.marks.iter().map(|m| m.name).collect();
+        let mut why: Vec<FaultName> = log.marks.iter().map(|m| m.name).collect();
         why.sort_unstable();
         why.dedup();
         log.fault(
-            "nothing_usable",
+            FaultName::NothingUsable,
             start,
             end,
             format!(

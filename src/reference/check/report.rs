@@ -1,6 +1,7 @@
 //! The check's report: what was measured (spatial, temporal), the accuracy budget, the faults
 //! and the segments, as JSON (serde) and as the text `hilrig check` prints.
 
+use super::names::FaultName;
 use hilrig_stamp::UtcNanos;
 use serde::Serialize;
 
@@ -30,11 +31,11 @@ impl Verdict {
 /// One problem, located in time.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Fault {
-    /// What it is (`rtk_float`, `rtk_none`, `sigma_spike`, `correction_age`, `jump`,
-    /// `can_speed_scale`, `gnss_time_offset`, `lever_arm`, `lidar_not_pps_locked`,
-    /// `lidar_clock_residual`, `lidar_gap`, `gnss_gap`, `can_gap`, `nothing_usable`), or for a
-    /// mark, why its stretch is not usable (`heading_uncertain`).
-    pub name: &'static str,
+    /// What it is, or for a mark, why its stretch is not usable.
+    pub name: FaultName,
+    /// For a source the run lacks, the topics it was looked for on.
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    pub topics: &'static [&'static str],
     /// Start (UTC).
     pub from: String,
     /// End (UTC).
@@ -54,7 +55,7 @@ pub struct Fault {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Warning {
     /// What (`gnss_time_offset`, `lever_arm`, `can_speed_scale`).
-    pub name: &'static str,
+    pub name: FaultName,
     /// The estimate and its uncertainty, and the manoeuvre that would make it determinable.
     pub detail: String,
 }
@@ -266,7 +267,7 @@ pub struct Segment {
     pub verdict: Verdict,
     /// Names of the faults that make it fail, and of the marks that take it out (`verdict`
     /// `unusable` when there are only marks).
-    pub reasons: Vec<&'static str>,
+    pub reasons: Vec<FaultName>,
 }
 
 /// The whole report.
@@ -274,7 +275,9 @@ pub struct Segment {
 pub struct Report {
     /// Overall verdict.
     pub verdict: Verdict,
-    /// Why unusable, if so.
+    /// What could not be measured and why, if something could not: the run is unreadable
+    /// (verdict `unusable`), or lacks GNSS fixes or CAN ego motion (verdict `fail`, with a
+    /// fault per missing source), so that there is no trajectory to measure.
     pub unusable: Option<String>,
     /// Run start (UTC).
     pub start: String,
@@ -335,6 +338,9 @@ impl Report {
                     sp.rtk_float,
                     sp.rtk_none
                 );
+            }
+            if !self.faults.is_empty() {
+                self.findings_text(&mut s);
             }
             return s;
         }

@@ -3,6 +3,7 @@
 //! say against CAN motion is in [`super::consistency`].
 
 use super::faults::{iso, FaultLog};
+use super::names::FaultName;
 use super::report::{RtkEpoch, Spatial, Stats};
 use crate::rig::Thresholds;
 use hilrig_gnss::{Fix, RtkState};
@@ -61,19 +62,19 @@ pub(super) fn receiver(
     sp.worst_sigma_windows = worst_sigma_windows(epochs, start);
     sp.sigma_vertical_m = Stats::of(sig_v);
     sp.correction_age_s = Stats::of(ages);
-    log.runs("rtk_float", &float_epochs, gnss_period, |n, _| {
+    log.runs(FaultName::RtkFloat, &float_epochs, gnss_period, |n, _| {
         format!("{n} epochs with an RTK float solution (GGA quality 5)")
     });
-    log.runs("rtk_none", &none_epochs, gnss_period, |n, q| {
+    log.runs(FaultName::RtkNone, &none_epochs, gnss_period, |n, q| {
         format!("{n} epochs without an RTK solution (GGA quality {q:.0})")
     });
-    log.runs("sigma_spike", &spikes, gnss_period, |n, worst| {
+    log.runs(FaultName::SigmaSpike, &spikes, gnss_period, |n, worst| {
         format!(
             "{n} fixed epochs with sigma above {:.3} m (horizontal) or {:.3} m (vertical); worst horizontal {worst:.3} m",
             th.max_sigma_horizontal_m, th.max_sigma_vertical_m
         )
     });
-    log.runs("correction_age", &old, gnss_period, |n, worst| {
+    log.runs(FaultName::CorrectionAge, &old, gnss_period, |n, worst| {
         format!(
             "{n} epochs with corrections older than {:.1} s (worst {worst:.1} s)",
             th.max_correction_age_s
@@ -83,7 +84,7 @@ pub(super) fn receiver(
         // Located by the float/none faults above; this one states the share.
         let (a, b) = (epochs[0].0, epochs[epochs.len() - 1].0);
         log.fault(
-            "rtk_fixed_share",
+            FaultName::RtkFixedShare,
             a,
             b,
             format!(

@@ -3,6 +3,7 @@
 //! epochs and what linear interpolation between them would cost.
 
 use super::faults::{secs, FaultLog};
+use super::names::FaultName;
 use super::report::{SourceTiming, Stats, Temporal};
 use crate::reference::run::Run;
 use crate::reference::trajectory::EgoTrajectory;
@@ -37,15 +38,20 @@ pub(super) fn measure(
 ) -> (Temporal, f64) {
     let mut tm = Temporal::default();
     let gnss_times: Vec<UtcNanos> = epochs.iter().map(|e| e.0).collect();
-    tm.sources
-        .push(timing(log, "gnss", "gnss_gap", &gnss_times, th.gap_periods));
+    tm.sources.push(timing(
+        log,
+        "gnss",
+        FaultName::GnssGap,
+        &gnss_times,
+        th.gap_periods,
+    ));
     // CAN per message: two messages at 50 Hz (speed in one, yaw rate in the other) are two
     // sources, not one at 100 Hz with a jitter of half its period.
     for (id, times) in ego_messages(run) {
         tm.sources.push(timing(
             log,
             &format!("can 0x{id:x}"),
-            "can_gap",
+            FaultName::CanGap,
             &times,
             th.gap_periods,
         ));
@@ -55,7 +61,7 @@ pub(super) fn measure(
         tm.sources.push(timing(
             log,
             "lidar",
-            "lidar_gap",
+            FaultName::LidarGap,
             &lidar_times,
             th.gap_periods,
         ));
@@ -133,7 +139,7 @@ fn pps(
         let drift = meta("lidar", "drift_ppm");
         let dur = secs(unlocked[0], unlocked[unlocked.len() - 1]);
         log.fault(
-            "lidar_not_pps_locked",
+            FaultName::LidarNotPpsLocked,
             unlocked[0],
             unlocked[unlocked.len() - 1],
             format!(
@@ -157,7 +163,7 @@ fn pps(
         lidar_time_error_s = meta("lidar", "residual_p95_ns").unwrap_or(0.0) * 1e-9;
         if lidar_time_error_s * 1e6 > th.max_clock_residual_p95_us {
             log.fault(
-                "lidar_clock_residual",
+                FaultName::LidarClockResidual,
                 unlocked[0],
                 unlocked[unlocked.len() - 1],
                 format!(
@@ -175,7 +181,7 @@ fn pps(
 fn timing(
     log: &mut FaultLog,
     source: &str,
-    gap_name: &'static str,
+    gap_name: FaultName,
     times: &[UtcNanos],
     gap_periods: f64,
 ) -> SourceTiming {
