@@ -96,9 +96,7 @@ fn main() {
     let args: Vec<String> = all
         .iter()
         .enumerate()
-        .filter(|(i, a)| {
-            !a.starts_with("--") && !(*i > 0 && all[*i - 1] == "--rig")
-        })
+        .filter(|(i, a)| !(a.starts_with("--") || *i > 0 && all[*i - 1] == "--rig"))
         .map(|(_, a)| a.clone())
         .collect();
     let capture = args.first().map_or_else(
@@ -190,8 +188,14 @@ fn main() {
             rayon::current_num_threads()
         );
         println!("compare                       {c:.3} s");
-        println!("floor: read both files        {rd:.3} s  compare is {:.2} of it", c / rd);
-        println!("floor: read and decode both   {dc:.3} s  compare is {:.2} of it (target: 2)", c / dc);
+        println!(
+            "floor: read both files        {rd:.3} s  compare is {:.2} of it",
+            c / rd
+        );
+        println!(
+            "floor: read and decode both   {dc:.3} s  compare is {:.2} of it (target: 2)",
+            c / dc
+        );
         return;
     }
     let (r, rt, c, rd, dc) = (

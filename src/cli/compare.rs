@@ -52,6 +52,14 @@ pub struct CompareArgs {
     /// model)
     #[arg(long, default_value_t = hilrig::metrics::compare::DEFAULT_GRID_PHASES)]
     grid_phases: usize,
+    /// The calibration curve (OCR over cell sizes) from every n-th scan's window (1: every
+    /// window; 0: no curve); the chosen cell's OCR always comes from every window
+    #[arg(long, default_value_t = hilrig::metrics::compare::DEFAULT_CURVE_EVERY)]
+    curve_every: usize,
+    /// Leave out the point metrics (Chamfer, Hausdorff: a nearest-neighbour search for every
+    /// point, about as much work as the rest of the comparison)
+    #[arg(long)]
+    no_point_metrics: bool,
     /// Write everything as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -199,6 +207,8 @@ pub fn run(args: CompareArgs) -> Result<ExitCode> {
         trajectory,
         sensor_frame: args.sensor_frame,
         grid_phases: args.grid_phases,
+        curve_every: args.curve_every,
+        point_metrics: !args.no_point_metrics,
     };
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(

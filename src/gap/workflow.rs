@@ -162,6 +162,9 @@ fn run_metrics(
                 trajectory: None,
                 sensor_frame: false,
                 grid_phases: crate::metrics::compare::DEFAULT_GRID_PHASES,
+                // The rounds report OCR, precision and IoU: no curve, no point metrics.
+                curve_every: 0,
+                point_metrics: false,
             },
             &quiet,
         )

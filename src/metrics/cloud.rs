@@ -12,6 +12,8 @@ use nalgebra::{Isometry3, Point3};
 pub(super) struct Cloud {
     /// Points in the region (scene frame) and their range, m.
     pub(super) points: Vec<Point3<f64>>,
+    /// The firing key ([`firing_key`]) of each point of `points`.
+    pub(super) point_keys: Vec<u64>,
     /// Per firing, keyed by [`firing_key`] and sorted by it: the range, m. (A sorted list
     /// joined by merging, not a hash map: hashing was a tenth of `compare`'s time.)
     pub(super) firings: Vec<(u64, f32)>,
@@ -83,6 +85,7 @@ impl Frame<'_> {
     pub(super) fn cloud(&self, scan: &Scan) -> Cloud {
         let mut out = Cloud {
             points: Vec::new(),
+            point_keys: Vec::new(),
             firings: Vec::new(),
             all: Vec::new(),
             origin: None,
@@ -122,16 +125,16 @@ impl Frame<'_> {
                 };
                 let world =
                     body * self.mount * Point3::new(f64::from(q.x), f64::from(q.y), f64::from(q.z));
-                out.firings.push((
-                    firing_key(k, q.time_offset_ns, q.laser.0, q.return_type as u8),
-                    q.distance_m,
-                ));
+                let key = firing_key(k, q.time_offset_ns, q.laser.0, q.return_type as u8);
+                out.firings.push((key, q.distance_m));
                 out.all.push((world, q.distance_m));
                 if self.sensor_frame {
                     out.points
                         .push(Point3::new(f64::from(q.x), f64::from(q.y), f64::from(q.z)));
+                    out.point_keys.push(key);
                 } else if self.roi.keeps(&world) {
                     out.points.push(world);
+                    out.point_keys.push(key);
                 }
             }
         }

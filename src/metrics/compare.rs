@@ -74,7 +74,20 @@ pub struct Options {
     /// The grid metrics are averaged over this many grids per window, spread over a cell and
     /// moving on from window to window ([`grid_phase`], [`GridSpec::shifted`]).
     pub grid_phases: usize,
+    /// The calibration curve's other cells from every n-th window only (0: no curve; the
+    /// chosen cell's point is always the mean over every window).
+    pub curve_every: usize,
+    /// Chamfer and Hausdorff distances per scan (nearest neighbours of every point: as much
+    /// work as everything else together).
+    pub point_metrics: bool,
 }
+
+/// Windows the calibration curve's other cells take by default: one in four. The curve holds
+/// drive means, and consecutive windows of a 10 Hz sensor are nearly the same scene, so a
+/// quarter of them gives the mean to well within what it is read for (Rosenberger et al.
+/// 2019, §5: which cell sizes the metric can be used at); its ten grids per window were the
+/// larger part of the binning.
+pub const DEFAULT_CURVE_EVERY: usize = 4;
 
 /// Grids per window the cell metrics are averaged over unless told otherwise: of four
 /// placements a quarter of a cell apart, at most one has a given wall within a few
@@ -379,6 +392,8 @@ pub fn compare(
         admissible_cell_m: admissible,
         k: opts.k,
         grid_phases: opts.grid_phases,
+        curve_every: opts.curve_every,
+        point_metrics: opts.point_metrics,
         dims: opts.dims,
         region: opts.region.to_string(),
         ground_excluded: opts.exclude_ground,
@@ -418,7 +433,7 @@ fn measure_all(
         let measured: Vec<Measured> = batch
             .par_iter()
             .map(|p| {
-                let m = measure(frame, roi, p);
+                let m = measure(frame, roi, p, opts.point_metrics);
                 progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
                 m
             })
@@ -443,7 +458,7 @@ fn measure_all(
             first,
             ends.clone(),
         );
-        curve.add(opts.k, (&real, &sim), first, &ends);
+        curve.add((opts.k, opts.curve_every), (&real, &sim), first, &ends);
         drop((real, sim));
         for c in tally.add(measured, grids, frame.trajectory) {
             history.push_back(c);

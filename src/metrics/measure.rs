@@ -4,7 +4,7 @@
 
 use super::cloud::{Cloud, Frame};
 use super::pairing::Pair;
-use super::points::{distances, PointScores};
+use super::points::{distances_with_twins, PointScores};
 use super::report::ObjectSeen;
 use super::roi::Roi;
 use hilrig_stamp::UtcNanos;
@@ -13,47 +13,64 @@ use nalgebra::Point3;
 /// An object counts as seen with this many measured points in a scan.
 pub const MIN_POINTS_SEEN: usize = 10;
 
-fn extent(points: &[Point3<f64>]) -> f64 {
-    if points.is_empty() {
-        return 0.0;
-    }
-    let (mut lo, mut hi) = (points[0], points[0]);
-    for p in points {
-        lo = lo.inf(p);
-        hi = hi.sup(p);
-    }
-    (hi - lo).norm()
+/// The points of one cloud in one object's box: how many, their range sum, their extent.
+#[derive(Clone, Copy)]
+struct InBox {
+    points: usize,
+    range_sum: f64,
+    lo: Point3<f64>,
+    hi: Point3<f64>,
 }
 
-/// What the sensor saw of the objects in one scan pair.
+impl InBox {
+    const EMPTY: InBox = InBox {
+        points: 0,
+        range_sum: 0.0,
+        lo: Point3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY),
+        hi: Point3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
+    };
+
+    fn add(&mut self, p: &Point3<f64>, range: f32) {
+        self.points += 1;
+        self.range_sum += f64::from(range);
+        self.lo = self.lo.inf(p);
+        self.hi = self.hi.sup(p);
+    }
+
+    /// The diagonal of the points' bounding box, m (0 without points).
+    fn extent(&self) -> f64 {
+        if self.points == 0 {
+            0.0
+        } else {
+            (self.hi - self.lo).norm()
+        }
+    }
+}
+
+/// What the sensor saw of the objects in one scan pair: every point tested against the boxes
+/// of its own cell of the region's index, once.
 pub(super) fn objects_seen(roi: &Roi, real: &Cloud, sim: &Cloud) -> Vec<ObjectSeen> {
-    let margin = 0.2;
+    let tally = |cloud: &Cloud| {
+        let mut boxes = vec![InBox::EMPTY; roi.boxes().len()];
+        for (p, range) in &cloud.all {
+            for i in roi.boxes_at(p) {
+                boxes[i].add(p, *range);
+            }
+        }
+        boxes
+    };
+    let (r, s) = (tally(real), tally(sim));
     roi.boxes()
         .iter()
-        .filter_map(|(name, b)| {
-            let r: Vec<&(Point3<f64>, f32)> = real
-                .all
-                .iter()
-                .filter(|(p, _)| b.contains(p, margin))
-                .collect();
-            if r.len() < MIN_POINTS_SEEN {
-                return None;
-            }
-            let s: Vec<Point3<f64>> = sim
-                .all
-                .iter()
-                .filter(|(p, _)| b.contains(p, margin))
-                .map(|(p, _)| *p)
-                .collect();
-            let rp: Vec<Point3<f64>> = r.iter().map(|(p, _)| *p).collect();
-            Some(ObjectSeen {
-                name: name.clone(),
-                real_points: r.len(),
-                sim_points: s.len(),
-                range_m: r.iter().map(|(_, d)| f64::from(*d)).sum::<f64>() / r.len() as f64,
-                real_extent_m: extent(&rp),
-                sim_extent_m: extent(&s),
-            })
+        .zip(r.iter().zip(&s))
+        .filter(|(_, (r, _))| r.points >= MIN_POINTS_SEEN)
+        .map(|((name, _), (r, s))| ObjectSeen {
+            name: name.clone(),
+            real_points: r.points,
+            sim_points: s.points,
+            range_m: r.range_sum / r.points as f64,
+            real_extent_m: r.extent(),
+            sim_extent_m: s.extent(),
         })
         .collect()
 }
@@ -114,12 +131,50 @@ pub(super) struct Measured {
     pub(super) returns: (usize, usize),
 }
 
+/// The points of two clouds that the same firing returned (index in each cloud's `points`).
+fn twins(real: &Cloud, sim: &Cloud) -> Vec<(u32, u32)> {
+    let sorted = |c: &Cloud| {
+        let mut v: Vec<(u64, u32)> = c
+            .point_keys
+            .iter()
+            .enumerate()
+            .map(|(i, &k)| (k, i as u32))
+            .collect();
+        radsort::sort_by_key(&mut v, |e| e.0);
+        v
+    };
+    let (a, b) = (sorted(real), sorted(sim));
+    let mut out = Vec::with_capacity(a.len().min(b.len()));
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        match a[i].0.cmp(&b[j].0) {
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => j += 1,
+            std::cmp::Ordering::Equal => {
+                out.push((a[i].1, b[j].1));
+                i += 1;
+                j += 1;
+            }
+        }
+    }
+    out
+}
+
 /// Decodes and measures one pair.
-pub(super) fn measure(frame: &Frame<'_>, roi: &Roi, (r, s): &Pair) -> Measured {
+pub(super) fn measure(
+    frame: &Frame<'_>,
+    roi: &Roi,
+    (r, s): &Pair,
+    point_metrics: bool,
+) -> Measured {
     let (real, sim) = (frame.cloud(r), frame.cloud(s));
     let objects = objects_seen(roi, &real, &sim);
     Measured {
-        points: distances(&real.points, &sim.points),
+        points: if point_metrics {
+            distances_with_twins(&real.points, &sim.points, &twins(&real, &sim))
+        } else {
+            None
+        },
         res: residuals(&real, &sim),
         returns: (real.firings.len(), sim.firings.len()),
         origin: real.origin,

@@ -151,6 +151,10 @@ pub struct Comparison {
     pub k: usize,
     /// Shifted grids the cell metrics are the mean over (1: the grid at the scene origin).
     pub grid_phases: usize,
+    /// The calibration curve's other cells were taken from every n-th window (0: no curve).
+    pub curve_every: usize,
+    /// Whether the point metrics (Chamfer, Hausdorff) were computed.
+    pub point_metrics: bool,
     /// 2D or 3D.
     pub dims: Dims,
     /// The region, as given.

@@ -96,6 +96,7 @@ pub enum Region {
 pub struct Roi {
     region: Region,
     boxes: Vec<(String, Bounds)>,
+    index: BoxIndex,
     /// Points below this height (scene frame) are ground; `None` keeps them.
     ground_below: Option<f64>,
     margin: f64,
@@ -140,6 +141,7 @@ impl Roi {
         };
         Ok(Roi {
             region,
+            index: BoxIndex::new(&boxes, margin),
             boxes,
             ground_below,
             margin,
@@ -158,16 +160,109 @@ impl Roi {
         }
         match &self.region {
             Region::All => true,
-            Region::Objects => self.boxes.iter().any(|(_, b)| b.contains(p, self.margin)),
-            Region::Object(name) => self
-                .boxes
-                .iter()
-                .any(|(n, b)| n == name && b.contains(p, self.margin)),
+            Region::Objects => self.boxes_at(p).next().is_some(),
+            Region::Object(name) => self.boxes_at(p).any(|i| self.boxes[i].0 == *name),
         }
+    }
+
+    /// The indices (into [`Roi::boxes`]) of the boxes that hold `p` within the margin.
+    pub fn boxes_at<'a>(&'a self, p: &'a Point3<f64>) -> impl Iterator<Item = usize> + 'a {
+        self.index
+            .near(p)
+            .iter()
+            .map(|&i| i as usize)
+            .filter(move |&i| self.boxes[i].1.contains(p, self.margin))
     }
 }
 
 /// As `--roi` takes it (and the reports write it): `all`, `objects`, `object:NAME`.
+/// The boxes near each cell of a grid in the ground plane: a point is tested against the few
+/// boxes of its cell, not against every object of the scene (a street has a hundred, and a
+/// scan a hundred thousand points).
+#[derive(Clone, Debug)]
+struct BoxIndex {
+    /// Lowest corner of the grid (x, y), m.
+    origin: [f64; 2],
+    /// Cell edge, m.
+    cell: f64,
+    /// Cells along x and y.
+    size: [usize; 2],
+    /// Per cell (row-major in y), where its boxes start in `items`; one more at the end.
+    starts: Vec<u32>,
+    /// Box indices, cell after cell.
+    items: Vec<u32>,
+}
+
+/// Cells of the box index at most: 16 MB of starts.
+const MAX_INDEX_CELLS: f64 = 4.0e6;
+
+impl BoxIndex {
+    fn new(boxes: &[(String, Bounds)], margin: f64) -> BoxIndex {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for (_, b) in boxes {
+            for k in 0..2 {
+                lo[k] = lo[k].min(b.min[k] - margin);
+                hi[k] = hi[k].max(b.max[k] + margin);
+            }
+        }
+        if boxes.is_empty() || !(lo[0].is_finite() && hi[0].is_finite()) {
+            return BoxIndex {
+                origin: [0.0; 2],
+                cell: 1.0,
+                size: [0, 0],
+                starts: vec![0],
+                items: Vec::new(),
+            };
+        }
+        let area = ((hi[0] - lo[0]) * (hi[1] - lo[1])).max(1e-6);
+        let cell = (area / MAX_INDEX_CELLS).sqrt().max(1.0);
+        let size = [
+            ((hi[0] - lo[0]) / cell).ceil().max(1.0) as usize,
+            ((hi[1] - lo[1]) / cell).ceil().max(1.0) as usize,
+        ];
+        let mut lists: Vec<Vec<u32>> = vec![Vec::new(); size[0] * size[1]];
+        for (i, (_, b)) in boxes.iter().enumerate() {
+            let a = |v: f64, k: usize| {
+                (((v - lo[k]) / cell).floor().max(0.0) as usize).min(size[k] - 1)
+            };
+            let (x0, x1) = (a(b.min.x - margin, 0), a(b.max.x + margin, 0));
+            let (y0, y1) = (a(b.min.y - margin, 1), a(b.max.y + margin, 1));
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    lists[y * size[0] + x].push(i as u32);
+                }
+            }
+        }
+        let mut starts = Vec::with_capacity(lists.len() + 1);
+        let mut items = Vec::new();
+        for l in lists {
+            starts.push(items.len() as u32);
+            items.extend(l);
+        }
+        starts.push(items.len() as u32);
+        BoxIndex {
+            origin: lo,
+            cell,
+            size,
+            starts,
+            items,
+        }
+    }
+
+    /// The boxes whose cells hold `p`'s column (a superset of those that hold `p`).
+    fn near(&self, p: &Point3<f64>) -> &[u32] {
+        let (x, y) = (
+            ((p.x - self.origin[0]) / self.cell).floor(),
+            ((p.y - self.origin[1]) / self.cell).floor(),
+        );
+        if !(x >= 0.0 && y >= 0.0 && (x as usize) < self.size[0] && (y as usize) < self.size[1]) {
+            return &[];
+        }
+        let c = y as usize * self.size[0] + x as usize;
+        &self.items[self.starts[c] as usize..self.starts[c + 1] as usize]
+    }
+}
+
 impl std::fmt::Display for Region {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {

@@ -37,8 +37,9 @@ pub(super) fn windows(
     k: usize,
     (real, sim): Clouds<'_>,
     first: usize,
-    ends: std::ops::Range<usize>,
+    ends: impl IntoIterator<Item = usize>,
 ) -> Vec<Option<GridScores>> {
+    let ends: Vec<usize> = ends.into_iter().collect();
     ends.into_par_iter()
         .map(|i| {
             let drive_index = first + i;
@@ -81,18 +82,29 @@ impl CurveSums {
         CurveSums { cells, others }
     }
 
-    /// Adds the windows ending at `ends` (see [`windows`]).
+    /// Adds the windows ending at `ends` (see [`windows`]) whose drive-wide index is a
+    /// multiple of `every` (none for 0).
     pub(super) fn add(
         &mut self,
-        k: usize,
+        (k, every): (usize, usize),
         clouds: Clouds<'_>,
         first: usize,
         ends: &std::ops::Range<usize>,
     ) {
+        if every == 0 {
+            return;
+        }
+        let sampled: Vec<usize> = ends
+            .clone()
+            .filter(|i| (first + i).is_multiple_of(every))
+            .collect();
+        if sampled.is_empty() {
+            return;
+        }
         let curve: Vec<Vec<Option<GridScores>>> = self
             .others
             .par_iter()
-            .map(|(_, g, _, _)| windows(g, 1, k, clouds, first, ends.clone()))
+            .map(|(_, g, _, _)| windows(g, 1, k, clouds, first, sampled.iter().copied()))
             .collect();
         for (o, w) in self.others.iter_mut().zip(&curve) {
             for v in w.iter().flatten().filter_map(|g| g.ocr) {

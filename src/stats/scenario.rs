@@ -476,6 +476,9 @@ impl Scenario {
             trajectory: Some(truth),
             sensor_frame: false,
             grid_phases: crate::metrics::compare::DEFAULT_GRID_PHASES,
+            // Only the summary's metrics are read.
+            curve_every: 0,
+            point_metrics: true,
         };
         let c = compare(&run, &sim, Some(&rig), Some(&scene), opts, &quiet)
             .map_err(|e| format!("compare: {e}"))?;
