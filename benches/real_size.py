@@ -276,11 +276,17 @@ def route(duration_s, speed):
     arc = math.pi / 2 * r
     before = min(max((length - arc) / 2, 5.0), a - r - 10.0)
     after = min(max(length - arc - before, 5.0), LEG_B_M - r - 10.0)
-    pts = [(xb - r - before, -LANE_M), (xb - r - before / 2, -LANE_M)]
-    for k in range(7):
-        t = k / 6 * math.pi / 2
+    # Waypoints every few metres, on the straights as on the arc: a spline through a long
+    # straight's two ends and a bend's close points overshoots and loops.
+    step = 5.0
+    n_a = max(2, int(before / step))
+    pts = [(xb - r - before + before * k / n_a, -LANE_M) for k in range(n_a)]
+    n_arc = max(4, int(arc / step))
+    for k in range(n_arc + 1):
+        t = k / n_arc * math.pi / 2
         pts.append((xb - r + r * math.sin(t), -LANE_M + r * (1 - math.cos(t))))
-    pts += [(xb, -LANE_M + r + after / 2), (xb, -LANE_M + r + after)]
+    n_b = max(2, int(after / step))
+    pts += [(xb, -LANE_M + r + after * k / n_b) for k in range(1, n_b + 1)]
     return pts
 
 

@@ -541,6 +541,19 @@ fn catmull_rom(points: &[Vector2<f64>], per_segment: usize) -> Vec<Vector2<f64>>
 /// 50 °/s in 20 ms, which no car does and which no 50 Hz yaw-rate sensor could follow).
 const STEER_TRANSITION_M: f64 = 1.0;
 
+/// Time over which a driver turns the steering wheel into a bend, s: above 2.5 m/s the
+/// transition grows with speed ([`steer_transition_m`]), so that a bend is entered no faster
+/// than a car steers (the curvature then changes by at most Δκ / 0.8 s: a straight into the
+/// tightest turn a car makes, 1/2.2 m, at 0.57 1/(m·s), below the
+/// [`super::drivable::MAX_CURVATURE_RATE_PER_M_S`] of 0.8).
+const STEER_TIME_S: f64 = 0.4;
+
+/// The arc length over which the driver model steers into a bend at `speed_mps`: a metre at
+/// parking speed, `speed × STEER_TIME_S` above it.
+fn steer_transition_m(speed_mps: f64) -> f64 {
+    STEER_TRANSITION_M.max(speed_mps * STEER_TIME_S)
+}
+
 /// The path a car can drive along `pts` (evenly spaced): its heading, as a function of arc
 /// length, averaged twice over `transition` (so the curvature ramps instead of stepping), and
 /// the points integrated again from the first one along that heading.
@@ -792,22 +805,17 @@ impl DriveFile {
     }
 
     /// Whether a car can drive the path as planned: drives it without human variation and
-    /// refuses it when it turns tighter than a car can turn, or faster through a turn than a
-    /// car's tyres hold or its yaw rate reaches (see [`super::drivable`]). The change of
-    /// curvature is checked too, but not refused: the driver model sets it, not the waypoints
-    /// (it steers into every turn over [`STEER_TRANSITION_M`], whatever the speed, and at
-    /// town speed that is faster than a car steers: fixtures/gap at 6 m/s enters its bend at
-    /// 1.5 1/(m·s)); it stays in [`Driven::beyond_car`] for `synth` to report, with every
-    /// limit a repetition's human variation takes it beyond.
+    /// refuses it when it turns tighter than a car can turn, faster through a turn than a
+    /// car's tyres hold or its yaw rate reaches, or changes its curvature faster than a car
+    /// steers (see [`super::drivable`]): the driver model enters a single bend within that
+    /// ([`steer_transition_m`]), so a drive beyond it reverses tight turns too quickly (a
+    /// slalom of 3 m radii at 4 m/s). A repetition's human variation may take it beyond a
+    /// limit by a little; that stays in [`Driven::beyond_car`] for `synth` to report.
     pub fn drivable(&self) -> Result<(), DriveError> {
         use rand::SeedableRng;
         // Without variation nothing is drawn: the generator only has to exist.
         let planned = self.drive(&mut rand_chacha::ChaCha8Rng::seed_from_u64(0), false)?;
-        let exceeded: Vec<Exceedance> = planned
-            .beyond_car
-            .into_iter()
-            .filter(|e| e.quantity != Quantity::CurvatureRate)
-            .collect();
+        let exceeded: Vec<Exceedance> = planned.beyond_car;
         if exceeded.is_empty() {
             Ok(())
         } else {
@@ -883,7 +891,7 @@ impl DriveFile {
                 pos + normal * off
             })
             .collect();
-        let path = Polyline::new(steered(&driven_pts, STEER_TRANSITION_M));
+        let path = Polyline::new(steered(&driven_pts, steer_transition_m(p.cruise_speed_mps)));
         let length = path.length();
         let cruise = p.cruise_speed_mps * (1.0 + gauss(v.speed_factor)).max(0.5);
 
@@ -1066,7 +1074,7 @@ impl DriveFile {
 
 #[cfg(test)]
 mod tests {
-    use super::super::drivable::MAX_LATERAL_ACCELERATION_MPS2;
+    use super::super::drivable::{MAX_CURVATURE_RATE_PER_M_S, MAX_LATERAL_ACCELERATION_MPS2};
     use super::*;
     use rand::SeedableRng;
 
@@ -1176,6 +1184,39 @@ stop_at_m = 4.0
         }
     }
 
+    /// A slalom whose turns a car can each take (radius 4 m and more, 0.4 g, 55 °/s) but
+    /// reverses every 3 m at 4 m/s: the steering would have to turn faster than any car's.
+    /// Refused for that alone, naming the value; at walking pace the same slalom is kept.
+    #[test]
+    fn a_slalom_reversed_faster_than_a_car_steers_is_refused() {
+        let wavelength = 6.0;
+        let amplitude = 0.3 / (std::f64::consts::TAU / wavelength).powi(2);
+        // A waypoint every 0.5 m, on the straights before and after too (a Catmull-Rom spline
+        // through unevenly spaced waypoints overshoots).
+        let w: Vec<String> = (-32..=(8.0 * wavelength) as i32 + 32)
+            .map(|k| {
+                let x = f64::from(k) * 0.5;
+                let y = if (0.0..=4.0 * wavelength).contains(&x) {
+                    amplitude * (std::f64::consts::TAU * x / wavelength).sin()
+                } else {
+                    0.0
+                };
+                format!("[{x}, {y}]")
+            })
+            .collect();
+        let waypoints = format!("[{}]", w.join(", "));
+        let Err(DriveError::Undrivable { exceeded, .. }) = plain(&waypoints, 4.0).drivable() else {
+            panic!("a 3 m slalom at 4 m/s was accepted");
+        };
+        let q: Vec<Quantity> = exceeded.iter().map(|x| x.quantity).collect();
+        assert_eq!(q, [Quantity::CurvatureRate], "{exceeded:?}");
+        assert!(
+            exceeded[0].value > MAX_CURVATURE_RATE_PER_M_S,
+            "{exceeded:?}"
+        );
+        plain(&waypoints, 1.5).drivable().unwrap();
+    }
+
     /// Waypoints that make the spline loop, driven at 8.8 m/s (the reported drive): refused,
     /// naming the stretch between the waypoints where it loops, and the values against the
     /// limits. The same path at walking pace is still too tight for any car.
@@ -1191,16 +1232,16 @@ stop_at_m = 4.0
         let q: Vec<Quantity> = exceeded.iter().map(|x| x.quantity).collect();
         assert!(q.contains(&Quantity::LateralAcceleration), "{q:?}");
         assert!(q.contains(&Quantity::YawRate) && q.contains(&Quantity::Curvature));
-        assert!(!q.contains(&Quantity::CurvatureRate), "{q:?}");
+        assert!(q.contains(&Quantity::CurvatureRate), "{q:?}");
         let lateral = exceeded
             .iter()
             .find(|x| x.quantity == Quantity::LateralAcceleration)
             .unwrap();
-        // The loop lies between waypoints 2 and 4; it is driven near cruise speed.
-        assert!((2..=3).contains(&lateral.at.segment), "{lateral:?}");
+        // The loop lies between waypoints 1 and 4; it is driven near cruise speed.
+        assert!((1..=3).contains(&lateral.at.segment), "{lateral:?}");
         assert!(lateral.at.speed_mps > 4.0, "{lateral:?}");
         assert!(
-            lateral.value > 5.0 * MAX_LATERAL_ACCELERATION_MPS2,
+            lateral.value > 3.0 * MAX_LATERAL_ACCELERATION_MPS2,
             "{lateral}"
         );
         let text = e.to_string();
