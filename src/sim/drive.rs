@@ -28,7 +28,7 @@
 //! driver that turns it into a trajectory share their types; split, the format would be documented
 //! in one file and interpreted in another.
 
-use super::drivable::{beyond, Exceedance, PathPoint, Quantity, PASSENGER_CAR};
+use super::drivable::{beyond, Exceedance, PathPoint, PASSENGER_CAR};
 use crate::scene::pose::{PoseSample, Trajectory};
 use hilrig_stamp::UtcNanos;
 use nalgebra::{Vector2, Vector3};
@@ -1074,10 +1074,12 @@ impl DriveFile {
 
 #[cfg(test)]
 mod tests {
+    use super::super::drivable::{
+        Quantity, MAX_CURVATURE_RATE_PER_M_S, MAX_LATERAL_ACCELERATION_MPS2,
+    };
     use super::super::drivable::{MAX_CURVATURE_RATE_PER_M_S, MAX_LATERAL_ACCELERATION_MPS2};
     use super::*;
     use rand::SeedableRng;
-
     const DRIVE: &str = r#"
 name = "t"
 start_utc = "2026-11-21T10:00:00Z"
