@@ -1077,7 +1077,6 @@ mod tests {
     use super::super::drivable::{
         Quantity, MAX_CURVATURE_RATE_PER_M_S, MAX_LATERAL_ACCELERATION_MPS2,
     };
-    use super::super::drivable::{MAX_CURVATURE_RATE_PER_M_S, MAX_LATERAL_ACCELERATION_MPS2};
     use super::*;
     use rand::SeedableRng;
     const DRIVE: &str = r#"
