@@ -1094,8 +1094,14 @@ fn adaptive_footprint_equals_the_full_cast_within_its_tolerance() {
         assert_eq!(full.reported, adaptive.reported);
         assert!(d.channels > 10_000, "{d:?}");
         // ... for a fraction of the rays.
-        let share = if model == Model::Vlp16 { 0.5 } else { 0.85 };
-        assert!(d.rays < share, "{model} {mode:?}: {d:?}");
+        // ... for a fraction of the rays (a dual-return VLS-128 packet, one firing sequence
+        // with no neighbour, is cast in full).
+        let share = match (model, mode) {
+            (Model::Vlp16, _) => 0.45,
+            (_, ReturnMode::Dual) => 1.0,
+            _ => 0.55,
+        };
+        assert!(d.rays <= share, "{model} {mode:?}: {d:?}");
 
         // Thin objects: the cast alone (no random draws, which one changed echo would shift
         // for the rest of its packet).
@@ -1103,7 +1109,10 @@ fn adaptive_footprint_equals_the_full_cast_within_its_tolerance() {
         let d = difference(&full, &adaptive);
         eprintln!("{model} {mode:?}, thin objects, deterministic truth model: {d:?}");
         let beyond = d.beyond_quantum as f64 / d.channels as f64;
-        assert!(beyond > 0.0 && beyond < 0.005, "{model} {mode:?}: {d:?}");
+        assert!(beyond < 0.005, "{model} {mode:?}: {d:?}");
+        // (The scene does show the risk where footprints are cast adaptively.)
+        assert!(beyond > 0.0 || d.rays == 1.0, "{model} {mode:?}: {d:?}");
+        assert!(d.mean_m < 1e-3, "{model} {mode:?}: {d:?}");
     }
 }
 
@@ -1122,14 +1131,14 @@ fn footprints_on_one_plane_cost_one_ray_and_equal_the_full_cast() {
         assert!(d.channels > 5_000, "{d:?}");
         // The full cast casts five rays a firing. Adaptive: the centre; a sub-ray where a
         // packet's edge leaves it without a neighbour (VLP-16: 2 of 24 sequences, and the top
-        // and bottom lasers), the neighbouring sequences' centres outside a VLS-128 packet
-        // (two for its three sequences, or for its one in dual mode).
+        // and bottom lasers); on the VLS-128, the neighbouring sequences' centres outside the
+        // packet (two for its three sequences); its dual-return packets are cast in full.
         let most = match (model, mode) {
             (Model::Vlp16, _) => 0.35,
-            (_, ReturnMode::Dual) => 0.7,
+            (_, ReturnMode::Dual) => 1.0,
             _ => 0.45,
         };
-        assert!(d.rays < most, "{model} {mode:?}: {d:?}");
+        assert!(d.rays <= most, "{model} {mode:?}: {d:?}");
         let (_, again) = full_and_adaptive(&s, model, mode, &truth_effects());
         assert!(again.packets == adaptive.packets);
     }

@@ -145,6 +145,8 @@ struct PacketPlan {
     firings: Vec<Planned>,
     /// Firing sequences in the packet ([`Planned::sequence`] is below this).
     sequences: usize,
+    /// Cast footprints adaptively (footprint.rs), not every sub-ray.
+    adaptive: bool,
     mode: ReturnMode,
     dual: bool,
 }
@@ -380,6 +382,7 @@ impl<'a> LidarSim<'a> {
         let mut plan = PacketPlan {
             firings: Vec::with_capacity(columns * CHANNELS),
             sequences: columns * per_column,
+            adaptive: self.adaptive_footprint(),
             mode,
             dual,
         };

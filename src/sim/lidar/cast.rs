@@ -26,7 +26,7 @@ impl LidarSim<'_> {
         pkt: &mut DataPacket,
         rng: &mut ChaCha8Rng,
     ) {
-        let adaptive = self.adaptive_footprint();
+        let adaptive = plan.adaptive;
         let has_actors = !self.scene.actors.is_empty();
         let mut actors = self.scene.new_actor_poses();
         let mut posed: Option<UtcNanos> = None;
