@@ -13,8 +13,10 @@
 //! straight at this scale, would have to pass between the sub-ray and the centre and so
 //! between the centre and one of the vouching points, which would then not agree. Its hit is
 //! then the centre's primitive's own intersection test with the sub-ray: the very arithmetic
-//! the cast does when that primitive is the first hit, so the result is identical to the bit,
-//! at the cost of one primitive test instead of a BVH traversal. The other sub-rays are cast:
+//! the cast does when that primitive is the first hit, so the result is identical to the bit
+//! (but where the sub-ray meets the edge two coplanar triangles share: the cast then takes
+//! whichever its traversal meets first, 1e-11 m apart), at the cost of one primitive test
+//! instead of a BVH traversal. The other sub-rays are cast:
 //! near an edge (a witness on their side disagrees), at a packet's boundary, the top or bottom
 //! laser, lasers that fire too far apart to bracket them, and where the sub-ray passes the
 //! primitive's edge. Once cast, an agreeing sub-ray vouches for the inner ones, a disagreeing
