@@ -1092,13 +1092,13 @@ fn adaptive_footprint_equals_the_full_cast_within_its_tolerance() {
     for (model, mode) in LAYOUTS {
         // Every edge of boxes, cylinders and a mesh: identical packets, noise, dropout and
         // intensity noise included (the same draws in the same order). The echoes agree to
-        // 1e-11 m: where a sub-ray meets the edge two coplanar triangles share, the cast takes
+        // 1e-9 m: where a sub-ray meets the edge two coplanar triangles share, the cast takes
         // whichever its traversal meets first, the adaptive cast the centre's.
         let (full, adaptive) = full_and_adaptive(&plain, model, mode, &truth_effects());
         let d = difference(&full, &adaptive);
         eprintln!("{model} {mode:?}, no thin objects, truth model: {d:?}");
         assert!(full.packets == adaptive.packets, "{model} {mode:?}: {d:?}");
-        assert!(d.max_m < 1e-10, "{model} {mode:?}: {d:?}");
+        assert!(d.max_m < 1e-9, "{model} {mode:?}: {d:?}");
         assert!(
             full.reported
                 .iter()

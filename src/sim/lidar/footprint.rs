@@ -8,19 +8,19 @@
 //! *agrees* when it met the centre's primitive, or the same material within one range quantum
 //! of the centre hit's plane, or, when the centre met nothing, nothing. A sub-ray is found
 //! without casting it when agreeing points *vouch* for it (they lie beyond it, on both sides of
-//! its line: [`Surface::vouches`]) and no witness on its side of the centre disagrees: an
-//! edge, an occluder's silhouette or the end of the surface that crossed the footprint, being
-//! straight at this scale, would have to pass between the sub-ray and the centre and so
-//! between the centre and one of the vouching points, which would then not agree. Its hit is
-//! then the centre's primitive's own intersection test with the sub-ray: the very arithmetic
-//! the cast does when that primitive is the first hit, so the result is identical to the bit
-//! (but where the sub-ray meets the edge two coplanar triangles share: the cast then takes
-//! whichever its traversal meets first, 1e-11 m apart), at the cost of one primitive test
-//! instead of a BVH traversal. The other sub-rays are cast:
-//! near an edge (a witness on their side disagrees), at a packet's boundary, the top or bottom
-//! laser, lasers that fire too far apart to bracket them, and where the sub-ray passes the
-//! primitive's edge. Once cast, an agreeing sub-ray vouches for the inner ones, a disagreeing
-//! one blocks those on its side.
+//! its line: [`Surface::vouches`]) and no point that disagrees lies within [`BLOCKING`]
+//! half-axes of it: an edge, an occluder's silhouette or the end of the surface that crossed
+//! the footprint, being straight at this scale, would have to pass between the sub-ray and the
+//! centre and so between the centre and one of the vouching points, which would then not
+//! agree. Its hit is then the centre's primitive's own intersection test with the sub-ray: the
+//! very arithmetic the cast does when that primitive is the first hit, so the result is
+//! identical to the bit (but where the sub-ray meets the edge two coplanar triangles share:
+//! the cast then takes whichever its traversal meets first, less than 1e-9 m apart), at the
+//! cost of one primitive test instead of a BVH traversal. The other sub-rays are cast: near an
+//! edge (the neighbour across disagrees, or the lasers above or below do and leave no voucher
+//! on that side), at a packet's boundary, the top or bottom laser, lasers that fire too far
+//! apart to bracket them, and where the sub-ray passes the primitive's edge. Once cast, an
+//! agreeing sub-ray vouches for the inner ones, a disagreeing one blocks those near it.
 //!
 //! Why not simply the centre's echo with the whole footprint's power: on a plane the merged
 //! echo differs from the centre ray's by `r · O(δ² tan² θ)` (δ the sub-ray offset, θ the
@@ -41,7 +41,7 @@
 //!   probability about `2 s/Δ` (3 sub-rays per axis): the full cast reports its partial echo
 //!   (strongest when it is near and bright, a mixed range within the range separation), the
 //!   adaptive cast what lies behind. Where a centre ray meets it, its neighbours' witnesses
-//!   disagree and their sub-rays on its side are cast;
+//!   disagree and their sub-rays near it are cast;
 //! - the corner of an object, or the tip of a curved outline, reaching between a sub-ray and
 //!   its vouchers while no witness on that side sees it (within about a half-axis of the
 //!   sub-ray, at most [`LATERAL`] beside it): the scale at which the 3 × 3 grid itself
@@ -69,6 +69,15 @@ const LATERAL: f64 = 2.5;
 /// A point beyond a sub-ray this close to its line (half-axes) vouches for it alone: the same
 /// laser one sequence on lies a few thousandths off the line (the vehicle's motion).
 const ON_LINE: f64 = 0.1;
+
+/// A witness or cast sub-ray that disagrees blocks the sub-rays within this distance of it
+/// (footprint half-axes): the neighbour across (2.4 half-axes at 600 rpm) blocks the three
+/// sub-rays nearer to it than the centre, the one on its side and those above and below (a
+/// sphere's outline, curved, once reached the one above between its vouchers when only the
+/// one on the side was blocked); the lasers above and below (about 20 half-axes away on the
+/// VLS-128, 47 on the VLP-16) block none, they only leave the sub-ray on their side without
+/// a voucher there.
+const BLOCKING: f64 = 3.0;
 
 /// The most points a footprint keeps (witnesses and cast sub-rays); more could only vouch for
 /// more.
@@ -278,7 +287,7 @@ impl Surface<'_> {
     fn vouches(&self, p: (f64, f64)) -> bool {
         if self.blocked[..self.blocked_len]
             .iter()
-            .any(|q| q.0 * p.0 + q.1 * p.1 > 0.0)
+            .any(|q| (q.0 - p.0).hypot(q.1 - p.1) <= BLOCKING)
         {
             return false;
         }
@@ -356,8 +365,8 @@ pub(super) struct Footprint<'a> {
 /// This is where the adaptive cast decides, and where it can differ from the full cast: a
 /// vouched sub-ray misses whatever thin object or corner no witness saw (the module's
 /// documentation); on tests/sim_model.rs's scene with four objects thinner than the spacing
-/// that changes 0.18 % (VLP-16) and 0.06 % (VLS-128) of the returns by more than one range
-/// quantum, and nothing at all without them.
+/// that changes 0.19 % (VLP-16), 0.10 % (VLS-128) and 0.02 % (HDL-64E) of the returns by more
+/// than one range quantum, and nothing at all without them.
 #[allow(
     clippy::too_many_arguments,
     reason = "one footprint and the ray loop's state"
@@ -398,7 +407,7 @@ pub(super) fn resolve(
         blocked_len: 0,
     };
     // Witnesses that agree become points; those that do not (an edge beside the footprint)
-    // block the sub-rays on their side.
+    // block the sub-rays near them.
     let witness = |surface: &mut Surface, ws: &[Option<&CentreRay>]| {
         for c in ws.iter().flatten() {
             match surface.agrees(&c.origin, &c.direction, c.hit.as_ref()) {
