@@ -4,15 +4,24 @@
 //!   in the same run (ratio, should be at least 0.8);
 //! - simulation of a VLP-32C along the recorded drive on both cores, as a multiple of real time
 //!   (re-simulation's core; should be at least 5x);
-//! - BVH build time of the scene.
+//! - BVH build time of the scene;
+//! - the truth model (fixtures/parking/truth-model.toml: noise, threshold, a 3 × 1.5 mrad beam
+//!   with 3 sub-rays per axis, dropout, intensity) against the idealized model on VLS-128 and
+//!   VLP-16 packets, with the beam's footprint cast adaptively (the default) and in full:
+//!   firings and rays per second on one thread, and the ratios (full / adaptive, truth /
+//!   idealized) from interleaved rounds; on the parking scene (mostly sky for a VLS-128) and
+//!   on a generated street (a meshed road with a crown and a gentle grade, kerbs, building
+//!   fronts with balconies, parked cars, trees and lamp posts: surfaces in every direction).
 //!
 //! `cargo bench --bench raycast` runs criterion on each and then prints the ratios from
 //! interleaved rounds, so that both sides of a ratio see the same machine load.
 
 use criterion::{criterion_group, Criterion, Throughput};
 use hilrig::rig::Mounting;
-use hilrig::scene::pose::Trajectory;
-use hilrig::scene::Scene;
+use hilrig::scene::file::{Ground, ObjectFile, Placement, SceneFile, Wgs84};
+use hilrig::scene::pose::{PoseSample, Trajectory};
+use hilrig::scene::{Scene, Shape};
+use hilrig::sim::lidar::FootprintCast;
 use hilrig::sim::spin::{Skeleton, Spin};
 use hilrig::sim::{LidarSim, ModelFile, SimStats};
 use hilrig::stamp::UtcNanos;
@@ -70,13 +79,17 @@ impl Setup {
 
 fn skeletons(model: Model, mode: ReturnMode, ego: &Trajectory, seconds: f64) -> Vec<Skeleton> {
     let start = ego.span().0;
+    spin_from(model, mode, UtcNanos(start.0 + 4_000_000_000), seconds)
+}
+
+/// The packets of `seconds` of spinning from `t0` at 600 rpm.
+fn spin_from(model: Model, mode: ReturnMode, t0: UtcNanos, seconds: f64) -> Vec<Skeleton> {
     let spin = Spin {
         model,
         mode,
         rpm: 600.0,
         phase_deg: 0.0,
-        // Mid-drive: the ego is moving and the pedestrian is in view.
-        t0: UtcNanos(start.0 + 4_000_000_000),
+        t0,
     };
     (0..spin.packets_in(seconds))
         .map(|k| spin.packet(k, |t| t))
@@ -144,11 +157,311 @@ fn bare(scene: &Scene, rays: &[(Ray, Vec<Ray>)]) -> usize {
 }
 
 fn model_run(sim: &LidarSim, ego: &Trajectory, sk: &[Skeleton]) -> u64 {
+    simulated(sim, ego, sk).returns
+}
+
+/// Simulates the packets on this thread; the counters.
+fn simulated(sim: &LidarSim, ego: &Trajectory, sk: &[Skeleton]) -> SimStats {
     let mut stats = SimStats::default();
     for (k, s) in sk.iter().enumerate() {
         black_box(sim.simulate(&s.packet, s.time, ego, k as u64, &mut stats));
     }
-    stats.returns
+    stats
+}
+
+fn truth_model() -> ModelFile {
+    ModelFile::load(&fixture("parking/truth-model.toml")).unwrap()
+}
+
+/// The three models the truth-model comparison runs: idealized, truth with the footprint cast
+/// in full, truth cast adaptively.
+fn three_models(s: &Setup, model: Model) -> [(&'static str, LidarSim<'_>); 3] {
+    let truth = truth_model();
+    [
+        ("idealized", s.sim(model, &ModelFile::idealized())),
+        (
+            "truth, full footprint",
+            s.sim(model, &truth)
+                .with_footprint_cast(FootprintCast::Full),
+        ),
+        (
+            "truth, adaptive footprint",
+            s.sim(model, &truth)
+                .with_footprint_cast(FootprintCast::Adaptive),
+        ),
+    ]
+}
+
+/// A street 200 m long (x) and 34 m between the building fronts, written into `dir`: a road
+/// mesh 14 m wide in 0.5 m cells with a 2 % crown and a 30 cm grade wave over 80 m, kerbs and
+/// pavements, building fronts (set back differently, with balconies), cars parked on both
+/// sides, trees and lamp posts; and the ego driving along it at 8 m/s for 6 s. Seen from the
+/// road, nearly every beam meets something.
+fn street(dir: &std::path::Path) -> (Scene, Trajectory) {
+    use std::fmt::Write;
+    let height =
+        |x: f64, y: f64| 0.02 * (7.0 - y.abs()) + 0.3 * (x * std::f64::consts::TAU / 80.0).sin();
+    let mut obj = String::new();
+    let (nx, ny) = (400, 28);
+    for i in 0..=nx {
+        for j in 0..=ny {
+            let (x, y) = (-100.0 + 0.5 * f64::from(i), -7.0 + 0.5 * f64::from(j));
+            let _ = writeln!(obj, "v {x} {y} {}", height(x, y));
+        }
+    }
+    let v = |i: u32, j: u32| i * (ny + 1) + j + 1;
+    for i in 0..nx {
+        for j in 0..ny {
+            let _ = writeln!(
+                obj,
+                "f {} {} {} {}",
+                v(i, j),
+                v(i + 1, j),
+                v(i + 1, j + 1),
+                v(i, j + 1)
+            );
+        }
+    }
+    std::fs::write(dir.join("road.obj"), obj).unwrap();
+    let boxed = |size: [f64; 3], x: f64, y: f64, z: f64| Shape::Box {
+        size,
+        at: Placement {
+            x,
+            y,
+            z,
+            ..Placement::default()
+        },
+        reflectivity: None,
+    };
+    let object =
+        |name: String, x: f64, y: f64, z: f64, reflectivity: f64, parts: Vec<Shape>| ObjectFile {
+            name,
+            pose: Placement {
+                x,
+                y,
+                z,
+                ..Placement::default()
+            },
+            reflectivity,
+            accuracy_m: 0.05,
+            parts,
+        };
+    let mut objects = vec![object(
+        "road".into(),
+        0.0,
+        0.0,
+        0.0,
+        0.1,
+        vec![Shape::Mesh {
+            file: "road.obj".into(),
+            scale: 1.0,
+            at: Placement::default(),
+            reflectivity: None,
+        }],
+    )];
+    for side in [-1.0f64, 1.0] {
+        // Pavement with its kerb, 15 cm up (the wave lifts the road by up to 30 cm; the
+        // pavement follows it in 10 m slabs).
+        for k in 0..20 {
+            let x = -95.0 + 10.0 * f64::from(k);
+            objects.push(object(
+                format!("pavement {side} {k}"),
+                x,
+                side * 12.0,
+                height(x, 7.0) - 0.05,
+                0.2,
+                vec![boxed([10.0, 10.0, 0.2], 0.0, 0.0, 0.0)],
+            ));
+        }
+        // Building fronts 12 to 20 m wide, set back 0 to 1.5 m, with a balcony per floor.
+        let mut x = -100.0;
+        let mut k = 0;
+        while x < 100.0 {
+            let w = 12.0 + f64::from(k % 5) * 2.0;
+            let back = f64::from(k % 4) * 0.5;
+            let y = side * (17.0 + back + 5.0);
+            let mut parts = vec![boxed(
+                [w, 10.0, 15.0 + f64::from(k % 3) * 3.0],
+                0.0,
+                0.0,
+                0.0,
+            )];
+            for floor in 1..5 {
+                parts.push(boxed(
+                    [w * 0.4, 1.2, 0.15],
+                    0.0,
+                    -side * 5.6,
+                    3.0 * f64::from(floor),
+                ));
+            }
+            objects.push(object(
+                format!("building {side} {k}"),
+                x + w / 2.0,
+                y,
+                0.0,
+                0.3,
+                parts,
+            ));
+            x += w;
+            k += 1;
+        }
+        // Cars parked along the kerb, trees and lamp posts on the pavement.
+        for k in 0..28 {
+            let x = -95.0 + 7.0 * f64::from(k);
+            if k % 5 != 2 {
+                objects.push(object(
+                    format!("car {side} {k}"),
+                    x,
+                    side * 6.0,
+                    height(x, 6.0),
+                    [0.7, 0.06, 0.35, 0.5][k as usize % 4],
+                    vec![
+                        boxed([4.4, 1.8, 0.8], 0.0, 0.0, 0.3),
+                        boxed([2.4, 1.6, 0.6], -0.2, 0.0, 1.1),
+                    ],
+                ));
+            }
+            let z = height(x, 7.0) + 0.15;
+            let tree = k % 2 == 0;
+            objects.push(object(
+                format!("{} {side} {k}", if tree { "tree" } else { "lamp" }),
+                x + 3.5,
+                side * 8.0,
+                z,
+                0.4,
+                vec![Shape::Cylinder {
+                    radius: if tree { 0.18 } else { 0.07 },
+                    height: if tree { 3.0 } else { 6.0 },
+                    at: Placement::default(),
+                    reflectivity: None,
+                }],
+            ));
+            if tree {
+                objects.push(object(
+                    format!("crown {side} {k}"),
+                    x + 3.5,
+                    side * 8.0,
+                    z + 3.0,
+                    0.25,
+                    vec![Shape::Cylinder {
+                        radius: 1.8,
+                        height: 3.0,
+                        at: Placement::default(),
+                        reflectivity: None,
+                    }],
+                ));
+            }
+        }
+    }
+    let file = SceneFile {
+        name: "street".into(),
+        origin: Wgs84 {
+            latitude_deg: 48.78,
+            longitude_deg: 11.47,
+            height_m: 400.0,
+        },
+        ground: Some(Ground {
+            z: -0.5,
+            half_size_m: 300.0,
+            reflectivity: 0.1,
+            accuracy_m: 0.05,
+        }),
+        objects,
+        actors: vec![],
+    };
+    let scene = Scene::from_file(file, dir, &dir.join("street.toml")).unwrap();
+    let t0 = 1_763_700_000_000_000_000i64;
+    let ego = Trajectory::new(
+        (0..=600)
+            .map(|i| {
+                let t = f64::from(i) * 0.01;
+                let x = -40.0 + 8.0 * t;
+                PoseSample {
+                    t: UtcNanos(t0 + i64::from(i) * 10_000_000),
+                    position: nalgebra::Vector3::new(x, -3.5, height(x, -3.5)),
+                    yaw: 0.0,
+                    pitch: 0.0,
+                    roll: 0.0,
+                }
+            })
+            .collect(),
+    )
+    .unwrap();
+    (scene, ego)
+}
+
+/// Truth model against idealized, full footprint against adaptive, on one thread: the median of
+/// interleaved rounds, so that every ratio compares the same machine load.
+fn truth_report(s: &Setup) {
+    let dir = std::env::temp_dir().join(format!("hilrig-bench-street-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (street_scene, street_ego) = street(&dir);
+    let street = Setup {
+        scene: street_scene,
+        ego: street_ego,
+        mounting: s.mounting,
+    };
+    println!(
+        "street scene: {} static primitives",
+        street.scene.statics.len()
+    );
+    for (place, setup) in [("parking scene", s), ("street", &street)] {
+        for (model, mode) in [
+            (Model::Vls128, ReturnMode::Strongest),
+            (Model::Vls128, ReturnMode::Dual),
+            (Model::Vlp16, ReturnMode::Strongest),
+        ] {
+            truth_rounds(setup, place, model, mode);
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn truth_rounds(s: &Setup, place: &str, model: Model, mode: ReturnMode) {
+    let sims = three_models(s, model);
+    let sk = spin_from(
+        model,
+        mode,
+        UtcNanos(s.ego.span().0 .0 + 2_000_000_000),
+        0.1,
+    );
+    let rounds = 9;
+    let mut times = vec![Vec::new(); sims.len()];
+    let mut stats = vec![SimStats::default(); sims.len()];
+    for _ in 0..rounds {
+        for (i, (_, sim)) in sims.iter().enumerate() {
+            let t = Instant::now();
+            stats[i] = simulated(sim, &s.ego, &sk);
+            times[i].push(t.elapsed().as_secs_f64());
+        }
+    }
+    for t in &mut times {
+        t.sort_by(f64::total_cmp);
+    }
+    let median: Vec<f64> = times.iter().map(|t| t[rounds / 2]).collect();
+    println!(
+        "{model} {mode:?}, {place}, 0.1 s of packets ({} packets, {} firings, {} returns), 1 thread, median of {rounds} interleaved rounds:",
+        sk.len(),
+        stats[0].firings,
+        stats[0].returns
+    );
+    for (i, (name, _)) in sims.iter().enumerate() {
+        let st = &stats[i];
+        println!(
+            "  {name:<26} {:7.3} s  {:5.2} M firings/s  {:5.2} M rays/s  {:.2} rays/firing  footprints cast in full {:5.1} %",
+            median[i],
+            st.firings as f64 / median[i] / 1e6,
+            st.rays as f64 / median[i] / 1e6,
+            st.rays as f64 / st.firings as f64,
+            100.0 * st.footprints_cast as f64 / st.firings as f64
+        );
+    }
+    println!(
+        "  time ratios: full / adaptive {:.2}; truth / idealized {:.2} (adaptive), {:.2} (full)",
+        median[1] / median[2],
+        median[2] / median[0],
+        median[1] / median[0]
+    );
 }
 
 fn bench(c: &mut Criterion) {
@@ -164,6 +477,34 @@ fn bench(c: &mut Criterion) {
         b.iter(|| model_run(&sim, &s.ego, &sk))
     });
     g.finish();
+
+    // The truth model's three ways on 10 ms of VLS-128 packets along the generated street.
+    let dir = std::env::temp_dir().join(format!("hilrig-bench-street-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (scene, ego) = street(&dir);
+    let st = Setup {
+        scene,
+        ego,
+        mounting: s.mounting,
+    };
+    let mut g = c.benchmark_group("truth_model_vls128_street_10ms");
+    let sims = three_models(&st, Model::Vls128);
+    let sk = spin_from(
+        Model::Vls128,
+        ReturnMode::Strongest,
+        UtcNanos(st.ego.span().0 .0 + 2_000_000_000),
+        0.01,
+    );
+    g.throughput(Throughput::Elements(
+        (sk.len() * hilrig::velodyne::packet::BLOCKS * hilrig::velodyne::packet::CHANNELS) as u64,
+    ));
+    for (name, sim) in &sims {
+        g.bench_function(name.replace([',', ' '], "_"), |b| {
+            b.iter(|| model_run(sim, &st.ego, &sk))
+        });
+    }
+    g.finish();
+    let _ = std::fs::remove_dir_all(&dir);
 
     let mut g = c.benchmark_group("bvh_build");
     g.bench_function("parking_scene", |b| {
@@ -231,6 +572,7 @@ fn report() {
             seconds / el
         );
     }
+    truth_report(&s);
     let t = Instant::now();
     let sc = Scene::load(&fixture("parking/rep-01/scene.toml")).unwrap();
     println!(

@@ -794,3 +794,366 @@ fn a_2_degree_mount_yaw_turns_the_beams_by_2_degrees_at_a_wall() {
         "2° misalignment seen as {skewed}°"
     );
 }
+
+/// A UV sphere of radius `r` as an OBJ mesh (`rings` × `segments` quads, triangulated): a
+/// curved surface of facets whose normals differ from one to the next.
+fn sphere_obj(r: f64, rings: usize, segments: usize) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    for i in 0..=rings {
+        let th = std::f64::consts::PI * i as f64 / rings as f64;
+        for j in 0..segments {
+            let ph = std::f64::consts::TAU * j as f64 / segments as f64;
+            let _ = writeln!(
+                s,
+                "v {} {} {}",
+                r * th.sin() * ph.cos(),
+                r * th.sin() * ph.sin(),
+                r * th.cos()
+            );
+        }
+    }
+    let v = |i: usize, j: usize| i * segments + j % segments + 1;
+    for i in 0..rings {
+        for j in 0..segments {
+            let _ = writeln!(
+                s,
+                "f {} {} {} {}",
+                v(i, j),
+                v(i + 1, j),
+                v(i + 1, j + 1),
+                v(i, j + 1)
+            );
+        }
+    }
+    s
+}
+
+/// A scene of depth edges around the sensor: ground, boxes (walls, a car, a yawed crate, a
+/// building), cylinders (a column, a wide tank, poles 2 to 10 cm thick) and a tessellated
+/// sphere; with `thin`, also objects narrower than the firings' spacing (3.5 mrad across at
+/// 600 rpm): poles 1 cm thick at 12 m (0.8 mrad) and 2 cm at 20 m (1 mrad), a wire 12 mm thick
+/// 4 m up, and a bar 2 cm high lying on the ground.
+fn edge_scene(dir: &Path, thin: bool) -> Scene {
+    std::fs::write(dir.join("sphere.obj"), sphere_obj(1.5, 24, 48)).unwrap();
+    let bx = |name: &str, x: f64, y: f64, size: [f64; 3], yaw: f64, refl: f64| ObjectFile {
+        pose: Placement {
+            x,
+            y,
+            z: 0.0,
+            yaw_deg: yaw,
+            ..Placement::default()
+        },
+        ..object(
+            name,
+            0.0,
+            0.0,
+            0.0,
+            Shape::Box {
+                size,
+                at: Placement::default(),
+                reflectivity: None,
+            },
+            refl,
+        )
+    };
+    let cyl = |name: &str, x: f64, y: f64, radius: f64, height: f64| {
+        object(
+            name,
+            x,
+            y,
+            0.0,
+            Shape::Cylinder {
+                radius,
+                height,
+                at: Placement::default(),
+                reflectivity: None,
+            },
+            0.45,
+        )
+    };
+    let mut objects = vec![
+        bx("wall north", 0.0, 25.0, [30.0, 0.3, 6.0], 0.0, 0.5),
+        bx("wall north 2", 22.0, 25.0, [10.0, 0.3, 3.0], 0.0, 0.5),
+        // 1.45 m high, not 1.5: a horizontal laser at the sensor's 1.5 m would run along its top
+        // face, where a ray's hit or miss of the edge is rounding's choice.
+        bx("car", 8.0, 4.0, [4.5, 1.8, 1.45], 10.0, 0.35),
+        bx("crate", -6.0, -5.0, [2.0, 2.0, 1.0], 30.0, 0.6),
+        bx("building", -30.0, 0.0, [10.0, 40.0, 12.0], 0.0, 0.3),
+        cyl("column", 12.0, -3.0, 0.12, 2.0),
+        cyl("tank", 20.0, -12.0, 3.0, 4.0),
+        cyl("pole 2 cm at 5 m", 5.0, 2.0, 0.01, 3.0),
+        cyl("pole 4 cm at 9 m", 9.0, -1.0, 0.02, 3.0),
+        cyl("pole 10 cm at 10 m", -8.0, 6.0, 0.05, 3.0),
+        object(
+            "sphere",
+            -4.0,
+            12.0,
+            1.5,
+            Shape::Mesh {
+                file: "sphere.obj".into(),
+                scale: 1.0,
+                at: Placement::default(),
+                reflectivity: None,
+            },
+            0.4,
+        ),
+    ];
+    if thin {
+        objects.extend([
+            cyl("pole 1 cm at 12 m", -3.0, -11.6, 0.005, 4.0),
+            cyl("pole 2 cm at 20 m", 15.0, 13.2, 0.01, 4.0),
+            ObjectFile {
+                pose: Placement {
+                    x: -10.0,
+                    y: -20.0,
+                    z: 4.0,
+                    pitch_deg: 90.0,
+                    ..Placement::default()
+                },
+                ..cyl("wire", 0.0, 0.0, 0.006, 30.0)
+            },
+            bx("bar", 6.0, -8.0, [3.0, 0.02, 0.02], 90.0, 0.5),
+        ]);
+    }
+    let ground = Ground {
+        z: 0.0,
+        half_size_m: 300.0,
+        reflectivity: 0.15,
+        accuracy_m: 0.0,
+    };
+    let file = SceneFile {
+        name: "edges".into(),
+        origin: Wgs84 {
+            latitude_deg: 48.0,
+            longitude_deg: 11.0,
+            height_m: 0.0,
+        },
+        ground: Some(ground),
+        objects,
+        actors: vec![],
+    };
+    Scene::from_file(file, dir, &dir.join("edges.toml")).unwrap()
+}
+
+/// The truth model's effects (fixtures/parking/truth-model.toml): noise, threshold, a 3 × 1.5
+/// mrad beam with 3 sub-rays per axis, dropout, intensity with noise.
+fn truth_effects() -> Vec<Effect> {
+    ModelFile::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/parking/truth-model.toml"),
+    )
+    .unwrap()
+    .effects
+}
+
+/// The truth model without its random draws (range noise, dropout, intensity noise): what the
+/// cast alone decides. (With them, one firing whose echo count differs shifts every later
+/// draw of its packet.)
+fn truth_deterministic() -> Vec<Effect> {
+    truth_effects()
+        .into_iter()
+        .filter(|e| !matches!(e, Effect::RangeNoise { .. } | Effect::RandomDropout { .. }))
+        .map(|e| match e {
+            Effect::Intensity {
+                incidence_exponent, ..
+            } => Effect::Intensity {
+                incidence_exponent,
+                noise_sigma: 0.0,
+            },
+            e => e,
+        })
+        .collect()
+}
+
+/// What one simulation of a rotation gave: the packets, every firing's reported echo, and
+/// the counters.
+struct Rotation {
+    packets: Vec<hilrig::velodyne::DataPacket>,
+    reported: Vec<Option<hilrig::sim::Echo>>,
+    stats: SimStats,
+}
+
+fn rotation(sim: &LidarSim, ego: &Trajectory, spin: Spin, seconds: f64) -> Rotation {
+    let mut out = Rotation {
+        packets: Vec::new(),
+        reported: Vec::new(),
+        stats: SimStats::default(),
+    };
+    for k in 0..spin.packets_in(seconds) {
+        let sk = spin.packet(k, |t| t);
+        let pkt = sim.simulate_observed(&sk.packet, sk.time, ego, k, &mut out.stats, &mut |f| {
+            out.reported.push(f.reported);
+        });
+        out.packets.push(pkt);
+    }
+    out
+}
+
+/// How far the adaptive cast's output is from the full cast's.
+#[derive(Debug, Default)]
+struct Difference {
+    /// Channels (returns) written by either.
+    channels: usize,
+    /// Channels whose raw distance differs by more than one count, or that only one wrote.
+    beyond_quantum: usize,
+    /// Channels whose intensity differs by more than one count.
+    intensity: usize,
+    /// Mean and largest |Δ range| of the reported echoes both have, metres.
+    mean_m: f64,
+    max_m: f64,
+    /// Rays the adaptive cast cast, as a share of the full cast's.
+    rays: f64,
+}
+
+fn difference(full: &Rotation, adaptive: &Rotation) -> Difference {
+    let mut d = Difference::default();
+    for (a, b) in full.packets.iter().zip(&adaptive.packets) {
+        for (ba, bb) in a.blocks.iter().zip(&b.blocks) {
+            for (ca, cb) in ba.channels.iter().zip(&bb.channels) {
+                if ca.distance == 0 && cb.distance == 0 {
+                    continue;
+                }
+                d.channels += 1;
+                if ca.distance == 0 || cb.distance == 0 || ca.distance.abs_diff(cb.distance) > 1 {
+                    d.beyond_quantum += 1;
+                }
+                if ca.reflectivity.abs_diff(cb.reflectivity) > 1 {
+                    d.intensity += 1;
+                }
+            }
+        }
+    }
+    let mut n = 0usize;
+    for (a, b) in full.reported.iter().zip(&adaptive.reported) {
+        if let (Some(a), Some(b)) = (a, b) {
+            let x = (a.range - b.range).abs();
+            d.mean_m += x;
+            d.max_m = d.max_m.max(x);
+            n += 1;
+        }
+    }
+    d.mean_m /= n.max(1) as f64;
+    d.rays = adaptive.stats.rays as f64 / full.stats.rays as f64;
+    d
+}
+
+/// The sensors and return modes the adaptive footprint is checked on: the standard layout
+/// (VLP-16, 24 firing sequences a packet) and the banked ones (VLS-128, three, or one in dual;
+/// HDL-64E, six or three).
+const LAYOUTS: [(Model, ReturnMode); 6] = [
+    (Model::Vlp16, ReturnMode::Strongest),
+    (Model::Vlp16, ReturnMode::Dual),
+    (Model::Vls128, ReturnMode::Strongest),
+    (Model::Vls128, ReturnMode::Dual),
+    (Model::Hdl64eS3, ReturnMode::Strongest),
+    (Model::Hdl64eS3, ReturnMode::Dual),
+];
+
+/// One rotation with `effects`, cast with the full footprint and adaptively.
+fn full_and_adaptive(
+    s: &Scene,
+    model: Model,
+    mode: ReturnMode,
+    effects: &[Effect],
+) -> (Rotation, Rotation) {
+    use hilrig::sim::lidar::FootprintCast;
+    // Moving and turning, so that each firing has its own pose.
+    let ego = ctrv(3.0, 0.2, 1.0);
+    let sim = |how| {
+        LidarSim::new(
+            s,
+            model,
+            Calibration::builtin(model),
+            &mounting(),
+            &model_of(effects.to_vec()),
+        )
+        .unwrap()
+        .with_footprint_cast(how)
+    };
+    let sp = Spin {
+        mode,
+        ..spin(model)
+    };
+    (
+        rotation(&sim(FootprintCast::Full), &ego, sp, 0.1),
+        rotation(&sim(FootprintCast::Adaptive), &ego, sp, 0.1),
+    )
+}
+
+/// The adaptive footprint (BeamDivergence's documented tolerance): where no object narrower
+/// than the firings' spacing stands, it gives the full cast's packets byte for byte, with the
+/// truth model's random draws too; objects narrower than that change a few returns (their
+/// partial echoes), at most 0.5 % of them on a scene where three of fifteen objects are.
+#[test]
+fn adaptive_footprint_equals_the_full_cast_within_its_tolerance() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = edge_scene(dir.path(), false);
+    let thin = edge_scene(dir.path(), true);
+    for (model, mode) in LAYOUTS {
+        // Every edge of boxes, cylinders and a mesh: identical packets, noise, dropout and
+        // intensity noise included (the same draws in the same order). The echoes agree to
+        // 1e-9 m: where a sub-ray meets the edge two coplanar triangles share, the cast takes
+        // whichever its traversal meets first, the adaptive cast the centre's.
+        let (full, adaptive) = full_and_adaptive(&plain, model, mode, &truth_effects());
+        let d = difference(&full, &adaptive);
+        eprintln!("{model} {mode:?}, no thin objects, truth model: {d:?}");
+        assert!(full.packets == adaptive.packets, "{model} {mode:?}: {d:?}");
+        assert!(d.max_m < 1e-9, "{model} {mode:?}: {d:?}");
+        assert!(
+            full.reported
+                .iter()
+                .zip(&adaptive.reported)
+                .all(|(a, b)| a.is_some() == b.is_some()),
+            "{model} {mode:?}"
+        );
+        assert!(d.channels > 10_000, "{d:?}");
+        // ... for a fraction of the rays.
+        // ... for a fraction of the rays (a dual-return VLS-128 packet, one firing sequence
+        // with no neighbour, is cast in full).
+        let share = match (model, mode) {
+            (Model::Vlp16, _) => 0.45,
+            (_, ReturnMode::Dual) => 1.0,
+            _ => 0.55,
+        };
+        assert!(d.rays <= share, "{model} {mode:?}: {d:?}");
+
+        // Thin objects: the cast alone (no random draws, which one changed echo would shift
+        // for the rest of its packet).
+        let (full, adaptive) = full_and_adaptive(&thin, model, mode, &truth_deterministic());
+        let d = difference(&full, &adaptive);
+        eprintln!("{model} {mode:?}, thin objects, deterministic truth model: {d:?}");
+        let beyond = d.beyond_quantum as f64 / d.channels as f64;
+        assert!(beyond < 0.005, "{model} {mode:?}: {d:?}");
+        // (The scene does show the risk where footprints are cast adaptively.)
+        assert!(beyond > 0.0 || d.rays == 1.0, "{model} {mode:?}: {d:?}");
+        assert!(d.mean_m < 1e-3, "{model} {mode:?}: {d:?}");
+    }
+}
+
+/// Footprints entirely on one plane (a wall facing the sensor, with nothing behind it) get
+/// the full cast's hits without their sub-rays being cast: only the centre rays (and, on the
+/// VLS-128, the neighbouring sequences' outside the packet, and at a packet's edges a sub-ray
+/// no neighbour vouches for) are. And the same seed gives the same packets.
+#[test]
+fn footprints_on_one_plane_cost_one_ray_and_equal_the_full_cast() {
+    let s = scene(vec![wall(12.0, 0.5)], None);
+    for (model, mode) in LAYOUTS {
+        let (full, adaptive) = full_and_adaptive(&s, model, mode, &truth_effects());
+        let d = difference(&full, &adaptive);
+        eprintln!("{model} {mode:?}, one plane: {d:?} {:?}", adaptive.stats);
+        assert!(full.packets == adaptive.packets, "{model} {mode:?}: {d:?}");
+        assert!(d.channels > 5_000, "{d:?}");
+        // The full cast casts five rays a firing. Adaptive: the centre; a sub-ray where a
+        // packet's edge leaves it without a neighbour (VLP-16: 2 of 24 sequences, and the top
+        // and bottom lasers); on the VLS-128, the neighbouring sequences' centres outside the
+        // packet (two for its three sequences); its dual-return packets are cast in full.
+        let most = match (model, mode) {
+            (Model::Vlp16, _) => 0.35,
+            (_, ReturnMode::Dual) => 1.0,
+            _ => 0.45,
+        };
+        assert!(d.rays <= most, "{model} {mode:?}: {d:?}");
+        let (_, again) = full_and_adaptive(&s, model, mode, &truth_effects());
+        assert!(again.packets == adaptive.packets);
+    }
+}

@@ -71,6 +71,12 @@ pub struct Hit {
     pub normal: Vector3<f64>,
     /// Material.
     pub material: Material,
+    /// Which primitive was hit: an index into [`Geometry::primitives`] of the geometry cast
+    /// (`Scene::cast` keeps it for the static geometry and clears it for an actor's, whose
+    /// primitives are in the actor's frame). Intersecting that primitive again with a nearby
+    /// ray gives exactly what a cast would when nothing lies in front of it: the lidar model's
+    /// adaptive beam footprint relies on that.
+    pub primitive: Option<u32>,
 }
 
 // Rounding margin for the f32 boxes around f64 primitives.
@@ -324,6 +330,7 @@ impl Geometry {
             range,
             normal,
             material: self.prims[i].material(),
+            primitive: u32::try_from(i).ok(),
         })
     }
 }

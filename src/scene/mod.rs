@@ -278,6 +278,8 @@ impl Scene {
             let ld = pose.inverse_transform_vector(d);
             if let Some(mut h) = a.geometry.cast(&lo, &ld, tmin, limit) {
                 h.normal = pose.transform_vector(&h.normal);
+                // Its index is into the actor's geometry, in the actor's frame.
+                h.primitive = None;
                 best = Some(h);
             }
         }

@@ -13,9 +13,13 @@
 //! that time too.
 
 mod banked;
+mod cast;
+mod echo;
 mod effects;
+mod footprint;
 
 use effects::Compiled;
+use footprint::{CentreRay, SubHit};
 
 use super::model::{ModelError, ModelFile};
 use crate::rig::Mounting;
@@ -24,6 +28,7 @@ use crate::scene::{ActorPoses, Scene};
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::packet::{ReturnMode, BLOCKS, CHANNELS};
 use hilrig_velodyne::{Calibration, Channel, DataPacket, Decoder, Model};
+
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -73,6 +78,23 @@ pub struct SimStats {
     pub returns: u64,
     /// Firings whose time lies outside the ego trajectory (reported as no return).
     pub outside_trajectory: u64,
+    /// Rays cast into the scene (beam centres and sub-rays).
+    pub rays: u64,
+    /// Firings whose every sub-ray was cast (with the beam divergence effect): all of them with
+    /// [`FootprintCast::Full`], those near an edge with [`FootprintCast::Adaptive`].
+    pub footprints_cast: u64,
+}
+
+/// How the sub-rays of a divergent beam (the `beam_divergence` effect) are found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FootprintCast {
+    /// Cast a footprint's sub-rays only where its neighbourhood shows an edge; elsewhere
+    /// intersect the plane of the centre ray's hit (src/sim/lidar/footprint.rs; the tolerance
+    /// is in [`crate::sim::Effect::BeamDivergence`]). What every simulation does unless told.
+    #[default]
+    Adaptive,
+    /// Cast every sub-ray of every firing: the reference the adaptive cast is measured against.
+    Full,
 }
 
 /// One firing as the simulator cast it: what the gap workflow sets against the measured firing
@@ -95,6 +117,40 @@ pub struct Firing {
     pub reported: Option<Echo>,
 }
 
+/// One firing of a packet, placed (and its centre ray cast, with the adaptive footprint) before
+/// any effect is applied: the packet layouts plan, [`LidarSim::cast_planned`] casts.
+struct Planned {
+    /// The block its strongest (or only) return goes to.
+    block: u8,
+    /// The block its last return goes to in dual-return mode.
+    last_block: u8,
+    channel: u8,
+    laser: u16,
+    /// Its firing sequence within the packet, in time order (same laser, next sequence: the
+    /// next azimuth).
+    sequence: u8,
+    /// Not one of the packet's firings: a neighbour outside it, cast only to witness the
+    /// footprints beside it.
+    witness_only: bool,
+    /// When it was cast.
+    time: UtcNanos,
+    /// When the actors are posed for its column.
+    actors_at: UtcNanos,
+    centre: CentreRay,
+}
+
+/// A packet's firings, planned, and where their returns go.
+struct PacketPlan {
+    /// In the packet's firing order.
+    firings: Vec<Planned>,
+    /// Firing sequences in the packet ([`Planned::sequence`] is below this).
+    sequences: usize,
+    /// Cast footprints adaptively (footprint.rs), not every sub-ray.
+    adaptive: bool,
+    mode: ReturnMode,
+    dual: bool,
+}
+
 /// An orthonormal frame across the unit beam direction `d`: `u` horizontal, `w` "up" across
 /// the beam (the axes of the footprint's horizontal and vertical divergence).
 pub fn beam_frame(d: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
@@ -114,6 +170,19 @@ pub struct LidarSim<'a> {
     max_range: f64,
     /// No effect changes the single echo of a perfect beam.
     ideal_echo: bool,
+    footprint: FootprintCast,
+    /// How closely a footprint's witnesses must agree with the centre hit's plane, metres: one
+    /// range quantum.
+    witness_tolerance_m: f64,
+    /// Per laser, its witnesses along elevation.
+    elevation: footprint::Elevation,
+}
+
+/// Buffers of one firing's footprint, reused from firing to firing.
+#[derive(Default)]
+struct Scratch {
+    hits: Vec<SubHit>,
+    echoes: Vec<Echo>,
 }
 
 /// Velodyne's calibrated reflectivity byte: 0-100 for diffuse targets (percent), 101-255 for
@@ -151,15 +220,32 @@ impl<'a> LidarSim<'a> {
             && fx.divergence.is_none()
             && fx.intensity.is_none()
             && fx.weather.is_none();
+        let witness_tolerance_m = calibration.distance_resolution_m;
+        let elevation = footprint::Elevation::new(&calibration);
         Ok(LidarSim {
             scene,
             decoder: Decoder::with_calibration(model, calibration),
             mount,
             fx,
             ideal_echo,
+            footprint: FootprintCast::default(),
+            witness_tolerance_m,
+            elevation,
             min_range: limits.min_range_m.unwrap_or(0.5),
             max_range: limits.max_range_m.unwrap_or(model.max_range_m()),
         })
+    }
+
+    /// Whether footprints are cast adaptively (with the beam divergence effect).
+    fn adaptive_footprint(&self) -> bool {
+        self.footprint == FootprintCast::Adaptive && self.fx.divergence.is_some()
+    }
+
+    /// This simulator finding footprints' sub-rays as `how` says (default: adaptive).
+    #[must_use]
+    pub fn with_footprint_cast(mut self, how: FootprintCast) -> Self {
+        self.footprint = how;
+        self
     }
 
     /// The decoder whose firing geometry the simulator uses.
@@ -190,7 +276,7 @@ impl<'a> LidarSim<'a> {
     }
 
     /// Casts one beam (origin and unit direction in the local frame) with actors at `actors`
-    /// and applies the model's effects.
+    /// and applies the model's effects, casting every sub-ray of a divergent beam.
     pub fn fire(
         &self,
         o: &Point3<f64>,
@@ -198,135 +284,8 @@ impl<'a> LidarSim<'a> {
         actors: &ActorPoses,
         rng: &mut impl Rng,
     ) -> Returns {
-        let fx = &self.fx;
-        if fx.dropout > 0.0 && rng.random::<f64>() < fx.dropout {
-            return Returns::default();
-        }
-        if self.ideal_echo {
-            // The idealized beam: one ray, one echo, no power model.
-            let Some(h) = self.scene.cast(o, d, 0.0, self.max_range * 1.5, actors) else {
-                return Returns::default();
-            };
-            if h.range < self.min_range || h.range > self.max_range {
-                return Returns::default();
-            }
-            let e = Echo {
-                range: h.range,
-                power: h.material.reflectivity * -h.normal.dot(d) / (h.range * h.range),
-                reflectivity: h.material.reflectivity,
-            };
-            return Returns {
-                strongest: Some(e),
-                last: Some(e),
-            };
-        }
-        let alpha = fx.weather.map_or(0.0, |w| w.0);
-        let k = fx.intensity.map(|i| i.0);
-        let contribution = |range: f64, refl: f64, cos: f64, share: f64| Echo {
-            range,
-            power: share * refl * cos / (range * range)
-                * if alpha > 0.0 {
-                    (-2.0 * alpha * range).exp()
-                } else {
-                    1.0
-                },
-            reflectivity: share
-                * refl
-                * match k {
-                    None => 1.0,
-                    // Lambertian (k = 1) is the common case; powf costs a tenth of a ray cast.
-                    Some(1.0) => cos.max(0.0),
-                    Some(k) => cos.max(0.0).powf(k),
-                },
-        };
-        let mut echoes: [Echo; 4] = [Echo {
-            range: 0.0,
-            power: 0.0,
-            reflectivity: 0.0,
-        }; 4];
-        let mut n = 0usize;
-        match &fx.divergence {
-            None => {
-                if let Some(h) = self.scene.cast(o, d, 0.0, self.max_range * 1.5, actors) {
-                    let cos = -h.normal.dot(d);
-                    echoes[0] = contribution(h.range, h.material.reflectivity, cos, 1.0);
-                    n = 1;
-                }
-            }
-            Some((offsets, separation)) => {
-                let (u, w) = beam_frame(d);
-                let share = 1.0 / offsets.len() as f64;
-                let mut subs: Vec<Echo> = Vec::with_capacity(offsets.len());
-                for &(a, b) in offsets {
-                    let sd = (d + u * a + w * b).normalize();
-                    if let Some(h) = self.scene.cast(o, &sd, 0.0, self.max_range * 1.5, actors) {
-                        let cos = -h.normal.dot(&sd);
-                        subs.push(contribution(h.range, h.material.reflectivity, cos, share));
-                    }
-                }
-                subs.sort_by(|a, b| a.range.total_cmp(&b.range));
-                // Merge sub-ray hits within the pulse's range resolution into echoes.
-                let mut i = 0;
-                while i < subs.len() {
-                    let mut j = i + 1;
-                    while j < subs.len() && subs[j].range - subs[j - 1].range <= *separation {
-                        j += 1;
-                    }
-                    let group = &subs[i..j];
-                    let p: f64 = group.iter().map(|e| e.power).sum();
-                    let e = Echo {
-                        range: if p > 0.0 {
-                            group.iter().map(|e| e.range * e.power).sum::<f64>() / p
-                        } else {
-                            group[0].range
-                        },
-                        power: p,
-                        reflectivity: group.iter().map(|e| e.reflectivity).sum(),
-                    };
-                    if n < echoes.len() {
-                        echoes[n] = e;
-                        n += 1;
-                    } else if let Some(weakest) = echoes
-                        .iter_mut()
-                        .min_by(|a, b| a.power.total_cmp(&b.power))
-                        .filter(|w| w.power < e.power)
-                    {
-                        *weakest = e;
-                    }
-                    i = j;
-                }
-            }
-        }
-        if let Some((_, p, rmax, refl)) = fx.weather {
-            if p > 0.0 && rng.random::<f64>() < p && n < echoes.len() {
-                let lo = self.min_range.min(rmax);
-                let r = lo + rng.random::<f64>() * (rmax - lo);
-                echoes[n] = contribution(r, refl, 1.0, 1.0);
-                n += 1;
-            }
-        }
-        let mut out = Returns::default();
-        for e in &mut echoes[..n] {
-            if let Some(min) = fx.min_power {
-                if e.power < min {
-                    continue;
-                }
-            }
-            e.range += fx.bias_m;
-            if let Some(noise) = &fx.noise {
-                e.range += noise.sample(rng);
-            }
-            if e.range < self.min_range || e.range > self.max_range {
-                continue;
-            }
-            if out.strongest.is_none_or(|s| e.power > s.power) {
-                out.strongest = Some(*e);
-            }
-            if out.last.is_none_or(|l| e.range > l.range) {
-                out.last = Some(*e);
-            }
-        }
-        out
+        let mut stats = SimStats::default();
+        self.fire_with(o, d, actors, rng, None, &mut Scratch::default(), &mut stats)
     }
 
     fn channel(&self, laser: usize, e: Option<Echo>, rng: &mut impl Rng) -> Channel {
@@ -390,8 +349,6 @@ impl<'a> LidarSim<'a> {
         let rate = self.decoder.rotation_rate(skeleton, columns);
         let n = self.decoder.model().lasers();
         let mut hint = 0usize;
-        let mut actors = self.scene.new_actor_poses();
-        let has_actors = !self.scene.actors.is_empty();
         let fixed_pose = if self.fx.per_firing_pose {
             None
         } else {
@@ -421,6 +378,14 @@ impl<'a> LidarSim<'a> {
                 *delay = t - t0;
             }
         }
+        let per_column = (CHANNELS / n).max(1);
+        let mut plan = PacketPlan {
+            firings: Vec::with_capacity(columns * CHANNELS),
+            sequences: columns * per_column,
+            adaptive: self.adaptive_footprint(),
+            mode,
+            dual,
+        };
         for column in 0..columns {
             let block = if dual { 2 * column + 1 } else { column };
             // Poses at the start and end of the column; each firing in between is placed by
@@ -447,19 +412,15 @@ impl<'a> LidarSim<'a> {
                 pb.rotation.to_rotation_matrix().into_inner(),
             );
             let (ta, tb) = (pa.translation.vector, pb.translation.vector);
-            if has_actors {
-                // Actors move at most a few m/s: within one column (≤ 111 µs) that is < 0.5 mm,
-                // a quarter of the range quantum, so their pose is taken once per column, at its
-                // middle.
-                self.scene
-                    .actor_poses(UtcNanos((t_a.0 + t_b.0) / 2), &mut actors);
-            }
+            // Actors move at most a few m/s: within one column (≤ 111 µs) that is < 0.5 mm, a
+            // quarter of the range quantum, so their pose is taken once per column, at its
+            // middle.
+            let actors_at = UtcNanos((t_a.0 + t_b.0) / 2);
             let (sb, cb) = (f64::from(skeleton.blocks[block].azimuth % 36_000) * 0.01)
                 .to_radians()
                 .sin_cos();
             for ch in 0..CHANNELS {
                 let laser = ch % n;
-                stats.firings += 1;
                 let f = if fixed_pose.is_some() {
                     0.0
                 } else {
@@ -474,34 +435,24 @@ impl<'a> LidarSim<'a> {
                 let o = Point3::from(r * os + ta + (tb - ta) * f);
                 let d = r * ds;
                 let d = d / d.norm();
-                let r = self.fire(&o, &d, &actors, &mut rng);
-                if r.strongest.is_some() {
-                    stats.returns += 1;
-                }
-                observe(&Firing {
+                plan.firings.push(Planned {
                     block: block as u8,
+                    last_block: if dual { 2 * column } else { column } as u8,
                     channel: ch as u8,
                     laser: laser as u16,
+                    sequence: (column * per_column + ch / n) as u8,
+                    witness_only: false,
                     time: UtcNanos(t_a.0 + (f * column_ns).round() as i64),
-                    origin: o,
-                    direction: d,
-                    reported: if mode == ReturnMode::Last {
-                        r.last
-                    } else {
-                        r.strongest
+                    actors_at,
+                    centre: CentreRay {
+                        origin: o,
+                        direction: d,
+                        hit: None,
                     },
                 });
-                let strongest = self.channel(laser, r.strongest, &mut rng);
-                if dual {
-                    pkt.blocks[2 * column + 1].channels[ch] = strongest;
-                    pkt.blocks[2 * column].channels[ch] = self.channel(laser, r.last, &mut rng);
-                } else if mode == ReturnMode::Last {
-                    pkt.blocks[column].channels[ch] = self.channel(laser, r.last, &mut rng);
-                } else {
-                    pkt.blocks[column].channels[ch] = strongest;
-                }
             }
         }
+        self.cast_planned(&mut plan, stats, observe, &mut pkt, &mut rng);
         pkt
     }
 }

@@ -77,6 +77,31 @@ pub enum Effect {
     /// behind); farther apart they are separate echoes (strongest and last). A partial footprint
     /// gives an edge return with less power. Source: specification sheets (VLP-16: 3.0 mrad
     /// horizontal, 1.5 mrad vertical divergence); mixed pixels in Hebert & Krotkov 1992.
+    ///
+    /// **How it is cast, and its tolerance.** Most footprints lie on one surface, and casting
+    /// each sub-ray there (five rays a firing for 3 per axis) is wasted. The simulator casts
+    /// every firing's centre ray first; a sub-ray's hit is then the primitive the centre ray
+    /// met, intersected again (the cast's own arithmetic, so the same to 1e-9 m), where the
+    /// neighbouring firings' centre rays (the same laser one firing sequence before and after,
+    /// the lasers above and below) met that primitive, or the same material within one range
+    /// quantum of its plane, beyond the sub-ray on both sides of it, and none near it met
+    /// anything else; elsewhere (edges, sky on one side, a packet's boundary) the sub-ray is
+    /// cast (src/sim/lidar/footprint.rs). Dual-return VLS-128 packets, one firing sequence
+    /// without neighbours, are cast in full. The result equals casting every sub-ray
+    /// ([`crate::sim::lidar::FootprintCast::Full`]) to 1e-9 m, except where an object
+    /// narrower than the firings' spacing (across: 3.5 mrad at 600 rpm, 3.5 cm at 10 m; along
+    /// elevation the lasers' spacing, 35 mrad on the VLP-16, about 15 on the VLS-128) lies
+    /// between the centre rays and inside a footprint, or an object's corner reaches within a
+    /// half-axis of a sub-ray unseen: there the full cast reports its partial echo, the
+    /// adaptive cast what lies behind it. Measured in tests/sim_model.rs on one rotation of a
+    /// scene of boxes, cylinders and a mesh: byte-identical packets (VLP-16, VLS-128,
+    /// HDL-64E, single and dual return), range noise and every random draw included; with four
+    /// such objects added (poles 1 and 2 cm thick at 12 and 20 m, a 12 mm wire, a 2 cm bar on
+    /// the ground), 0.19 % of the VLP-16's, 0.10 % of the VLS-128's and 0.02 % of the
+    /// HDL-64E's returns differ by more than one range quantum (the test's bound: 0.5 %): the
+    /// VLP-16's by appearing or vanishing only, the others' by 0.35 and 0.38 mm on average
+    /// over the returns both report, at most by the distance from a pole to the wall behind
+    /// it. `hilrig synth`, which stands in for the real sensor, casts in full.
     BeamDivergence {
         /// Full divergence across, milliradians.
         horizontal_mrad: f64,

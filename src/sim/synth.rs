@@ -14,7 +14,7 @@
 //! repetition is reproducible on its own and independent of thread scheduling.
 
 use super::drive::{beyond_text, DriveFile, Driven};
-use super::lidar::{LidarSim, SimStats};
+use super::lidar::{FootprintCast, LidarSim, SimStats};
 use super::model::ModelFile;
 use super::spin::Spin;
 use super::streams::{hms, nmea_lat_lon, Streams};
@@ -159,8 +159,12 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
 
     let scene = write_scenes(job, rep, dir, &driven, &truth_csv)?;
 
+    // The synthesized drive stands in for the real sensor, whose beam meets even what is
+    // thinner than the firings' spacing: its footprints are cast in full, not adaptively (the
+    // committed drives were made so).
     let sim = LidarSim::new(&scene, model, calibration, &lidar.mounting, job.truth)
-        .map_err(|e| input(e.to_string()))?;
+        .map_err(|e| input(e.to_string()))?
+        .with_footprint_cast(FootprintCast::Full);
     let (start, end) = driven.span;
     let mut events: Vec<(i64, u32, Vec<u8>)> = Vec::new();
     const ETH: u32 = 0;

@@ -1,9 +1,19 @@
 //! The effects of a model file compiled for the ray loop: distributions built, angles turned
 //! into rotations, the beam footprint into sub-ray offsets, once per simulator.
 
+use super::footprint::Pattern;
 use crate::sim::model::{Effect, ModelError, ModelFile};
 use nalgebra::UnitQuaternion;
 use rand_distr::Normal;
+
+/// The beam divergence effect, ready to cast.
+#[derive(Clone, Debug)]
+pub(super) struct Divergence {
+    /// The sub-rays.
+    pub(super) pattern: Pattern,
+    /// Sub-ray hits closer than this merge into one echo, metres.
+    pub(super) separation: f64,
+}
 
 /// The effects of a model, ready to apply.
 #[derive(Clone, Debug)]
@@ -12,8 +22,7 @@ pub(super) struct Compiled {
     pub(super) bias_m: f64,
     pub(super) dropout: f64,
     pub(super) min_power: Option<f64>,
-    /// Sub-ray angular offsets (horizontal, vertical) in radians, and the merge distance.
-    pub(super) divergence: Option<(Vec<(f64, f64)>, f64)>,
+    pub(super) divergence: Option<Divergence>,
     pub(super) per_firing_pose: bool,
     pub(super) time_offset_ns: i64,
     pub(super) intensity: Option<(f64, f64)>,
@@ -77,7 +86,10 @@ impl Compiled {
                             }
                         }
                     }
-                    c.divergence = Some((offs, range_separation_m));
+                    c.divergence = Some(Divergence {
+                        pattern: Pattern::new(offs),
+                        separation: range_separation_m,
+                    });
                 }
                 Effect::MotionDistortion { enabled } => c.per_firing_pose = enabled,
                 Effect::TimeOffset { offset_ms } => {

@@ -1,0 +1,214 @@
+//! What one beam measures: its ray or its footprint's sub-rays cast, each one's received
+//! power (the lidar equation, extinction, incidence), the merge of sub-ray hits into echoes,
+//! and the threshold, bias and noise applied to each echo.
+
+use super::footprint::{self, CentreRay, Footprint, Resolved, Witnesses};
+use super::{beam_frame, effects, Echo, LidarSim, Returns, Scratch, SimStats};
+use crate::scene::ActorPoses;
+use nalgebra::{Point3, Vector3};
+use rand::Rng;
+use rand_distr::Distribution;
+
+/// Merges sub-ray contributions `subs` (sorted by range) within `separation` of each other
+/// into echoes at their power-weighted range (the pulse's range resolution); keeps the
+/// strongest four. Returns how many `echoes` holds.
+fn merge(subs: &[Echo], separation: f64, echoes: &mut [Echo; 4]) -> usize {
+    let mut n = 0;
+    let mut i = 0;
+    while i < subs.len() {
+        let mut j = i + 1;
+        while j < subs.len() && subs[j].range - subs[j - 1].range <= separation {
+            j += 1;
+        }
+        let group = &subs[i..j];
+        let p: f64 = group.iter().map(|e| e.power).sum();
+        let e = Echo {
+            range: if p > 0.0 {
+                group.iter().map(|e| e.range * e.power).sum::<f64>() / p
+            } else {
+                group[0].range
+            },
+            power: p,
+            reflectivity: group.iter().map(|e| e.reflectivity).sum(),
+        };
+        if n < echoes.len() {
+            echoes[n] = e;
+            n += 1;
+        } else if let Some(weakest) = echoes
+            .iter_mut()
+            .min_by(|a, b| a.power.total_cmp(&b.power))
+            .filter(|w| w.power < e.power)
+        {
+            *weakest = e;
+        }
+        i = j;
+    }
+    n
+}
+
+impl LidarSim<'_> {
+    /// [`LidarSim::fire`]; with `neighbourhood` (the beam's centre ray as cast already, and its
+    /// witnesses), a divergent beam's sub-rays are cast only where the witnesses do not show
+    /// the footprint to lie on the centre hit's plane (footprint.rs).
+    #[allow(clippy::too_many_arguments, reason = "the ray loop's state, handed on")]
+    pub(super) fn fire_with(
+        &self,
+        o: &Point3<f64>,
+        d: &Vector3<f64>,
+        actors: &ActorPoses,
+        rng: &mut impl Rng,
+        neighbourhood: Option<(&CentreRay, &Witnesses)>,
+        scratch: &mut Scratch,
+        stats: &mut SimStats,
+    ) -> Returns {
+        let fx = &self.fx;
+        if fx.dropout > 0.0 && rng.random::<f64>() < fx.dropout {
+            return Returns::default();
+        }
+        let tmax = self.max_range * 1.5;
+        if self.ideal_echo {
+            // The idealized beam: one ray, one echo, no power model.
+            stats.rays += 1;
+            let Some(h) = self.scene.cast(o, d, 0.0, tmax, actors) else {
+                return Returns::default();
+            };
+            if h.range < self.min_range || h.range > self.max_range {
+                return Returns::default();
+            }
+            let e = Echo {
+                range: h.range,
+                power: h.material.reflectivity * -h.normal.dot(d) / (h.range * h.range),
+                reflectivity: h.material.reflectivity,
+            };
+            return Returns {
+                strongest: Some(e),
+                last: Some(e),
+            };
+        }
+        let alpha = fx.weather.map_or(0.0, |w| w.0);
+        let k = fx.intensity.map(|i| i.0);
+        let contribution = |range: f64, refl: f64, cos: f64, share: f64| Echo {
+            range,
+            power: share * refl * cos / (range * range)
+                * if alpha > 0.0 {
+                    (-2.0 * alpha * range).exp()
+                } else {
+                    1.0
+                },
+            reflectivity: share
+                * refl
+                * match k {
+                    None => 1.0,
+                    // Lambertian (k = 1) is the common case; powf costs a tenth of a ray cast.
+                    Some(1.0) => cos.max(0.0),
+                    Some(k) => cos.max(0.0).powf(k),
+                },
+        };
+        let mut echoes: [Echo; 4] = [Echo {
+            range: 0.0,
+            power: 0.0,
+            reflectivity: 0.0,
+        }; 4];
+        let mut n = 0usize;
+        match &fx.divergence {
+            None => {
+                stats.rays += 1;
+                if let Some(h) = self.scene.cast(o, d, 0.0, tmax, actors) {
+                    let cos = -h.normal.dot(d);
+                    echoes[0] = contribution(h.range, h.material.reflectivity, cos, 1.0);
+                    n = 1;
+                }
+            }
+            Some(div) => {
+                self.sub_ray_hits(o, d, actors, div, neighbourhood, scratch, stats);
+                let share = 1.0 / div.pattern.offsets.len() as f64;
+                let subs = &mut scratch.echoes;
+                subs.clear();
+                for (sd, h, _) in &scratch.hits {
+                    if let Some(h) = h {
+                        let cos = -h.normal.dot(sd);
+                        subs.push(contribution(h.range, h.material.reflectivity, cos, share));
+                    }
+                }
+                subs.sort_by(|a, b| a.range.total_cmp(&b.range));
+                n = merge(subs, div.separation, &mut echoes);
+            }
+        }
+        if let Some((_, p, rmax, refl)) = fx.weather {
+            if p > 0.0 && rng.random::<f64>() < p && n < echoes.len() {
+                let lo = self.min_range.min(rmax);
+                let r = lo + rng.random::<f64>() * (rmax - lo);
+                echoes[n] = contribution(r, refl, 1.0, 1.0);
+                n += 1;
+            }
+        }
+        let mut out = Returns::default();
+        for e in &mut echoes[..n] {
+            if let Some(min) = fx.min_power {
+                if e.power < min {
+                    continue;
+                }
+            }
+            e.range += fx.bias_m;
+            if let Some(noise) = &fx.noise {
+                e.range += noise.sample(rng);
+            }
+            if e.range < self.min_range || e.range > self.max_range {
+                continue;
+            }
+            if out.strongest.is_none_or(|s| e.power > s.power) {
+                out.strongest = Some(*e);
+            }
+            if out.last.is_none_or(|l| e.range > l.range) {
+                out.last = Some(*e);
+            }
+        }
+        out
+    }
+
+    /// Every sub-ray's direction and hit into `scratch.hits`: all cast, or with
+    /// `neighbourhood` only those its witnesses do not vouch for (footprint.rs).
+    #[allow(clippy::too_many_arguments, reason = "the ray loop's state, handed on")]
+    fn sub_ray_hits(
+        &self,
+        o: &Point3<f64>,
+        d: &Vector3<f64>,
+        actors: &ActorPoses,
+        div: &effects::Divergence,
+        neighbourhood: Option<(&CentreRay, &Witnesses)>,
+        scratch: &mut Scratch,
+        stats: &mut SimStats,
+    ) {
+        let (u, w) = beam_frame(d);
+        let tmax = self.max_range * 1.5;
+        let mut cast = |sd: &Vector3<f64>| self.scene.cast(o, sd, 0.0, tmax, actors);
+        let Some((centre, witnesses)) = neighbourhood else {
+            stats.footprints_cast += 1;
+            stats.rays += div.pattern.offsets.len() as u64;
+            scratch.hits.clear();
+            scratch
+                .hits
+                .extend(div.pattern.offsets.iter().map(|&(a, b)| {
+                    let sd = footprint::sub_ray(d, &u, &w, a, b);
+                    (sd, cast(&sd), true)
+                }));
+            return;
+        };
+        let footprint = Footprint {
+            centre,
+            frame: (&u, &w),
+            witnesses,
+        };
+        let Resolved { cast: rays, full } = footprint::resolve(
+            &footprint,
+            &div.pattern,
+            self.scene.statics.primitives(),
+            self.witness_tolerance_m,
+            tmax,
+            &mut cast,
+            &mut scratch.hits,
+        );
+        stats.rays += u64::from(rays);
+        stats.footprints_cast += u64::from(full);
+    }
+}
