@@ -50,10 +50,19 @@ pub struct GapArgs {
 
 struct Bars {
     current: Mutex<Option<(usize, indicatif::ProgressBar)>>,
+    /// The phase under way and when it began: its time is logged when the next one begins
+    /// (`-v`), so a slow study says where its time goes.
+    started: Mutex<Option<(std::time::Instant, String)>>,
 }
 
 impl Progress for Bars {
     fn phase(&self, round: usize, what: &str) {
+        if let Ok(mut started) = self.started.lock() {
+            let now = std::time::Instant::now();
+            if let Some((t, prev)) = started.replace((now, format!("round {round}: {what}"))) {
+                tracing::info!("gap: {prev}: {:.1} s", (now - t).as_secs_f64());
+            }
+        }
         let Ok(mut cur) = self.current.lock() else {
             return;
         };
@@ -112,6 +121,7 @@ pub fn run_cli(args: GapArgs) -> Result<ExitCode> {
     }
     let bars = Bars {
         current: Mutex::new(None),
+        started: Mutex::new(None),
     };
     let opts = Options {
         out: args.output.clone(),
@@ -121,6 +131,11 @@ pub fn run_cli(args: GapArgs) -> Result<ExitCode> {
         full_metrics: !args.no_full_metrics,
     };
     let result = run(&study, &opts, &bars);
+    if let Ok(mut started) = bars.started.lock() {
+        if let Some((t, prev)) = started.take() {
+            tracing::info!("gap: {prev}: {:.1} s", t.elapsed().as_secs_f64());
+        }
+    }
     if let Ok(mut cur) = bars.current.lock() {
         if let Some((_, bar)) = cur.take() {
             bar.finish_and_clear();
