@@ -21,7 +21,7 @@ use super::pairing::{Pair, Pairs};
 pub use super::report::{Comparison, CurvePoint, LeftOut, ObjectSeen, ScanRow, Snapshot, Summary};
 use super::roi::{Region, Roi};
 use super::windows::{grid_phase, windows, CurveSums, PointPair};
-use crate::bag::scans::ScanStream;
+use crate::bag::scans::{Scan, ScanStream};
 use crate::reference::check::{check_with_trajectory, Verdict};
 use crate::reference::run::Run;
 use crate::rig::Rig;
@@ -270,6 +270,29 @@ impl Tally {
     }
 }
 
+/// What a comparison hands the simulation it makes as it goes ([`compare_simulated`]): the
+/// poses to cast at, whether the lidar's stamps are GNSS time, and a batch of measured scans.
+pub struct ToSimulate<'a> {
+    /// The trajectory `check` smoothed from the run (or the one given).
+    pub trajectory: &'a Trajectory,
+    /// The lidar is PPS-locked (its packet stamps are GNSS time).
+    pub pps_locked: bool,
+    /// Measured scans, in file order.
+    pub scans: &'a [Scan],
+}
+
+/// A simulation made as the comparison goes: the simulated twin of every scan it is handed,
+/// in order, or why it cannot make them.
+pub type Simulate<'a> = dyn FnMut(ToSimulate<'_>) -> Result<Vec<Scan>, String> + 'a;
+
+/// Where the simulated twins come from.
+enum Twins<'s, 'f> {
+    /// A re-simulation's file.
+    File(&'f Path),
+    /// Made as the run is read.
+    Simulated(&'s mut Simulate<'f>),
+}
+
 /// Compares the run at `run_path` with its re-simulation at `sim_path`. `progress(done, total)`
 /// is called as scans are decoded.
 ///
@@ -284,6 +307,99 @@ pub fn compare(
     opts: Options,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Comparison, CompareError> {
+    compare_twins(run_path, Twins::File(sim_path), rig, scene, opts, progress)
+}
+
+/// [`compare`] with a simulation made as the run is read: `simulate` is handed the measured
+/// scans batch by batch and gives their twins (what the gap workflow does: no simulation file
+/// to write in full and read back, one pass over the run instead of five).
+pub fn compare_simulated(
+    run_path: &Path,
+    simulate: &mut Simulate<'_>,
+    rig: Option<&Rig>,
+    scene: Option<&Scene>,
+    opts: Options,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Comparison, CompareError> {
+    compare_twins(
+        run_path,
+        Twins::Simulated(simulate),
+        rig,
+        scene,
+        opts,
+        progress,
+    )
+}
+
+/// The scans of a run with the twins a simulation makes of them, batch by batch, less the
+/// scans that touch a mark of `left_out` (counted there); a simulation that fails stops it,
+/// with its reason kept.
+struct Simulating<'a, 's, 'f> {
+    real: &'a mut ScanStream,
+    simulate: &'s mut Simulate<'f>,
+    trajectory: &'a Trajectory,
+    pps_locked: bool,
+    left_out: &'a mut [LeftOut],
+    ready: std::collections::VecDeque<Pair>,
+    paired: usize,
+    error: Option<String>,
+}
+
+impl Iterator for Simulating<'_, '_, '_> {
+    type Item = Pair;
+
+    fn next(&mut self) -> Option<Pair> {
+        while self.ready.is_empty() {
+            if self.error.is_some() {
+                return None;
+            }
+            let batch: Vec<Scan> = self.real.by_ref().take(BATCH_PAIRS).collect();
+            if batch.is_empty() {
+                return None;
+            }
+            let sims = match (self.simulate)(ToSimulate {
+                trajectory: self.trajectory,
+                pps_locked: self.pps_locked,
+                scans: &batch,
+            }) {
+                Ok(s) if s.len() == batch.len() => s,
+                Ok(s) => {
+                    self.error = Some(format!(
+                        "the simulation gave {} scans for {}",
+                        s.len(),
+                        batch.len()
+                    ));
+                    return None;
+                }
+                Err(e) => {
+                    self.error = Some(e);
+                    return None;
+                }
+            };
+            for (r, s) in batch.into_iter().zip(sims) {
+                self.paired += 1;
+                if !super::pairing::marked(self.left_out, &r) {
+                    self.ready.push_back((r, s));
+                }
+            }
+        }
+        self.ready.pop_front()
+    }
+}
+
+/// [`compare`] and [`compare_simulated`].
+#[allow(
+    clippy::too_many_lines,
+    reason = "setup, the streamed pass over either kind of twin, and the summary, in order; the pass itself is measure_all"
+)]
+fn compare_twins(
+    run_path: &Path,
+    twins: Twins<'_, '_>,
+    rig: Option<&Rig>,
+    scene: Option<&Scene>,
+    opts: Options,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<Comparison, CompareError> {
     let input = CompareError::Input;
     let started = std::time::Instant::now();
     let phase = |what: &str| {
@@ -292,9 +408,11 @@ pub fn compare(
             started.elapsed().as_secs_f64()
         )
     };
-    let mut sim_stream = ScanStream::open(sim_path).map_err(|e| input(e.to_string()))?;
-    let mut reference = reference(run_path, rig, scene, opts.trajectory.clone())?;
-    let admissible = reference.admissible;
+    let mut sim_stream = match &twins {
+        Twins::File(p) => Some(ScanStream::open(p).map_err(|e| input(e.to_string()))?),
+        Twins::Simulated(_) => None,
+    };
+    let mut reference = reference(run_path, rig, scene, opts.trajectory.clone())?;    let admissible = reference.admissible;
     phase("reference checked");
     let spec = grid_spec(&opts, admissible)?;
     let cell = spec.cell_m();
@@ -330,28 +448,66 @@ pub fn compare(
     };
     let total = reference.run.scans.len() as u64;
     let mut real_stream = ScanStream::open(run_path).map_err(|e| input(e.to_string()))?;
-    let mut pairs = Pairs::new(
-        real_stream.by_ref(),
-        &reference.run.scans,
-        sim_stream.by_ref(),
-        &mut reference.not_usable,
-    );
     let mut curve = CurveSums::new(cell, admissible, opts.dims);
-    let tally = measure_all(
-        &mut pairs,
-        (&frame, &roi),
-        (&spec, &opts),
-        &mut curve,
-        &|n| progress(n, total),
-    );
-    let paired = pairs.paired;
-    if let Some(e) = pairs.finish_error(tally.rows.len(), (run_path, real_span), sim_path) {
-        return Err(input(e));
-    }
+    let (tally, paired, sim_path) = match twins {
+        Twins::File(sim_path) => {
+            let sim_stream = sim_stream.as_mut().ok_or_else(|| input("no simulation".into()))?;
+            let mut pairs = Pairs::new(
+                real_stream.by_ref(),
+                &reference.run.scans,
+                sim_stream.by_ref(),
+                &mut reference.not_usable,
+            );
+            let tally = measure_all(
+                &mut pairs,
+                (&frame, &roi),
+                (&spec, &opts),
+                &mut curve,
+                &|n| progress(n, total),
+            );
+            if let Some(e) = pairs.finish_error(tally.rows.len(), (run_path, real_span), sim_path)
+            {
+                return Err(input(e));
+            }
+            (tally, pairs.paired, Some(sim_path))
+        }
+        Twins::Simulated(simulate) => {
+            let mut pairs = Simulating {
+                real: &mut real_stream,
+                simulate,
+                trajectory: &reference.trajectory,
+                pps_locked: frame.pps_locked,
+                left_out: &mut reference.not_usable,
+                ready: std::collections::VecDeque::new(),
+                paired: 0,
+                error: None,
+            };
+            let tally = measure_all(
+                &mut pairs,
+                (&frame, &roi),
+                (&spec, &opts),
+                &mut curve,
+                &|n| progress(n, total),
+            );
+            if let Some(e) = pairs.error {
+                return Err(input(format!("simulating {}: {e}", run_path.display())));
+            }
+            if tally.rows.is_empty() {
+                return Err(input(format!(
+                    "{}: every scan lies where `check` marks the reference not usable: nothing is left to compare; see `hilrig check`",
+                    run_path.display()
+                )));
+            }
+            (tally, pairs.paired, None)
+        }
+    };
     // A damaged file is compared as far as it can be read, and says so.
     let damage: Vec<String> = [
         (run_path, real_stream.finish()),
-        (sim_path, sim_stream.finish()),
+        (
+            sim_path.unwrap_or(run_path),
+            sim_stream.and_then(ScanStream::finish),
+        ),
     ]
     .into_iter()
     .filter_map(|(p, d)| {

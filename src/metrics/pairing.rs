@@ -55,19 +55,6 @@ impl<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Pairs<'a, R, S> {
         }
     }
 
-    /// Whether the measured scan touches a mark (counted there).
-    fn marked(&mut self, r: &Scan) -> bool {
-        let (a, b) = r.span();
-        let mut marked = false;
-        for l in self.left_out.iter_mut() {
-            let w = l.mark.window();
-            if a <= w.1 && w.0 <= b {
-                l.scans += 1;
-                marked = true;
-            }
-        }
-        marked
-    }
 
     /// The next simulated scan, noting its stamp.
     fn next_sim(&mut self) -> Option<Scan> {
@@ -122,6 +109,20 @@ impl<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Pairs<'a, R, S> {
     }
 }
 
+/// Whether the measured scan touches a mark of `left_out` (each mark it touches counts it).
+pub(super) fn marked(left_out: &mut [LeftOut], r: &Scan) -> bool {
+    let (a, b) = r.span();
+    let mut marked = false;
+    for l in left_out.iter_mut() {
+        let w = l.mark.window();
+        if a <= w.1 && w.0 <= b {
+            l.scans += 1;
+            marked = true;
+        }
+    }
+    marked
+}
+
 impl<R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Iterator for Pairs<'_, R, S> {
     type Item = Pair;
 
@@ -148,7 +149,7 @@ impl<R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Iterator for Pairs<'_, 
             };
             let Some(s) = twin else { continue };
             self.paired += 1;
-            if self.marked(&r) {
+            if marked(self.left_out, &r) {
                 continue;
             }
             return Some((r, s));

@@ -40,12 +40,18 @@ pub struct Validation {
     pub verdict: Verdict,
 }
 
-struct Loaded {
-    name: String,
+/// One run's per-scan features, as validation sets them against the other repetitions.
+#[derive(Clone, Debug)]
+pub struct RunFeatures {
+    /// The run's name (its file).
+    pub name: String,
     /// Where the file is damaged (it is used as far as it could be read).
-    damage: Option<String>,
-    scans: Vec<ScanFeatures>,
+    pub damage: Option<String>,
+    /// Every scan's features, in order.
+    pub scans: Vec<ScanFeatures>,
 }
+
+type Loaded = RunFeatures;
 
 /// Scans whose features are computed together (both cores busy, a few scans in memory).
 const BATCH_SCANS: usize = 16;
@@ -121,6 +127,19 @@ pub fn validate(
         .iter()
         .map(|p| load(p, &decoder))
         .collect::<Result<_, _>>()?;
+    validate_features(&real, &sim, phases)
+}
+
+/// [`validate`] of runs whose features are known already (a re-simulation measured as it was
+/// made, say). Every run must have at least one scan.
+pub fn validate_features(
+    real: &[RunFeatures],
+    sim: &[RunFeatures],
+    phases: &[Phase],
+) -> Result<Validation, String> {
+    if let Some(r) = real.iter().chain(sim).find(|r| r.scans.is_empty()) {
+        return Err(format!("{}: no lidar scans (/velodyne_packets)", r.name));
+    }
     for p in phases {
         if !(p.from_s.is_finite() && p.to_s.is_finite() && p.from_s < p.to_s) {
             return Err(format!(
@@ -182,7 +201,7 @@ pub fn validate(
         ));
     }
     for p in phases {
-        for r in real.iter().chain(&sim) {
+        for r in real.iter().chain(sim) {
             if phase_values(r, Some(p))[0].is_none() {
                 scenario_problems.push(format!(
                     "{}: no scan in phase '{}' ({} .. {} s)",
@@ -217,7 +236,7 @@ pub fn validate(
     Ok(Validation {
         damage: real
             .iter()
-            .chain(&sim)
+            .chain(sim)
             .filter_map(|l| l.damage.clone())
             .collect(),
         measurement,
