@@ -276,11 +276,15 @@ def route(duration_s, speed):
     arc = math.pi / 2 * r
     before = min(max((length - arc) / 2, 5.0), a - r - 10.0)
     after = min(max(length - arc - before, 5.0), LEG_B_M - r - 10.0)
-    pts = [(xb - r - before, -LANE_M), (xb - r - before / 2, -LANE_M)]
+    # A waypoint every 15° of the bend and as far apart along the straights: a Catmull-Rom
+    # spline through unevenly spaced waypoints overshoots into turns no car makes (synth refuses).
+    step = 2 * r * math.sin(math.pi / 24)
+    n_before, n_after = max(1, round(before / step)), max(1, round(after / step))
+    pts = [(xb - r - before * (n_before - k) / n_before, -LANE_M) for k in range(n_before)]
     for k in range(7):
         t = k / 6 * math.pi / 2
         pts.append((xb - r + r * math.sin(t), -LANE_M + r * (1 - math.cos(t))))
-    pts += [(xb, -LANE_M + r + after / 2), (xb, -LANE_M + r + after)]
+    pts += [(xb, -LANE_M + r + after * k / n_after) for k in range(1, n_after + 1)]
     return pts
 
 
