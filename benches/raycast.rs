@@ -12,6 +12,9 @@
 //!   idealized) from interleaved rounds; on the parking scene (mostly sky for a VLS-128) and
 //!   on a generated street (a meshed road with a crown and a gentle grade, kerbs, building
 //!   fronts with balconies, parked cars, trees and lamp posts: surfaces in every direction).
+//! - at real size (a street of 800 000 triangles 500 m from the origin, a VLS-128's rotation
+//!   of 230 400 rays): single casts, and a diverging beam's five sub-rays cast one by one
+//!   against `Geometry::cast_bundle` (same hits bit for bit; the ratio is printed).
 //!
 //! `cargo bench --bench raycast` runs criterion on each and then prints the ratios from
 //! interleaved rounds, so that both sides of a ratio see the same machine load.
@@ -20,7 +23,7 @@ use criterion::{criterion_group, Criterion, Throughput};
 use hilrig::rig::Mounting;
 use hilrig::scene::file::{Ground, ObjectFile, Placement, SceneFile, Wgs84};
 use hilrig::scene::pose::{PoseSample, Trajectory};
-use hilrig::scene::{Scene, Shape};
+use hilrig::scene::{Geometry, Material, Primitive, Scene, Shape, SurfaceId};
 use hilrig::sim::lidar::FootprintCast;
 use hilrig::sim::spin::{Skeleton, Spin};
 use hilrig::sim::{LidarSim, ModelFile, SimStats};
@@ -464,6 +467,111 @@ fn truth_rounds(s: &Setup, place: &str, model: Model, mode: ReturnMode) {
     );
 }
 
+/// A street at real size, 500 m from the frame origin: a ground of two triangles and facades
+/// either side (y = ±9 m, 480 m long, 12 m high) tessellated into 17 cm squares, every third
+/// one a window recessed 10 cm: 800 000 triangles, as benches/real_size.py's site.
+fn street_800k() -> Geometry {
+    let (x0, y0) = (500.0, -300.0);
+    let p = |x: f64, y: f64, z: f64| Point3::new(x0 + x, y0 + y, z);
+    let mut prims = Vec::new();
+    let ground = Material {
+        reflectivity: 0.12,
+        surface: SurfaceId::GROUND,
+    };
+    let h = 400.0;
+    prims.extend(Primitive::triangle(
+        p(-h, -h, 0.0),
+        p(h, -h, 0.0),
+        p(h, h, 0.0),
+        ground,
+    ));
+    prims.extend(Primitive::triangle(
+        p(-h, -h, 0.0),
+        p(h, h, 0.0),
+        p(-h, h, 0.0),
+        ground,
+    ));
+    let cell = 0.17;
+    let (columns, rows) = ((480.0 / cell) as u32, (12.0 / cell) as u32);
+    for (k, side) in [(0u32, 9.0f64), (1, -9.0)] {
+        let m = Material {
+            reflectivity: 0.4,
+            surface: SurfaceId(k),
+        };
+        for i in 0..columns {
+            for j in 0..rows {
+                let (x, z) = (-240.0 + f64::from(i) * cell, f64::from(j) * cell);
+                let y = if (i / 3 + j / 3) % 3 == 0 {
+                    side + side.signum() * 0.1
+                } else {
+                    side
+                };
+                let (a, b) = (p(x, y, z), p(x + cell, y, z));
+                let (c, d) = (p(x + cell, y, z + cell), p(x, y, z + cell));
+                prims.extend(Primitive::triangle(a, b, c, m));
+                prims.extend(Primitive::triangle(a, c, d, m));
+            }
+        }
+    }
+    Geometry::build(prims)
+}
+
+/// One rotation of a 128-beam sensor 2 m up driving along the street at 8 m/s: 1800 columns
+/// (0.2° apart, 10 Hz), 128 beams from -25° to +15° each, in firing order.
+fn street_rays() -> Vec<Ray> {
+    let mut rays = Vec::with_capacity(1800 * 128);
+    for col in 0..1800 {
+        let az = f64::from(col) * 0.2f64.to_radians();
+        let o = Point3::new(500.0 - 20.0 + 0.8 * f64::from(col) / 1800.0, -302.0, 2.0);
+        for laser in 0..128 {
+            let el = (-25.0 + 40.0 * f64::from(laser) / 127.0f64).to_radians();
+            rays.push((
+                o,
+                Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin()),
+            ));
+        }
+    }
+    rays
+}
+
+/// The truth model's diverging beam (3 x 1.5 mrad, 3 sub-rays per axis inside the ellipse):
+/// five sub-ray directions around `d`.
+fn sub_rays(d: &Vector3<f64>) -> [Vector3<f64>; 5] {
+    let u = d.cross(&Vector3::z()).normalize();
+    let w = u.cross(d);
+    [
+        (0.0, -0.75e-3),
+        (-1.5e-3, 0.0),
+        (0.0, 0.0),
+        (1.5e-3, 0.0),
+        (0.0, 0.75e-3),
+    ]
+    .map(|(a, b)| (d + u * a + w * b).normalize())
+}
+
+fn street_single(g: &Geometry, rays: &[Ray]) -> usize {
+    rays.iter()
+        .filter(|(o, d)| g.cast(o, d, 0.0, 367.5).is_some())
+        .count()
+}
+
+fn street_divergence(g: &Geometry, rays: &[Ray], bundled: bool) -> usize {
+    let mut out = [None; 5];
+    let mut hits = 0;
+    for (o, d) in rays {
+        let dirs = sub_rays(d);
+        if bundled {
+            g.cast_bundle(o, &dirs, 0.0, 367.5, &mut out);
+        } else {
+            for (h, d) in out.iter_mut().zip(&dirs) {
+                *h = g.cast(o, d, 0.0, 367.5);
+            }
+        }
+        hits += out.iter().filter(|h| h.is_some()).count();
+    }
+    hits
+}
+
 fn bench(c: &mut Criterion) {
     let s = setup();
     let model = Model::Vlp16;
@@ -505,6 +613,20 @@ fn bench(c: &mut Criterion) {
     }
     g.finish();
     let _ = std::fs::remove_dir_all(&dir);
+    let street = street_800k();
+    let rays = street_rays();
+    let mut g = c.benchmark_group("street_800k_vls128_rotation");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(rays.len() as u64));
+    g.bench_function("cast", |b| b.iter(|| street_single(&street, &rays)));
+    g.throughput(Throughput::Elements(5 * rays.len() as u64));
+    g.bench_function("divergence_5_sub_rays_one_by_one", |b| {
+        b.iter(|| street_divergence(&street, &rays, false))
+    });
+    g.bench_function("divergence_5_sub_rays_bundled", |b| {
+        b.iter(|| street_divergence(&street, &rays, true))
+    });
+    g.finish();
 
     let mut g = c.benchmark_group("bvh_build");
     g.bench_function("parking_scene", |b| {
@@ -573,6 +695,38 @@ fn report() {
         );
     }
     truth_report(&s);
+    let t = Instant::now();
+    let street = street_800k();
+    let build = t.elapsed().as_secs_f64();
+    let rays = street_rays();
+    let (mut t_single, mut t_one, mut t_bundle) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..5 {
+        let t = Instant::now();
+        black_box(street_single(&street, &rays));
+        t_single.push(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        let one = street_divergence(&street, &rays, false);
+        t_one.push(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        let bundled = street_divergence(&street, &rays, true);
+        t_bundle.push(t.elapsed().as_secs_f64());
+        assert_eq!(one, bundled);
+    }
+    for v in [&mut t_single, &mut t_one, &mut t_bundle] {
+        v.sort_by(f64::total_cmp);
+    }
+    let n = rays.len() as f64;
+    println!(
+        "street of {} primitives (BVH build {build:.2} s), a VLS-128 rotation ({} rays, 1 thread, \
+         median of 5 interleaved rounds): {:.2} M casts/s; five-sub-ray divergence: one by one \
+         {:.2} M casts/s, bundled {:.2} M casts/s, x{:.2}",
+        street.len(),
+        rays.len(),
+        n / t_single[2] / 1e6,
+        5.0 * n / t_one[2] / 1e6,
+        5.0 * n / t_bundle[2] / 1e6,
+        t_one[2] / t_bundle[2]
+    );
     let t = Instant::now();
     let sc = Scene::load(&fixture("parking/rep-01/scene.toml")).unwrap();
     println!(

@@ -100,6 +100,18 @@ impl CdrWriter {
         self.u32(n as u32)
     }
 
+    /// Bytes written so far, the encapsulation header included: where the next field starts
+    /// in [`CdrWriter::finish`]'s bytes (for a length that is only known at the end, written as
+    /// a placeholder and set there).
+    pub fn len(&self) -> usize {
+        self.buf.len()
+    }
+
+    /// True before anything but the encapsulation header is written.
+    pub fn is_empty(&self) -> bool {
+        self.buf.len() == 4
+    }
+
     /// The encoded message.
     pub fn finish(self) -> Vec<u8> {
         self.buf

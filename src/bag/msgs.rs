@@ -326,36 +326,88 @@ pub fn point_cloud2(
     frame_id: &str,
     points: &[(f32, f32, f32, f32, u16, f32)],
 ) -> Vec<u8> {
-    let mut w = CdrWriter::with_capacity(160 + points.len() * POINT_STEP);
-    header(&mut w, stamp, frame_id);
-    w.u32(1).u32(points.len() as u32);
-    let fields: [(&str, u32, u8); 6] = [
-        ("x", 0, 7),
-        ("y", 4, 7),
-        ("z", 8, 7),
-        ("intensity", 12, 7),
-        ("ring", 16, 4),
-        ("time", 20, 7),
-    ];
-    w.sequence_len(fields.len());
-    for (name, offset, datatype) in fields {
-        w.string(name).u32(offset).u8(datatype).u32(1);
-    }
-    w.bool(false)
-        .u32(POINT_STEP as u32)
-        .u32((points.len() * POINT_STEP) as u32);
-    let mut data = Vec::with_capacity(points.len() * POINT_STEP);
+    let mut cloud = PointCloudWriter::new(stamp, frame_id, points.len());
     for &(x, y, z, i, ring, t) in points {
-        data.extend_from_slice(&x.to_le_bytes());
-        data.extend_from_slice(&y.to_le_bytes());
-        data.extend_from_slice(&z.to_le_bytes());
-        data.extend_from_slice(&i.to_le_bytes());
-        data.extend_from_slice(&ring.to_le_bytes());
-        data.extend_from_slice(&[0, 0]);
-        data.extend_from_slice(&t.to_le_bytes());
+        cloud.push(x, y, z, i, ring, t);
     }
-    w.bytes(&data).bool(true);
-    w.finish()
+    cloud.finish()
+}
+
+/// A [`point_cloud2`] written point by point straight into the message: a rotation of a 128-beam
+/// sensor is 240 000 points, and re-simulation writes one every 100 ms, so the points are not
+/// collected first and copied twice (as a list, then as the data field).
+pub struct PointCloudWriter {
+    buf: Vec<u8>,
+    /// Where `width`, `row_step` and the data's length prefix are (placeholders until the end).
+    width_at: usize,
+    row_step_at: usize,
+    data_len_at: usize,
+    points: u32,
+}
+
+impl PointCloudWriter {
+    /// A cloud stamped `stamp` in `frame_id`, with room for `capacity` points.
+    pub fn new(stamp: UtcNanos, frame_id: &str, capacity: usize) -> PointCloudWriter {
+        let mut w = CdrWriter::with_capacity(160 + capacity * POINT_STEP);
+        header(&mut w, stamp, frame_id);
+        w.u32(1);
+        // Every placeholder follows a u32, so it is aligned already: it starts at `len()`.
+        let width_at = w.len();
+        w.u32(0);
+        let fields: [(&str, u32, u8); 6] = [
+            ("x", 0, 7),
+            ("y", 4, 7),
+            ("z", 8, 7),
+            ("intensity", 12, 7),
+            ("ring", 16, 4),
+            ("time", 20, 7),
+        ];
+        w.sequence_len(fields.len());
+        for (name, offset, datatype) in fields {
+            w.string(name).u32(offset).u8(datatype).u32(1);
+        }
+        w.bool(false).u32(POINT_STEP as u32);
+        let row_step_at = w.len();
+        w.u32(0);
+        let data_len_at = w.len();
+        w.u32(0);
+        PointCloudWriter {
+            buf: w.finish(),
+            width_at,
+            row_step_at,
+            data_len_at,
+            points: 0,
+        }
+    }
+
+    /// Appends one point: position, intensity, ring, seconds after the stamp.
+    #[inline]
+    pub fn push(&mut self, x: f32, y: f32, z: f32, intensity: f32, ring: u16, time: f32) {
+        let mut p = [0u8; POINT_STEP];
+        p[0..4].copy_from_slice(&x.to_le_bytes());
+        p[4..8].copy_from_slice(&y.to_le_bytes());
+        p[8..12].copy_from_slice(&z.to_le_bytes());
+        p[12..16].copy_from_slice(&intensity.to_le_bytes());
+        p[16..18].copy_from_slice(&ring.to_le_bytes());
+        p[20..24].copy_from_slice(&time.to_le_bytes());
+        self.buf.extend_from_slice(&p);
+        self.points += 1;
+    }
+
+    /// The encoded message.
+    pub fn finish(mut self) -> Vec<u8> {
+        let bytes = self.points * POINT_STEP as u32;
+        for (at, v) in [
+            (self.width_at, self.points),
+            (self.row_step_at, bytes),
+            (self.data_len_at, bytes),
+        ] {
+            self.buf[at..at + 4].copy_from_slice(&v.to_le_bytes());
+        }
+        // is_dense
+        self.buf.push(1);
+        self.buf
+    }
 }
 
 #[cfg(test)]
@@ -369,5 +421,50 @@ mod tests {
         for (a, b) in q.iter().zip([0.0, 0.0, h, h]) {
             assert!((a - b).abs() < 1e-12, "{q:?}");
         }
+    }
+
+    /// The cloud written point by point reads back as a PointCloud2: width, row step and the
+    /// data's length prefix are set at the end, points are 24 bytes in the velodyne_pointcloud
+    /// layout, is_dense closes the message.
+    #[test]
+    fn point_clouds_read_back_field_by_field() {
+        use crate::bag::cdr::CdrReader;
+        let points = [
+            (1.5f32, -2.0f32, 0.25f32, 40.0f32, 7u16, 0.01f32),
+            (-3.0, 4.5, 1.0, 100.0, 31, 0.099),
+            (0.0, 0.0, -1.75, 0.0, 0, 0.0),
+        ];
+        let stamp = UtcNanos(1_795_255_200_123_456_789);
+        let bytes = point_cloud2(stamp, "velodyne", &points);
+        let mut r = CdrReader::new(&bytes).unwrap();
+        assert_eq!(r.header(), Some(stamp));
+        assert_eq!((r.u32(), r.u32()), (Some(1), Some(3)));
+        let fields = r.u32().unwrap();
+        let mut names = Vec::new();
+        for _ in 0..fields {
+            names.push(r.string().unwrap().to_owned());
+            let (offset, datatype) = (r.u32().unwrap(), r.bytes(1).unwrap()[0]);
+            assert_eq!(r.u32(), Some(1));
+            names.push(format!("{offset}:{datatype}"));
+        }
+        assert_eq!(
+            names.join(" "),
+            "x 0:7 y 4:7 z 8:7 intensity 12:7 ring 16:4 time 20:7"
+        );
+        assert_eq!(r.bytes(1), Some(&[0u8][..]), "is_bigendian");
+        assert_eq!((r.u32(), r.u32()), (Some(24), Some(72)));
+        assert_eq!(r.u32(), Some(72));
+        let data = r.bytes(72).unwrap();
+        for (p, q) in points.iter().zip(data.chunks(24)) {
+            let f = |k: usize| f32::from_le_bytes(q[k..k + 4].try_into().unwrap());
+            assert_eq!((f(0), f(4), f(8), f(12), f(20)), (p.0, p.1, p.2, p.3, p.5));
+            assert_eq!(u16::from_le_bytes([q[16], q[17]]), p.4);
+            assert_eq!(&q[18..20], &[0, 0]);
+        }
+        assert_eq!(r.bytes(1), Some(&[1u8][..]), "is_dense");
+        assert_eq!(r.bytes(1), None, "nothing after is_dense");
+        // No points: a valid empty cloud.
+        let empty = point_cloud2(stamp, "velodyne", &[]);
+        assert_eq!(empty.len() + 72, bytes.len());
     }
 }

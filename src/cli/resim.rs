@@ -33,15 +33,23 @@ pub struct ResimArgs {
 }
 
 pub fn run(args: ResimArgs) -> Result<ExitCode> {
-    use hilrig::sim::resim::{resim, PoseSource, ResimError};
+    use hilrig::sim::resim::{resim_recording, PoseSource, Recording, ResimError};
     // Without --rig, resim takes the rig file attached to the recording (reading it once).
     let rig = args
         .rig
         .as_ref()
         .map(|p| hilrig::rig::Rig::load(p))
         .transpose()?;
-    let scene = hilrig::scene::Scene::load(&args.scene)?;
     let model = hilrig::sim::ModelFile::load(&args.model)?;
+    // The scene (a BVH over every triangle) is built while the recording is read (a pass over
+    // the whole file for `check`): a second or more each at real size.
+    let (scene, recording) = std::thread::scope(|s| {
+        let scene = s.spawn(|| hilrig::scene::Scene::load(&args.scene));
+        let recording = Recording::read(&args.run, rig.as_ref());
+        (scene.join(), recording)
+    });
+    let scene = scene.map_err(|_| anyhow::anyhow!("loading {} failed", args.scene.display()))??;
+    let recording = recording?;
     let poses = match &args.trajectory {
         Some(p) => {
             let text = std::fs::read_to_string(p)
@@ -61,9 +69,8 @@ pub fn run(args: ResimArgs) -> Result<ExitCode> {
         bar.set_length(total);
         bar.set_position(done);
     };
-    match resim(
-        &args.run,
-        rig.as_ref(),
+    match resim_recording(
+        recording,
         &scene,
         &args.scene,
         &model,

@@ -412,7 +412,8 @@ fn compare_twins(
         Twins::File(p) => Some(ScanStream::open(p).map_err(|e| input(e.to_string()))?),
         Twins::Simulated(_) => None,
     };
-    let mut reference = reference(run_path, rig, scene, opts.trajectory.clone())?;    let admissible = reference.admissible;
+    let mut reference = reference(run_path, rig, scene, opts.trajectory.clone())?;
+    let admissible = reference.admissible;
     phase("reference checked");
     let spec = grid_spec(&opts, admissible)?;
     let cell = spec.cell_m();
@@ -451,7 +452,9 @@ fn compare_twins(
     let mut curve = CurveSums::new(cell, admissible, opts.dims);
     let (tally, paired, sim_path) = match twins {
         Twins::File(sim_path) => {
-            let sim_stream = sim_stream.as_mut().ok_or_else(|| input("no simulation".into()))?;
+            let sim_stream = sim_stream
+                .as_mut()
+                .ok_or_else(|| input("no simulation".into()))?;
             let mut pairs = Pairs::new(
                 real_stream.by_ref(),
                 &reference.run.scans,
@@ -465,8 +468,7 @@ fn compare_twins(
                 &mut curve,
                 &|n| progress(n, total),
             );
-            if let Some(e) = pairs.finish_error(tally.rows.len(), (run_path, real_span), sim_path)
-            {
+            if let Some(e) = pairs.finish_error(tally.rows.len(), (run_path, real_span), sim_path) {
                 return Err(input(e));
             }
             (tally, pairs.paired, Some(sim_path))

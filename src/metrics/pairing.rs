@@ -55,7 +55,6 @@ impl<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Pairs<'a, R, S> {
         }
     }
 
-
     /// The next simulated scan, noting its stamp.
     fn next_sim(&mut self) -> Option<Scan> {
         let s = self.sim.next()?;

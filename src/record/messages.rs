@@ -39,7 +39,7 @@ pub fn cloud_cdr(
     frame: &str,
     packets: &[(UtcNanos, &[u8; 1206])],
 ) -> Vec<u8> {
-    let mut points = Vec::with_capacity(packets.len() * 384);
+    let mut cloud = msgs::PointCloudWriter::new(stamp, frame, packets.len() * 384);
     let mut buf = Vec::with_capacity(800);
     // The packet before (a dual-return VLS-128 packet takes its rotation rate from it).
     let mut previous: Option<hilrig_velodyne::DataPacket> = None;
@@ -54,16 +54,16 @@ pub fn cloud_cdr(
             continue;
         }
         let base = (t.0 - stamp.0) as f64 * 1e-9;
-        points.extend(buf.iter().map(|q| {
-            (
+        for q in &buf {
+            cloud.push(
                 q.x,
                 q.y,
                 q.z,
                 f32::from(q.intensity),
                 u16::from(q.ring),
                 (base + f64::from(q.time_offset_ns) * 1e-9) as f32,
-            )
-        }));
+            );
+        }
     }
-    msgs::point_cloud2(stamp, frame, &points)
+    cloud.finish()
 }

@@ -265,6 +265,41 @@ impl Scene {
         actors: &ActorPoses,
     ) -> Option<Hit> {
         let mut best = self.statics.cast(o, d, tmin, tmax);
+        self.actors_into(o, d, tmin, tmax, actors, &mut best);
+        best
+    }
+
+    /// [`Scene::cast`] of the unit rays `o + t d` for every `d` in `dirs` into `out` (same
+    /// length), bit for bit what `cast` finds for each: the static geometry is traversed once
+    /// for rays into the same octant ([`Geometry::cast_bundle`]). Made for the sub-rays of a
+    /// diverging beam (one origin, milliradians apart): five such rays of a VLS-128 in an
+    /// 800k-triangle street are cast 1.5x as fast as one by one.
+    pub fn cast_bundle(
+        &self,
+        o: &Point3<f64>,
+        dirs: &[Vector3<f64>],
+        tmin: f64,
+        tmax: f64,
+        actors: &ActorPoses,
+        out: &mut [Option<Hit>],
+    ) {
+        self.statics.cast_bundle(o, dirs, tmin, tmax, out);
+        for (d, best) in dirs.iter().zip(out.iter_mut()) {
+            self.actors_into(o, d, tmin, tmax, actors, best);
+        }
+    }
+
+    /// The actors' hits nearer than `best` along `o + t d`.
+    #[inline]
+    fn actors_into(
+        &self,
+        o: &Point3<f64>,
+        d: &Vector3<f64>,
+        tmin: f64,
+        tmax: f64,
+        actors: &ActorPoses,
+        best: &mut Option<Hit>,
+    ) {
         for (a, pose) in self.actors.iter().zip(&actors.poses) {
             let Some(pose) = pose else { continue };
             // Cheap reject: distance from the actor's origin to the ray line.
@@ -280,10 +315,9 @@ impl Scene {
                 h.normal = pose.transform_vector(&h.normal);
                 // Its index is into the actor's geometry, in the actor's frame.
                 h.primitive = None;
-                best = Some(h);
+                *best = Some(h);
             }
         }
-        best
     }
 }
 
@@ -474,5 +508,68 @@ mod tests {
         .unwrap();
         let e = Scene::load(&p).unwrap_err().to_string();
         assert!(e.contains("scenes are local"), "{e}");
+    }
+
+    /// The parking scene with its pedestrian walking: a fan of bundles from the car's roof
+    /// (towards the pedestrian among them) gets exactly what each ray gets alone, actors
+    /// included.
+    #[test]
+    fn bundles_with_actors_find_what_single_rays_find() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("fixtures/parking/rep-01/scene.toml");
+        let scene = Scene::load(&path).unwrap();
+        assert!(!scene.actors.is_empty());
+        let walker = &scene.actors[0].trajectory;
+        let (t0, t1) = walker.span();
+        let mut poses = scene.new_actor_poses();
+        let mut hint = 0;
+        let (mut rays, mut on_actors) = (0, 0);
+        for k in 0..40 {
+            let t = UtcNanos(t0.0 + (t1.0 - t0.0) / 40 * k);
+            scene.actor_poses(t, &mut poses);
+            let Some(w) = walker.pose_at(t, &mut hint) else {
+                continue;
+            };
+            let o = Point3::new(0.0, 0.0, 1.9);
+            let to =
+                (Point3::from(w.translation.vector) + Vector3::new(0.0, 0.0, 1.0) - o).normalize();
+            for fan in 0..36 {
+                let az = f64::from(fan) * 10f64.to_radians();
+                let d = if fan == 0 {
+                    to
+                } else {
+                    Vector3::new(az.cos(), az.sin(), -0.05).normalize()
+                };
+                let dirs: Vec<Vector3<f64>> = [
+                    (0.0, 0.0),
+                    (1.5e-3, 0.0),
+                    (-1.5e-3, 0.0),
+                    (0.0, 8e-4),
+                    (0.0, -8e-4),
+                ]
+                .iter()
+                .map(|&(a, b)| {
+                    (d + Vector3::new(-d.y, d.x, 0.0) * a + Vector3::z() * b).normalize()
+                })
+                .collect();
+                let mut out = vec![None; dirs.len()];
+                scene.cast_bundle(&o, &dirs, 0.0, 200.0, &poses, &mut out);
+                for (d, got) in dirs.iter().zip(&out) {
+                    let alone = scene.cast(&o, d, 0.0, 200.0, &poses);
+                    let key =
+                        |h: &Option<Hit>| h.map(|h| (h.range.to_bits(), h.normal, h.material));
+                    assert_eq!(key(got), key(&alone), "{t:?} {d}");
+                    rays += 1;
+                    on_actors += usize::from(alone.is_some_and(|h| {
+                        h.material.surface.0 as usize >= scene.file.objects.len()
+                            && h.material.surface != SurfaceId::GROUND
+                    }));
+                }
+            }
+        }
+        assert!(
+            rays > 5000 && on_actors > 20,
+            "{rays} rays, {on_actors} on the pedestrian"
+        );
     }
 }

@@ -63,13 +63,32 @@ pub struct ResimSummary {
     pub verdict: Option<Verdict>,
 }
 
+/// A recording read for re-simulation: the run as `check` needs it (GNSS, CAN, packet timing;
+/// its scans are indexed, not kept) and the rig it was recorded with. Reading it is a pass over
+/// the whole file, so a caller that also loads a large scene can do both at once (`hilrig resim`
+/// does).
+pub struct Recording {
+    path: std::path::PathBuf,
+    run: crate::reference::run::Run,
+    rig: Rig,
+}
+
+impl Recording {
+    /// Reads the recording at `path` with `rig` (default: the rig file attached to it).
+    pub fn read(path: &Path, rig: Option<&Rig>) -> Result<Recording, ResimError> {
+        let (run, rig) =
+            crate::reference::run::load_with_rig(path, rig).map_err(ResimError::Input)?;
+        Ok(Recording {
+            path: path.to_owned(),
+            run,
+            rig,
+        })
+    }
+}
+
 /// Re-simulates the run at `run_path` into `out` with `rig` (default: the rig file attached to
 /// the recording). `progress(done, total)` is called per scan.
 #[allow(clippy::too_many_arguments)]
-#[allow(
-    clippy::too_many_lines,
-    reason = "read, check, pose source, parallel casting and writing hand large borrowed state on in order; the casting itself is LidarSim"
-)]
 pub fn resim(
     run_path: &Path,
     rig: Option<&Rig>,
@@ -82,8 +101,39 @@ pub fn resim(
     out: &Path,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<ResimSummary, ResimError> {
+    resim_recording(
+        Recording::read(run_path, rig)?,
+        scene,
+        scene_path,
+        model,
+        poses,
+        force,
+        seed,
+        out,
+        progress,
+    )
+}
+
+/// [`resim`] of a recording read already.
+#[allow(clippy::too_many_arguments)]
+#[allow(
+    clippy::too_many_lines,
+    reason = "check, pose source, parallel casting and writing hand large borrowed state on in order; the casting itself is LidarSim"
+)]
+pub fn resim_recording(
+    recording: Recording,
+    scene: &Scene,
+    scene_path: &Path,
+    model: &ModelFile,
+    poses: PoseSource,
+    force: bool,
+    seed: u64,
+    out: &Path,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<ResimSummary, ResimError> {
     let input = |e: String| ResimError::Input(e);
-    let (run, rig) = crate::reference::run::load_with_rig(run_path, rig).map_err(input)?;
+    let Recording { path, run, rig } = recording;
+    let run_path = path.as_path();
     let rig = &rig;
     let (report, smoothed) = check_with_trajectory(&run, rig, Some(scene));
     let mut summary = ResimSummary {
