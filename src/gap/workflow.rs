@@ -17,11 +17,13 @@ use super::report::{
 };
 use super::study::{Role, Study};
 use super::GapError;
-use crate::metrics::compare::{compare, Options as CompareOptions};
+use crate::metrics::compare::{compare_simulated, Options as CompareOptions, ToSimulate};
+use crate::metrics::features::scan_features;
 use crate::metrics::grid::Dims;
 use crate::metrics::roi::Region;
 use crate::sim::model::ModelFile;
-use crate::sim::resim::{resim, PoseSource};
+use crate::sim::resim::Resimulator;
+use crate::stats::repetitions::RunFeatures;
 use std::path::{Path, PathBuf};
 
 /// How the workflow runs.
@@ -120,7 +122,11 @@ impl Set {
     }
 }
 
-/// Re-simulates the validation runs in full with `model` into `dir` and measures them.
+/// Re-simulates the validation runs in full with `model` into `dir` and measures them: each run
+/// is read once, its scans cast batch by batch and compared as they come (OCR^K, precision,
+/// IoU at the admissible cell), and their features kept for the validation (Rosenberger et al.
+/// 2019, Fig. 7) of the simulated runs against the measured ones. The simulations are written
+/// to `dir` (their VelodyneScans) for the user to open.
 fn run_metrics(
     val: &[RunData],
     model: &ModelFile,
@@ -130,26 +136,34 @@ fn run_metrics(
     std::fs::create_dir_all(dir)
         .map_err(|e| GapError::Output(format!("{}: {e}", dir.display())))?;
     let quiet = |_: u64, _: u64| {};
-    let mut sims = Vec::new();
+    let (mut real_features, mut sim_features) = (Vec::new(), Vec::new());
     let (mut ocr, mut precision, mut iou) = (Vec::new(), Vec::new(), Vec::new());
     for (i, r) in val.iter().enumerate() {
-        let sim = dir.join(format!("{tag}-validation-{:02}.mcap", i + 1));
-        resim(
+        let sim_path = dir.join(format!("{tag}-validation-{:02}.mcap", i + 1));
+        let (_, sensor, calibration) = r.rig.lidar_sensor().map_err(GapError::Input)?;
+        let decoder = hilrig_velodyne::Decoder::with_calibration(sensor, calibration);
+        let mut resim = Resimulator::new(
             &r.path,
-            Some(&r.rig),
+            &r.rig,
             &r.scene,
             &r.scene_path,
             model,
-            PoseSource::Run,
-            true,
             i as u64 + 1,
-            &sim,
-            &quiet,
+            &sim_path,
+            r.trajectory.span().0,
         )
         .map_err(|e| GapError::Input(format!("re-simulating {}: {e}", r.name)))?;
-        let c = compare(
+        let (mut real_scans, mut sim_scans) = (Vec::new(), Vec::new());
+        let c = compare_simulated(
             &r.path,
-            &sim,
+            &mut |t: ToSimulate<'_>| {
+                let sims = resim
+                    .cast(t.trajectory, t.pps_locked, t.scans)
+                    .map_err(|e| e.to_string())?;
+                real_scans.extend(scan_features(t.scans, &decoder));
+                sim_scans.extend(scan_features(&sims, &decoder));
+                Ok(sims)
+            },
             Some(&r.rig),
             Some(&r.scene),
             CompareOptions {
@@ -169,13 +183,24 @@ fn run_metrics(
             &quiet,
         )
         .map_err(|e| GapError::Input(format!("comparing {}: {e}", r.name)))?;
+        resim
+            .finish()
+            .map_err(|e| GapError::Output(format!("{}: {e}", sim_path.display())))?;
         ocr.extend(c.summary.ocr_mean);
         precision.extend(c.summary.precision_mean);
         iou.extend(c.summary.iou_mean);
-        sims.push(sim);
+        real_features.push(RunFeatures {
+            name: r.path.display().to_string(),
+            damage: None,
+            scans: real_scans,
+        });
+        sim_features.push(RunFeatures {
+            name: sim_path.display().to_string(),
+            damage: None,
+            scans: sim_scans,
+        });
     }
-    let reals: Vec<PathBuf> = val.iter().map(|r| r.path.clone()).collect();
-    let v = crate::stats::repetitions::validate(&reals, &sims, Some(&val[0].rig), &[])
+    let v = crate::stats::repetitions::validate_features(&real_features, &sim_features, &[])
         .map_err(GapError::Input)?;
     let mean = |v: &[f64]| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
     Ok(RunMetrics {

@@ -20,6 +20,7 @@ use super::measure::{measure, Measured, Residuals};
 use super::pairing::{Pair, Pairs};
 pub use super::report::{Comparison, CurvePoint, LeftOut, ObjectSeen, ScanRow, Snapshot, Summary};
 use super::roi::{Region, Roi};
+use super::tally::{mean, Tally};
 use super::windows::{grid_phase, windows, CurveSums, PointPair};
 use crate::bag::scans::{Scan, ScanStream};
 use crate::reference::check::{check_with_trajectory, Verdict};
@@ -29,9 +30,7 @@ use crate::scene::pose::{mounting_isometry, Trajectory};
 use crate::scene::Scene;
 use crate::stats::rank::spearman_with_interval;
 
-use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::Decoder;
-use nalgebra::Point3;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -97,11 +96,6 @@ pub const DEFAULT_GRID_PHASES: usize = 4;
 
 pub use super::measure::MIN_POINTS_SEEN;
 pub use super::windows::CURVE_CELLS_M;
-
-fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
-    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
-    (n > 0).then(|| s / n as f64)
-}
 
 /// What `compare` takes from the run besides its scans.
 struct Reference {
@@ -180,95 +174,6 @@ fn grid_spec(opts: &Options, admissible: f64) -> Result<GridSpec, CompareError> 
 /// Scan pairs decoded and measured together: enough to keep every core busy, few enough that
 /// a 128-beam sensor's clouds stay a few hundred megabytes.
 const BATCH_PAIRS: usize = 8;
-
-/// The scan the snapshot shows: the most objects in view and, of those, the smallest mean
-/// distance to them (the earliest on a tie), kept with its points as the drive streams by.
-struct SnapshotPick {
-    index: usize,
-    key: (usize, f64),
-    real: Vec<Point3<f64>>,
-    sim: Vec<Point3<f64>>,
-    origin: Option<Point3<f64>>,
-}
-
-impl SnapshotPick {
-    /// A row's key: objects in view, mean distance to them.
-    fn key(row: &ScanRow) -> (usize, f64) {
-        (
-            row.objects_in_view,
-            row.mean_distance_m.unwrap_or(f64::INFINITY),
-        )
-    }
-
-    /// Whether a row beats the pick so far (more objects, then nearer; ties keep the earlier).
-    fn beaten_by(this: Option<&SnapshotPick>, row: &ScanRow) -> bool {
-        let key = SnapshotPick::key(row);
-        this.is_none_or(|p| key.0 > p.key.0 || (key.0 == p.key.0 && key.1 < p.key.1))
-    }
-}
-
-/// The running results of the streamed pass.
-#[derive(Default)]
-struct Tally {
-    rows: Vec<ScanRow>,
-    res: Vec<Residuals>,
-    returns: (usize, usize),
-    any_real_point: bool,
-    pick: Option<SnapshotPick>,
-    t0: Option<UtcNanos>,
-}
-
-impl Tally {
-    /// The rows of a measured batch, with its windows' grid scores.
-    fn add(
-        &mut self,
-        measured: Vec<Measured>,
-        grids: Vec<Option<GridScores>>,
-        trajectory: &Trajectory,
-    ) -> Vec<PointPair> {
-        let mut clouds = Vec::with_capacity(measured.len());
-        for (m, grid) in measured.into_iter().zip(grids) {
-            let t0 = *self.t0.get_or_insert(m.middle);
-            let per = |x: f64| (m.res.both > 0).then(|| x / m.res.both as f64);
-            let mut hint = 0;
-            let speed = trajectory
-                .velocity_at(m.middle, &mut hint)
-                .map_or(0.0, |v| v.xy().norm());
-            let row = ScanRow {
-                t_s: (m.middle.0 - t0.0) as f64 * 1e-9,
-                stamp_ns: m.stamp.0,
-                ego_speed_mps: speed,
-                objects_in_view: m.objects.len(),
-                mean_distance_m: mean(m.objects.iter().map(|o| o.range_m)),
-                real_points: m.real.len(),
-                sim_points: m.sim.len(),
-                grid,
-                points: m.points,
-                range_diff_mean_m: per(m.res.sum),
-                range_diff_rms_m: per(m.res.sum2).map(f64::sqrt),
-                only_real: m.res.only_real,
-                only_sim: m.res.only_sim,
-                objects: m.objects,
-            };
-            self.any_real_point |= !m.real.is_empty();
-            self.returns.0 += m.returns.0;
-            self.returns.1 += m.returns.1;
-            self.res.push(m.res);
-            if SnapshotPick::beaten_by(self.pick.as_ref(), &row) {
-                self.pick = Some(SnapshotPick {
-                    index: self.rows.len(),
-                    key: SnapshotPick::key(&row),
-                    real: m.real.clone(),
-                    sim: m.sim.clone(),
-                    origin: m.origin,
-                });
-            }
-            self.rows.push(row);
-            clouds.push((m.real, m.sim));
-        }
-        clouds
-    }
-}
 
 /// What a comparison hands the simulation it makes as it goes ([`compare_simulated`]): the
 /// poses to cast at, whether the lidar's stamps are GNSS time, and a batch of measured scans.

@@ -3,7 +3,7 @@
 //! Hausdorff), regions of interest ([`roi`]) and the scan-by-scan comparison that `hilrig
 //! compare` runs ([`compare`]) on the scans [`pairing`] pairs as both files stream by: each pair measured by
 //! itself ([`measure`]), the grids of windows of K scans ([`windows`]), what it reports
-//! ([`report`]) and the bird's-eye view of one scan pair ([`snapshot`]).
+//! ([`report`]) and the bird's-eye view of one scan pair ([`snapshot`]), and the running results of the pass ([`tally`]).
 
 mod cloud;
 pub mod compare;
@@ -15,4 +15,5 @@ pub mod points;
 pub mod report;
 pub mod roi;
 mod snapshot;
+mod tally;
 mod windows;

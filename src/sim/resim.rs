@@ -253,7 +253,7 @@ struct ScanMessages {
     log: UtcNanos,
     publish: UtcNanos,
     packets_cdr: Vec<u8>,
-    cloud_cdr: Vec<u8>,
+    cloud_cdr: Option<Vec<u8>>,
 }
 
 /// Casts batches of recorded scans.
@@ -274,7 +274,19 @@ impl Caster<'_> {
         state: &mut CastState,
         stats: &mut SimStats,
     ) -> Vec<ScanMessages> {
-        // All packets of the batch at once, then the scans' messages in parallel.
+        let simulated = self.simulate(scans, state, stats);
+        self.messages(scans, &simulated, true)
+    }
+
+    /// Every packet of `scans` simulated, in order (a packet that does not decode is kept as
+    /// it was); the firing counts added to `stats`.
+    fn simulate(
+        &self,
+        scans: &[Scan],
+        state: &mut CastState,
+        stats: &mut SimStats,
+    ) -> Vec<[u8; DATA_PACKET_SIZE]> {
+        // All packets of the batch at once: both cores busy whatever the scan size.
         let mut jobs = Vec::new();
         for (k, scan) in scans.iter().enumerate() {
             let mut rates = Vec::with_capacity(scan.packets.len());
@@ -337,11 +349,24 @@ impl Caster<'_> {
                 (out, st)
             })
             .collect();
-        for (_, st) in &simulated {
+        let mut out = Vec::with_capacity(simulated.len());
+        for (b, st) in simulated {
             stats.firings += st.firings;
             stats.returns += st.returns;
             stats.outside_trajectory += st.outside_trajectory;
+            out.push(b);
         }
+        out
+    }
+
+    /// The messages of `scans` with their simulated packets (`simulated`, in order), the
+    /// viewing clouds only when `clouds`.
+    fn messages(
+        &self,
+        scans: &[Scan],
+        simulated: &[[u8; DATA_PACKET_SIZE]],
+        clouds: bool,
+    ) -> Vec<ScanMessages> {
         let mut offsets = Vec::with_capacity(scans.len());
         let mut at = 0;
         for scan in scans {
@@ -356,21 +381,121 @@ impl Caster<'_> {
                     .packets
                     .iter()
                     .zip(&simulated[o..o + scan.packets.len()])
-                    .map(|((t, _), (b, _))| (*t, b))
+                    .map(|((t, _), b)| (*t, b))
                     .collect();
                 ScanMessages {
                     log: UtcNanos(scan.log_time as i64),
                     publish: UtcNanos(scan.publish_time as i64),
                     packets_cdr: msgs::velodyne_scan(scan.stamp, self.frame_id, &list),
-                    cloud_cdr: crate::record::messages::cloud_cdr(
-                        self.decoder,
-                        scan.stamp,
-                        self.frame_id,
-                        &list,
-                    ),
+                    cloud_cdr: clouds.then(|| {
+                        crate::record::messages::cloud_cdr(
+                            self.decoder,
+                            scan.stamp,
+                            self.frame_id,
+                            &list,
+                        )
+                    }),
                 }
             })
             .collect()
+    }
+}
+
+/// A re-simulation made scan by scan for a caller that reads the run itself and measures the
+/// simulated scans as they come ([`crate::metrics::compare::compare_simulated`]: the gap
+/// workflow's metrics): each batch of measured scans is cast, handed back, and written to the
+/// simulation's file (its VelodyneScans; no viewing clouds).
+pub struct Resimulator<'a> {
+    sim: LidarSim<'a>,
+    decoder: Decoder,
+    frame_id: String,
+    seed: u64,
+    state: CastState,
+    writer: Writer,
+    stats: SimStats,
+}
+
+impl<'a> Resimulator<'a> {
+    /// A re-simulation of the run at `run_path` (recorded with `rig`) in `scene` with `model`,
+    /// written to `out`; `seed` makes the model's randomness reproducible (as `resim`'s).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        run_path: &Path,
+        rig: &Rig,
+        scene: &'a Scene,
+        scene_path: &Path,
+        model: &ModelFile,
+        seed: u64,
+        out: &Path,
+        first_log: UtcNanos,
+    ) -> Result<Resimulator<'a>, ResimError> {
+        let input = |e: String| ResimError::Input(e);
+        let (lidar, sensor, calibration) = rig.lidar_sensor().map_err(input)?;
+        let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, model)
+            .map_err(|e| input(e.to_string()))?;
+        let mut meta = BTreeMap::new();
+        meta.insert("model".to_owned(), model.name.clone());
+        meta.insert("model_toml".to_owned(), model.to_toml());
+        meta.insert("scene".to_owned(), scene_path.display().to_string());
+        meta.insert("scene_name".to_owned(), scene.file.name.clone());
+        meta.insert("run".to_owned(), run_path.display().to_string());
+        meta.insert(
+            "trajectory".to_owned(),
+            "the run's RTK+CAN trajectory (EKF/RTS, 10 ms samples)".to_owned(),
+        );
+        meta.insert("seed".to_owned(), seed.to_string());
+        Ok(Resimulator {
+            sim,
+            decoder: Decoder::with_calibration(sensor, calibration),
+            frame_id: lidar.frame_id.clone(),
+            seed,
+            state: CastState::default(),
+            writer: Writer::start(out, meta, model.to_toml(), first_log)?,
+            stats: SimStats::default(),
+        })
+    }
+
+    /// The simulated twins of `scans` (the run's next scans, in order), cast along
+    /// `trajectory` at the packets' own stamps (GNSS time when `pps_locked`).
+    pub fn cast(
+        &mut self,
+        trajectory: &Trajectory,
+        pps_locked: bool,
+        scans: &[Scan],
+    ) -> Result<Vec<Scan>, ResimError> {
+        let caster = Caster {
+            sim: &self.sim,
+            trajectory,
+            decoder: &self.decoder,
+            frame_id: &self.frame_id,
+            pps_locked,
+            seed: self.seed,
+        };
+        let simulated = caster.simulate(scans, &mut self.state, &mut self.stats);
+        for m in caster.messages(scans, &simulated, false) {
+            self.writer.send(m)?;
+        }
+        let mut packets = simulated.into_iter();
+        Ok(scans
+            .iter()
+            .map(|scan| Scan {
+                log_time: scan.log_time,
+                publish_time: scan.publish_time,
+                stamp: scan.stamp,
+                packets: scan
+                    .packets
+                    .iter()
+                    .zip(packets.by_ref())
+                    .map(|((t, _), b)| (*t, b))
+                    .collect(),
+            })
+            .collect())
+    }
+
+    /// Closes the simulation's file; the firings cast.
+    pub fn finish(self) -> Result<SimStats, ResimError> {
+        self.writer.finish()?;
+        Ok(self.stats)
     }
 }
 
@@ -417,14 +542,16 @@ impl Writer {
                         &m.packets_cdr,
                     )
                     .map_err(|e| e.to_string())?;
-                    bag.write(
-                        SIM_POINTS,
-                        &msgs::point_cloud2_type(),
-                        m.log,
-                        m.publish,
-                        &m.cloud_cdr,
-                    )
-                    .map_err(|e| e.to_string())?;
+                    if let Some(cloud) = &m.cloud_cdr {
+                        bag.write(
+                            SIM_POINTS,
+                            &msgs::point_cloud2_type(),
+                            m.log,
+                            m.publish,
+                            cloud,
+                        )
+                        .map_err(|e| e.to_string())?;
+                    }
                 }
                 bag.finish().map(|_| ()).map_err(|e| e.to_string())
             })
