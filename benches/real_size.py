@@ -14,7 +14,7 @@ the real-time factor (wall time over the drive's duration):
 
 Heavy (minutes to tens of minutes, gigabytes on disk): it is a bench, not a test.
 
-  python3 benches/real_size.py [--sensor vls128|vlp32c] [--duration 60] [--return-mode strongest]
+  .venv/bin/python benches/real_size.py [--sensor vls128|vlp32c] [--duration 60] [--return-mode strongest]
         [--reps 3] [--triangles 800000] [--speed 8] [--seed 1] [--steps record,check,...]
         [--work DIR] [--no-build]
 
@@ -368,7 +368,7 @@ class Step:
 
     def line(self):
         rtf = f"{self.wall / self.duration:6.2f}" if self.duration else "     -"
-        return f"{self.name:<28} {self.wall:8.1f} s {self.cpu:8.1f} s {self.rss / 1048576:7.2f} GiB  {rtf}"
+        return f"{self.name:<28} {self.wall:8.1f} s {self.cpu:8.1f} s {self.rss / 1024:7.0f} MiB  {rtf}"
 
 
 def timed(name, args, duration=None, expect=(0,), log=None):
@@ -411,6 +411,12 @@ def main():
     for s in steps:
         if s not in STEPS:
             sys.exit(f"unknown step {s}: one of {','.join(STEPS)}")
+    if "replay" in steps:
+        try:
+            import mcap  # noqa: F401  (the packet count of the replay step reads the files)
+        except ImportError:
+            sys.exit("the replay step counts packets with PyPI's mcap: run with the venv's python "
+                     "(.venv/bin/python benches/real_size.py ..., made by .ci/run)")
     if not args.no_build:
         subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=ROOT, check=True)
     work = args.work or tempfile.mkdtemp(prefix="hilrig-real-size-")
@@ -524,10 +530,7 @@ def lidar_packets(mcap_path):
     """Data packets in a recording's /velodyne_packets (needs PyPI's `mcap`: run the script with
     the venv's python that .ci/run makes). Each VelodyneScan (CDR, little endian) is a header
     (stamp, frame id) and then the packet count."""
-    try:
-        from mcap.reader import make_reader
-    except ImportError:
-        return None
+    from mcap.reader import make_reader
     import struct
     n = 0
     with open(mcap_path, "rb") as f:
@@ -549,21 +552,31 @@ def replay_into_live_record(rig_path, capture, recorded, out, duration, log):
     text = re.sub(r"^bind = .*$", 'bind = "127.0.0.1"', text, count=1, flags=re.M)
     text = re.sub(r"^data_port = .*$", f"data_port = {data}", text, count=1, flags=re.M)
     text = re.sub(r"^position_port = .*$", f"position_port = {position}", text, count=1, flags=re.M)
-    # Only the lidar: no serial port or CAN interface exists here.
-    text = re.sub(r"\n\[gnss\][^\[]*", "\n", text)
-    text = re.sub(r"\n\[can[^\n]*\][^\[]*", "\n", text)
+    # Only the lidar: no serial port or CAN interface exists here. Every table of [gnss] and
+    # [can] goes, sub-tables ([can.ego.speed]) included.
+    kept, drop = [], False
+    for line in text.splitlines():
+        header = re.match(r"^\s*\[\[?([A-Za-z_.]+)\]?\]", line)
+        if header:
+            drop = header.group(1).split(".")[0] in ("gnss", "can")
+        if not drop:
+            kept.append(line)
     with open(live_rig, "w") as f:
-        f.write(text)
+        f.write("\n".join(kept) + "\n")
     live = os.path.join(out, "live.mcap")
     recorder = subprocess.Popen([HILRIG, "record", "--rig", live_rig, "-o", live],
                                 stdout=open(log("replay-record"), "w"), stderr=subprocess.STDOUT)
     time.sleep(2.0)
+    if recorder.poll() is not None:
+        raise SystemExit(f"the live record did not start (exit {recorder.returncode}): see {log('replay-record')}")
     st, _ = timed("replay -> live record", [HILRIG, "replay", capture, "--lidar-to", f"127.0.0.1:{data}",
                                             "--position-to", f"127.0.0.1:{position}"],
                   duration, log=log("replay"))
     time.sleep(2.0)
     recorder.send_signal(2)
-    recorder.wait(timeout=120)
+    code = recorder.wait(timeout=120)
+    if code != 0:
+        raise SystemExit(f"the live record exited {code}: see {log('replay-record')}")
     sent, got = lidar_packets(recorded), lidar_packets(live)
     print(f"replay: {sent} data packets recorded from the capture, {got} recorded live"
           + ("" if sent == got else "  <-- LOST PACKETS"))
