@@ -83,6 +83,35 @@ fn a_run_against_itself_and_against_its_re_simulation() {
     let s = &v["summary"];
     let ocr = s["ocr_mean"].as_f64().unwrap();
     assert!(ocr > 0.5 && ocr < 1.0, "OCR {ocr}");
+    // The model that made the data (the truth model: noise, dropout, beam divergence, the
+    // detection threshold) must reproduce it better than the idealized one, re-simulated along
+    // the same poses: a higher OCR at the same cell.
+    let truth_sim = {
+        let out = dir.path().join("truth1.mcap");
+        hilrig_ok(&[
+            "resim".as_ref(),
+            run.as_os_str(),
+            "--scene".as_ref(),
+            scene.as_os_str(),
+            "--model".as_ref(),
+            fixture("parking/truth.toml").as_os_str(),
+            "-o".as_ref(),
+            out.as_os_str(),
+        ]);
+        out
+    };
+    let truth_json = dir.path().join("truth.json");
+    let out = compare(&run, &truth_sim, &scene, &[], &truth_json);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ocr_truth = read(&truth_json)["summary"]["ocr_mean"].as_f64().unwrap();
+    assert!(
+        ocr_truth > ocr,
+        "OCR: truth model {ocr_truth}, idealized {ocr}"
+    );
     assert_eq!(v["cell_m"], v["admissible_cell_m"]);
     assert_eq!(s["scans"].as_u64().unwrap() as usize, scans.len());
     assert_eq!(s["unpaired_run_scans"], 0);
