@@ -135,10 +135,19 @@ def check(d, run, rig_antenna_x=None, heading_limit=None):
         path = os.path.join(d, f"rig-{rig_antenna_x}-{heading_limit}.toml")
         open(path, "w").write(rig)
         extra = ["--rig", path]
-    subprocess.run([exe, "check", run, "--scene", os.path.join(d, "rep-01/scene.toml"),
-                    "--json", out, "--trajectory", os.path.join(d, "trajectory.csv")] + extra,
-                   stdout=subprocess.DEVNULL)
-    return json.load(open(out))
+    # A report of an earlier call must never be read for this one: remove it first, and take
+    # only exit 0 (pass) or 1 (faults found); 2 or a crash is an error of the campaign.
+    if os.path.exists(out):
+        os.remove(out)
+    p = subprocess.run([exe, "check", run, "--scene", os.path.join(d, "rep-01/scene.toml"),
+                        "--json", out, "--trajectory", os.path.join(d, "trajectory.csv")] + extra,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    if p.returncode not in (0, 1) or not os.path.exists(out):
+        raise SystemExit(f"check {run} {extra}: exit {p.returncode}\n{p.stderr}")
+    report = json.load(open(out))
+    if (report.get("verdict") == "pass") != (p.returncode == 0):
+        raise SystemExit(f"check {run}: verdict {report.get('verdict')} but exit {p.returncode}")
+    return report
 
 
 def heading_errors(d, report):

@@ -23,6 +23,7 @@
 #![warn(clippy::too_many_lines)]
 
 pub mod bag;
+pub mod config;
 pub mod decode;
 pub mod gap;
 pub mod metrics;

@@ -341,6 +341,10 @@ impl Rig {
 
     /// Parses a rig file's text (`name` says where it came from in errors).
     pub fn from_toml(text: &str, name: &str) -> Result<Rig, RigError> {
+        crate::config::check_finite(text).map_err(|message| RigError::Parse {
+            path: name.to_owned(),
+            message,
+        })?;
         toml::from_str(text).map_err(|e| RigError::Parse {
             path: name.to_owned(),
             message: e.to_string(),
@@ -352,6 +356,10 @@ impl Rig {
         let text = std::fs::read_to_string(path).map_err(|e| RigError::Io {
             path: path.display().to_string(),
             source: e,
+        })?;
+        crate::config::check_finite(&text).map_err(|message| RigError::Parse {
+            path: path.display().to_string(),
+            message,
         })?;
         let mut rig: Rig = toml::from_str(&text).map_err(|e| RigError::Parse {
             path: path.display().to_string(),

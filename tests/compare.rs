@@ -83,6 +83,44 @@ fn a_run_against_itself_and_against_its_re_simulation() {
     let s = &v["summary"];
     let ocr = s["ocr_mean"].as_f64().unwrap();
     assert!(ocr > 0.5 && ocr < 1.0, "OCR {ocr}");
+    // The model that made the data (the truth model: noise, dropout, beam divergence, the
+    // detection threshold) must agree with it firing by firing better than the idealized one,
+    // re-simulated along the same poses: fewer returns only in the simulation (the idealized
+    // model returns where the sensor's threshold let nothing through) and a smaller range
+    // residual. (Not OCR: it is the share of measured cells the simulation covers, which a
+    // model that returns more points raises; on a street with far facades the idealized model
+    // scores the higher OCR.)
+    let truth_sim = {
+        let out = dir.path().join("truth1.mcap");
+        hilrig_ok(&[
+            "resim".as_ref(),
+            run.as_os_str(),
+            "--scene".as_ref(),
+            scene.as_os_str(),
+            "--model".as_ref(),
+            fixture("parking/truth.toml").as_os_str(),
+            "-o".as_ref(),
+            out.as_os_str(),
+        ]);
+        out
+    };
+    let truth_json = dir.path().join("truth.json");
+    let out = compare(&run, &truth_sim, &scene, &[], &truth_json);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let t = read(&truth_json)["summary"].clone();
+    let num = |v: &Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+    for k in ["only_sim_share", "range_diff_rms_m"] {
+        assert!(
+            num(&t, k) < num(s, k),
+            "{k}: truth model {}, idealized {}",
+            num(&t, k),
+            num(s, k)
+        );
+    }
     assert_eq!(v["cell_m"], v["admissible_cell_m"]);
     assert_eq!(s["scans"].as_u64().unwrap() as usize, scans.len());
     assert_eq!(s["unpaired_run_scans"], 0);
@@ -95,7 +133,17 @@ fn a_run_against_itself_and_against_its_re_simulation() {
             .find(|p| (p["cell_m"].as_f64().unwrap() - c).abs() < 1e-9)
             .unwrap()
     };
-    assert!(at(2.0)["ocr_mean"].as_f64() > at(0.05)["ocr_mean"].as_f64());
+    let ocr_at = |c: f64| {
+        at(c)["ocr_mean"]
+            .as_f64()
+            .expect("an OCR at every cell size")
+    };
+    assert!(
+        ocr_at(2.0) > ocr_at(0.05),
+        "{} {}",
+        ocr_at(2.0),
+        ocr_at(0.05)
+    );
     let admissible = v["admissible_cell_m"].as_f64().unwrap();
     for p in curve {
         assert_eq!(
@@ -107,8 +155,16 @@ fn a_run_against_itself_and_against_its_re_simulation() {
     let text = std::fs::read_to_string(&csv).unwrap();
     assert_eq!(text.lines().count(), scans.len() + 1);
     assert!(text.starts_with("t_s,stamp_ns,ego_speed_mps,objects_in_view,mean_distance_m,ocr,"));
+    // Fig. 5: OCR falls as the objects get farther (fewer points on them, each cell's
+    // occupancy less certain); ρ must be there, inside its interval, and negative.
     let r = &s["ocr_vs_distance"];
-    assert!(r["low"].as_f64() <= r["rho"].as_f64() && r["rho"].as_f64() <= r["high"].as_f64());
+    let f = |k: &str| {
+        r[k].as_f64()
+            .unwrap_or_else(|| panic!("ocr_vs_distance.{k}: {r}"))
+    };
+    let (rho, low, high) = (f("rho"), f("low"), f("high"));
+    assert!(low <= rho && rho <= high, "{low} {rho} {high}");
+    assert!(rho < 0.0, "OCR against distance: ρ = {rho} [{low}, {high}]");
 
     // The region and the ground change what they should: keeping the ground adds points to
     // every scan, the objects' region keeps a part of them, one object a part of that; in the
@@ -180,6 +236,11 @@ fn inputs_that_do_not_belong_together_and_bad_cells_are_refused() {
         (run1.clone(), vec!["--cell", "0"], "positive finite"),
         (run1.clone(), vec!["--cell", "NaN"], "positive finite"),
         (run1.clone(), vec!["--cell", "0.1"], "--allow-small-cell"),
+        (
+            run1.clone(),
+            vec!["--cell", "1e-9", "--allow-small-cell"],
+            "the smallest cell for this drive is",
+        ),
         (run1.clone(), vec!["-K", "0"], "at least one scan"),
         (
             run1.clone(),
@@ -216,4 +277,93 @@ fn inputs_that_do_not_belong_together_and_bad_cells_are_refused() {
         assert!(err.contains(says), "{extra:?}: {err}");
         assert!(!json.exists(), "{extra:?}: wrote {}", json.display());
     }
+}
+
+/// The residuals and the only-real share on pairs where they are known in closed form: the same
+/// run re-simulated with the idealized model and with it plus a range bias `b` (every simulated
+/// range `b` farther, nothing else changed) or plus a random dropout `p`. On the same firings,
+/// the mean residual (simulated minus measured) moves by exactly `b`, the mean square to
+/// `rms² + 2 b mean + b²`; a dropout leaves a share `p` of the returns both had to the
+/// measurement alone: `only_real(p) = only_real + p (1 - only_real)` within the binomial noise.
+/// A sign error in the residual, a pairing by the wrong firing or a share over the wrong total
+/// fails one of them.
+#[test]
+fn residuals_and_shares_move_as_a_known_bias_and_dropout_say() {
+    let dir = tempfile::tempdir().unwrap();
+    let (run, sim, scene) = run_and_sim(dir.path(), 1);
+    let resim = |name: &str, effect: &str| -> PathBuf {
+        let model = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&model, format!("name = \"{name}\"\n[[effect]]\n{effect}\n")).unwrap();
+        let out = dir.path().join(format!("{name}.mcap"));
+        hilrig_ok(&[
+            "resim".as_ref(),
+            run.as_os_str(),
+            "--scene".as_ref(),
+            scene.as_os_str(),
+            "--model".as_ref(),
+            model.as_os_str(),
+            "-o".as_ref(),
+            out.as_os_str(),
+        ]);
+        out
+    };
+    let summary = |sim: &Path| -> Value {
+        let json = dir.path().join("s.json");
+        let out = compare(
+            &run,
+            sim,
+            &scene,
+            &["--no-point-metrics", "--curve-every", "0"],
+            &json,
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        read(&json)["summary"].clone()
+    };
+    let num = |v: &Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+    let ideal = summary(&sim);
+    let (m0, r0) = (
+        num(&ideal, "range_diff_mean_m"),
+        num(&ideal, "range_diff_rms_m"),
+    );
+
+    // A bias of 50 range quanta (VLP-16: 2 mm), so that quantization shifts by whole counts.
+    let b = 0.1;
+    let biased = summary(&resim("biased", "name = \"range_bias\"\nbias_m = 0.1"));
+    let (m1, r1) = (
+        num(&biased, "range_diff_mean_m"),
+        num(&biased, "range_diff_rms_m"),
+    );
+    // Returns that cross the region's border by the shift change the set a little: 1 mm.
+    assert!((m1 - (m0 + b)).abs() < 1e-3, "mean {m0} -> {m1}, bias {b}");
+    let expect = (r0 * r0 + 2.0 * b * m0 + b * b).sqrt();
+    assert!(
+        (r1 - expect).abs() < 2e-3,
+        "rms {r0} -> {r1}, expected {expect}"
+    );
+    assert!(
+        (num(&biased, "only_real_share") - num(&ideal, "only_real_share")).abs() < 2e-3,
+        "a bias moves points, it does not lose them"
+    );
+
+    let p = 0.2;
+    let dropped = summary(&resim(
+        "dropout",
+        "name = \"random_dropout\"\nprobability = 0.2",
+    ));
+    let (o0, o1) = (
+        num(&ideal, "only_real_share"),
+        num(&dropped, "only_real_share"),
+    );
+    let expect = o0 + p * (1.0 - o0);
+    // Binomial: at least 10^5 returns in the run, sd below 0.0013; allow 4 sd.
+    assert!(
+        (o1 - expect).abs() < 0.005,
+        "only-real share {o0} -> {o1}, expected {expect}"
+    );
+    // Dropout takes whole firings: what remains is paired as before.
+    assert!((num(&dropped, "range_diff_mean_m") - m0).abs() < 1e-3);
 }

@@ -137,8 +137,14 @@ fn coverage_lists_the_one_validation_sample_in_a_parameterization_cell() {
     let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let shared = v["shared"].as_array().unwrap();
     assert_eq!(shared.len(), 1, "{v}");
-    assert_eq!(shared[0]["validation_row"], 1);
-    assert_eq!(shared[0]["parameterization_rows"], serde_json::json!([1]));
+    // Rows counted from 1 in the JSON as in the text: the second data row of each file.
+    assert_eq!(shared[0]["validation_row"], 2);
+    assert_eq!(shared[0]["parameterization_rows"], serde_json::json!([2]));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("validation row 2 shares cell") && text.contains("parameterization rows [2]"),
+        "{text}"
+    );
     // Without the shared sample, nothing is listed and the exit code is 0.
     let val = w("val2.csv", "speed,distance\n3.9,5.0\n10.0,50.0\n7.0,31.0\n");
     let out = Command::new(hilrig_bin())

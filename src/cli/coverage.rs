@@ -58,12 +58,7 @@ pub fn run(args: CoverageArgs) -> Result<ExitCode> {
     for s in &c.shared {
         println!(
             "  validation row {} shares cell {:?} with parameterization rows {:?}",
-            s.validation_row + 1,
-            s.cell,
-            s.parameterization_rows
-                .iter()
-                .map(|r| r + 1)
-                .collect::<Vec<_>>()
+            s.validation_row, s.cell, s.parameterization_rows
         );
     }
     if let Some(j) = &args.json {

@@ -146,6 +146,11 @@ pub fn run_cli(args: GapArgs) -> Result<ExitCode> {
             if let Some(s) = &report.split {
                 eprintln!("note: {s}");
             }
+            for r in &report.runs {
+                for d in &r.damage {
+                    eprintln!("warning: {}: {d}", r.name);
+                }
+            }
             for line in &report.summary {
                 println!("{line}");
             }

@@ -160,4 +160,29 @@ mod tests {
         assert!(lo < total && total < hi && lo > 0.0, "{lo} {total} {hi}");
         assert_eq!(interval(&mut [f64::NAN]), None);
     }
+
+    /// The rule that decides whether an effect is kept: a gain whose blocks scatter around zero
+    /// must get an interval that holds zero (else noise is taken for an effect), and the same
+    /// blocks shifted by a clear mean must not.
+    #[test]
+    fn a_zero_mean_gain_interval_holds_zero_and_a_shifted_one_does_not() {
+        // Deterministic scatter of unit size around zero: ±1 alternating with ±0.5.
+        let zero: Vec<f64> = (0..60)
+            .map(|i| {
+                let s = if i % 2 == 0 { 1.0 } else { -1.0 };
+                s * if (i / 2) % 2 == 0 { 1.0 } else { 0.5 }
+            })
+            .collect();
+        assert!(zero.iter().sum::<f64>().abs() < 1e-12);
+        let b = Blocks::new(&[60 * BLOCK_SCANS]);
+        let r = b.resamples(3);
+        let (lo, hi) = sum_interval(&zero, &r).unwrap();
+        assert!(lo < 0.0 && 0.0 < hi, "zero-mean gain: [{lo}, {hi}]");
+        // The sum's bootstrap sd is sqrt(n) · sd(block) = sqrt(60 · 0.625) ≈ 6.1: the interval
+        // spans about ±12; a mean of 1 a block (sum 60) lies far outside it.
+        assert!(hi - lo > 6.0 && hi - lo < 40.0, "width {}", hi - lo);
+        let shifted: Vec<f64> = zero.iter().map(|x| x + 1.0).collect();
+        let (lo, _) = sum_interval(&shifted, &r).unwrap();
+        assert!(lo > 0.0, "a clear gain: lower end {lo}");
+    }
 }

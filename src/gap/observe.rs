@@ -72,6 +72,9 @@ pub struct RunData {
     pub scans: usize,
     /// The range quantum of the sensor, m.
     pub range_quantum_m: f64,
+    /// What could not be read: the file's damage (read up to it) and data packets that did not
+    /// decode, each said once; the workflow goes on with the rest and reports them.
+    pub damage: Vec<String>,
 }
 
 /// What one firing measured and what a model predicts for it (`NONE` where there is no return).
@@ -211,12 +214,14 @@ pub fn load_run(
     let mut packets = Vec::new();
     let mut previous: Option<DataPacket> = None;
     let mut n = 0usize;
+    let mut undecodable = 0usize;
     // The scans are streamed: only the sample is kept.
     let mut stream = ScanStream::open(path).map_err(|e| input(e.to_string()))?;
     for (k, scan) in stream.by_ref().skip(from).take(to - from).enumerate() {
         let mut rotation_start = None;
         for (t, b) in &scan.packets {
             let Ok(p) = DataPacket::decode(&b[..]) else {
+                undecodable += 1;
                 continue;
             };
             let first = if pps_locked {
@@ -247,7 +252,21 @@ pub fn load_run(
             n += 1;
         }
     }
-    drop(stream);
+    let mut damage: Vec<String> = run
+        .damage
+        .iter()
+        .chain(stream.finish().iter())
+        .map(|d| format!("read up to damage ({d}); the workflow uses what could be read"))
+        .collect();
+    damage.dedup();
+    if undecodable > 0 {
+        damage.push(format!(
+            "{undecodable} data packets did not decode and were left out"
+        ));
+    }
+    for d in &damage {
+        tracing::warn!("{}: {d}", path.display());
+    }
     let file = path.file_name().map_or_else(
         || path.display().to_string(),
         |f| f.to_string_lossy().into(),
@@ -270,6 +289,7 @@ pub fn load_run(
         left_out: marked,
         scans: to - from,
         range_quantum_m: model.distance_resolution_m(),
+        damage,
     })
 }
 

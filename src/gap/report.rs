@@ -101,6 +101,9 @@ pub struct RunInfo {
     pub sampled_firings: usize,
     /// Stretches left out where `check` marked the reference not usable (its marks).
     pub left_out: Vec<crate::reference::check::Fault>,
+    /// What could not be read (damage, undecodable packets): the run was used as far as it
+    /// could be read.
+    pub damage: Vec<String>,
 }
 
 /// Everything `gap.json` holds.

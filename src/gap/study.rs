@@ -80,6 +80,8 @@ impl Study {
     pub fn load(path: &Path) -> Result<Study, GapError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| GapError::Input(format!("cannot read {}: {e}", path.display())))?;
+        crate::config::check_finite(&text)
+            .map_err(|e| GapError::Input(format!("{}: {e}", path.display())))?;
         let file: StudyFile = toml::from_str(&text)
             .map_err(|e| GapError::Input(format!("{}: {e}", path.display())))?;
         let base = path.parent().unwrap_or(Path::new("."));

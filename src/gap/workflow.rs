@@ -292,6 +292,7 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
             check: format!("{:?}", r.verdict).to_lowercase(),
             sampled_firings: r.packets.len() * super::observe::SLOTS,
             left_out: r.left_out.clone(),
+            damage: r.damage.clone(),
         })
         .collect();
     let fit = Set::new(fit_runs, fit_feats, 0x6a70);

@@ -21,7 +21,7 @@ use super::pairing::{Pair, Pairs};
 pub use super::report::{Comparison, CurvePoint, LeftOut, ObjectSeen, ScanRow, Snapshot, Summary};
 use super::roi::{Region, Roi};
 use super::tally::{mean, Tally};
-use super::windows::{grid_phase, windows, CurveSums, PointPair};
+use super::windows::{grid_phase, refuse_clamping_cell, windows, CurveSums, PointPair};
 use crate::bag::scans::{Scan, ScanStream};
 use crate::reference::check::{check_with_trajectory, Verdict};
 use crate::reference::run::Run;
@@ -331,6 +331,7 @@ fn compare_twins(
         )));
     };
     let real_span = Some((first_scan.stamp, last_scan.stamp));
+    refuse_clamping_cell(cell, &reference.trajectory, opts.sensor_frame).map_err(input)?;
     let (lidar, model, calibration) = reference.rig.lidar_sensor().map_err(input)?;
     let decoder = Decoder::with_calibration(model, calibration);
     if opts.sensor_frame && (opts.region != Region::All || opts.exclude_ground) {

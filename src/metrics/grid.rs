@@ -138,6 +138,14 @@ fn pack(c: Cell) -> u64 {
     (f(c[0]) << (2 * AXIS_BITS)) | (f(c[1]) << AXIS_BITS) | f(c[2])
 }
 
+/// The smallest cell whose grid holds every point within `reach_m` of the scene origin (along
+/// each axis) without clamping a cell index to the edge of the key's range (±2²⁰ cells, a
+/// cell to spare for the shifted grids): below it, distinct cells far out would merge and the
+/// metrics would be wrong without a sign.
+pub fn smallest_cell_m(reach_m: f64) -> f64 {
+    reach_m / (AXIS_OFFSET - 2) as f64
+}
+
 /// Whether `pack` keeps the cell as it is (no axis clamped to the edge).
 fn in_pack_range(c: &Cell) -> bool {
     c.iter().all(|&v| (-AXIS_OFFSET..AXIS_OFFSET).contains(&v))

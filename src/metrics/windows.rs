@@ -3,6 +3,7 @@
 
 use super::grid::{compare as grid_compare, Dims, GridScores, GridSpec, Occupancy};
 use super::report::{CurvePoint, ScanRow};
+use crate::scene::pose::Trajectory;
 use nalgebra::Point3;
 use rayon::prelude::*;
 
@@ -140,4 +141,34 @@ impl CurveSums {
 fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
     let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
     (n > 0).then(|| s / n as f64)
+}
+
+/// The farthest any supported sensor reports a return: 65535 counts of 4 mm (262 m), rounded up.
+const SENSOR_REACH_M: f64 = 300.0;
+
+/// Refuses a cell so small that the grid's cell indices would clamp somewhere the drive's points
+/// can lie (the trajectory's farthest position from the scene origin, plus the sensor's reach;
+/// in the sensor frame the reach alone), naming the smallest cell this drive allows.
+pub(super) fn refuse_clamping_cell(
+    cell: f64,
+    trajectory: &Trajectory,
+    sensor_frame: bool,
+) -> Result<(), String> {
+    let farthest = if sensor_frame {
+        0.0
+    } else {
+        trajectory
+            .samples()
+            .iter()
+            .map(|s| s.position.amax())
+            .fold(0.0, f64::max)
+    };
+    let reach = farthest + SENSOR_REACH_M;
+    let smallest = super::grid::smallest_cell_m(reach);
+    if cell < smallest {
+        return Err(format!(
+            "--cell {cell:e}: the grid's cell indices would be clamped (at most 2^20 cells either side of the origin; points here reach {reach:.0} m from it): the smallest cell for this drive is {smallest:.2e} m"
+        ));
+    }
+    Ok(())
 }

@@ -128,6 +128,10 @@ impl Scene {
             path: path.to_owned(),
             source,
         })?;
+        crate::config::check_finite(&text).map_err(|message| SceneError::Toml {
+            path: path.to_owned(),
+            message,
+        })?;
         let file: SceneFile = toml::from_str(&text).map_err(|e| SceneError::Toml {
             path: path.to_owned(),
             message: e.to_string(),

@@ -739,6 +739,7 @@ impl DriveFile {
     /// Reads a drive file.
     pub fn load(path: &std::path::Path) -> Result<DriveFile, String> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        crate::config::check_finite(&text).map_err(|e| format!("{}: {e}", path.display()))?;
         let d: DriveFile = toml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
         if parse_utc(&d.start_utc).is_none() {
             return Err(format!(

@@ -279,6 +279,10 @@ impl ModelFile {
             path: path.display().to_string(),
             source,
         })?;
+        crate::config::check_finite(&text).map_err(|message| ModelError::Toml {
+            path: path.display().to_string(),
+            message,
+        })?;
         let m: ModelFile = toml::from_str(&text).map_err(|e| ModelError::Toml {
             path: path.display().to_string(),
             message: e.to_string(),
@@ -292,65 +296,55 @@ impl ModelFile {
         toml::to_string(self).unwrap_or_default()
     }
 
-    /// Checks parameter ranges and that each effect appears once.
+    /// Checks parameter ranges and that each effect appears once. Every number must be finite
+    /// (TOML reads `nan` and `inf`): a NaN compares false with everything and would pass a
+    /// range check written as "not below zero", and an infinite range turns a limit off
+    /// without a word. The error names the key, its value and the range it must lie in.
     pub fn validate(&self) -> Result<(), ModelError> {
-        let bad = |e: &Effect, what: String| ModelError::Invalid {
+        let bad = |effect: &str, what: String| ModelError::Invalid {
             model: self.name.clone(),
-            effect: e.name().into(),
+            effect: effect.into(),
             what,
         };
+        if let Some(l) = &self.limits {
+            let keys = [
+                ("min_range_m", l.min_range_m),
+                ("max_range_m", l.max_range_m),
+            ];
+            for (key, v) in keys {
+                if let Some(v) = v {
+                    Rule::NonNegative
+                        .check(key, v)
+                        .map_err(|w| bad("[limits]", w))?;
+                }
+            }
+            if let (Some(a), Some(b)) = (l.min_range_m, l.max_range_m) {
+                if a >= b {
+                    return Err(bad(
+                        "[limits]",
+                        format!("min_range_m = {a} is not below max_range_m = {b}"),
+                    ));
+                }
+            }
+        }
         let mut seen = std::collections::HashSet::new();
         for e in &self.effects {
             if !seen.insert(e.name()) {
-                return Err(bad(e, "appears more than once".into()));
+                return Err(bad(e.name(), "appears more than once".into()));
             }
-            let finite_nonneg = |v: f64| v.is_finite() && v >= 0.0;
-            let ok = match e {
-                Effect::RangeNoise { sigma_m } => finite_nonneg(*sigma_m),
-                Effect::RangeBias { bias_m } => bias_m.is_finite(),
-                Effect::RandomDropout { probability } => (0.0..=1.0).contains(probability),
-                Effect::DetectionThreshold {
-                    reference_range_m,
-                    reference_reflectivity,
-                } => *reference_range_m > 0.0 && *reference_reflectivity > 0.0,
-                Effect::BeamDivergence {
-                    horizontal_mrad,
-                    vertical_mrad,
-                    sub_rays_per_axis,
-                    range_separation_m,
-                } => {
-                    finite_nonneg(*horizontal_mrad)
-                        && finite_nonneg(*vertical_mrad)
-                        && (1..=15).contains(sub_rays_per_axis)
-                        && finite_nonneg(*range_separation_m)
+            for (key, v, rule) in e.parameters() {
+                rule.check(key, v).map_err(|w| bad(e.name(), w))?;
+            }
+            if let Effect::BeamDivergence {
+                sub_rays_per_axis, ..
+            } = e
+            {
+                if !(1..=15).contains(sub_rays_per_axis) {
+                    return Err(bad(
+                        e.name(),
+                        format!("sub_rays_per_axis = {sub_rays_per_axis}: must lie in 1..=15"),
+                    ));
                 }
-                Effect::MotionDistortion { .. } => true,
-                Effect::TimeOffset { offset_ms } => offset_ms.is_finite(),
-                Effect::MountMisalignment {
-                    roll_deg,
-                    pitch_deg,
-                    yaw_deg,
-                } => [roll_deg, pitch_deg, yaw_deg]
-                    .iter()
-                    .all(|v| v.abs() <= 45.0),
-                Effect::Intensity {
-                    incidence_exponent,
-                    noise_sigma,
-                } => finite_nonneg(*incidence_exponent) && finite_nonneg(*noise_sigma),
-                Effect::Weather {
-                    extinction_per_m,
-                    clutter_probability,
-                    clutter_max_range_m,
-                    clutter_reflectivity,
-                } => {
-                    finite_nonneg(*extinction_per_m)
-                        && (0.0..=1.0).contains(clutter_probability)
-                        && *clutter_max_range_m > 0.0
-                        && finite_nonneg(*clutter_reflectivity)
-                }
-            };
-            if !ok {
-                return Err(bad(e, format!("parameters out of range: {e:?}")));
             }
             if matches!(e, Effect::Weather { .. })
                 && !self
@@ -359,12 +353,108 @@ impl ModelFile {
                     .any(|x| matches!(x, Effect::DetectionThreshold { .. }))
             {
                 return Err(bad(
-                    e,
+                    e.name(),
                     "needs detection_threshold: extinction removes returns only through it".into(),
                 ));
             }
         }
         Ok(())
+    }
+}
+
+/// The range a model parameter must lie in (always finite).
+#[derive(Clone, Copy, Debug)]
+enum Rule {
+    /// Any finite number.
+    Finite,
+    /// Finite, at least zero.
+    NonNegative,
+    /// Finite, above zero.
+    Positive,
+    /// A probability: 0 to 1.
+    Probability,
+    /// Finite, at most this far from zero.
+    AtMost(f64),
+}
+
+impl Rule {
+    /// `Ok` when `v` obeys the rule, else what is wrong, naming `key`.
+    fn check(self, key: &str, v: f64) -> Result<(), String> {
+        let (ok, range) = match self {
+            Rule::Finite => (true, "a finite number".to_string()),
+            Rule::NonNegative => (v >= 0.0, "a finite number, at least 0".into()),
+            Rule::Positive => (v > 0.0, "a finite number above 0".into()),
+            Rule::Probability => ((0.0..=1.0).contains(&v), "a probability, 0 to 1".into()),
+            Rule::AtMost(m) => (
+                v.abs() <= m,
+                format!("a finite number between -{m} and {m}"),
+            ),
+        };
+        if ok && v.is_finite() {
+            Ok(())
+        } else {
+            Err(format!("{key} = {v}: must be {range}"))
+        }
+    }
+}
+
+impl Effect {
+    /// Every numeric parameter with its key and the range it must lie in.
+    fn parameters(&self) -> Vec<(&'static str, f64, Rule)> {
+        use Rule::*;
+        match *self {
+            Effect::RangeNoise { sigma_m } => vec![("sigma_m", sigma_m, NonNegative)],
+            Effect::RangeBias { bias_m } => vec![("bias_m", bias_m, Finite)],
+            Effect::RandomDropout { probability } => {
+                vec![("probability", probability, Probability)]
+            }
+            Effect::DetectionThreshold {
+                reference_range_m,
+                reference_reflectivity,
+            } => vec![
+                ("reference_range_m", reference_range_m, Positive),
+                ("reference_reflectivity", reference_reflectivity, Positive),
+            ],
+            Effect::BeamDivergence {
+                horizontal_mrad,
+                vertical_mrad,
+                range_separation_m,
+                ..
+            } => vec![
+                ("horizontal_mrad", horizontal_mrad, NonNegative),
+                ("vertical_mrad", vertical_mrad, NonNegative),
+                ("range_separation_m", range_separation_m, NonNegative),
+            ],
+            Effect::MotionDistortion { .. } => vec![],
+            Effect::TimeOffset { offset_ms } => vec![("offset_ms", offset_ms, Finite)],
+            Effect::MountMisalignment {
+                roll_deg,
+                pitch_deg,
+                yaw_deg,
+            } => vec![
+                ("roll_deg", roll_deg, AtMost(45.0)),
+                ("pitch_deg", pitch_deg, AtMost(45.0)),
+                ("yaw_deg", yaw_deg, AtMost(45.0)),
+            ],
+            Effect::Intensity {
+                incidence_exponent,
+                noise_sigma,
+            } => vec![
+                ("incidence_exponent", incidence_exponent, NonNegative),
+                ("noise_sigma", noise_sigma, NonNegative),
+            ],
+            Effect::Weather {
+                extinction_per_m,
+                clutter_probability,
+                clutter_max_range_m,
+                clutter_reflectivity,
+            } => vec![
+                ("extinction_per_m", extinction_per_m, NonNegative),
+                ("clutter_probability", clutter_probability, Probability),
+                ("clutter_max_range_m", clutter_max_range_m, Positive),
+                ("clutter_reflectivity", clutter_reflectivity, NonNegative),
+            ],
+        }
     }
 }
 
@@ -417,5 +507,33 @@ extinction_per_m = 0.004
             .unwrap_err()
             .to_string()
             .contains("detection_threshold"));
+    }
+
+    /// NaN and infinity, which TOML reads, in every kind of key: refused, naming the key.
+    #[test]
+    fn nan_and_infinity_are_refused_naming_the_key() {
+        let threshold = "[[effect]]\nname = \"detection_threshold\"\nreference_range_m = 100.0\nreference_reflectivity = 0.1\n";
+        let cases = [
+            ("[limits]\nmax_range_m = nan\n".to_string(), "max_range_m = NaN"),
+            ("[limits]\nmin_range_m = -inf\n".into(), "min_range_m = -inf"),
+            ("[limits]\nmin_range_m = 5.0\nmax_range_m = 2.0\n".into(), "not below"),
+            (
+                "[[effect]]\nname = \"detection_threshold\"\nreference_range_m = inf\nreference_reflectivity = 0.1\n".into(),
+                "reference_range_m = inf",
+            ),
+            (
+                format!("{threshold}[[effect]]\nname = \"weather\"\nextinction_per_m = 0.01\nclutter_max_range_m = nan\n"),
+                "clutter_max_range_m = NaN",
+            ),
+            ("[[effect]]\nname = \"range_noise\"\nsigma_m = nan\n".into(), "sigma_m = NaN"),
+            ("[[effect]]\nname = \"random_dropout\"\nprobability = nan\n".into(), "probability = NaN"),
+            ("[[effect]]\nname = \"time_offset\"\noffset_ms = inf\n".into(), "offset_ms = inf"),
+            ("[[effect]]\nname = \"mount_misalignment\"\nyaw_deg = nan\n".into(), "yaw_deg = NaN"),
+        ];
+        for (body, says) in cases {
+            let m: ModelFile = toml::from_str(&format!("name = \"t\"\n{body}")).unwrap();
+            let e = m.validate().map(|_| ()).unwrap_err().to_string();
+            assert!(e.contains(says), "{body}: {e}");
+        }
     }
 }

@@ -32,9 +32,10 @@ pub fn cell(params: &[Parameter], parts: usize, x: &[f64]) -> Vec<usize> {
 /// A validation sample that shares a cell with parameterization samples.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Shared {
-    /// Row of the validation sample (0-based).
+    /// Row of the validation sample, counted from 1 (the first data row after the header), as
+    /// the text output and a spreadsheet count them.
     pub validation_row: usize,
-    /// Rows of the parameterization samples in the same cell.
+    /// Rows of the parameterization samples in the same cell, counted from 1.
     pub parameterization_rows: Vec<usize>,
     /// The cell.
     pub cell: Vec<usize>,
@@ -76,10 +77,10 @@ pub fn coverage(
                 .iter()
                 .enumerate()
                 .filter(|(_, pc)| **pc == c)
-                .map(|(j, _)| j)
+                .map(|(j, _)| j + 1)
                 .collect();
             (!rows.is_empty()).then_some(Shared {
-                validation_row: i,
+                validation_row: i + 1,
                 parameterization_rows: rows,
                 cell: c,
             })
@@ -147,8 +148,8 @@ mod tests {
         assert_eq!(
             c.shared,
             vec![Shared {
-                validation_row: 1,
-                parameterization_rows: vec![1],
+                validation_row: 2,
+                parameterization_rows: vec![2],
                 cell: vec![2, 2],
             }]
         );

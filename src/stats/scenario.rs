@@ -240,6 +240,7 @@ pub struct Scenario {
 fn read_doc(path: &Path) -> Result<toml::Value, String> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    crate::config::check_finite(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     toml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
 }
 
@@ -267,6 +268,8 @@ impl Scenario {
         let input = ScenarioError::Input;
         let text = std::fs::read_to_string(path)
             .map_err(|e| input(format!("cannot read {}: {e}", path.display())))?;
+        crate::config::check_finite(&text)
+            .map_err(|e| input(format!("{}: {e}", path.display())))?;
         let file: ScenarioFile =
             toml::from_str(&text).map_err(|e| input(format!("{}: {e}", path.display())))?;
         let at = |m: String| input(format!("{}: {m}", path.display()));

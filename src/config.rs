@@ -1,0 +1,71 @@
+//! What every TOML file hilrig reads (rig, scene, model, drive, study, phases, parameter
+//! ranges) must satisfy beyond its schema: every number finite.
+//!
+//! TOML reads `nan`, `inf` and `-inf` as floats, and serde hands them on. A NaN threshold
+//! compares false with everything, so a check written "fail when above the limit" would pass
+//! every run; an infinite range turns a limit off without a word. One walk over the parsed
+//! document, before the typed parse, refuses them all and names the key.
+
+/// The dotted path and value of the first number in `text` that is not finite, as an error
+/// message; `Ok` when there is none or the text is not TOML (the typed parse then says where).
+pub fn check_finite(text: &str) -> Result<(), String> {
+    let Ok(doc) = text.parse::<toml::Table>() else {
+        return Ok(());
+    };
+    let mut path = Vec::new();
+    match first_non_finite(&toml::Value::Table(doc), &mut path) {
+        Some(v) => Err(format!(
+            "{} = {v}: every number must be finite",
+            path.join(".")
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Depth first; `path` holds the key path of the value found.
+fn first_non_finite(v: &toml::Value, path: &mut Vec<String>) -> Option<f64> {
+    match v {
+        toml::Value::Float(f) if !f.is_finite() => Some(*f),
+        toml::Value::Table(t) => {
+            for (k, v) in t {
+                path.push(k.clone());
+                if let Some(f) = first_non_finite(v, path) {
+                    return Some(f);
+                }
+                path.pop();
+            }
+            None
+        }
+        toml::Value::Array(a) => {
+            for (i, v) in a.iter().enumerate() {
+                let last = path.pop().unwrap_or_default();
+                path.push(format!("{last}[{}]", i + 1));
+                if let Some(f) = first_non_finite(v, path) {
+                    return Some(f);
+                }
+                path.pop();
+                path.push(last);
+            }
+            None
+        }
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_the_key_of_the_first_non_finite_number() {
+        assert_eq!(check_finite("a = 1.0\n[b]\nc = [1, 2.5]\n"), Ok(()));
+        let e = check_finite("[thresholds]\nmax_jump_sigma = nan\n").unwrap_err();
+        assert!(e.starts_with("thresholds.max_jump_sigma = NaN"), "{e}");
+        let e = check_finite("[[effect]]\nx = 1.0\n[[effect]]\nx = -inf\n").unwrap_err();
+        assert!(e.starts_with("effect[2].x = -inf"), "{e}");
+        let e = check_finite("p = [[1.0, 2.0], [3.0, inf]]\n").unwrap_err();
+        assert!(e.starts_with("p[2][2] = inf"), "{e}");
+        // Not TOML: left to the typed parse, which says where.
+        assert_eq!(check_finite("= broken"), Ok(()));
+    }
+}
