@@ -864,6 +864,79 @@ fn a_2_degree_mount_yaw_turns_the_beams_by_2_degrees_at_a_wall() {
     );
 }
 
+/// The ground's normal as the sensor sees it: a least-squares plane through the decoded points
+/// (the sensor's own frame, decoded as if it were mounted as the rig says) within 25 m, its
+/// normal pointing up.
+fn ground_normal_seen(effects: Vec<Effect>) -> Vector3<f64> {
+    let model = Model::Vlp16;
+    let ground = Ground {
+        z: 0.0,
+        half_size_m: 200.0,
+        reflectivity: 0.3,
+        accuracy_m: 0.0,
+    };
+    let s = scene(vec![], Some(ground));
+    let sim = LidarSim::new(
+        &s,
+        model,
+        Calibration::builtin(model),
+        &mounting(),
+        &model_of(effects),
+    )
+    .unwrap();
+    let ego = ctrv(0.0, 0.0, 1.0);
+    let sp = spin(model);
+    let pts: Vec<Vector3<f64>> = simulate_and_decode(&sim, &ego, sp, sp.packets_in(0.1) + 1)
+        .iter()
+        .map(|(p, _)| Vector3::new(f64::from(p.x), f64::from(p.y), f64::from(p.z)))
+        .filter(|p| p.xy().norm() < 25.0)
+        .collect();
+    assert!(pts.len() > 2000, "{} ground points", pts.len());
+    let mean = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
+    let cov = pts
+        .iter()
+        .map(|p| (p - mean) * (p - mean).transpose())
+        .sum::<nalgebra::Matrix3<f64>>();
+    let eig = nalgebra::SymmetricEigen::new(cov);
+    let k = eig.eigenvalues.imin();
+    let n: Vector3<f64> = eig.eigenvectors.column(k).into();
+    if n.z < 0.0 {
+        -n
+    } else {
+        n
+    }
+}
+
+/// Mount roll and pitch against a plane's fitted normal. The sensor turned by R = Rx(roll)
+/// (about its x axis, right-handed: z up, y left) sees the level ground's normal at R^T z =
+/// (0, sin roll, cos roll); turned by Ry(pitch), at (-sin pitch, 0, cos pitch) (positive pitch:
+/// nose down, ISO 8855). Computed here from the angles alone; a swapped axis, a sign or a
+/// degree/radian slip fails by far more than the tolerance (0.01°, the fit's scatter over
+/// thousands of points quantized to 2 mm).
+#[test]
+fn mount_roll_and_pitch_tilt_the_ground_plane_as_their_rotations_say() {
+    let level = ground_normal_seen(vec![]);
+    assert!(
+        (level - Vector3::z()).norm() < 0.01f64.to_radians(),
+        "level: {level}"
+    );
+    for (roll, pitch) in [(1.5f64, 0.0f64), (0.0, -2.0), (1.0, 1.0)] {
+        let seen = ground_normal_seen(vec![Effect::MountMisalignment {
+            roll_deg: roll,
+            pitch_deg: pitch,
+            yaw_deg: 0.0,
+        }]);
+        let r = nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), pitch.to_radians())
+            * nalgebra::Rotation3::from_axis_angle(&Vector3::x_axis(), roll.to_radians());
+        let expect = r.inverse() * Vector3::z();
+        let angle = seen.angle(&expect).to_degrees();
+        assert!(
+            angle < 0.01,
+            "roll {roll}°, pitch {pitch}°: normal seen {seen}, expected {expect} ({angle:.4}° apart)"
+        );
+    }
+}
+
 /// A UV sphere of radius `r` as an OBJ mesh (`rings` × `segments` quads, triangulated): a
 /// curved surface of facets whose normals differ from one to the next.
 fn sphere_obj(r: f64, rings: usize, segments: usize) -> String {
