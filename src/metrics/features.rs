@@ -76,3 +76,83 @@ pub fn scan_features(scans: &[Scan], decoder: &Decoder) -> Vec<ScanFeatures> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hilrig_velodyne::{Channel, Model, PacketEncoder, ReturnMode, Sequence};
+
+    /// A scan of known returns (every fourth laser empty, distances and reflectivities by
+    /// formula), encoded as VLP-16 packets: the features against the same numbers computed
+    /// here from the list, not from decoded points.
+    #[test]
+    fn features_of_a_scan_of_known_returns() {
+        let model = Model::Vlp16;
+        let mut enc = PacketEncoder::new(model, ReturnMode::Strongest);
+        let (mut ranges, mut intensities) = (Vec::new(), Vec::new());
+        let mut packets = Vec::new();
+        for k in 0..enc.sequences_per_packet() * 4 {
+            let strongest: Vec<Channel> = (0..16)
+                .map(|l| {
+                    let distance = if l % 4 == 3 { 0 } else { 500 + 37 * k + 11 * l };
+                    let reflectivity = (l * 5 + k % 7) as u8;
+                    if distance > 0 {
+                        ranges.push(distance as f64 * 0.002);
+                        intensities.push(f64::from(reflectivity));
+                    }
+                    Channel {
+                        distance: distance as u16,
+                        reflectivity,
+                    }
+                })
+                .collect();
+            let seq = Sequence {
+                azimuth: ((k * 20) % 36_000) as u16,
+                strongest,
+                last: None,
+            };
+            if let Some(p) = enc.push(&seq, (k * 55) as u32).unwrap() {
+                packets.push((UtcNanos(k as i64), p.encode()));
+            }
+        }
+        let scan = Scan {
+            log_time: 0,
+            publish_time: 0,
+            stamp: UtcNanos(7),
+            packets,
+        };
+        let f = scan_features(&[scan], &Decoder::new(model))[0];
+        let n = ranges.len();
+        assert_eq!(f.returns, n, "every non-empty channel, no empty one");
+        let mean = ranges.iter().sum::<f64>() / n as f64;
+        assert!(
+            (f.mean_range_m - mean).abs() < 1e-5,
+            "{} {mean}",
+            f.mean_range_m
+        );
+        ranges.sort_by(f64::total_cmp);
+        // The 95th percentile: the value below which 95 % of the returns lie.
+        let p95 = ranges[n * 95 / 100];
+        assert!(
+            (f.range_p95_m - p95).abs() < 1e-5,
+            "{} {p95}",
+            f.range_p95_m
+        );
+        let mean_i = intensities.iter().sum::<f64>() / n as f64;
+        assert!(
+            (f.mean_intensity - mean_i).abs() < 1e-9,
+            "{} {mean_i}",
+            f.mean_intensity
+        );
+        assert_eq!(f.stamp, UtcNanos(7));
+        // An empty scan: a count of zero and no other value.
+        let empty = Scan {
+            log_time: 0,
+            publish_time: 0,
+            stamp: UtcNanos(8),
+            packets: vec![],
+        };
+        let e = scan_features(&[empty], &Decoder::new(model))[0];
+        assert_eq!(e.values(), [Some(0.0), None, None, None]);
+    }
+}
