@@ -94,6 +94,107 @@ fn the_demo_runs_every_stage_and_writes_the_report() {
     assert!(html.contains("scans (left out: reference not usable)"));
 }
 
+fn json(rel: &str) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(demo_dir().join(rel)).unwrap()).unwrap()
+}
+
+/// The demo's numbers, judged against what made its data (fixtures/parking/truth.toml) and
+/// against each other, not only its file names:
+/// - every effect the gap workflow adds is one of the truth model's, fitted within 20 % (the
+///   detection threshold compared at one reflectivity: R ∝ sqrt(ρ));
+/// - the truth model agrees with the measurement firing by firing better than the idealized
+///   one (fewer returns only in the simulation, a smaller range residual), and has the smaller
+///   area validation metric in every cell and fewer red ones;
+/// - the terminal's summary line says what the JSON holds.
+#[test]
+fn the_demo_numbers_agree_with_the_model_that_made_its_data() {
+    let (_, stdout) = demo();
+    let truth = hilrig::sim::ModelFile::load(&common::fixture("parking/truth.toml")).unwrap();
+    let gap = json("gap/gap.json");
+    let mut added = 0;
+    for round in gap["rounds"].as_array().unwrap() {
+        let Some(name) = round["chosen"].as_str() else {
+            continue;
+        };
+        added += 1;
+        let effect = truth
+            .effects
+            .iter()
+            .find(|e| e.name() == name)
+            .unwrap_or_else(|| panic!("gap added {name}, which the truth model does not have"));
+        let fitted = |key: &str| -> f64 {
+            round["parameters"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|p| p["name"] == key)
+                .and_then(|p| p["value"].as_f64())
+                .unwrap_or_else(|| panic!("{name}: no {key} in {round}"))
+        };
+        use hilrig::sim::Effect::*;
+        let (got, want) = match *effect {
+            RangeNoise { sigma_m } => (fitted("sigma_m"), sigma_m),
+            RandomDropout { probability } => (fitted("probability"), probability),
+            Intensity { noise_sigma, .. } => (fitted("noise_sigma"), noise_sigma),
+            DetectionThreshold {
+                reference_range_m,
+                reference_reflectivity,
+            } => (
+                fitted("reference_range_m"),
+                reference_range_m
+                    * (fitted("reference_reflectivity") / reference_reflectivity).sqrt(),
+            ),
+            _ => continue,
+        };
+        assert!(
+            (got - want).abs() <= 0.2 * want,
+            "{name}: fitted {got}, truth {want}"
+        );
+    }
+    assert!(added > 0, "the gap workflow added nothing: {stdout}");
+
+    let (ci, ct) = (
+        json("compare/rep-01-idealized.json"),
+        json("compare/rep-01-truth.json"),
+    );
+    let num = |v: &serde_json::Value, k: &str| {
+        v["summary"][k]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{k} missing"))
+    };
+    for k in ["only_sim_share", "range_diff_rms_m"] {
+        assert!(
+            num(&ct, k) < num(&ci, k),
+            "{k}: truth {} idealized {}",
+            num(&ct, k),
+            num(&ci, k)
+        );
+    }
+    let line = stdout.lines().find(|l| l.starts_with("compare")).unwrap();
+    let said = format!(
+        "OCR^K {:.2} idealized, {:.2} truth",
+        num(&ci, "ocr_mean"),
+        num(&ct, "ocr_mean")
+    );
+    assert!(line.contains(&said), "{line} does not say {said}");
+
+    let (vi, vt) = (json("validate/idealized.json"), json("validate/truth.json"));
+    let cells = |v: &serde_json::Value| v["cells"].as_array().unwrap().clone();
+    let red = |c: &[serde_json::Value]| c.iter().filter(|x| x["light"] == "red").count();
+    assert!(red(&cells(&vt)) < red(&cells(&vi)));
+    for (a, b) in cells(&vi).iter().zip(&cells(&vt)) {
+        let avm = |c: &serde_json::Value| c["avm"].as_f64().unwrap();
+        assert!(
+            avm(b) < avm(a),
+            "{}/{}: truth {} idealized {}",
+            a["sample"],
+            a["metric"],
+            avm(b),
+            avm(a)
+        );
+    }
+}
+
 /// `hilrig report` on its own refuses what is not one of the JSON kinds, and names the file.
 #[test]
 fn report_says_which_input_it_cannot_use() {
