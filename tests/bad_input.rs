@@ -203,3 +203,85 @@ proptest! {
         }
     }
 }
+
+/// The method's commands on a file that is not a recording (as a measured run, as a
+/// re-simulation, as a study's run): exit 2, the file named and said not to be MCAP, and no
+/// output written.
+#[test]
+fn the_method_commands_name_a_file_that_is_not_a_recording() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (run, _) = record_and_resim(d, 1, &[]);
+    let bogus = write(d, "notes.mcap", b"velodyne drive of monday\n");
+    let scene = common::fixture("parking/rep-01/scene.toml");
+    let model = common::fixture("parking/idealized.toml");
+    let out = d.join("out");
+    let p = |x: &Path| x.to_str().unwrap().to_owned();
+    let cases: Vec<Vec<String>> = vec![
+        vec!["check".into(), p(&bogus), "--json".into(), p(&out)],
+        vec![
+            "resim".into(),
+            p(&bogus),
+            "--scene".into(),
+            p(&scene),
+            "--model".into(),
+            p(&model),
+            "-o".into(),
+            p(&out),
+        ],
+        vec![
+            "compare".into(),
+            p(&bogus),
+            p(&run),
+            "--scene".into(),
+            p(&scene),
+            "--json".into(),
+            p(&out),
+        ],
+        vec![
+            "compare".into(),
+            p(&run),
+            p(&bogus),
+            "--scene".into(),
+            p(&scene),
+            "--json".into(),
+            p(&out),
+        ],
+        vec![
+            "validate".into(),
+            "--real".into(),
+            p(&bogus),
+            "--sim".into(),
+            p(&run),
+            "--json".into(),
+            p(&out),
+        ],
+        vec![
+            "gap".into(),
+            "--real".into(),
+            p(&bogus),
+            "--validate".into(),
+            p(&run),
+            "--scene".into(),
+            p(&scene),
+            "--model".into(),
+            p(&model),
+            "-o".into(),
+            p(&out),
+        ],
+    ];
+    for args in cases {
+        let o = std::process::Command::new(hilrig_bin())
+            .args(&args)
+            .output()
+            .unwrap();
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {text}");
+        assert!(text.contains("notes.mcap: not an MCAP"), "{args:?}: {text}");
+        assert!(!out.exists(), "{args:?} wrote {}", out.display());
+    }
+}

@@ -218,13 +218,27 @@ fn run_metrics(
 }
 
 /// Runs the workflow on `study`; returns the report (also written to `opts.out`).
+///
+/// The output folder is made first, so that an unwritable one fails before minutes of work;
+/// if the study then fails before anything is written into it, the folder made here is
+/// removed again: bad input leaves nothing behind.
+pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapReport, GapError> {
+    let made = !opts.out.exists();
+    std::fs::create_dir_all(&opts.out)
+        .map_err(|e| GapError::Output(format!("{}: {e}", opts.out.display())))?;
+    let result = run_in(study, opts, progress);
+    if result.is_err() && made {
+        // Only an empty folder goes: rounds already saved stay.
+        let _ = std::fs::remove_dir(&opts.out);
+    }
+    result
+}
+
 #[allow(
     clippy::too_many_lines,
     reason = "the rounds in order: load, evaluate, candidates, trials, metrics, save; each step is a call"
 )]
-pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapReport, GapError> {
-    std::fs::create_dir_all(&opts.out)
-        .map_err(|e| GapError::Output(format!("{}: {e}", opts.out.display())))?;
+fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapReport, GapError> {
     let rig = match &study.rig {
         Some(p) => Some(crate::rig::Rig::load(p).map_err(|e| GapError::Input(e.to_string()))?),
         None => None,
