@@ -170,6 +170,29 @@ fn nan_and_infinity_are_refused_naming_the_key() {
         &synth_out,
     );
 
+    // The phases of a validation.
+    let phases = d.join("phases.toml");
+    std::fs::write(
+        &phases,
+        "[[phase]]\nname = \"all\"\nfrom_s = 0.0\nto_s = inf\n",
+    )
+    .unwrap();
+    refused(
+        &[
+            os("validate"),
+            os("--real"),
+            run.clone().into(),
+            os("--sim"),
+            run.clone().into(),
+            os("--phases"),
+            phases.into(),
+            os("--json"),
+            out.clone().into(),
+        ],
+        "phase[1].to_s = inf",
+        &out,
+    );
+
     // A study's start model, given to gap.
     let model = d.join("start.toml");
     std::fs::write(

@@ -45,6 +45,9 @@ pub fn run(args: ValidateArgs) -> Result<ExitCode> {
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read {}", p.display()))?;
+            if let Err(e) = hilrig::config::check_finite(&text) {
+                return fail(&format!("{}: {e}", p.display()));
+            }
             match toml::from_str::<PhaseFile>(&text) {
                 Ok(f) => f.phase,
                 Err(e) => return fail(&format!("{}: {e}", p.display())),
