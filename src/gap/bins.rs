@@ -175,3 +175,74 @@ pub fn tables(runs: &[(&[Obs], &[Feature])]) -> Vec<Table> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn obs(measured: f32, predicted: f32, cast: bool) -> Obs {
+        Obs {
+            measured,
+            intensity: 50,
+            predicted,
+            power: 1.0,
+            reflectivity: 50.0,
+            cast,
+        }
+    }
+
+    /// Three range bins whose disagreement is known by construction: one where the sensor
+    /// reads 5 cm farther than the model on every firing, one where it loses every tenth
+    /// return, one that agrees to the millimetre; firings the model did not cast count nowhere.
+    #[test]
+    fn bins_find_a_known_bias_and_a_known_loss_and_pass_agreement() {
+        let scatter = |i: usize| ((i % 5) as f32 - 2.0) * 0.0005;
+        let mut o = Vec::new();
+        for i in 0..2000 {
+            o.push(obs(15.0 + 0.05 + scatter(i), 15.0, true));
+            o.push(obs(
+                if i % 10 == 0 {
+                    f32::NAN
+                } else {
+                    25.0 + scatter(i)
+                },
+                25.0,
+                true,
+            ));
+            o.push(obs(7.0 + scatter(i), 7.0, true));
+        }
+        for _ in 0..100 {
+            o.push(obs(f32::NAN, 15.0, false));
+        }
+        let f = vec![
+            Feature {
+                rho: 0.5,
+                cos: 1.0,
+                ..Feature::default()
+            };
+            o.len()
+        ];
+        let t = tables(&[(&o, &f)]);
+        let range = t.iter().find(|t| t.feature == "range_m").unwrap();
+        let bin = |from: f64| range.bins.iter().find(|b| b.from == from).unwrap();
+
+        let biased = bin(10.0);
+        assert_eq!(biased.firings, 2000, "uncast firings count nowhere");
+        assert!((biased.median_m.unwrap() - 0.05).abs() < 1e-4, "{biased:?}");
+        assert_eq!((biased.measured_share, biased.predicted_share), (1.0, 1.0));
+        assert!(biased.disagrees);
+
+        let lossy = bin(20.0);
+        assert_eq!((lossy.firings, lossy.both), (2000, 1800));
+        assert!((lossy.measured_share - 0.9).abs() < 1e-12, "{lossy:?}");
+        assert_eq!(lossy.predicted_share, 1.0);
+        assert!(lossy.median_m.unwrap().abs() < 1e-3);
+        assert!(lossy.disagrees, "a tenth of the returns lost");
+
+        let fine = bin(5.0);
+        assert!(!fine.disagrees, "{fine:?}");
+        assert!(
+            fine.sigma_m.unwrap() < 2e-3 && fine.p05_m.unwrap() < 0.0 && fine.p95_m.unwrap() > 0.0
+        );
+    }
+}
