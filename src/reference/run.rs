@@ -78,7 +78,7 @@ pub enum RunError {
         source: std::io::Error,
     },
     /// Not an MCAP.
-    #[error("{0}: not an MCAP recording (check reads what `hilrig record` writes)")]
+    #[error("{0}: not an MCAP recording (a run is what `hilrig record` writes)")]
     NotMcap(String),
 }
 
