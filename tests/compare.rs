@@ -90,20 +90,8 @@ fn a_run_against_itself_and_against_its_re_simulation() {
     // residual. (Not OCR: it is the share of measured cells the simulation covers, which a
     // model that returns more points raises; on a street with far facades the idealized model
     // scores the higher OCR.)
-    let truth_sim = {
-        let out = dir.path().join("truth1.mcap");
-        hilrig_ok(&[
-            "resim".as_ref(),
-            run.as_os_str(),
-            "--scene".as_ref(),
-            scene.as_os_str(),
-            "--model".as_ref(),
-            fixture("parking/truth.toml").as_os_str(),
-            "-o".as_ref(),
-            out.as_os_str(),
-        ]);
-        out
-    };
+    let truth_sim = dir.path().join("truth1.mcap");
+    resim(&run, &scene, &fixture("parking/truth.toml"), &truth_sim);
     let truth_json = dir.path().join("truth.json");
     let out = compare(&run, &truth_sim, &scene, &[], &truth_json);
     assert!(
@@ -291,20 +279,11 @@ fn inputs_that_do_not_belong_together_and_bad_cells_are_refused() {
 fn residuals_and_shares_move_as_a_known_bias_and_dropout_say() {
     let dir = tempfile::tempdir().unwrap();
     let (run, sim, scene) = run_and_sim(dir.path(), 1);
-    let resim = |name: &str, effect: &str| -> PathBuf {
+    let resim_with = |name: &str, effect: &str| -> PathBuf {
         let model = dir.path().join(format!("{name}.toml"));
         std::fs::write(&model, format!("name = \"{name}\"\n[[effect]]\n{effect}\n")).unwrap();
         let out = dir.path().join(format!("{name}.mcap"));
-        hilrig_ok(&[
-            "resim".as_ref(),
-            run.as_os_str(),
-            "--scene".as_ref(),
-            scene.as_os_str(),
-            "--model".as_ref(),
-            model.as_os_str(),
-            "-o".as_ref(),
-            out.as_os_str(),
-        ]);
+        resim(&run, &scene, &model, &out);
         out
     };
     let summary = |sim: &Path| -> Value {
@@ -332,7 +311,7 @@ fn residuals_and_shares_move_as_a_known_bias_and_dropout_say() {
 
     // A bias of 50 range quanta (VLP-16: 2 mm), so that quantization shifts by whole counts.
     let b = 0.1;
-    let biased = summary(&resim("biased", "name = \"range_bias\"\nbias_m = 0.1"));
+    let biased = summary(&resim_with("biased", "name = \"range_bias\"\nbias_m = 0.1"));
     let (m1, r1) = (
         num(&biased, "range_diff_mean_m"),
         num(&biased, "range_diff_rms_m"),
@@ -350,7 +329,7 @@ fn residuals_and_shares_move_as_a_known_bias_and_dropout_say() {
     );
 
     let p = 0.2;
-    let dropped = summary(&resim(
+    let dropped = summary(&resim_with(
         "dropout",
         "name = \"random_dropout\"\nprobability = 0.2",
     ));

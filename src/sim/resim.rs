@@ -177,13 +177,7 @@ pub fn resim_recording(
     let first_log = run.scans[0].stamp;
     let scans = ScanStream::open(run_path).map_err(|e| input(e.to_string()))?;
 
-    let mut meta = BTreeMap::new();
-    meta.insert("model".to_owned(), model.name.clone());
-    meta.insert("model_toml".to_owned(), model.to_toml());
-    meta.insert("scene".to_owned(), scene_path.display().to_string());
-    meta.insert("scene_name".to_owned(), scene.file.name.clone());
-    meta.insert("run".to_owned(), run_path.display().to_string());
-    meta.insert("trajectory".to_owned(), source);
+    let mut meta = sim_metadata(model, scene, scene_path, run_path, source, seed);
     meta.insert(
         "time_base".to_owned(),
         if pps_locked {
@@ -192,7 +186,6 @@ pub fn resim_recording(
             "the recorder's clock model (lidar not PPS-locked)".to_owned()
         },
     );
-    meta.insert("seed".to_owned(), seed.to_string());
     meta.insert("check_verdict".to_owned(), format!("{:?}", report.verdict));
     let writer = Writer::start(out, meta, model.to_toml(), first_log)?;
     let decoder = Decoder::with_calibration(sensor, calibration);
@@ -433,17 +426,14 @@ impl<'a> Resimulator<'a> {
         let (lidar, sensor, calibration) = rig.lidar_sensor().map_err(input)?;
         let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, model)
             .map_err(|e| input(e.to_string()))?;
-        let mut meta = BTreeMap::new();
-        meta.insert("model".to_owned(), model.name.clone());
-        meta.insert("model_toml".to_owned(), model.to_toml());
-        meta.insert("scene".to_owned(), scene_path.display().to_string());
-        meta.insert("scene_name".to_owned(), scene.file.name.clone());
-        meta.insert("run".to_owned(), run_path.display().to_string());
-        meta.insert(
-            "trajectory".to_owned(),
+        let meta = sim_metadata(
+            model,
+            scene,
+            scene_path,
+            run_path,
             "the run's RTK+CAN trajectory (EKF/RTS, 10 ms samples)".to_owned(),
+            seed,
         );
-        meta.insert("seed".to_owned(), seed.to_string());
         Ok(Resimulator {
             sim,
             decoder: Decoder::with_calibration(sensor, calibration),
@@ -497,6 +487,27 @@ impl<'a> Resimulator<'a> {
         self.writer.finish()?;
         Ok(self.stats)
     }
+}
+
+/// What a simulation's file says of itself (its `sim` metadata): the model, the scene, the run,
+/// the poses and the seed, as `resim` and the gap workflow's re-simulations write them.
+fn sim_metadata(
+    model: &ModelFile,
+    scene: &Scene,
+    scene_path: &Path,
+    run_path: &Path,
+    trajectory: String,
+    seed: u64,
+) -> BTreeMap<String, String> {
+    BTreeMap::from([
+        ("model".to_owned(), model.name.clone()),
+        ("model_toml".to_owned(), model.to_toml()),
+        ("scene".to_owned(), scene_path.display().to_string()),
+        ("scene_name".to_owned(), scene.file.name.clone()),
+        ("run".to_owned(), run_path.display().to_string()),
+        ("trajectory".to_owned(), trajectory),
+        ("seed".to_owned(), seed.to_string()),
+    ])
 }
 
 /// The simulation's file, written on a thread of its own (chunks are compressed there while

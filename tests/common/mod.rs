@@ -242,20 +242,36 @@ pub fn record_and_resim(
         .iter()
         .map(|model| {
             let sim = dir.join(format!("{model}{rep}.mcap"));
-            hilrig_ok(&[
-                "resim".as_ref(),
-                run.as_os_str(),
-                "--scene".as_ref(),
-                src.join("scene.toml").as_os_str(),
-                "--model".as_ref(),
-                fixture(&format!("parking/{model}.toml")).as_os_str(),
-                "-o".as_ref(),
-                sim.as_os_str(),
-            ]);
+            resim(
+                &run,
+                &src.join("scene.toml"),
+                &fixture(&format!("parking/{model}.toml")),
+                &sim,
+            );
             sim
         })
         .collect();
     (run, sims)
+}
+
+/// Re-simulates `run` in `scene` with the model file `model` into `out` and asserts that it
+/// succeeded.
+pub fn resim(
+    run: &std::path::Path,
+    scene: &std::path::Path,
+    model: &std::path::Path,
+    out: &std::path::Path,
+) {
+    hilrig_ok(&[
+        "resim".as_ref(),
+        run.as_os_str(),
+        "--scene".as_ref(),
+        scene.as_os_str(),
+        "--model".as_ref(),
+        model.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
 }
 
 /// Runs `tests/interop/SCRIPT` with the reference venv's Python and `args`; asserts it
