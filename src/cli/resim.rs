@@ -104,7 +104,11 @@ pub fn run(args: ResimArgs) -> Result<ExitCode> {
         Err(ResimError::Refused(report)) => {
             bar.finish_and_clear();
             eprint!("{}", report.text());
-            eprintln!("error: {}", ResimError::Refused(report.clone()));
+            eprintln!(
+                "error: {}: {}",
+                args.run.display(),
+                ResimError::Refused(report.clone())
+            );
             Ok(ExitCode::from(1))
         }
         Err(e) => Err(e.into()),

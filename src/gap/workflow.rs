@@ -328,7 +328,14 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
                 }
             }
         }
-        if cast == 0 || (both as f64) < 0.3 * cast as f64 {
+        if cast == 0 {
+            return Err(GapError::Input(format!(
+                "{}: no measured point on any firing the start model casts in scene {}: a lidar that measured nothing (covered, or a threshold no target reaches) shows no effect to fit",
+                r.name,
+                r.scene_path.display()
+            )));
+        }
+        if (both as f64) < 0.3 * cast as f64 {
             return Err(GapError::Input(format!(
                 "{}: only {both} of {cast} measured returns lie within 0.5 m of the start model's in scene {}: the run and the scene do not belong together (a different site, or a trajectory far off)",
                 r.name,

@@ -428,7 +428,7 @@ fn compare_twins(
     .collect();
     if !tally.any_real_point {
         return Err(input(format!(
-            "{}: no measured point lies in the region {:?} on the trajectory",
+            "{}: no measured point lies in the region {} on the trajectory (out of the sensor's view, or hidden: choose a region the drive sees)",
             run_path.display(),
             opts.region
         )));

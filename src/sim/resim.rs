@@ -156,9 +156,9 @@ pub fn resim_recording(
         PoseSource::File(t, name) => (t, format!("file {name}")),
         PoseSource::Run => {
             let t = smoothed
-                .ok_or_else(|| input("the run has no RTK+CAN trajectory".into()))?
-                .sampled(10_000_000)
-                .ok_or_else(|| input("the run's trajectory is too short".into()))?;
+                .ok_or("no RTK+CAN trajectory")
+                .and_then(|t| t.sampled(10_000_000).ok_or("a trajectory too short"))
+                .map_err(|e| input(format!("{}: {e}", run_path.display())))?;
             (
                 t,
                 "the run's RTK+CAN trajectory (EKF/RTS, 10 ms samples)".into(),
