@@ -99,6 +99,9 @@ mod tests {
         assert_eq!(light(&real, &[0.4, 0.9]), Light::Yellow);
         assert_eq!(light(&real, &[0.71, 0.9]), Light::Red);
         assert_eq!(light(&real, &[0.1, 0.49]), Light::Red);
+        // Intervals that touch in one value share it: overlapping, not disjoint.
+        assert_eq!(light(&real, &[0.3, 0.5]), Light::Yellow);
+        assert_eq!(light(&real, &[0.7, 0.9]), Light::Yellow);
         assert_eq!(light(&real, &[]), Light::Black);
         assert_eq!(light(&[], &[0.5]), Light::Black);
         assert_eq!(light(&real, &[f64::NAN]), Light::Black);

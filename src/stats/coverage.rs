@@ -157,4 +157,23 @@ mod tests {
         assert!((c.nearest[1] - (0.13f64.powi(2) + 0.08f64.powi(2)).sqrt()).abs() < 1e-12);
         assert!((c.min_distance - c.nearest[1]).abs() < 1e-12);
     }
+
+    /// A range that does not start at 0 and a normal parameter (cut over mean ± 3 sd): the
+    /// cells follow from the bounds in closed form.
+    #[test]
+    fn cells_of_an_offset_range_and_of_a_normal_parameter() {
+        let params = parse_params(
+            "[[parameter]]\nname = \"temperature\"\ndistribution = \"uniform\"\nlow = 10.0\nhigh = 30.0\n\
+             [[parameter]]\nname = \"reflectivity\"\ndistribution = \"normal\"\nmean = 0.5\nsd = 0.1\n",
+            "p",
+        )
+        .unwrap();
+        // 10..30 in 4 parts of 5; 0.2..0.8 in 4 parts of 0.15.
+        assert_eq!(cell(&params, 4, &[10.0, 0.2]), vec![0, 0]);
+        assert_eq!(cell(&params, 4, &[16.0, 0.36]), vec![1, 1]);
+        assert_eq!(cell(&params, 4, &[24.0, 0.51]), vec![2, 2]);
+        assert_eq!(cell(&params, 4, &[29.0, 0.79]), vec![3, 3]);
+        // Outside the range: the first or last part.
+        assert_eq!(cell(&params, 4, &[5.0, 0.9]), vec![0, 3]);
+    }
 }
