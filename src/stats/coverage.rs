@@ -156,6 +156,14 @@ mod tests {
         // (5.5, 23) against (4.2, 27): (0.13, 0.08) in range units.
         assert!((c.nearest[1] - (0.13f64.powi(2) + 0.08f64.powi(2)).sqrt()).abs() < 1e-12);
         assert!((c.min_distance - c.nearest[1]).abs() < 1e-12);
+        // (7, 31) against (9, 35): (0.2, 0.08); the mean over the four samples.
+        assert!((c.nearest[3] - (0.2f64.powi(2) + 0.08f64.powi(2)).sqrt()).abs() < 1e-12);
+        let mean = c.nearest.iter().sum::<f64>() / 4.0;
+        assert!(
+            (c.mean_distance - mean).abs() < 1e-12,
+            "{}",
+            c.mean_distance
+        );
     }
 
     /// A range that does not start at 0 and a normal parameter (cut over mean ± 3 sd): the
