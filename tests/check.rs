@@ -20,7 +20,18 @@ fn drive_and_check(faults: &str) -> (i32, Value) {
 
 /// [`drive_and_check`] with the drive file's text passed through `edit` first.
 fn drive_edited_and_check(edit: impl Fn(String) -> String, faults: &str) -> (i32, Value) {
-    let d = synth_and_record_edited(edit, &format!("[faults]\n{faults}"), 11, true);
+    let (code, v, _) = drive_seeded_and_check(edit, faults, 11);
+    (code, v)
+}
+
+/// [`drive_edited_and_check`] with the synthesizer's seed (its noise and the drive's variation
+/// within the fixture's `[variation]`); also returns the synthesized run (its truth).
+fn drive_seeded_and_check(
+    edit: impl Fn(String) -> String,
+    faults: &str,
+    seed: u64,
+) -> (i32, Value, SynthRun) {
+    let d = synth_and_record_edited(edit, &format!("[faults]\n{faults}"), seed, true);
     let (dir, rep, mcap) = (&d.dir, &d.rep, &d.run);
     let json = dir.path().join("check.json");
     let out = Command::new(hilrig_bin())
@@ -34,7 +45,7 @@ fn drive_edited_and_check(edit: impl Fn(String) -> String, faults: &str) -> (i32
         .unwrap();
     println!("{}", String::from_utf8_lossy(&out.stdout));
     let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    (out.status.code().unwrap_or(-1), v)
+    (out.status.code().unwrap_or(-1), v, d)
 }
 
 /// `check` of a synthesized run with its surveyed scene (and `rig` when given), writing the JSON
@@ -101,6 +112,70 @@ fn within_3_sigma(v: &Value, key: &str, sigma_key: &str, truth: f64) {
         (est - truth).abs() <= 3.0 * sigma,
         "{key} = {est} ± {sigma} (1 sigma), truth {truth}"
     );
+}
+
+/// Seeds of the clean drives that [`the_reported_sigmas_are_the_scatter_of_the_estimates`]
+/// holds the uncertainties against.
+const SCATTER_SEEDS: [u64; 12] = [41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52];
+
+/// The central 99 % of a χ² variable with 11 degrees of freedom (`SCATTER_SEEDS` less one, for
+/// the sample mean): scipy.stats.chi2.ppf(0.005, 11) and chi2.ppf(0.995, 11).
+const CHI2_11_CENTRAL_99: (f64, f64) = (2.603_222, 26.756_849);
+
+/// The standard uncertainties `check` reports are the scatter of its estimates: the clean
+/// drive synthesized with 12 seeds (other noise, and another drive within the fixture's
+/// variation), the sample standard deviation s of each estimate over them against the rms of
+/// the sigmas reported. With honest sigmas, 11 s² / σ² is χ² with 11 degrees of freedom, so
+/// σ / s lies in [√(11 / χ²₀.₉₉₅), √(11 / χ²₀.₀₀₅)] = [0.64, 2.06] with 99 % probability (the
+/// sigmas differ a little from drive to drive; their rms is what the scatter of a mixture has).
+/// Fewer seeds widen the band fast (8: 0.59..2.66, 6: 0.55..3.48). An inflated sigma, which
+/// [`within_3_sigma`] cannot see, fails here, as does one too small.
+#[test]
+fn the_reported_sigmas_are_the_scatter_of_the_estimates() {
+    let reports: Vec<Value> = std::thread::scope(|s| {
+        let jobs: Vec<_> = SCATTER_SEEDS
+            .iter()
+            .map(|&seed| s.spawn(move || drive_seeded_and_check(|t| t, "", seed)))
+            .collect();
+        jobs.into_iter()
+            .map(|j| {
+                let (code, v, _) = j.join().unwrap();
+                assert_eq!(code, 0, "faults: {:?}", names(&v));
+                v
+            })
+            .collect()
+    });
+    let n = reports.len() as f64;
+    let (lo, hi) = (
+        ((n - 1.0) / CHI2_11_CENTRAL_99.1).sqrt(),
+        ((n - 1.0) / CHI2_11_CENTRAL_99.0).sqrt(),
+    );
+    for (key, sigma_key) in [
+        ("can_speed_scale", "can_speed_scale_sigma"),
+        ("gnss_time_offset_ms", "gnss_time_offset_sigma_ms"),
+        ("lever_arm_x_measured_m", "lever_arm_x_sigma_m"),
+    ] {
+        let get = |v: &Value, k: &str| {
+            v["spatial"][k]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{k} reported"))
+        };
+        let est: Vec<f64> = reports.iter().map(|v| get(v, key)).collect();
+        let sig: Vec<f64> = reports.iter().map(|v| get(v, sigma_key)).collect();
+        let mean = est.iter().sum::<f64>() / n;
+        let scatter = (est.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        let sigma = (sig.iter().map(|s| s * s).sum::<f64>() / n).sqrt();
+        let ratio = sigma / scatter;
+        println!(
+            "{key}: scatter {scatter:.3e}, reported sigma (rms) {sigma:.3e}, ratio {ratio:.2}"
+        );
+        assert!(
+            (lo..=hi).contains(&ratio),
+            "{sigma_key} (rms {sigma:.3e}) is {ratio:.2} times the scatter of {key} over {} seeds \
+             ({scatter:.3e}); honest sigmas give {lo:.2}..{hi:.2} (99 %)",
+            est.len()
+        );
+    }
 }
 
 /// The synthesized CAN frames are received 1 ms after the instant they describe (the parking

@@ -278,6 +278,7 @@ fn check_into(
         good: &good,
         motion: &motion,
         yaw_rate_sigma: settings.yaw_rate_sigma,
+        gnss_noise: settings.gnss_noise,
         lever,
         gnss_period,
         span: (start, end),
