@@ -369,7 +369,11 @@ mod tests {
         let s = score1(&[firing(8.031_25, 8.0)], &[plain()], Random::default());
         assert_eq!(s.firings, 1);
         // A predicted return comes with probability 1 − ε (ε = 10⁻³, no dropout).
-        assert!((s.terms[0] - (1.0f64 - 1e-3).ln()).abs() < 1e-12, "{:?}", s.terms);
+        assert!(
+            (s.terms[0] - (1.0f64 - 1e-3).ln()).abs() < 1e-12,
+            "{:?}",
+            s.terms
+        );
         // The range term: the density of a 2-sigma residual, with the 2 % outlier floor over
         // the ±5 m window the module doc names.
         let want = ln_mixture(2.0 / 64.0, 1.0 / 64.0, 0.02, 10.0);
@@ -382,8 +386,7 @@ mod tests {
     }
 
     #[test]
-    fn dropout_changes_the_score_of_a_return_by_ln_one_minus_p_and_of_a_miss_by_its_probability(
-    ) {
+    fn dropout_changes_the_score_of_a_return_by_ln_one_minus_p_and_of_a_miss_by_its_probability() {
         let p = 0.1;
         let dropout = Random {
             dropout: p,
@@ -392,8 +395,13 @@ mod tests {
         let hit = [firing(8.0, 8.0)];
         let miss = [firing(f32::NAN, 8.0)];
         let f = [plain()];
-        let gain_hit = score1(&hit, &f, dropout).terms[0] - score1(&hit, &f, Random::default()).terms[0];
-        assert!((gain_hit - (1.0f64 - p).ln()).abs() < 1e-12, "{gain_hit}");
+        let gain_hit =
+            score1(&hit, &f, dropout).terms[0] - score1(&hit, &f, Random::default()).terms[0];
+        assert!(
+            (gain_hit - (1.0f64 - p).ln()).abs() < 1e-12,
+            "dropout {p} changes a return's score by {gain_hit}, not ln(1 - p) = {}",
+            (1.0f64 - p).ln()
+        );
         // A predicted return that is missing: lost to dropout (p) or to the unexplained rate.
         let miss_p = score1(&miss, &f, dropout);
         let want = (1.0 - (1.0 - p) * (1.0 - 1e-3)).ln();
@@ -523,12 +531,18 @@ mod tests {
                 cast: false,
                 ..firing(1.0 + k as f32, 50.0)
             });
-            more_feat.push(Feature { scan: k % 3, ..plain() });
+            more_feat.push(Feature {
+                scan: k % 3,
+                ..plain()
+            });
         }
         let t = score(&more_obs, &more_feat, random, &SCALES, 0.002, 3);
-        assert_eq!(t.firings, 30);
-        assert_eq!(t.terms, s.terms);
-        assert_eq!(t.per_scan, s.per_scan);
+        assert_eq!(t.firings, 30, "uncast firings counted");
+        assert_eq!(t.terms, s.terms, "uncast firings changed the terms");
+        assert_eq!(
+            t.per_scan, s.per_scan,
+            "uncast firings changed the scans' scores"
+        );
     }
 
     #[test]
