@@ -521,7 +521,10 @@ mod tests {
         assert_eq!(s.firings, 30);
         let total: f64 = s.terms.iter().sum();
         let per_scan: f64 = s.per_scan.iter().sum();
-        assert!((total - per_scan).abs() < 1e-9, "{total} vs {per_scan}");
+        assert!(
+            (total - per_scan).abs() < 1e-9,
+            "the terms add up to {total}, the scans to {per_scan}"
+        );
         assert!(s.per_scan.iter().all(|x| *x < 0.0 && x.is_finite()));
         // Firings the model did not cast, with any values at all, change nothing.
         let mut more_obs = obs.clone();
