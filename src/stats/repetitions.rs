@@ -255,15 +255,17 @@ mod tests {
 
     const T0: i64 = 1_800_000_000_000_000_000;
 
-    /// A scan `t` seconds after `T0` (`t` in tenths of a second, so that stamps are exact),
-    /// with `returns` returns at a mean range `range` (p95 one metre further, intensity 20).
+    /// A scan `tenths` tenths of a second after `T0` (exact stamps), with `returns` returns at
+    /// a mean range `range` (p95 one metre further, intensity 20); a scan without returns has
+    /// zeros, as [`scan_features`] gives it.
     fn scan(tenths: i64, returns: usize, range: f64) -> ScanFeatures {
+        let some = if returns > 0 { 1.0 } else { 0.0 };
         ScanFeatures {
             stamp: UtcNanos(T0 + tenths * 100_000_000),
             returns,
-            mean_range_m: range,
-            range_p95_m: range + 1.0,
-            mean_intensity: 20.0,
+            mean_range_m: some * range,
+            range_p95_m: some * (range + 1.0),
+            mean_intensity: some * 20.0,
         }
     }
 
@@ -300,11 +302,14 @@ mod tests {
         );
         let v = validate_features(&[a, b], &[sim], &[]).unwrap();
         let p = &v.measurement[0];
-        assert_eq!(p.real.as_deref(), Some("b"));
+        assert_eq!(p.real.as_deref(), Some("b"), "the twin");
         assert_eq!(p.shared_scans, 20);
         // Simulated minus measured, over the 18 scans both have returns in.
         let d = p.mean_range_difference_m.unwrap();
-        assert!((d - 0.04).abs() < 1e-9, "{d}");
+        assert!(
+            (d - 0.04).abs() < 1e-9,
+            "mean range difference {d} m, simulated 4 cm further than measured"
+        );
         assert!(v.measurement_pass);
     }
 
@@ -340,7 +345,10 @@ mod tests {
         // In [0.5, 1.0): the scans at 0.5, 0.6, 0.7, 0.9 s with returns (0.8 s has none, 1.0 s
         // is outside): mean range 10.675; the returns counted over all five scans in it.
         let v = phase_values(&r, Some(&phase));
-        assert!((v[1].unwrap() - 10.675).abs() < 1e-9, "{v:?}");
+        assert!(
+            (v[1].unwrap() - 10.675).abs() < 1e-9,
+            "features in [0.5, 1.0) s: {v:?}, mean range 10.675 m"
+        );
         assert!((v[2].unwrap() - 11.675).abs() < 1e-9, "{v:?}");
         let returns = (135 + 136 + 137 + 139) as f64 / 5.0;
         assert!((v[0].unwrap() - returns).abs() < 1e-9, "{v:?}");
