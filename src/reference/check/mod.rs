@@ -36,6 +36,8 @@ pub mod report;
 mod sources;
 mod spatial;
 mod temporal;
+#[cfg(test)]
+mod test_drive;
 
 pub use names::FaultName;
 pub use report::{
