@@ -606,6 +606,17 @@ mod tests {
             "{:?}",
             c.faults
         );
+        // With the offset and scale taken out, GNSS and CAN agree on speed but for the antenna's
+        // own motion: 1.1 m ahead of the axle it moves at √(v² + (ωL)²) in the turn.
+        let turning = (3.0f64.powi(2) + (0.3f64 * 1.1).powi(2)).sqrt();
+        let sr = c.sp.speed_residual_mps.p95;
+        assert!(
+            (sr - (turning - 3.0)).abs() < 0.002,
+            "speed residual p95 {sr} m/s; the antenna in the turn {} m/s",
+            turning - 3.0
+        );
+        let yr = c.sp.yaw_rate_residual_rps.median;
+        assert!(yr.abs() < 0.002, "yaw-rate residual median {yr} rad/s");
         let detail = |name| &c.faults.iter().find(|f| f.name == name).unwrap().detail;
         assert!(detail(FaultName::GnssTimeOffset).contains("later than"));
         assert!(detail(FaultName::CanSpeedScale).contains("higher"));
@@ -613,8 +624,8 @@ mod tests {
         let (true_len, can) = (drive.length(), c.sp.distance_can_m);
         assert!((true_len - 48.0).abs() < 1e-6, "{true_len}");
         assert!((can - 1.02 * 48.0).abs() < 0.01, "CAN distance {can} m");
-        // The antenna's track: 1.1 m ahead of the axle it moves at √(v² + (ωL)²) in the turn.
-        let turn = 6.0 * (3.0f64.powi(2) + (0.3f64 * 1.1).powi(2)).sqrt();
+        // The antenna's track.
+        let turn = 6.0 * turning;
         let gnss_len = c.sp.distance_gnss_m;
         assert!(
             (gnss_len - (48.0 - 18.0 + turn)).abs() < 0.005,
@@ -656,8 +667,10 @@ mod tests {
     fn an_epoch_off_the_track_is_a_jump_at_its_time() {
         let drive = Drive::new(0.0, &PARKING);
         let mut gnss = drive.gnss(RIG_LEVER, 0.0);
-        // The epoch at 12 s (in the turn), 30 cm off: 30 receiver sigmas.
+        // The epoch at 12 s (in the turn), 30 cm off: 30 receiver sigmas. One at 6 s, 4 cm
+        // off: 4 sigmas, within the 5-sigma limit, not a jump.
         gnss[120].position.y += 0.3;
+        gnss[60].position.y += 0.04;
         let c = check(&drive, &gnss, drive.motion(1.0, 0.0));
         assert_eq!(names(&c.faults), [FaultName::Jump], "{:?}", c.faults);
         assert_eq!(c.sp.jumps, 1);
