@@ -135,3 +135,32 @@ pub(super) fn smooth(gnss: &[GnssObs], motion: &[Motion], lever: Vector2<f64>) -
     )
     .expect("a drive with GNSS and CAN")
 }
+
+/// A GNSS epoch at `t` as the receiver reports it: GGA `quality` (4 fixed, 5 float, else no
+/// RTK), horizontal sigmas (lat, lon), correction age; a position (unused by what reads it).
+pub(super) fn fix(t: UtcNanos, quality: u8, sigma: (f64, f64), age_s: f64) -> hilrig_gnss::Fix {
+    use hilrig_gnss::{FixSource, RtkState};
+    hilrig_gnss::Fix {
+        source: FixSource::Nmea,
+        time: Some(t),
+        time_of_day: None,
+        lat: Some(48.0),
+        lon: Some(11.0),
+        alt_msl: None,
+        alt_ellipsoid: None,
+        quality,
+        rtk: match quality {
+            4 => RtkState::Fixed,
+            5 => RtkState::Float,
+            _ => RtkState::None,
+        },
+        sigma_lat_m: Some(sigma.0),
+        sigma_lon_m: Some(sigma.1),
+        sigma_alt_m: Some(2.0 * sigma.0),
+        correction_age_s: Some(age_s),
+        station_id: None,
+        satellites: None,
+        speed_mps: None,
+        heading_deg: None,
+    }
+}
