@@ -159,7 +159,11 @@ mod tests {
         assert!((sp.rtk_fixed_share - 0.88).abs() < 1e-12);
         // The larger of the two sigmas per epoch: 85 at 1.4 cm, 3 at 5 cm, 10 at 25 cm, 2 at
         // 1.5 m.
-        assert!((sp.sigma_horizontal_m.median - 0.014).abs() < 1e-12);
+        let median = sp.sigma_horizontal_m.median;
+        assert!(
+            (median - 0.014).abs() < 1e-12,
+            "median horizontal sigma {median} m, the larger of 1.0 and 1.4 cm"
+        );
         assert!((sp.sigma_horizontal_m.max - 1.5).abs() < 1e-12);
         assert_eq!(sp.sigma_horizontal_m.n, 100);
         assert_eq!(
@@ -175,11 +179,11 @@ mod tests {
                 .map(|f| (f.from_s, f.to_s))
                 .collect()
         };
-        assert_eq!(at(FaultName::RtkFloat), [(2.0, 3.0)]);
-        assert_eq!(at(FaultName::SigmaSpike), [(5.0, 5.3)]);
-        assert_eq!(at(FaultName::CorrectionAge), [(7.0, 7.5)]);
-        assert_eq!(at(FaultName::RtkNone), [(9.0, 9.2)]);
-        assert_eq!(at(FaultName::RtkFixedShare), [(0.0, 9.9)]);
+        assert_eq!(at(FaultName::RtkFloat), [(2.0, 3.0)], "RtkFloat");
+        assert_eq!(at(FaultName::SigmaSpike), [(5.0, 5.3)], "SigmaSpike");
+        assert_eq!(at(FaultName::CorrectionAge), [(7.0, 7.5)], "CorrectionAge");
+        assert_eq!(at(FaultName::RtkNone), [(9.0, 9.2)], "RtkNone");
+        assert_eq!(at(FaultName::RtkFixedShare), [(0.0, 9.9)], "RtkFixedShare");
         assert_eq!(log.faults.len(), 5, "{:?}", log.faults);
         let detail = |name: FaultName| {
             log.faults
