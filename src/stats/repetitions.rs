@@ -461,7 +461,8 @@ mod tests {
                 from_s,
                 to_s,
             };
-            let e = validate_features(&[r.clone()], &[s.clone()], &[p]).unwrap_err();
+            let e = validate_features(std::slice::from_ref(&r), std::slice::from_ref(&s), &[p])
+                .unwrap_err();
             assert!(e.contains("phase 'x'"), "{e}");
         }
         let e = validate_features(&[run("empty", vec![])], &[s], &[]).unwrap_err();
