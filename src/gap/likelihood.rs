@@ -319,6 +319,235 @@ mod tests {
         assert_eq!(c.wins(Some(1e-9)), 1.0);
     }
 
+    /// The Gaussian density, written out: N(e; 0, s).
+    fn gauss(e: f64, s: f64) -> f64 {
+        (-e * e / (2.0 * s * s)).exp() / (s * (2.0 * std::f64::consts::PI).sqrt())
+    }
+
+    /// The log of the module doc's range model: a Gaussian of scale `s` with an outlier share
+    /// `o` spread uniformly over a window `w`.
+    fn ln_mixture(e: f64, s: f64, o: f64, w: f64) -> f64 {
+        ((1.0 - o) * gauss(e, s) + o / w).ln()
+    }
+
+    /// A firing away from depth edges, at 8 m, without an azimuth neighbour, in scan 0.
+    fn plain() -> Feature {
+        Feature {
+            range: 8.0,
+            step: 0.0,
+            neighbour: u32::MAX,
+            ..Feature::default()
+        }
+    }
+
+    /// A cast firing measuring `measured` where the model predicts `predicted` (NaN: none), the
+    /// intensity byte out of the diffuse range (no intensity term).
+    fn firing(measured: f32, predicted: f32) -> Obs {
+        Obs {
+            measured,
+            predicted,
+            intensity: 255,
+            power: 1.0,
+            reflectivity: f32::NAN,
+            cast: true,
+        }
+    }
+
+    const SCALES: Scales = Scales {
+        plain: 1.0 / 64.0,
+        edge: 0.05,
+        intensity: 5.0,
+    };
+
+    fn score1(obs: &[Obs], feat: &[Feature], random: Random) -> Scored {
+        score(obs, feat, random, &SCALES, 0.002, 1)
+    }
+
+    #[test]
+    fn a_residual_scores_the_gaussian_density_of_the_held_scale() {
+        // Exact in f32: a residual of 2/64 m, two of the held scale's 1/64 m.
+        let s = score1(&[firing(8.031_25, 8.0)], &[plain()], Random::default());
+        assert_eq!(s.firings, 1);
+        // A predicted return comes with probability 1 − ε (ε = 10⁻³, no dropout).
+        assert!(
+            (s.terms[0] - (1.0f64 - 1e-3).ln()).abs() < 1e-12,
+            "{:?}",
+            s.terms
+        );
+        // The range term: the density of a 2-sigma residual, with the 2 % outlier floor over
+        // the ±5 m window the module doc names.
+        let want = ln_mixture(2.0 / 64.0, 1.0 / 64.0, 0.02, 10.0);
+        assert!((s.terms[1] - want).abs() < 1e-9, "{} vs {want}", s.terms[1]);
+        // 2 sigma below the peak: ln N(2σ) − ln N(0) = −2, diluted only by the floor.
+        let peak = score1(&[firing(8.0, 8.0)], &[plain()], Random::default());
+        let drop = s.terms[1] - peak.terms[1];
+        assert!((drop + 2.0).abs() < 0.01, "{drop}");
+        assert_eq!((s.terms[2], s.terms[3]), (0.0, 0.0));
+    }
+
+    #[test]
+    fn dropout_changes_the_score_of_a_return_by_ln_one_minus_p_and_of_a_miss_by_its_probability() {
+        let p = 0.1;
+        let dropout = Random {
+            dropout: p,
+            ..Random::default()
+        };
+        let hit = [firing(8.0, 8.0)];
+        let miss = [firing(f32::NAN, 8.0)];
+        let f = [plain()];
+        let gain_hit =
+            score1(&hit, &f, dropout).terms[0] - score1(&hit, &f, Random::default()).terms[0];
+        assert!(
+            (gain_hit - (1.0f64 - p).ln()).abs() < 1e-12,
+            "dropout {p} changes a return's score by {gain_hit}, not ln(1 - p) = {}",
+            (1.0f64 - p).ln()
+        );
+        // A predicted return that is missing: lost to dropout (p) or to the unexplained rate.
+        let miss_p = score1(&miss, &f, dropout);
+        let want = (1.0 - (1.0 - p) * (1.0 - 1e-3)).ln();
+        assert!((miss_p.terms[0] - want).abs() < 1e-12, "{:?}", miss_p.terms);
+        let miss_0 = score1(&miss, &f, Random::default()).terms[0];
+        assert!((miss_0 - 1e-3f64.ln()).abs() < 1e-12, "{miss_0}");
+        // A miss has no range term.
+        assert_eq!(miss_p.terms[1], 0.0);
+    }
+
+    #[test]
+    fn a_return_no_model_predicts_scores_the_unexplained_rate_and_more_at_depth_edges() {
+        let stray = [firing(5.0, f32::NAN)];
+        let s = score1(&stray, &[plain()], Random::default());
+        assert!((s.terms[0] - 1e-3f64.ln()).abs() < 1e-12, "{:?}", s.terms);
+        assert_eq!(s.terms[1], 0.0);
+        let edge = Feature {
+            step: 5.0,
+            ..plain()
+        };
+        assert!(edge.is_edge());
+        let e = score1(&stray, &[edge], Random::default());
+        assert!((e.terms[0] - 0.05f64.ln()).abs() < 1e-12, "{:?}", e.terms);
+        // Nothing predicted, nothing measured: the likely case.
+        let quiet = score1(&[firing(f32::NAN, f32::NAN)], &[plain()], Random::default());
+        assert!((quiet.terms[0] - (1.0f64 - 1e-3).ln()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn neighbour_differences_are_gaussian_with_twice_the_noise_and_the_quantum() {
+        // Two firings of one laser on one surface: residuals 1 cm and −1 cm; the second names
+        // the first as its neighbour.
+        let obs = [firing(8.01, 8.0), firing(7.99, 8.0)];
+        let feat = [
+            plain(),
+            Feature {
+                neighbour: 0,
+                ..plain()
+            },
+        ];
+        let sigma = 0.006;
+        let random = Random {
+            sigma_m: sigma,
+            ..Random::default()
+        };
+        let s = score1(&obs, &feat, random);
+        // Var(e₂ − e₁) = 2 (σ² + q²/12) + τ²: two independent noisy, quantized residuals (q =
+        // 2 mm) and what a surface's shape leaves (τ = 1 mm).
+        let q: f64 = 0.002;
+        let sd = (2.0 * (sigma * sigma + q * q / 12.0) + 1e-6).sqrt();
+        let d = f64::from(7.99f32 - 8.0f32) - f64::from(8.01f32 - 8.0f32);
+        let want = ln_mixture(d, sd, 0.02, 10.0);
+        assert!((s.terms[2] - want).abs() < 1e-9, "{} vs {want}", s.terms[2]);
+    }
+
+    #[test]
+    fn intensity_is_scored_against_the_predicted_reflectivity() {
+        let o = Obs {
+            intensity: 60,
+            reflectivity: 0.5,
+            ..firing(8.0, 8.0)
+        };
+        let s = score1(&[o], &[plain()], Random::default());
+        // 60 counts measured where a reflectivity of 0.5 reads 50: two scales of 5 counts off,
+        // outlier floor over the 100 counts of the diffuse range.
+        let want = ln_mixture(10.0, 5.0, 0.02, 100.0);
+        assert!((s.terms[3] - want).abs() < 1e-9, "{} vs {want}", s.terms[3]);
+    }
+
+    #[test]
+    fn clutter_adds_returns_where_nothing_is_predicted() {
+        let c = Clutter {
+            probability: 0.1,
+            min_m: 0.5,
+            max_m: 3.0,
+            reflectivity: 0.05,
+        };
+        let rain = Random {
+            clutter: Some(c),
+            ..Random::default()
+        };
+        // Nothing predicted: a droplet echo (10 %) or an unexplained return (ε).
+        let s = score1(&[firing(2.0, f32::NAN)], &[plain()], rain);
+        let want = (1.0 - (1.0 - 1e-3) * (1.0 - 0.1f64)).ln();
+        assert!((s.terms[0] - want).abs() < 1e-12, "{:?}", s.terms);
+    }
+
+    #[test]
+    fn per_scan_scores_add_up_to_the_terms_and_uncast_firings_do_not_count() {
+        let mut obs = Vec::new();
+        let mut feat = Vec::new();
+        for k in 0..30u32 {
+            let r = 5.0 + k as f32 * 0.37;
+            let measured = match k % 5 {
+                0 => f32::NAN,
+                1 => r + 0.02,
+                _ => r - 0.003 * (k % 3) as f32,
+            };
+            obs.push(Obs {
+                intensity: 40 + k as u8,
+                reflectivity: 0.4,
+                ..firing(measured, if k % 7 == 3 { f32::NAN } else { r })
+            });
+            feat.push(Feature {
+                scan: k % 3,
+                step: if k % 11 == 4 { 9.0 } else { 0.0 },
+                neighbour: if k > 0 && k % 4 != 0 { k - 1 } else { u32::MAX },
+                ..plain()
+            });
+        }
+        let random = Random {
+            sigma_m: 0.004,
+            dropout: 0.05,
+            clutter: None,
+        };
+        let s = score(&obs, &feat, random, &SCALES, 0.002, 3);
+        assert_eq!(s.firings, 30);
+        let total: f64 = s.terms.iter().sum();
+        let per_scan: f64 = s.per_scan.iter().sum();
+        assert!(
+            (total - per_scan).abs() < 1e-9,
+            "the terms add up to {total}, the scans to {per_scan}"
+        );
+        assert!(s.per_scan.iter().all(|x| *x < 0.0 && x.is_finite()));
+        // Firings the model did not cast, with any values at all, change nothing.
+        let mut more_obs = obs.clone();
+        let mut more_feat = feat.clone();
+        for k in 0..10u32 {
+            more_obs.push(Obs {
+                cast: false,
+                ..firing(1.0 + k as f32, 50.0)
+            });
+            more_feat.push(Feature {
+                scan: k % 3,
+                ..plain()
+            });
+        }
+        let t = score(&more_obs, &more_feat, random, &SCALES, 0.002, 3);
+        assert_eq!(t.firings, 30, "uncast firings counted");
+        assert_eq!(t.terms, s.terms, "uncast firings changed the terms");
+        assert_eq!(
+            t.per_scan, s.per_scan,
+            "uncast firings changed the scans' scores"
+        );
+    }
+
     #[test]
     fn robust_sigma_ignores_outliers() {
         let mut v: Vec<f64> = (0..999).map(|i| f64::from(i % 3) - 1.0).collect();

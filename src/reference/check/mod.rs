@@ -36,6 +36,8 @@ pub mod report;
 mod sources;
 mod spatial;
 mod temporal;
+#[cfg(test)]
+mod test_drive;
 
 pub use names::FaultName;
 pub use report::{
@@ -278,6 +280,7 @@ fn check_into(
         good: &good,
         motion: &motion,
         yaw_rate_sigma: settings.yaw_rate_sigma,
+        gnss_noise: settings.gnss_noise,
         lever,
         gnss_period,
         span: (start, end),

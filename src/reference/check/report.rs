@@ -181,8 +181,9 @@ pub struct Spatial {
     pub lever_arm_x_sigma_m: Option<f64>,
     /// GNSS epochs in turns that the lever arm was measured in.
     pub lever_arm_turning_epochs: usize,
-    /// How many times the smoother's white-noise variances are inflated because the GNSS
-    /// residuals are correlated in time (integrated autocorrelation time, in epochs).
+    /// How correlated in time the GNSS residuals are (integrated autocorrelation time, in
+    /// epochs): the factor the time offset's and lever arm's variances are inflated by when the
+    /// drive's GNSS noise model is white (a wandering model carries the correlation itself).
     pub gnss_noise_correlation: f64,
     /// Antenna x from the rig file, m.
     pub lever_arm_x_rig_m: f64,

@@ -125,3 +125,95 @@ fn worst_sigma_windows(epochs: &[(UtcNanos, &Fix)], start: UtcNanos) -> Vec<(f64
         .map(|&(k, h)| (k as f64, k as f64 + 1.0, h))
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::test_drive::{fix, T0};
+    use super::*;
+
+    #[test]
+    fn rtk_states_sigmas_and_correction_ages_are_counted_and_located() {
+        // 100 epochs at 10 Hz: float from 2.0 s to 2.9 s, three fixed epochs with a 5 cm sigma
+        // from 5.0 s, corrections 8 s old from 7.0 s to 7.4 s, no RTK at 9.0 and 9.1 s; the rest
+        // fixed with 1.0 cm / 1.4 cm (lat / lon) sigmas and 1 s old corrections.
+        let fixes: Vec<Fix> = (0..100)
+            .map(|k| {
+                let t = UtcNanos(T0 + k * 100_000_000);
+                match k {
+                    20..=29 => fix(t, 5, (0.2, 0.25), 1.0),
+                    50..=52 => fix(t, 4, (0.05, 0.05), 1.0),
+                    70..=74 => fix(t, 4, (0.010, 0.014), 8.0),
+                    90..=91 => fix(t, 1, (1.5, 1.5), 1.0),
+                    _ => fix(t, 4, (0.010, 0.014), 1.0),
+                }
+            })
+            .collect();
+        let epochs: Vec<(UtcNanos, &Fix)> = fixes.iter().map(|f| (f.time.unwrap(), f)).collect();
+        let mut log = FaultLog::new(UtcNanos(T0));
+        let th = Thresholds::default();
+        let sp = receiver(&epochs, &th, UtcNanos(T0), 100_000_000, &mut log);
+        assert_eq!(
+            (sp.epochs, sp.rtk_fixed, sp.rtk_float, sp.rtk_none),
+            (100, 88, 10, 2)
+        );
+        assert!((sp.rtk_fixed_share - 0.88).abs() < 1e-12);
+        // The larger of the two sigmas per epoch: 85 at 1.4 cm, 3 at 5 cm, 10 at 25 cm, 2 at
+        // 1.5 m.
+        let median = sp.sigma_horizontal_m.median;
+        assert!(
+            (median - 0.014).abs() < 1e-12,
+            "median horizontal sigma {median} m, the larger of 1.0 and 1.4 cm"
+        );
+        assert!((sp.sigma_horizontal_m.max - 1.5).abs() < 1e-12);
+        assert_eq!(sp.sigma_horizontal_m.n, 100);
+        assert_eq!(
+            sp.worst_sigma_windows,
+            [(9.0, 10.0, 1.5), (2.0, 3.0, 0.25), (5.0, 6.0, 0.05)]
+        );
+        assert!((sp.correction_age_s.max - 8.0).abs() < 1e-12);
+        // Each fault over its epochs, to one period after the last.
+        let at = |name: FaultName| -> Vec<(f64, f64)> {
+            log.faults
+                .iter()
+                .filter(|f| f.name == name)
+                .map(|f| (f.from_s, f.to_s))
+                .collect()
+        };
+        assert_eq!(at(FaultName::RtkFloat), [(2.0, 3.0)], "RtkFloat");
+        assert_eq!(at(FaultName::SigmaSpike), [(5.0, 5.3)], "SigmaSpike");
+        assert_eq!(at(FaultName::CorrectionAge), [(7.0, 7.5)], "CorrectionAge");
+        assert_eq!(at(FaultName::RtkNone), [(9.0, 9.2)], "RtkNone");
+        assert_eq!(at(FaultName::RtkFixedShare), [(0.0, 9.9)], "RtkFixedShare");
+        assert_eq!(log.faults.len(), 5, "{:?}", log.faults);
+        let detail = |name: FaultName| {
+            log.faults
+                .iter()
+                .find(|f| f.name == name)
+                .map(|f| f.detail.clone())
+                .unwrap()
+        };
+        assert!(detail(FaultName::RtkNone).contains("quality 1"));
+        assert!(detail(FaultName::RtkFixedShare).starts_with("88.0 % of epochs RTK-fixed"));
+        assert!(detail(FaultName::SigmaSpike).contains("worst horizontal 0.050 m"));
+        assert_eq!(sp.rtk_epochs[25].state, "float");
+        assert!((sp.rtk_epochs[25].t_s - 2.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_fixed_receiver_within_its_limits_raises_nothing() {
+        let fixes: Vec<Fix> = (0..50)
+            .map(|k| fix(UtcNanos(T0 + k * 100_000_000), 4, (0.01, 0.01), 1.0))
+            .collect();
+        let epochs: Vec<(UtcNanos, &Fix)> = fixes.iter().map(|f| (f.time.unwrap(), f)).collect();
+        let mut log = FaultLog::new(UtcNanos(T0));
+        let sp = receiver(
+            &epochs,
+            &Thresholds::default(),
+            UtcNanos(T0),
+            100_000_000,
+            &mut log,
+        );
+        assert!(log.faults.is_empty(), "{:?}", log.faults);
+        assert_eq!(sp.rtk_fixed_share, 1.0);
+    }
+}

@@ -225,3 +225,186 @@ fn timing(
         max_interval_ms: iv.iter().copied().fold(0.0, f64::max) * 1e-6,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::test_drive::{self, fix, Drive, T0};
+    use super::*;
+    use nalgebra::Vector2;
+
+    fn at_ms(ms: &[i64]) -> Vec<UtcNanos> {
+        ms.iter().map(|m| UtcNanos(T0 + m * 1_000_000)).collect()
+    }
+
+    #[test]
+    fn the_period_is_the_median_interval_between_distinct_times() {
+        // Intervals 100, 0 (a repeated stamp), 100, 100, 700 ms.
+        let t = at_ms(&[0, 100, 100, 200, 300, 1000]);
+        assert_eq!(median_interval(&t), Some(100_000_000));
+        assert_eq!(median_interval(&at_ms(&[5])), None);
+        assert_eq!(median_interval(&at_ms(&[5, 5])), None);
+    }
+
+    #[test]
+    fn rate_period_jitter_and_gaps_of_a_source_are_those_of_its_intervals() {
+        // 50 Hz with intervals alternating 19 and 21 ms: mean 20 ms, standard deviation 1 ms.
+        let mut ms = vec![0i64];
+        for k in 0..100 {
+            ms.push(ms[k] + if k % 2 == 0 { 19 } else { 21 });
+        }
+        let mut log = FaultLog::new(UtcNanos(T0));
+        let s = timing(&mut log, "can", FaultName::CanGap, &at_ms(&ms), 3.0);
+        assert_eq!(s.count, 101);
+        assert!((s.rate_hz - 50.0).abs() < 1e-9, "{}", s.rate_hz);
+        assert!((s.period_ms - 21.0).abs() < 1e-9 || (s.period_ms - 19.0).abs() < 1e-9);
+        assert!(
+            (s.jitter_ms - 1.0).abs() < 1e-9,
+            "jitter {} ms",
+            s.jitter_ms
+        );
+        assert_eq!(s.gaps, 0);
+        assert!(log.faults.is_empty());
+        // Every 20 ms, but nothing from 1.0 to 1.1 s: one gap of 100 ms (four samples missing)
+        // over the 3-period limit, located from the last sample before it to the first after.
+        // The sample at 0.5 s is missing too: 40 ms, within the limit.
+        let ms: Vec<i64> = (0..100)
+            .map(|k| k * 20)
+            .filter(|m| !(1001..1100).contains(m) && *m != 500)
+            .collect();
+        let s = timing(&mut log, "gnss", FaultName::GnssGap, &at_ms(&ms), 3.0);
+        assert_eq!(s.gaps, 1, "gaps over 3 periods of 20 ms");
+        assert!((s.period_ms - 20.0).abs() < 1e-9);
+        assert!((s.max_interval_ms - 100.0).abs() < 1e-9);
+        assert_eq!(log.faults.len(), 1);
+        let f = &log.faults[0];
+        assert_eq!((f.name, f.from_s, f.to_s), (FaultName::GnssGap, 1.0, 1.1));
+        assert!(
+            f.detail
+                .contains("no data for 100.0 ms (about 4 samples missing"),
+            "{}",
+            f.detail
+        );
+    }
+
+    #[test]
+    fn motion_and_interpolation_between_epochs_are_the_chord_and_the_sagitta_of_the_turn() {
+        // A 20 m circle at 5 m/s (0.25 rad/s): GNSS every 100 ms is a chord of 2R sin(ωT/2),
+        // and its midpoint lies R (1 − cos(ωT/2)) inside the arc.
+        let (r, w, period) = (20.0f64, 0.25f64, 0.1f64);
+        let drive = Drive::new(5.0, &[(10.0, 0.0, w)]);
+        let lever = Vector2::new(0.6, 0.0);
+        let gnss = drive.gnss(lever, 0.0);
+        let motion = drive.motion(1.0, 0.0);
+        let traj = test_drive::smooth(&gnss, &motion, lever);
+        let fixes: Vec<hilrig_gnss::Fix> = gnss
+            .iter()
+            .map(|g| fix(g.t, 4, (0.01, 0.01), 1.0))
+            .collect();
+        let epochs: Vec<(UtcNanos, &Fix)> = fixes.iter().map(|f| (f.time.unwrap(), f)).collect();
+        let mut run = test_drive::run(motion);
+        run.metadata.insert(
+            "clock_sync/lidar".into(),
+            [("offset_ns".to_owned(), "5000000".to_owned())].into(),
+        );
+        run.metadata.insert(
+            "clock_sync/gnss".into(),
+            [("offset_ns".to_owned(), "2000000".to_owned())].into(),
+        );
+        let mut log = FaultLog::new(UtcNanos(T0));
+        let (tm, lidar_error) = measure(&run, &epochs, &traj, &Thresholds::default(), &mut log);
+        let chord = 2.0 * r * (w * period / 2.0).sin();
+        let sagitta = r * (1.0 - (w * period / 2.0).cos());
+        let between = tm.motion_between_epochs_m;
+        assert_eq!(between.n, 100);
+        assert!(
+            (between.median - chord).abs() < 1e-4,
+            "{} vs {chord}",
+            between.median
+        );
+        let interp = tm.interpolation_error_m;
+        assert!(
+            (interp.median - sagitta).abs() < 0.02 * sagitta
+                && (interp.p95 - sagitta).abs() < 0.02 * sagitta,
+            "interpolation error median {} p95 {} m, sagitta {sagitta} m",
+            interp.median,
+            interp.p95
+        );
+        // The lidar's clock is 3 ms ahead of the GNSS's (from the clock models); without
+        // position packets there is no PPS state and no lidar time error.
+        let lidar_to_gnss = tm.lidar_to_gnss_offset_ms.unwrap();
+        assert!(
+            (lidar_to_gnss - 3.0).abs() < 1e-9,
+            "lidar to GNSS {lidar_to_gnss} ms; the lidar's clock offset 5 ms, the GNSS's 2 ms"
+        );
+        assert_eq!((tm.pps_locked_share, lidar_error), (None, 0.0));
+        // Sources: GNSS at 10 Hz, the ego motion (no raw frames: one source) at 50 Hz.
+        let names: Vec<&str> = tm.sources.iter().map(|s| s.source.as_str()).collect();
+        assert_eq!(names, ["gnss", "can 0x0"]);
+        assert!((tm.sources[0].rate_hz - 10.0).abs() < 1e-9);
+        assert!((tm.sources[1].rate_hz - 50.0).abs() < 1e-9);
+        assert!(log.faults.is_empty(), "{:?}", log.faults);
+    }
+
+    #[test]
+    fn can_sources_are_the_messages_that_carry_the_ego_motion() {
+        let motion = Drive::new(0.0, &[(1.0, 0.0, 0.0)]).motion(1.0, 0.0);
+        let mut run = test_drive::run(motion.clone());
+        // 0x123 carries the motion (its frames arrive when the motion was written), 0x456 is
+        // another message on the bus at other instants.
+        for m in &motion {
+            run.can_frames.push((m.t, 0x123));
+            run.can_frames.push((UtcNanos(m.t.0 + 3_000_000), 0x456));
+        }
+        let ego = ego_messages(&run);
+        assert_eq!(ego.len(), 1);
+        assert_eq!(ego[0].0, 0x123);
+        assert_eq!(ego[0].1.len(), motion.len());
+    }
+
+    #[test]
+    fn a_free_running_lidar_clock_fails_and_counts_its_clock_residual() {
+        let mut run = test_drive::run(vec![]);
+        // Three position packets of four report a PPS lock.
+        for (k, s) in [
+            PpsStatus::Locked,
+            PpsStatus::Absent,
+            PpsStatus::Locked,
+            PpsStatus::Locked,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            run.pps.push((UtcNanos(T0 + k as i64 * 1_000_000_000), s));
+        }
+        let meta = |src: &str, key: &str| match (src, key) {
+            ("lidar", "drift_ppm") => Some(-60.0),
+            ("lidar", "residual_p95_ns") => Some(1_500_000.0),
+            _ => None,
+        };
+        let mut share = None;
+        let mut log = FaultLog::new(UtcNanos(T0));
+        let error = pps(&run, &Thresholds::default(), &meta, &mut share, &mut log);
+        assert_eq!(share, Some(0.75));
+        // The clock model's residual p95 is the lidar's time error: 1.5 ms, over the 1 ms limit.
+        assert!((error - 1.5e-3).abs() < 1e-12, "{error}");
+        let names: Vec<FaultName> = log.faults.iter().map(|f| f.name).collect();
+        assert_eq!(
+            names,
+            [FaultName::LidarNotPpsLocked, FaultName::LidarClockResidual]
+        );
+        // Host minus sensor time falling by 60 µs a second: the lidar's clock runs fast.
+        assert!(
+            log.faults[0].detail.contains("running 60.0 ppm faster"),
+            "{}",
+            log.faults[0].detail
+        );
+        // A rig that does not require PPS: the share is reported, nothing else.
+        let th = Thresholds {
+            require_pps: false,
+            ..Thresholds::default()
+        };
+        let mut log = FaultLog::new(UtcNanos(T0));
+        assert_eq!(pps(&run, &th, &meta, &mut share, &mut log), 0.0);
+        assert!(log.faults.is_empty());
+    }
+}
