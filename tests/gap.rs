@@ -10,8 +10,10 @@ mod common;
 
 use common::fixture;
 use common::gap::{
-    found, gap, hidden, param, run_hidden, validation_improved, FRAME_BASED, IDEALIZED,
+    drive_at, found, gap, hidden, param, run_hidden, seed_of, validation_improved, FRAME_BASED,
+    IDEALIZED,
 };
+use std::path::{Path, PathBuf};
 
 #[test]
 fn a_hidden_range_bias_is_named_first_and_fitted_within_20_percent() {
@@ -338,4 +340,79 @@ fn bad_studies_are_refused_with_exit_2() {
     );
     assert_eq!(out.code, Some(2));
     assert!(out.stderr.contains("listed twice"), "{}", out.stderr);
+}
+
+/// One study for the tests of a workflow cut short or fed the wrong scene: a hidden 5 cm range
+/// bias (so that the first round adds it and a second begins) on a drive from standstill at
+/// 5 m/s, synthesized once per test binary into cargo's directory for test data.
+fn shared_study() -> &'static Path {
+    static STUDY: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    STUDY.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gap-shared-study");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        hidden(
+            &dir,
+            "name = \"t\"\n[[effect]]\nname = \"range_bias\"\nbias_m = 0.05\n",
+            IDEALIZED,
+            seed_of("shared study"),
+            &drive_at(5.0, true),
+        )
+    })
+}
+
+/// A run checked against a scene it was not recorded in is refused before any effect is
+/// fitted: the ground plane agrees with any trajectory over it, so the objects decide.
+#[test]
+fn a_run_and_a_scene_that_do_not_belong_together_are_refused() {
+    let study = shared_study();
+    let d = study.parent().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let scene = std::fs::read_to_string(d.join("rep-01/scene.toml")).unwrap();
+    // The same site 30 m further east (0.0004° of longitude at 48.8° N).
+    let elsewhere = scene.replace("longitude_deg = 11.47291", "longitude_deg = 11.47331");
+    assert_ne!(elsewhere, scene);
+    // The objects mirrored across the drive (y -> -y): the cars, columns and wall moved.
+    let mut in_pose = false;
+    let mirrored: String = scene
+        .lines()
+        .map(|l| {
+            if l.starts_with('[') {
+                in_pose = l.trim() == "[object.pose]";
+            }
+            match l.strip_prefix("y = ") {
+                Some(y) if in_pose => format!("y = {:?}\n", -y.parse::<f64>().unwrap()),
+                _ => format!("{l}\n"),
+            }
+        })
+        .collect();
+    assert_ne!(mirrored, scene);
+    for (name, text) in [("elsewhere", elsewhere), ("mirrored", mirrored)] {
+        let path = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let out = gap(
+            &[
+                "--real".as_ref(),
+                d.join("run-1.mcap").as_os_str(),
+                d.join("run-2.mcap").as_os_str(),
+                "--validate".as_ref(),
+                d.join("run-3.mcap").as_os_str(),
+                "--scene".as_ref(),
+                path.as_os_str(),
+                "--model".as_ref(),
+                d.join("start.toml").as_os_str(),
+                "--no-full-metrics".as_ref(),
+            ],
+            &dir.path().join(name),
+        );
+        assert_eq!(out.code, Some(2), "{name}: {}\n{}", out.stdout, out.stderr);
+        assert!(
+            out.stderr
+                .contains("the run and the scene do not belong together")
+                && out.stderr.contains(&format!("{name}.toml")),
+            "{name}: {}",
+            out.stderr
+        );
+        assert!(out.report.is_none(), "{name}: nothing written");
+    }
 }

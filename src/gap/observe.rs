@@ -14,7 +14,7 @@ use crate::bag::scans::{sensor_time, ScanStream};
 use crate::reference::check::{check_with_trajectory, Fault, Verdict};
 use crate::rig::Rig;
 use crate::scene::pose::Trajectory;
-use crate::scene::Scene;
+use crate::scene::{Scene, SurfaceId};
 use crate::sim::lidar::{beam_frame, Firing, LidarSim, PacketTime, SimStats};
 use crate::sim::model::{Effect, ModelFile};
 use hilrig_stamp::UtcNanos;
@@ -136,6 +136,9 @@ pub struct Feature {
     /// The slot of the same laser's previous firing in the same packet (its azimuth
     /// neighbour), or `u32::MAX`.
     pub neighbour: u32,
+    /// The ideal beam hits the scene's ground plane. A flat ground matches any trajectory
+    /// over it, so only the other returns can tell whether a run and a scene belong together.
+    pub ground: bool,
 }
 
 impl Feature {
@@ -436,6 +439,9 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                         azimuth: (local.y.atan2(local.x).to_degrees().rem_euclid(360.0)) as f32,
                         elevation: local.z.clamp(-1.0, 1.0).asin().to_degrees() as f32,
                         neighbour,
+                        ground: centre
+                            .as_ref()
+                            .is_some_and(|h| h.material.surface == SurfaceId::GROUND),
                     };
                 },
             );
