@@ -416,3 +416,48 @@ fn a_run_and_a_scene_that_do_not_belong_together_are_refused() {
         assert!(out.report.is_none(), "{name}: nothing written");
     }
 }
+
+/// Runs whose lidar covers a few scans (the lidar silent but for a quarter of a second, the
+/// reference data whole, so that `check` passes): refused, saying how many usable scans each
+/// run holds and how many are needed, not fitted on the sign of one number.
+#[test]
+fn runs_of_a_few_scans_are_refused_naming_their_scans_and_the_minimum() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = hidden(
+        dir.path(),
+        "name = \"t\"\n[[effect]]\nname = \"range_bias\"\nbias_m = 0.05\n",
+        IDEALIZED,
+        seed_of("a few scans"),
+        &|t| {
+            t.replace(
+                "[survey]",
+                "[faults]\nlidar_gap = [{ from_s = 0.0, to_s = 4.0 }, { from_s = 4.25, to_s = 60.0 }]\n\n[survey]",
+            )
+        },
+    );
+    let out = gap(&[study.as_os_str()], &dir.path().join("out"));
+    assert_eq!(out.code, Some(2), "{}\n{}", out.stdout, out.stderr);
+    let scans = |run: &str| -> usize {
+        let at = out
+            .stderr
+            .find(&format!("{run}: "))
+            .unwrap_or_else(|| panic!("{run} not named: {}", out.stderr));
+        let rest = &out.stderr[at + run.len() + 2..];
+        rest[..rest.find(|c: char| !c.is_ascii_digit()).unwrap()]
+            .parse()
+            .unwrap()
+    };
+    for run in ["run-1.mcap", "run-2.mcap", "run-3.mcap"] {
+        let n = scans(run);
+        assert!((1..=4).contains(&n), "{run}: {n} scans\n{}", out.stderr);
+    }
+    assert!(
+        out.stderr.contains("too few scans")
+            && out.stderr.contains("parameterization runs hold")
+            && out.stderr.contains("validation runs hold")
+            && out.stderr.contains("each needs at least 40"),
+        "{}",
+        out.stderr
+    );
+    assert!(out.report.is_none(), "nothing written");
+}

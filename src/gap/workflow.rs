@@ -192,6 +192,35 @@ impl Agreement {
     }
 }
 
+/// Why the parameterization or the validation runs (each given as (name, usable scans)) are
+/// too short to judge an effect by, if they are: each set needs [`bootstrap::MIN_SCANS`].
+fn too_few_scans(fit: &[(String, usize)], val: &[(String, usize)]) -> Option<String> {
+    let short: Vec<String> = [("parameterization", fit), ("validation", val)]
+        .iter()
+        .filter_map(|(what, runs)| {
+            let n: usize = runs.iter().map(|r| r.1).sum();
+            (n < bootstrap::MIN_SCANS).then(|| {
+                let each: Vec<String> = runs
+                    .iter()
+                    .map(|(name, k)| format!("{name}: {k}"))
+                    .collect();
+                format!(
+                    "the {what} runs hold {n} usable scans ({})",
+                    each.join(", ")
+                )
+            })
+        })
+        .collect();
+    (!short.is_empty()).then(|| {
+        format!(
+            "too few scans to judge an effect by: {}; each needs at least {} (two bootstrap blocks of {} scans: with one, an effect's gain has no interval); record longer runs or add runs (scans `check` left out do not count)",
+            short.join(" and "),
+            bootstrap::MIN_SCANS,
+            bootstrap::BLOCK_SCANS
+        )
+    })
+}
+
 /// Re-simulates the validation runs in full with `model` into `dir` and measures them: each run
 /// is read once, its scans cast batch by batch and compared as they come (OCR^K, precision,
 /// IoU at the admissible cell), and their features kept for the validation (Rosenberger et al.
@@ -363,6 +392,14 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
         .collect::<Result<_, _>>()?;
     let (fit_runs, val_runs): (Vec<RunData>, Vec<RunData>) =
         loaded.into_iter().partition(|r| r.role == Role::Fit);
+    let usable = |runs: &[RunData]| -> Vec<(String, usize)> {
+        runs.iter()
+            .map(|r| (r.name.clone(), r.usable_scans))
+            .collect()
+    };
+    if let Some(why) = too_few_scans(&usable(&fit_runs), &usable(&val_runs)) {
+        return Err(GapError::Input(why));
+    }
     let feats = |runs: &[RunData]| -> Result<Vec<Vec<Feature>>, GapError> {
         runs.iter().map(|r| features(r, &study.model)).collect()
     };
@@ -612,6 +649,32 @@ mod tests {
         ]);
         assert_eq!((partial.all, partial.objects), ((100, 250), (100, 100)));
         assert_eq!(partial.mismatch(), None);
+    }
+
+    #[test]
+    fn too_few_scans_names_the_short_sets_their_runs_and_the_minimum() {
+        let runs = |v: &[(&str, usize)]| -> Vec<(String, usize)> {
+            v.iter().map(|(n, k)| ((*n).to_owned(), *k)).collect()
+        };
+        let why = too_few_scans(
+            &runs(&[("a.mcap", 3), ("b.mcap", 2)]),
+            &runs(&[("c.mcap", 1)]),
+        )
+        .expect("refused");
+        assert!(
+            why.contains("the parameterization runs hold 5 usable scans (a.mcap: 3, b.mcap: 2) and the validation runs hold 1 usable scans (c.mcap: 1); each needs at least 40"),
+            "{why}"
+        );
+        // Enough together: 20 + 20 fit, 40 validate.
+        assert_eq!(
+            too_few_scans(&runs(&[("a", 20), ("b", 20)]), &runs(&[("c", 40)])),
+            None
+        );
+        let why = too_few_scans(&runs(&[("a", 20), ("b", 20)]), &runs(&[("c", 39)])).unwrap();
+        assert!(
+            why.contains("the validation runs hold 39") && !why.contains("parameterization"),
+            "{why}"
+        );
     }
 
     #[test]
