@@ -361,6 +361,86 @@ fn shared_study() -> &'static Path {
     })
 }
 
+/// `gap` writes `gap.json` and `model.fitted.toml` after every round; killed (SIGKILL) as soon
+/// as the first round's files appear, the output holds that round whole: both files parse, the
+/// model is the start model plus the round's effect, and the report says it did not finish.
+/// While it runs, every version of `gap.json` a reader meets parses, and each is a new file
+/// (written beside and renamed over the old one): a file rewritten in place can be met, or
+/// left by a crash, half written.
+#[test]
+fn an_interrupted_study_leaves_the_last_rounds_files_whole() {
+    use std::os::unix::fs::MetadataExt;
+    use std::os::unix::process::ExitStatusExt;
+    let study = shared_study();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let mut child = std::process::Command::new(common::hilrig_bin())
+        .arg("gap")
+        .arg(study)
+        .args(["--no-full-metrics", "-o"])
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // (rounds, inode) of each version of gap.json seen.
+    let mut versions: Vec<(usize, u64)> = Vec::new();
+    let started = std::time::Instant::now();
+    loop {
+        if let Ok(bytes) = std::fs::read(out.join("gap.json")) {
+            let inode = std::fs::metadata(out.join("gap.json")).map_or(0, |m| m.ino());
+            let report: serde_json::Value = serde_json::from_slice(&bytes).unwrap_or_else(|e| {
+                panic!(
+                    "a reader met gap.json half written ({e}): {}",
+                    String::from_utf8_lossy(&bytes)
+                )
+            });
+            let rounds = report["rounds"].as_array().map_or(0, Vec::len);
+            if versions.last() != Some(&(rounds, inode)) {
+                versions.push((rounds, inode));
+            }
+            if rounds >= 1 {
+                break;
+            }
+        }
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "gap ended before its first round was written"
+        );
+        // Not a timing assertion: a bound on a hung test.
+        assert!(started.elapsed().as_secs() < 600, "no round after 10 min");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    let status = child.wait().unwrap();
+    assert_eq!(status.signal(), Some(9), "killed mid-study: {status:?}");
+    // The version before the first round (written once the runs are loaded) and the round's.
+    assert!(
+        versions.len() >= 2 && versions[0].0 == 0,
+        "versions seen: {versions:?}"
+    );
+    let inodes: std::collections::HashSet<u64> = versions.iter().map(|v| v.1).collect();
+    assert_eq!(
+        inodes.len(),
+        versions.len(),
+        "gap.json rewritten in place, not replaced: {versions:?}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("gap.json")).unwrap()).unwrap();
+    assert_eq!(report["finished"], false, "{report}");
+    let f = found(&report);
+    assert_eq!(f.len(), 1, "{report}");
+    assert_eq!(f[0].0, "range_bias");
+    let model = hilrig::sim::ModelFile::load(&out.join("model.fitted.toml")).unwrap();
+    assert_eq!(
+        model.effects,
+        vec![hilrig::sim::model::Effect::RangeBias {
+            bias_m: param(&f[0].1, "bias_m")
+        }],
+        "model.fitted.toml holds the start model and the round's effect"
+    );
+}
+
 /// A run checked against a scene it was not recorded in is refused before any effect is
 /// fitted: the ground plane agrees with any trajectory over it, so the objects decide.
 #[test]
