@@ -8,183 +8,12 @@
 
 mod common;
 
-use common::{demo_rig, fixture, hilrig_bin, record_from};
+use common::fixture;
+use common::gap::{
+    drive_at, found, gap, hidden, param, run_hidden, seed_of, validation_improved, FRAME_BASED,
+    IDEALIZED,
+};
 use std::path::{Path, PathBuf};
-
-/// A study of three synthesized drives with `truth` hidden; returns the study file.
-fn hidden(
-    dir: &Path,
-    truth: &str,
-    start: &str,
-    seed: u64,
-    edit: &dyn Fn(String) -> String,
-) -> PathBuf {
-    let drive_text = edit(std::fs::read_to_string(fixture("gap/drive.toml")).unwrap()).replace(
-        "rig = \"../../rigs/demo.toml\"",
-        &format!("rig = {:?}", demo_rig().display().to_string()),
-    );
-    let drive = dir.join("drive.toml");
-    std::fs::write(&drive, drive_text).unwrap();
-    std::fs::write(dir.join("truth.toml"), truth).unwrap();
-    std::fs::write(dir.join("start.toml"), start).unwrap();
-    let out = std::process::Command::new(hilrig_bin())
-        .args(["synth", "--scene"])
-        .arg(fixture("parking/scene.toml"))
-        .arg("--drive")
-        .arg(&drive)
-        .arg("--truth")
-        .arg(dir.join("truth.toml"))
-        .args(["--reps", "3", "--seed", &seed.to_string(), "-o"])
-        .arg(dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let mut study = String::from("model = \"start.toml\"\n");
-    for i in 1..=3 {
-        let run = dir.join(format!("run-{i}.mcap"));
-        let rec = record_from(
-            &demo_rig(),
-            &[&dir.join(format!("rep-{i:02}/drive.pcapng"))],
-            &run,
-        );
-        assert!(
-            rec.status.success(),
-            "{}",
-            String::from_utf8_lossy(&rec.stderr)
-        );
-        study.push_str(&format!(
-            "[[run]]\nrecording = \"run-{i}.mcap\"\nscene = \"rep-{i:02}/scene.toml\"\nrole = \"{}\"\n",
-            if i == 3 { "validate" } else { "fit" }
-        ));
-    }
-    let path = dir.join("study.toml");
-    std::fs::write(&path, study).unwrap();
-    path
-}
-
-struct Outcome {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-    report: Option<serde_json::Value>,
-}
-
-fn gap(args: &[&std::ffi::OsStr], out: &Path) -> Outcome {
-    let o = std::process::Command::new(hilrig_bin())
-        .arg("gap")
-        .args(args)
-        .arg("-o")
-        .arg(out)
-        .output()
-        .unwrap();
-    Outcome {
-        code: o.status.code(),
-        stdout: String::from_utf8_lossy(&o.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
-        report: std::fs::read(out.join("gap.json"))
-            .ok()
-            .and_then(|b| serde_json::from_slice(&b).ok()),
-    }
-}
-
-/// The effects the workflow added, in order, with their fitted parameters.
-fn found(report: &serde_json::Value) -> Vec<(String, serde_json::Value)> {
-    report["rounds"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|r| {
-            let name = r["chosen"].as_str()?;
-            Some((name.to_owned(), r["parameters"].clone()))
-        })
-        .collect()
-}
-
-fn param(params: &serde_json::Value, name: &str) -> f64 {
-    params
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|p| p["name"] == name)
-        .and_then(|p| p["value"].as_f64())
-        .unwrap_or_else(|| panic!("no parameter {name} in {params}"))
-}
-
-const IDEALIZED: &str = "name = \"idealized\"\n";
-/// A start model that places each rotation at the pose of its first firing.
-const FRAME_BASED: &str =
-    "name = \"frame-based\"\n[[effect]]\nname = \"motion_distortion\"\nenabled = false\n";
-
-fn run_hidden(
-    truth: &str,
-    start: &str,
-    seed: u64,
-    edit: &dyn Fn(String) -> String,
-) -> (tempfile::TempDir, Outcome) {
-    let dir = tempfile::tempdir().unwrap();
-    let study = hidden(dir.path(), truth, start, seed, edit);
-    let out = gap(&[study.as_os_str()], &dir.path().join("out"));
-    assert_eq!(out.code, Some(0), "{}\n{}", out.stdout, out.stderr);
-    (dir, out)
-}
-
-/// What the first added effect did on the validation runs, judged on numbers the workflow did
-/// not use to decide (its keep rule is the likelihood gain's interval, so asserting that again
-/// would be circular): the full re-simulation's metrics before and after, each named in
-/// `improves` (`"ocr"`, `"precision"` or `"avm:FEATURE"`) must move the right way, and no
-/// traffic light may turn worse.
-fn validation_improved(report: &serde_json::Value, improves: &[&str]) {
-    let round = &report["rounds"][0];
-    let (before, after) = (&round["metrics_before"], &round["metrics_after"]);
-    assert!(
-        before.is_object() && after.is_object(),
-        "the full re-simulation's metrics: {round}"
-    );
-    let avm = |m: &serde_json::Value, name: &str| -> f64 {
-        m["avm"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|p| p[0] == name)
-            .and_then(|p| p[1].as_f64())
-            .unwrap_or_else(|| panic!("no AVM of {name} in {m}"))
-    };
-    for what in improves {
-        let (b, a, higher_is_better) = match what.strip_prefix("avm:") {
-            Some(f) => (avm(before, f), avm(after, f), false),
-            None => (
-                before[*what].as_f64().unwrap(),
-                after[*what].as_f64().unwrap(),
-                true,
-            ),
-        };
-        assert!(
-            if higher_is_better { a > b } else { a < b },
-            "{what}: {b} -> {a}\nbefore {before}\nafter {after}"
-        );
-    }
-    let rank = |l: &serde_json::Value| match l.as_str() {
-        Some("green") => 0,
-        Some("yellow") => 1,
-        Some("red") => 2,
-        _ => 3,
-    };
-    let lights = |m: &serde_json::Value| -> Vec<(String, i32)> {
-        m["lights"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|p| (p[0].as_str().unwrap().to_owned(), rank(&p[1])))
-            .collect()
-    };
-    for ((name, b), (_, a)) in lights(before).into_iter().zip(lights(after)) {
-        assert!(a <= b, "light of {name} turned worse: {before} -> {after}");
-    }
-}
 
 #[test]
 fn a_hidden_range_bias_is_named_first_and_fitted_within_20_percent() {
@@ -511,4 +340,204 @@ fn bad_studies_are_refused_with_exit_2() {
     );
     assert_eq!(out.code, Some(2));
     assert!(out.stderr.contains("listed twice"), "{}", out.stderr);
+}
+
+/// One study for the tests of a workflow cut short or fed the wrong scene: a hidden 5 cm range
+/// bias (so that the first round adds it and a second begins) on a drive from standstill at
+/// 5 m/s, synthesized once per test binary into cargo's directory for test data.
+fn shared_study() -> &'static Path {
+    static STUDY: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    STUDY.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gap-shared-study");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        hidden(
+            &dir,
+            "name = \"t\"\n[[effect]]\nname = \"range_bias\"\nbias_m = 0.05\n",
+            IDEALIZED,
+            seed_of("shared study"),
+            &drive_at(5.0, true),
+        )
+    })
+}
+
+/// `gap` writes `gap.json` and `model.fitted.toml` after every round; killed (SIGKILL) as soon
+/// as the first round's files appear, the output holds that round whole: both files parse, the
+/// model is the start model plus the round's effect, and the report says it did not finish.
+/// While it runs, every version of `gap.json` a reader meets parses, and each is a new file
+/// (written beside and renamed over the old one): a file rewritten in place can be met, or
+/// left by a crash, half written.
+#[test]
+fn an_interrupted_study_leaves_the_last_rounds_files_whole() {
+    use std::os::unix::fs::MetadataExt;
+    use std::os::unix::process::ExitStatusExt;
+    let study = shared_study();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let mut child = std::process::Command::new(common::hilrig_bin())
+        .arg("gap")
+        .arg(study)
+        .args(["--no-full-metrics", "-o"])
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // (rounds, inode) of each version of gap.json seen.
+    let mut versions: Vec<(usize, u64)> = Vec::new();
+    let started = std::time::Instant::now();
+    loop {
+        if let Ok(bytes) = std::fs::read(out.join("gap.json")) {
+            let inode = std::fs::metadata(out.join("gap.json")).map_or(0, |m| m.ino());
+            let report: serde_json::Value = serde_json::from_slice(&bytes).unwrap_or_else(|e| {
+                panic!(
+                    "a reader met gap.json half written ({e}): {}",
+                    String::from_utf8_lossy(&bytes)
+                )
+            });
+            let rounds = report["rounds"].as_array().map_or(0, Vec::len);
+            if versions.last() != Some(&(rounds, inode)) {
+                versions.push((rounds, inode));
+            }
+            if rounds >= 1 {
+                break;
+            }
+        }
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "gap ended before its first round was written"
+        );
+        // Not a timing assertion: a bound on a hung test.
+        assert!(started.elapsed().as_secs() < 600, "no round after 10 min");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    let status = child.wait().unwrap();
+    assert_eq!(status.signal(), Some(9), "killed mid-study: {status:?}");
+    // The version before the first round (written once the runs are loaded) and the round's.
+    assert!(
+        versions.len() >= 2 && versions[0].0 == 0,
+        "versions seen: {versions:?}"
+    );
+    let inodes: std::collections::HashSet<u64> = versions.iter().map(|v| v.1).collect();
+    assert_eq!(
+        inodes.len(),
+        versions.len(),
+        "gap.json rewritten in place, not replaced: {versions:?}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("gap.json")).unwrap()).unwrap();
+    assert_eq!(report["finished"], false, "{report}");
+    let f = found(&report);
+    assert_eq!(f.len(), 1, "{report}");
+    assert_eq!(f[0].0, "range_bias");
+    let model = hilrig::sim::ModelFile::load(&out.join("model.fitted.toml")).unwrap();
+    assert_eq!(
+        model.effects,
+        vec![hilrig::sim::model::Effect::RangeBias {
+            bias_m: param(&f[0].1, "bias_m")
+        }],
+        "model.fitted.toml holds the start model and the round's effect"
+    );
+}
+
+/// A run checked against a scene it was not recorded in is refused before any effect is
+/// fitted: the ground plane agrees with any trajectory over it, so the objects decide.
+#[test]
+fn a_run_and_a_scene_that_do_not_belong_together_are_refused() {
+    let study = shared_study();
+    let d = study.parent().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let scene = std::fs::read_to_string(d.join("rep-01/scene.toml")).unwrap();
+    // The same site 30 m further east (0.0004° of longitude at 48.8° N).
+    let elsewhere = scene.replace("longitude_deg = 11.47291", "longitude_deg = 11.47331");
+    assert_ne!(elsewhere, scene);
+    // The objects mirrored across the drive (y -> -y): the cars, columns and wall moved.
+    let mut in_pose = false;
+    let mirrored: String = scene
+        .lines()
+        .map(|l| {
+            if l.starts_with('[') {
+                in_pose = l.trim() == "[object.pose]";
+            }
+            match l.strip_prefix("y = ") {
+                Some(y) if in_pose => format!("y = {:?}\n", -y.parse::<f64>().unwrap()),
+                _ => format!("{l}\n"),
+            }
+        })
+        .collect();
+    assert_ne!(mirrored, scene);
+    for (name, text) in [("elsewhere", elsewhere), ("mirrored", mirrored)] {
+        let path = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let out = gap(
+            &[
+                "--real".as_ref(),
+                d.join("run-1.mcap").as_os_str(),
+                d.join("run-2.mcap").as_os_str(),
+                "--validate".as_ref(),
+                d.join("run-3.mcap").as_os_str(),
+                "--scene".as_ref(),
+                path.as_os_str(),
+                "--model".as_ref(),
+                d.join("start.toml").as_os_str(),
+                "--no-full-metrics".as_ref(),
+            ],
+            &dir.path().join(name),
+        );
+        assert_eq!(out.code, Some(2), "{name}: {}\n{}", out.stdout, out.stderr);
+        assert!(
+            out.stderr
+                .contains("the run and the scene do not belong together")
+                && out.stderr.contains(&format!("{name}.toml")),
+            "{name}: {}",
+            out.stderr
+        );
+        assert!(out.report.is_none(), "{name}: nothing written");
+    }
+}
+
+/// Runs whose lidar covers a few scans (the lidar silent but for a quarter of a second, the
+/// reference data whole, so that `check` passes): refused, saying how many usable scans each
+/// run holds and how many are needed, not fitted on the sign of one number.
+#[test]
+fn runs_of_a_few_scans_are_refused_naming_their_scans_and_the_minimum() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = hidden(
+        dir.path(),
+        "name = \"t\"\n[[effect]]\nname = \"range_bias\"\nbias_m = 0.05\n",
+        IDEALIZED,
+        seed_of("a few scans"),
+        &|t| {
+            t.replace(
+                "[survey]",
+                "[faults]\nlidar_gap = [{ from_s = 0.0, to_s = 4.0 }, { from_s = 4.25, to_s = 60.0 }]\n\n[survey]",
+            )
+        },
+    );
+    let out = gap(&[study.as_os_str()], &dir.path().join("out"));
+    assert_eq!(out.code, Some(2), "{}\n{}", out.stdout, out.stderr);
+    let scans = |run: &str| -> usize {
+        let at = out
+            .stderr
+            .find(&format!("{run}: "))
+            .unwrap_or_else(|| panic!("{run} not named: {}", out.stderr));
+        let rest = &out.stderr[at + run.len() + 2..];
+        rest[..rest.find(|c: char| !c.is_ascii_digit()).unwrap()]
+            .parse()
+            .unwrap()
+    };
+    for run in ["run-1.mcap", "run-2.mcap", "run-3.mcap"] {
+        let n = scans(run);
+        assert!((1..=4).contains(&n), "{run}: {n} scans\n{}", out.stderr);
+    }
+    assert!(
+        out.stderr.contains("too few scans")
+            && out.stderr.contains("parameterization runs hold")
+            && out.stderr.contains("validation runs hold")
+            && out.stderr.contains("each needs at least 40"),
+        "{}",
+        out.stderr
+    );
+    assert!(out.report.is_none(), "nothing written");
 }

@@ -8,6 +8,11 @@ use rand_chacha::ChaCha8Rng;
 /// Scans per bootstrap block.
 pub const BLOCK_SCANS: usize = 20;
 
+/// Scans that the parameterization runs, and the validation runs, must hold at least: two
+/// blocks. With one, every resample is that block and a gain's interval is a single point, so
+/// an effect would be added on the sign of one number.
+pub const MIN_SCANS: usize = 2 * BLOCK_SCANS;
+
 /// Resamples drawn for an interval.
 pub const RESAMPLES: usize = 400;
 

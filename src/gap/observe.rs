@@ -14,7 +14,7 @@ use crate::bag::scans::{sensor_time, ScanStream};
 use crate::reference::check::{check_with_trajectory, Fault, Verdict};
 use crate::rig::Rig;
 use crate::scene::pose::Trajectory;
-use crate::scene::Scene;
+use crate::scene::{Scene, SurfaceId};
 use crate::sim::lidar::{beam_frame, Firing, LidarSim, PacketTime, SimStats};
 use crate::sim::model::{Effect, ModelFile};
 use hilrig_stamp::UtcNanos;
@@ -70,6 +70,8 @@ pub struct RunData {
     pub left_out: Vec<Fault>,
     /// Scans in the run (or its part).
     pub scans: usize,
+    /// Those of them with a packet outside the stretches left out: what the workflow can use.
+    pub usable_scans: usize,
     /// The range quantum of the sensor, m.
     pub range_quantum_m: f64,
     /// What could not be read: the file's damage (read up to it) and data packets that did not
@@ -136,6 +138,9 @@ pub struct Feature {
     /// The slot of the same laser's previous firing in the same packet (its azimuth
     /// neighbour), or `u32::MAX`.
     pub neighbour: u32,
+    /// The ideal beam hits the scene's ground plane. A flat ground matches any trajectory
+    /// over it, so only the other returns can tell whether a run and a scene belong together.
+    pub ground: bool,
 }
 
 impl Feature {
@@ -215,10 +220,12 @@ pub fn load_run(
     let mut previous: Option<DataPacket> = None;
     let mut n = 0usize;
     let mut undecodable = 0usize;
+    let mut usable_scans = 0usize;
     // The scans are streamed: only the sample is kept.
     let mut stream = ScanStream::open(path).map_err(|e| input(e.to_string()))?;
     for (k, scan) in stream.by_ref().skip(from).take(to - from).enumerate() {
         let mut rotation_start = None;
+        let mut scan_usable = false;
         for (t, b) in &scan.packets {
             let Ok(p) = DataPacket::decode(&b[..]) else {
                 undecodable += 1;
@@ -237,6 +244,7 @@ pub fn load_run(
                 let (a, b) = m.window();
                 (a..=b).contains(&first)
             });
+            scan_usable |= usable;
             if usable && n.is_multiple_of(every) {
                 packets.push(Sampled {
                     scan: k as u32,
@@ -251,6 +259,7 @@ pub fn load_run(
             previous = Some(p);
             n += 1;
         }
+        usable_scans += usize::from(scan_usable);
     }
     let mut damage: Vec<String> = run
         .damage
@@ -288,6 +297,7 @@ pub fn load_run(
         packets,
         left_out: marked,
         scans: to - from,
+        usable_scans,
         range_quantum_m: model.distance_resolution_m(),
         damage,
     })
@@ -436,6 +446,9 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                         azimuth: (local.y.atan2(local.x).to_degrees().rem_euclid(360.0)) as f32,
                         elevation: local.z.clamp(-1.0, 1.0).asin().to_degrees() as f32,
                         neighbour,
+                        ground: centre
+                            .as_ref()
+                            .is_some_and(|h| h.material.surface == SurfaceId::GROUND),
                     };
                 },
             );

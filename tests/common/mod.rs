@@ -2,6 +2,8 @@
 //! sink that keeps decoded points.
 #![allow(dead_code)]
 
+pub mod gap;
+
 use hilrig::decode::lidar::{decode_capture, LidarOptions, LidarSummary, PointSink, PointTime};
 use hilrig::velodyne::Point;
 use std::path::PathBuf;
