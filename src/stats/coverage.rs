@@ -178,6 +178,7 @@ mod tests {
         .unwrap();
         // 10..30 in 4 parts of 5; 0.2..0.8 in 4 parts of 0.15.
         assert_eq!(cell(&params, 4, &[10.0, 0.2]), vec![0, 0]);
+        assert_eq!(cell(&params, 4, &[14.9, 0.34]), vec![0, 0]);
         assert_eq!(cell(&params, 4, &[16.0, 0.36]), vec![1, 1]);
         assert_eq!(cell(&params, 4, &[24.0, 0.51]), vec![2, 2]);
         assert_eq!(cell(&params, 4, &[29.0, 0.79]), vec![3, 3]);
