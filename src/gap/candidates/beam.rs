@@ -64,6 +64,11 @@ impl Fitting<'_> {
             }
             let scored = self.score_all(&obs, random_of(&model));
             let total = scored.iter().flat_map(|s| &s.per_scan).sum();
+            let sum = |k: usize| scored.iter().map(|s| s.terms[k]).sum::<f64>();
+            tracing::debug!(
+                "divergence {h:.3} x {v:.3} mrad, {n} sub-rays: log-likelihood {total:.1} (detection {:.1}, range {:.1}, difference {:.1}, intensity {:.1})",
+                sum(0), sum(1), sum(2), sum(3)
+            );
             grid.push((h, v, n, total, scored));
             Ok(total)
         };
