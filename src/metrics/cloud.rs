@@ -167,7 +167,69 @@ pub(super) fn firing_key(packet: usize, time_offset_ns: u32, laser: u8, return_t
 
 #[cfg(test)]
 mod tests {
-    use super::firing_key;
+    use super::{firing_key, PacketPoses};
+    use crate::scene::pose::{PoseSample, Trajectory};
+    use hilrig_stamp::UtcNanos;
+    use hilrig_velodyne::{LaserId, Point as LidarPoint, ReturnType};
+    use nalgebra::Vector3;
+
+    /// A firing `offset_ns` after its packet's stamp (only the time matters here).
+    fn firing(offset_ns: u32) -> LidarPoint {
+        LidarPoint {
+            laser: LaserId(0),
+            ring: 0,
+            block: 0,
+            azimuth_deg: 0.0,
+            distance_raw: 0,
+            distance_m: 0.0,
+            intensity: 0,
+            return_type: ReturnType::Strongest,
+            time_offset_ns: offset_ns,
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+        }
+    }
+
+    /// The blend of a packet's end poses is the trajectory's own pose at every firing between
+    /// them: a car at 20 m/s turning at 1 rad/s, a 1.3 ms packet 4.1 s into the drive.
+    #[test]
+    fn a_packets_blended_poses_are_the_trajectorys() {
+        let t0 = 1_700_000_000_000_000_000i64;
+        let samples = (0..=100)
+            .map(|i| {
+                let s = f64::from(i) * 0.1;
+                PoseSample {
+                    t: UtcNanos(t0 + i64::from(i) * 100_000_000),
+                    position: Vector3::new(20.0 * s, 3.0 * s * s, 0.1 * s),
+                    yaw: s,
+                    pitch: 0.01 * s,
+                    roll: -0.02 * s,
+                }
+            })
+            .collect();
+        let trajectory = Trajectory::new(samples).unwrap();
+        let first = UtcNanos(t0 + 4_100_000_000 + 37_000);
+        let points: Vec<LidarPoint> = [2_304, 655_000, 1_327_104, 90_000].map(firing).into();
+        let poses = PacketPoses::new(&trajectory, first, &points, &mut 0);
+        for offset in [2_304, 300_000, 655_000, 1_000_000, 1_327_104] {
+            let t = UtcNanos(first.0 + offset);
+            let got = poses.at(t).expect("a firing inside the packet has a pose");
+            let want = trajectory.pose_at(t, &mut 0).unwrap();
+            let moved = (got.translation.vector - want.translation.vector).norm();
+            let turned = got.rotation.angle_to(&want.rotation);
+            assert!(
+                moved < 1e-6 && turned < 1e-8,
+                "{offset} ns into the packet: the blend is {moved:e} m and {turned:e} rad off the trajectory"
+            );
+        }
+        // A packet that ends beyond the trajectory has no blend (its firings are looked up one
+        // by one).
+        let late = UtcNanos(t0 + 10_000_000_000 - 500_000);
+        assert!(PacketPoses::new(&trajectory, late, &points, &mut 0)
+            .at(late)
+            .is_none());
+    }
 
     #[test]
     fn the_two_firing_sequences_of_a_16_laser_block_are_two_firings() {

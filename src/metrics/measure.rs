@@ -185,3 +185,76 @@ pub(super) fn measure(
         sim: sim.points,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{residuals, Cloud, InBox};
+    use hilrig_stamp::UtcNanos;
+    use nalgebra::Point3;
+
+    fn cloud(firings: &[(u64, f32)]) -> Cloud {
+        Cloud {
+            points: Vec::new(),
+            point_keys: Vec::new(),
+            firings: firings.to_vec(),
+            all: Vec::new(),
+            origin: None,
+            middle: UtcNanos(0),
+        }
+    }
+
+    /// Firings paired by key: the residual is simulated minus measured over the firings both
+    /// have; the rest are counted on their side, the tails after the other list ends too.
+    #[test]
+    fn residuals_pair_firings_by_key_and_count_the_rest() {
+        // Measured keys 1 2 3 5 7 10 11 12, simulated 2 3 4 7: both 2 3 7; only measured 1 5
+        // and the tail 10 11 12; only simulated 4.
+        let real = cloud(&[
+            (1, 9.0),
+            (2, 10.0),
+            (3, 20.0),
+            (5, 1.0),
+            (7, 30.0),
+            (10, 1.0),
+            (11, 1.0),
+            (12, 1.0),
+        ]);
+        let sim = cloud(&[(2, 10.5), (3, 19.0), (4, 2.0), (7, 30.25)]);
+        let r = residuals(&real, &sim);
+        assert_eq!(
+            (r.both, r.only_real, r.only_sim),
+            (3, 5, 1),
+            "firings in both, only measured, only simulated"
+        );
+        assert!(
+            (r.sum - (0.5 - 1.0 + 0.25)).abs() < 1e-12,
+            "sum of simulated minus measured {}, want -0.25",
+            r.sum
+        );
+        assert!(
+            (r.sum2 - (0.25 + 1.0 + 0.0625)).abs() < 1e-12,
+            "sum of squares {}, want 1.3125",
+            r.sum2
+        );
+        // The other way round: the simulated list has the tail.
+        let r = residuals(&sim, &real);
+        assert_eq!((r.both, r.only_real, r.only_sim), (3, 1, 5));
+        assert!((r.sum - 0.25).abs() < 1e-12, "{}", r.sum);
+        // Nothing in common.
+        let r = residuals(&cloud(&[(1, 1.0), (2, 1.0)]), &cloud(&[(3, 1.0)]));
+        assert_eq!((r.both, r.only_real, r.only_sim, r.sum), (0, 2, 1, 0.0));
+    }
+
+    /// An object's extent is the diagonal of its points' bounding box; no points, no extent.
+    #[test]
+    fn an_objects_extent_is_its_points_bounding_box_diagonal() {
+        let mut b = InBox::EMPTY;
+        assert_eq!(b.extent(), 0.0);
+        b.add(&Point3::new(1.0, 1.0, 1.0), 5.0);
+        assert_eq!(b.extent(), 0.0, "one point spans nothing");
+        b.add(&Point3::new(4.0, 5.0, 1.0), 7.0);
+        b.add(&Point3::new(2.0, 3.0, 1.0), 6.0);
+        assert!((b.extent() - 5.0).abs() < 1e-12, "{}", b.extent());
+        assert_eq!((b.points, b.range_sum), (3, 18.0));
+    }
+}
