@@ -531,6 +531,33 @@ mod tests {
         assert_eq!(GridScores::mean(&[]), None);
     }
 
+    /// A cell's corner is where its points begin, on a shifted grid too, and the cell size
+    /// is the one asked for.
+    #[test]
+    fn a_cells_corner_is_where_its_points_begin() {
+        let g = GridSpec::new(0.5, Dims::Bev).unwrap().shifted(0.25);
+        assert_eq!(g.cell_m(), 0.5);
+        for q in [p(1.7, -0.9, 4.0), p(-3.1, 12.4, 0.0), p(0.125, 0.125, 0.0)] {
+            let c = g.cell(&q);
+            let [x, y] = g.corner(&c);
+            assert!(
+                (x..x + 0.5).contains(&q.x) && (y..y + 0.5).contains(&q.y),
+                "{q:?} is in cell {c:?}, whose corner is ({x}, {y})"
+            );
+        }
+        assert_eq!(g.corner(&[3, -2, 0]), [1.625, -0.875]);
+    }
+
+    /// Shared keys of two sorted lists, whichever runs out first.
+    #[test]
+    fn shared_counts_common_keys_whichever_list_ends_first() {
+        assert_eq!(shared(&[1, 2], &[2, 3, 4]), 1);
+        assert_eq!(shared(&[2, 3, 4], &[1, 2]), 1);
+        assert_eq!(shared(&[1, 3, 5, 7], &[0, 3, 4, 5, 9]), 2);
+        assert_eq!(shared(&[], &[1]), 0);
+        assert_eq!(shared(&[5, 6], &[5, 6]), 2);
+    }
+
     /// Worked by hand with 1 m cells: real points in cells (0,0), (1,0), (2,0) and (2,1);
     /// simulated in (0,0), (2,0) (two points) and (5,5). Both: 2 of 4 real cells, OCR 1/2;
     /// precision 2/3; IoU 2/5. Counts: real (1,1,1,1), simulated (1,0,2,0) plus (5,5): 1, so

@@ -59,13 +59,12 @@ pub fn object_bounds(scene: &Scene) -> Vec<(String, Bounds)> {
                 height,
                 ..
             } => {
-                for (x, y, z) in [
-                    (-1.0, -1.0, 0.0),
-                    (1.0, 1.0, 1.0),
-                    (-1.0, 1.0, 0.0),
-                    (1.0, -1.0, 1.0),
-                ] {
-                    bounds.grow(&(pose * Point3::new(x * radius, y * radius, z * height)));
+                // All eight corners of the box around the cylinder in its own frame: four of
+                // them (as here once) miss the top of a tilted one.
+                for k in 0..8 {
+                    let s = |bit: i32| if k & (1 << bit) == 0 { -1.0 } else { 1.0 };
+                    let z = if k & 4 == 0 { 0.0 } else { *height };
+                    bounds.grow(&(pose * Point3::new(s(0) * radius, s(1) * radius, z)));
                 }
             }
         }
@@ -290,7 +289,129 @@ impl std::str::FromStr for Region {
 
 #[cfg(test)]
 mod tests {
-    use super::Region;
+    use super::{object_bounds, Bounds, BoxIndex, Region, Roi};
+    use crate::scene::file::SceneFile;
+    use crate::scene::Scene;
+    use nalgebra::Point3;
+    use std::path::Path;
+
+    fn p(x: f64, y: f64, z: f64) -> Point3<f64> {
+        Point3::new(x, y, z)
+    }
+
+    /// An object's bounds hold every point of its surface: a cylinder yawed and tilted, a box
+    /// yawed; and they are tight (the extreme surface points lie on them).
+    #[test]
+    fn object_bounds_hold_every_point_of_a_tilted_cylinder() {
+        let text = r#"
+            name = "bounds"
+            origin = { latitude_deg = 48.0, longitude_deg = 11.0, height_m = 400.0 }
+            [[object]]
+            name = "pole"
+            pose = { x = 10.0, y = -4.0, z = 1.0, yaw_deg = 45.0, pitch_deg = 30.0 }
+            reflectivity = 0.5
+            parts = [ { shape = "cylinder", radius = 0.5, height = 4.0 } ]
+            [[object]]
+            name = "box"
+            pose = { x = -3.0, y = 2.0, yaw_deg = 30.0 }
+            reflectivity = 0.5
+            parts = [ { shape = "box", size = [2.0, 1.0, 1.5] } ]
+        "#;
+        let file: SceneFile = toml::from_str(text).unwrap();
+        let scene = Scene::from_file(file, Path::new("."), Path::new("bounds.toml")).unwrap();
+        let bounds = object_bounds(&scene);
+        assert_eq!(bounds.len(), 2);
+        let (name, pole) = &bounds[0];
+        assert_eq!(name, "pole");
+        // Points on the cylinder's rims and its axis, placed as the scene places it.
+        let pose = scene
+            .statics
+            .primitives()
+            .iter()
+            .find_map(|q| match q {
+                crate::scene::geometry::Primitive::Cylinder { pose, .. } => Some(*pose),
+                _ => None,
+            })
+            .unwrap();
+        let (mut lo, mut hi) = (
+            p(f64::MAX, f64::MAX, f64::MAX),
+            p(f64::MIN, f64::MIN, f64::MIN),
+        );
+        for i in 0..3600 {
+            let a = f64::from(i).to_radians() / 10.0;
+            for z in [0.0, 4.0] {
+                let q = pose * p(0.5 * a.cos(), 0.5 * a.sin(), z);
+                assert!(pole.contains(&q, 1e-9), "{q:?} lies outside {pole:?}");
+                lo = lo.inf(&q);
+                hi = hi.sup(&q);
+            }
+        }
+        // The box around the cylinder's frame is at most r(√2 - 1) wider than the rims.
+        for k in 0..3 {
+            assert!(
+                lo[k] - pole.min[k] < 0.5 * (2f64.sqrt() - 1.0) + 1e-9
+                    && pole.max[k] - hi[k] < 0.5 * (2f64.sqrt() - 1.0) + 1e-9,
+                "axis {k}: bounds {pole:?}, surface {lo:?}..{hi:?}"
+            );
+        }
+        // The yawed box: its corners are exactly the bounds' extremes.
+        let (_, b) = &bounds[1];
+        let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let half_x = 1.0 * c + 0.5 * s;
+        assert!(
+            (b.max.x - (-3.0 + half_x)).abs() < 1e-9 && (b.min.x - (-3.0 - half_x)).abs() < 1e-9,
+            "box bounds {b:?}"
+        );
+        assert!(
+            (b.max.z - 1.5).abs() < 1e-9 && b.min.z.abs() < 1e-9,
+            "{b:?}"
+        );
+        assert_eq!(b.centre(), p(-3.0, 2.0, 0.75));
+    }
+
+    /// The box index finds a point's boxes from any corner of the scene, and nothing for a
+    /// point just beyond its last row and column.
+    #[test]
+    fn the_box_index_finds_boxes_away_from_the_origin_and_nothing_beyond() {
+        let boxes = vec![
+            (
+                "a".to_owned(),
+                Bounds {
+                    min: p(10.0, 20.0, 0.0),
+                    max: p(12.5, 21.5, 1.0),
+                },
+            ),
+            (
+                "b".to_owned(),
+                Bounds {
+                    min: p(12.2, 20.2, 0.0),
+                    max: p(12.4, 20.4, 3.0),
+                },
+            ),
+        ];
+        let index = BoxIndex::new(&boxes, 0.0);
+        assert_eq!(index.near(&p(10.5, 20.5, 0.0)), &[0]);
+        assert_eq!(index.near(&p(12.3, 20.3, 0.0)), &[0, 1]);
+        // 1 m cells from (10, 20): three columns, two rows; (13.2, 21.2) is in the fourth
+        // column of the last row, which does not exist.
+        assert!(index.near(&p(13.2, 21.2, 0.0)).is_empty());
+        assert!(index.near(&p(9.9, 20.5, 0.0)).is_empty());
+        let roi = Roi {
+            region: Region::Object("b".into()),
+            index,
+            boxes,
+            ground_below: Some(0.15),
+            margin: 0.05,
+        };
+        assert!(roi.keeps(&p(12.3, 20.3, 2.0)));
+        assert!(roi.keeps(&p(12.43, 20.3, 2.0)), "within the margin");
+        assert!(!roi.keeps(&p(12.3, 20.3, 0.1)), "ground");
+        assert!(!roi.keeps(&p(10.5, 20.5, 0.5)), "on the other object");
+        assert_eq!(
+            roi.boxes_at(&p(12.3, 20.3, 0.5)).collect::<Vec<_>>(),
+            [0, 1]
+        );
+    }
 
     /// A region reads back from what it writes; `range` is read as `all`; a bare `object:` and
     /// an unknown word are refused.
