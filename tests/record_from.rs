@@ -906,6 +906,15 @@ fn records_every_packet(model: Model, mode: ReturnMode) {
     );
     let rejects = common::recorded_rejects(&out);
     assert!(rejects.is_empty(), "{model} {mode:?}: {rejects:?}");
+    // The position packet says PPS locked (the HDL-32E reports no PPS state): what resim,
+    // compare and gap read back to take the packet stamps for GNSS time.
+    let run = hilrig::reference::run::Run::read(&out).unwrap();
+    assert_eq!(
+        run.lidar_pps_locked(),
+        model != Model::Hdl32e,
+        "{model} {mode:?}: PPS locked as the recording says ({:?})",
+        run.metadata.get("clock_sync/lidar")
+    );
 }
 
 #[test]

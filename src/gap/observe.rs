@@ -191,11 +191,7 @@ pub fn load_run(
         .and_then(|t| t.sampled(10_000_000))
         .ok_or_else(|| input(format!("{}: no RTK+CAN trajectory", path.display())))?;
     let (_, model, _) = rig.lidar_sensor().map_err(input)?;
-    let pps_locked = run
-        .metadata
-        .get("clock_sync/lidar")
-        .and_then(|m| m.get("pps"))
-        .is_some_and(|p| p == "Locked");
+    let pps_locked = run.lidar_pps_locked();
     let (from, to) = part.unwrap_or((0, run.scans.len()));
     let (from, to) = (from.min(run.scans.len()), to.min(run.scans.len()));
     let index = &run.scans[from..to];

@@ -344,12 +344,7 @@ fn compare_twins(
         decoder: &decoder,
         mount: mounting_isometry(&lidar.mounting),
         trajectory: &reference.trajectory,
-        pps_locked: reference
-            .run
-            .metadata
-            .get("clock_sync/lidar")
-            .and_then(|m| m.get("pps"))
-            .is_some_and(|p| p == "Locked"),
+        pps_locked: reference.run.lidar_pps_locked(),
         roi: &roi,
         sensor_frame: opts.sensor_frame,
     };

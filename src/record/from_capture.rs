@@ -823,8 +823,8 @@ pub fn record_from(
             if let Some(b) = pass1_pps {
                 let reports = model != Some(Model::Hdl32e);
                 meta.insert(
-                    "pps".to_owned(),
-                    format!("{:?}", hilrig_velodyne::PpsStatus::from_byte(b, reports)),
+                    crate::bag::topics::PPS_KEY.to_owned(),
+                    crate::bag::topics::pps_text(hilrig_velodyne::PpsStatus::from_byte(b, reports)),
                 );
             }
         }

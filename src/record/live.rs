@@ -351,8 +351,10 @@ pub async fn record_live(
                 if let Some(b) = pps.lock().ok().and_then(|g| *g) {
                     let reports = lidar_model != Some(Model::Hdl32e);
                     meta.insert(
-                        "pps".to_owned(),
-                        format!("{:?}", hilrig_velodyne::PpsStatus::from_byte(b, reports)),
+                        crate::bag::topics::PPS_KEY.to_owned(),
+                        crate::bag::topics::pps_text(hilrig_velodyne::PpsStatus::from_byte(
+                            b, reports,
+                        )),
                     );
                 }
             }

@@ -227,6 +227,16 @@ impl Collector {
 }
 
 impl Run {
+    /// Whether the lidar's packet stamps are GNSS time: the recorder found its PPS locked and
+    /// wrote so into the lidar's clock-sync metadata (in the spelling of
+    /// [`topics::pps_text`]). Without that record the packets' stamps are the host's.
+    pub fn lidar_pps_locked(&self) -> bool {
+        self.metadata
+            .get(topics::CLOCK_SYNC_LIDAR)
+            .and_then(|m| m.get(topics::PPS_KEY))
+            .is_some_and(|p| *p == topics::pps_text(PpsStatus::Locked))
+    }
+
     /// Reads a recording, as a stream: memory grows with its GNSS, CAN and packet-timing
     /// records, not with its lidar data.
     pub fn read(path: &Path) -> Result<Run, RunError> {

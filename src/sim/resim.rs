@@ -168,11 +168,7 @@ pub fn resim_recording(
     let (lidar, sensor, calibration) = rig.lidar_sensor().map_err(input)?;
     let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, model)
         .map_err(|e| input(e.to_string()))?;
-    let pps_locked = run
-        .metadata
-        .get("clock_sync/lidar")
-        .and_then(|m| m.get("pps"))
-        .is_some_and(|p| p == "Locked");
+    let pps_locked = run.lidar_pps_locked();
     let total = run.scans.len() as u64;
     let first_log = run.scans[0].stamp;
     let scans = ScanStream::open(run_path).map_err(|e| input(e.to_string()))?;
