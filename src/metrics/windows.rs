@@ -172,3 +172,144 @@ pub(super) fn refuse_clamping_cell(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::metrics::grid::{smallest_cell_m, GridScores};
+    use crate::scene::pose::PoseSample;
+    use hilrig_stamp::UtcNanos;
+    use nalgebra::Vector3;
+
+    /// A window's grids lie evenly over one cell, a cell apart divided by their number, and
+    /// move on by the golden ratio from window to window.
+    #[test]
+    fn a_windows_grids_are_spread_evenly_over_a_cell() {
+        for n in [1, 2, 4, 5] {
+            for i in 0..50 {
+                let mut v: Vec<f64> = (0..n).map(|j| grid_phase(i, j, n)).collect();
+                v.sort_by(f64::total_cmp);
+                let u = (0.5 + i as f64 * 0.618_033_988_749_894_9).fract();
+                assert!(
+                    (v[0] - u / n as f64).abs() < 1e-12,
+                    "window {i}, {n}: {v:?}"
+                );
+                assert!(v.iter().all(|x| (0.0..1.0).contains(x)), "{v:?}");
+                for w in v.windows(2) {
+                    assert!((w[1] - w[0] - 1.0 / n as f64).abs() < 1e-12, "{v:?}");
+                }
+            }
+        }
+    }
+
+    fn scans(n: usize) -> Vec<Vec<Point3<f64>>> {
+        (0..n)
+            .map(|s| {
+                (0..200)
+                    .map(|i| {
+                        let f = f64::from(i);
+                        Point3::new(5.0 + 0.03 * f, s as f64 + (0.37 * f).sin(), 0.01 * f)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// A window needs K scans: the first K - 1 of the drive have none, and neither has a scan
+    /// whose predecessors are not in the batch; a cloud against itself has an OCR of 1.
+    #[test]
+    fn a_window_needs_k_scans_of_the_drive_and_of_the_batch() {
+        let clouds = scans(4);
+        let refs: Vec<&[Point3<f64>]> = clouds.iter().map(Vec::as_slice).collect();
+        let spec = GridSpec::new(0.2, Dims::Voxel).unwrap();
+        let ocr = |k: usize, first: usize| -> Vec<Option<f64>> {
+            windows(&spec, 2, k, (&refs, &refs), first, 0..4)
+                .iter()
+                .map(|g| g.and_then(|g| g.ocr))
+                .collect()
+        };
+        assert_eq!(ocr(1, 0), [Some(1.0); 4]);
+        assert_eq!(ocr(2, 0), [None, Some(1.0), Some(1.0), Some(1.0)]);
+        assert_eq!(ocr(3, 0), [None, None, Some(1.0), Some(1.0)]);
+        // Scans 10.. of a drive: the batch holds no scan before its first.
+        assert_eq!(ocr(2, 10), [None, Some(1.0), Some(1.0), Some(1.0)]);
+    }
+
+    fn row(ocr: f64) -> ScanRow {
+        ScanRow {
+            t_s: 0.0,
+            stamp_ns: 0,
+            ego_speed_mps: 0.0,
+            objects_in_view: 0,
+            mean_distance_m: None,
+            real_points: 0,
+            sim_points: 0,
+            grid: Some(GridScores {
+                ocr: Some(ocr),
+                precision: None,
+                iou: None,
+                cosine: None,
+                real_cells: 1,
+                sim_cells: 1,
+                both_cells: 1,
+            }),
+            points: None,
+            range_diff_mean_m: None,
+            range_diff_rms_m: None,
+            only_real: 0,
+            only_sim: 0,
+            objects: Vec::new(),
+        }
+    }
+
+    /// The calibration curve: every cell of the list, the chosen and the admissible one among
+    /// them; the chosen cell's point is the rows' mean, the others from the sampled windows
+    /// (a cloud against a copy of itself: 1 at every cell).
+    #[test]
+    fn the_curve_holds_every_cell_and_the_chosen_one_is_the_rows_mean() {
+        let clouds = scans(6);
+        let refs: Vec<&[Point3<f64>]> = clouds.iter().map(Vec::as_slice).collect();
+        let mut curve = CurveSums::new(0.3, 0.25, Dims::Voxel);
+        curve.add((1, 2), (&refs, &refs), 0, &(0..6));
+        let points = curve.points(&[row(0.8), row(0.6)], 0.3, 0.25);
+        let cells: Vec<f64> = points.iter().map(|p| p.cell_m).collect();
+        assert_eq!(
+            cells,
+            [0.05, 0.1, 0.2, 0.25, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0],
+            "the list, the admissible and the chosen cell, in order"
+        );
+        for p in &points {
+            let want = if p.cell_m == 0.3 { 0.7 } else { 1.0 };
+            let got = p.ocr_mean.expect("every cell has a point");
+            assert!((got - want).abs() < 1e-12, "{p:?}, want {want}");
+            assert_eq!(p.admissible, p.cell_m >= 0.25, "{p:?}");
+        }
+        // No sampled window (every 0): only the chosen cell has a point.
+        let mut none = CurveSums::new(0.3, 0.25, Dims::Voxel);
+        none.add((1, 0), (&refs, &refs), 0, &(0..6));
+        let points = none.points(&[row(0.5)], 0.3, 0.25);
+        assert_eq!(points.iter().filter(|p| p.ocr_mean.is_some()).count(), 1);
+    }
+
+    /// The smallest cell `compare` names is accepted, anything below it refused; in the sensor
+    /// frame the reach alone counts.
+    #[test]
+    fn the_smallest_cell_named_is_the_smallest_accepted() {
+        let at = |t: i64, x: f64, y: f64| PoseSample {
+            t: UtcNanos(t),
+            position: Vector3::new(x, y, 3.0),
+            yaw: 0.0,
+            pitch: 0.0,
+            roll: 0.0,
+        };
+        let trajectory = Trajectory::new(vec![at(0, 100.0, 20.0), at(1, 40.0, -250.0)]).unwrap();
+        let smallest = smallest_cell_m(250.0 + SENSOR_REACH_M);
+        assert!(refuse_clamping_cell(smallest, &trajectory, false).is_ok());
+        let below = refuse_clamping_cell(smallest * 0.999, &trajectory, false).unwrap_err();
+        assert!(
+            below.contains(&format!("{smallest:.2e}")) && below.contains("550 m"),
+            "{below}"
+        );
+        assert!(refuse_clamping_cell(smallest * 0.999, &trajectory, true).is_ok());
+    }
+}
