@@ -569,3 +569,105 @@ fn summarise(
         ocr_vs_distance: spearman_with_interval(&trend.1, &trend.0, 2000, 2019),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{summarise, GridScores, Residuals, ScanRow};
+    use crate::metrics::points::PointScores;
+
+    fn row(ocr: f64, precision: f64, distance_m: f64, chamfer_m: f64) -> ScanRow {
+        ScanRow {
+            t_s: 0.0,
+            stamp_ns: 0,
+            ego_speed_mps: 0.0,
+            objects_in_view: 1,
+            mean_distance_m: Some(distance_m),
+            real_points: 0,
+            sim_points: 0,
+            grid: Some(GridScores {
+                ocr: Some(ocr),
+                precision: Some(precision),
+                iou: Some(ocr * precision),
+                cosine: None,
+                real_cells: 1,
+                sim_cells: 1,
+                both_cells: 1,
+            }),
+            points: Some(PointScores {
+                chamfer_m,
+                hausdorff_m: 10.0 * chamfer_m,
+            }),
+            range_diff_mean_m: None,
+            range_diff_rms_m: None,
+            only_real: 0,
+            only_sim: 0,
+            objects: Vec::new(),
+        }
+    }
+
+    /// The drive's summary from rows and residuals whose numbers are known: means and the
+    /// median over the scans, residuals pooled over the firings (not averaged per scan), the
+    /// shares of returns only one side has, and OCR falling with distance.
+    #[test]
+    fn the_summary_of_known_rows() {
+        let rows = [
+            row(0.9, 0.8, 5.0, 0.02),
+            row(0.5, 0.6, 20.0, 0.04),
+            row(0.7, 1.0, 10.0, 0.09),
+            row(0.6, 0.4, 15.0, 0.01),
+        ];
+        let res = [
+            Residuals {
+                sum: 0.3,
+                sum2: 0.05,
+                both: 3,
+                only_real: 4,
+                only_sim: 3,
+            },
+            Residuals {
+                sum: -0.1,
+                sum2: 0.03,
+                both: 2,
+                only_real: 6,
+                only_sim: 2,
+            },
+        ];
+        let s = summarise(&rows, &res, (100, 40), 2);
+        let near = |a: Option<f64>, b: f64, what: &str| {
+            assert!(
+                a.is_some_and(|a| (a - b).abs() < 1e-12),
+                "{what}: {a:?}, want {b}"
+            );
+        };
+        assert_eq!((s.scans, s.unpaired_run_scans), (4, 2));
+        near(s.ocr_mean, 0.675, "OCR mean");
+        near(
+            s.ocr_median,
+            0.7,
+            "OCR median (the upper of the middle two)",
+        );
+        near(s.precision_mean, 0.7, "precision");
+        near(s.chamfer_mean_m, 0.04, "Chamfer");
+        near(s.hausdorff_mean_m, 0.4, "Hausdorff");
+        near(
+            s.range_diff_mean_m,
+            0.04,
+            "mean residual: 0.2 m over 5 firings",
+        );
+        near(s.range_diff_rms_m, (0.08f64 / 5.0).sqrt(), "rms residual");
+        near(s.only_real_share, 0.1, "only measured: 10 of 100 returns");
+        near(s.only_sim_share, 0.125, "only simulated: 5 of 40 returns");
+        let trend = s.ocr_vs_distance.expect("a trend over 4 scans");
+        assert!((trend.rho + 1.0).abs() < 1e-12, "{trend:?}");
+        // Nothing measured: no shares, no residuals.
+        let empty = summarise(&[], &[], (0, 0), 0);
+        assert_eq!(
+            (
+                empty.only_real_share,
+                empty.only_sim_share,
+                empty.range_diff_mean_m
+            ),
+            (None, None, None)
+        );
+    }
+}
