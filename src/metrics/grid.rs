@@ -546,6 +546,10 @@ mod tests {
             );
         }
         assert_eq!(g.corner(&[3, -2, 0]), [1.625, -0.875]);
+        // The same voxels seen from above: every height in one cell, corners where they were.
+        let v = GridSpec::new(0.5, Dims::Voxel).unwrap().shifted(0.25);
+        assert_eq!(v.cell(&p(1.7, -0.9, 4.0)), [3, -3, 7]);
+        assert_eq!(v.in_plane().cell(&p(1.7, -0.9, 4.0)), [3, -3, 0]);
     }
 
     /// Shared keys of two sorted lists, whichever runs out first.
