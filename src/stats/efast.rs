@@ -368,6 +368,11 @@ high = 3.141592653589793
             assert!((got.st - want).abs() < 0.05, "{got:?} vs {want}");
         }
         assert!(s.iter().all(|i| i.s1_conf > 0.0 && i.s1_conf < 0.2));
+        // One bootstrap window has no spread: no half-width rather than a zero one.
+        for i in analyze(&p, &y, 4, 1, 0.95, 1).unwrap() {
+            assert!(i.s1_conf.is_nan() && i.st_conf.is_nan(), "{i:?}");
+            assert!(i.s1.is_finite(), "{i:?}");
+        }
     }
 
     /// numpy's frequencies for a few (N, M, D): ω₀ = ⌊(N−1)/2M⌋, the rest spread or cycled.
