@@ -245,4 +245,30 @@ mod tests {
             fine.sigma_m.unwrap() < 2e-3 && fine.p05_m.unwrap() < 0.0 && fine.p95_m.unwrap() > 0.0
         );
     }
+
+    /// The 5th and 95th percentiles of a bin's residuals are the order statistics at
+    /// (n - 1) p, rounded down: of 40 residuals 0, 1, ..., 39 mm, 1 and 37 mm.
+    #[test]
+    fn a_bins_percentiles_are_its_order_statistics() {
+        let o: Vec<Obs> = (0..40)
+            .rev()
+            .map(|k| obs(30.0 + k as f32 * 0.001, 30.0, true))
+            .collect();
+        let f = vec![
+            Feature {
+                rho: 0.5,
+                cos: 1.0,
+                ..Feature::default()
+            };
+            o.len()
+        ];
+        let t = tables(&[(&o, &f)]);
+        let bin = &t.iter().find(|t| t.feature == "range_m").unwrap().bins[0];
+        assert_eq!(bin.both, 40);
+        let (p05, p95) = (bin.p05_m.unwrap(), bin.p95_m.unwrap());
+        assert!(
+            (p05 - 0.001).abs() < 1e-5 && (p95 - 0.037).abs() < 1e-5,
+            "p05 {p05}, p95 {p95}"
+        );
+    }
 }
