@@ -471,6 +471,100 @@ mod tests {
         assert!((s.terms[3] - want).abs() < 1e-9, "{} vs {want}", s.terms[3]);
     }
 
+    /// At a depth edge the range residual is scored with the held edge scale and the model's
+    /// range noise added in quadrature (both spread it), and the edge's larger outlier share.
+    #[test]
+    fn an_edge_residual_scores_the_edge_scale_with_the_noise_added_in_quadrature() {
+        let edge = Feature {
+            step: 5.0,
+            ..plain()
+        };
+        let noisy = Random {
+            sigma_m: 0.03,
+            ..Random::default()
+        };
+        let s = score1(&[firing(8.1, 8.0)], &[edge], noisy);
+        // Held edge scale 0.05 m, noise 0.03 m: 0.058 m.
+        let sd = (0.05f64 * 0.05 + 0.03 * 0.03).sqrt();
+        let e = f64::from(8.1f32 - 8.0f32);
+        let want = ln_mixture(e, sd, 0.3, 10.0);
+        assert!((s.terms[1] - want).abs() < 1e-9, "{} vs {want}", s.terms[1]);
+    }
+
+    /// A return where the model predicts one, with rain: the range term mixes the target's
+    /// density (weight 1 − w) with the droplets' uniform density over their span (weight w,
+    /// w = the clutter probability where droplets outshine the target: all of it here).
+    #[test]
+    fn clutter_mixes_a_uniform_range_density_into_a_predicted_return() {
+        let c = Clutter {
+            probability: 0.1,
+            min_m: 0.5,
+            max_m: 3.0,
+            reflectivity: 0.05,
+        };
+        let rain = Random {
+            clutter: Some(c),
+            ..Random::default()
+        };
+        // A faint target at 2 m read at 1.5 m: 32 scales off, a droplet echo far likelier.
+        let o = Obs {
+            power: 1e-9,
+            ..firing(1.5, 2.0)
+        };
+        let s = score1(&[o], &[plain()], rain);
+        let target = ln_mixture(-0.5, 1.0 / 64.0, 0.02, 10.0).exp();
+        let want = (0.9 * target + 0.1 / 2.5).ln();
+        assert!((s.terms[1] - want).abs() < 1e-9, "{} vs {want}", s.terms[1]);
+    }
+
+    /// The residual scales of a run: range residuals split at depth edges; intensity from the
+    /// diffuse returns only (a retro-reflector's byte says nothing of the diffuse scale).
+    #[test]
+    fn scales_come_from_the_plain_and_edge_residuals_and_the_diffuse_intensities() {
+        let (mut obs, mut feat) = (Vec::new(), Vec::new());
+        for k in 0..200 {
+            let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+            // Plain: ±2 cm, intensity 50 ± 4 where 0.5 reads 50.
+            obs.push(Obs {
+                intensity: (50.0 + 4.0 * sign) as u8,
+                reflectivity: 0.5,
+                ..firing(10.0 + 0.02 * sign, 10.0)
+            });
+            feat.push(plain());
+            // Edge: ±20 cm.
+            obs.push(firing(10.0 + 0.2 * sign, 10.0));
+            feat.push(Feature {
+                step: 5.0,
+                ..plain()
+            });
+            // A retro-reflector: byte 100 where "reflectivity" 3 would read 300.
+            obs.push(Obs {
+                intensity: 100,
+                reflectivity: 3.0,
+                ..firing(10.0 + 0.02 * sign, 10.0)
+            });
+            feat.push(plain());
+        }
+        // One firing at the centre of each (an odd count: one median).
+        obs.push(Obs {
+            intensity: 50,
+            reflectivity: 0.5,
+            ..firing(10.0, 10.0)
+        });
+        feat.push(plain());
+        obs.push(firing(10.0, 10.0));
+        feat.push(Feature {
+            step: 5.0,
+            ..plain()
+        });
+        let s = scales(&obs, &feat);
+        // Median absolute deviation × 1.4826: the plain residuals are ±2 cm, the edge ones
+        // ±20 cm, the diffuse intensities ±4 counts (the retro-reflector's -200 counts left out).
+        assert!((s.plain - 0.02 * 1.4826).abs() < 1e-6, "{s:?}");
+        assert!((s.edge - 0.2 * 1.4826).abs() < 1e-5, "{s:?}");
+        assert!((s.intensity - 4.0 * 1.4826).abs() < 1e-9, "{s:?}");
+    }
+
     #[test]
     fn clutter_adds_returns_where_nothing_is_predicted() {
         let c = Clutter {
