@@ -303,6 +303,64 @@ mod tests {
         }
     }
 
+    /// Neighbour differences: each plain firing with both returns against its named
+    /// neighbour, if that one has both returns and is not at an edge; with the firing's scan.
+    #[test]
+    fn differences_pair_each_firing_with_its_named_neighbour() {
+        let at = |scan: u32, neighbour: u32| Feature {
+            scan,
+            neighbour,
+            ..plain()
+        };
+        let obs = [
+            firing(8.01, 8.0),     // 0: residual +1 cm
+            firing(7.98, 8.0),     // 1: −2 cm, neighbour 0
+            firing(f32::NAN, 8.0), // 2: no return
+            firing(8.05, 8.0),     // 3: neighbour 2 has no return
+            firing(9.0, 8.5),      // 4: an edge, neighbour 0
+            firing(8.03, 8.0),     // 5: neighbour 4 is an edge
+            firing(8.02, 8.0),     // 6: neighbour out of range
+            firing(8.0, 8.0),      // 7: 0, neighbour 1
+        ];
+        let feat = [
+            at(0, u32::MAX),
+            at(1, 0),
+            at(1, 0),
+            at(1, 2),
+            Feature {
+                step: 5.0,
+                ..at(1, 0)
+            },
+            at(2, 4),
+            at(2, 99),
+            at(3, 1),
+        ];
+        let d = differences(&obs, &feat);
+        let r = |i: usize| f64::from(obs[i].measured - obs[i].predicted);
+        assert_eq!(d, [(1, r(1) - r(0)), (3, r(7) - r(1))], "{d:?}");
+    }
+
+    /// The noise from the differences' robust spread s: Var = 2 (σ² + q²/12) + τ², so
+    /// σ² = s²/2 − q²/12 − τ²/2; below zero, no noise.
+    #[test]
+    fn the_noise_of_the_differences_in_closed_form() {
+        // 100 differences of +3 cm, 100 of −3 cm and one of 0: s = 1.4826 × 3 cm.
+        let mut d = vec![0.03; 100];
+        d.extend([-0.03; 100]);
+        d.push(0.0);
+        let s = 1.4826 * 0.03;
+        let q: f64 = 0.004;
+        let want = (s * s / 2.0 - q * q / 12.0 - TAU_M * TAU_M / 2.0).sqrt();
+        let got = noise_from_differences(&d, q).unwrap();
+        assert!((got - want).abs() < 1e-12, "{got} vs {want}");
+        // Differences no wider than the quantum and the surface explain: no noise.
+        assert_eq!(
+            noise_from_differences(&[0.0005, -0.0005, 0.0], 0.004),
+            Some(0.0)
+        );
+        assert_eq!(noise_from_differences(&[], 0.004), None);
+    }
+
     #[test]
     fn clutter_wins_only_where_it_outshines_the_target() {
         let c = Clutter {
