@@ -455,3 +455,64 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
         });
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::deterministic;
+    use crate::sim::model::{Effect, ModelFile};
+
+    /// What the model predicts for a firing: every effect but its random parts, which the
+    /// likelihood adds analytically (noise and dropout gone, intensity noise and clutter 0).
+    #[test]
+    fn the_deterministic_model_keeps_every_effect_but_the_random_parts() {
+        let model: ModelFile = toml::from_str(
+            r#"
+            name = "all"
+            [[effect]]
+            name = "range_noise"
+            sigma_m = 0.02
+            [[effect]]
+            name = "range_bias"
+            bias_m = 0.03
+            [[effect]]
+            name = "random_dropout"
+            probability = 0.05
+            [[effect]]
+            name = "detection_threshold"
+            reference_range_m = 80.0
+            reference_reflectivity = 0.3
+            [[effect]]
+            name = "intensity"
+            incidence_exponent = 1.5
+            noise_sigma = 4.0
+            [[effect]]
+            name = "weather"
+            extinction_per_m = 0.004
+            clutter_probability = 0.02
+            "#,
+        )
+        .unwrap();
+        model.validate().unwrap();
+        let d = deterministic(&model);
+        let names: Vec<&str> = d.effects.iter().map(Effect::name).collect();
+        assert_eq!(
+            names,
+            ["range_bias", "detection_threshold", "intensity", "weather"]
+        );
+        for e in &d.effects {
+            match e {
+                Effect::Intensity {
+                    incidence_exponent,
+                    noise_sigma,
+                } => assert_eq!((*incidence_exponent, *noise_sigma), (1.5, 0.0)),
+                Effect::Weather {
+                    extinction_per_m,
+                    clutter_probability,
+                    ..
+                } => assert_eq!((*extinction_per_m, *clutter_probability), (0.004, 0.0)),
+                _ => {}
+            }
+        }
+        assert_eq!(d.name, model.name);
+    }
+}
