@@ -399,6 +399,90 @@ mod tests {
         }
     }
 
+    /// Three significant digits of a fitted value, the interval to the same decimals; the
+    /// threshold's reference reflectivity (fixed, not fitted) left out.
+    #[test]
+    fn fitted_values_are_printed_to_three_significant_digits() {
+        let mut c = candidate("range_noise", 0.0, 1.0, true);
+        c.params = vec![
+            Param {
+                name: "sigma_m",
+                value: 0.012_345,
+                interval: Some((0.011_94, 0.012_71)),
+            },
+            Param {
+                name: "reference_range_m",
+                value: 57.91,
+                interval: None,
+            },
+            Param {
+                name: "reference_reflectivity",
+                value: 0.3,
+                interval: None,
+            },
+            Param {
+                name: "probability",
+                value: 0.0,
+                interval: None,
+            },
+            Param {
+                name: "bias_m",
+                value: -1234.5,
+                interval: None,
+            },
+        ];
+        assert_eq!(
+            params_text(&c),
+            "sigma_m = 0.0123 [0.0119, 0.0127], reference_range_m = 57.9, probability = 0.00, bias_m = -1234"
+        );
+    }
+
+    /// Per-firing statistics over the runs: shares of the cast firings, the log-likelihood
+    /// per 1000 cast firings; a firing the model did not cast counts nowhere.
+    #[test]
+    fn firing_stats_count_only_cast_firings() {
+        let o = |measured: f32, predicted: f32, cast: bool| Obs {
+            measured,
+            intensity: 255,
+            predicted,
+            power: 1.0,
+            reflectivity: f32::NAN,
+            cast,
+        };
+        let obs = vec![
+            vec![
+                o(8.02, 8.0, true),
+                o(f32::NAN, 8.0, true),
+                o(9.0, f32::NAN, true),
+                o(5.0, f32::NAN, false),
+            ],
+            vec![o(7.99, 8.0, true), o(6.0, f32::NAN, true)],
+        ];
+        let feats: Vec<Vec<Feature>> = obs
+            .iter()
+            .map(|r| vec![Feature::default(); r.len()])
+            .collect();
+        let scored = [
+            Scored {
+                per_scan: vec![-3.0, -2.0],
+                ..Scored::default()
+            },
+            Scored {
+                per_scan: vec![-5.0],
+                ..Scored::default()
+            },
+        ];
+        let s = firing_stats(&obs, &feats, &scored);
+        // 5 cast firings: 4 measured a return, 3 were predicted one.
+        assert_eq!((s.measured_share, s.predicted_share), (0.8, 0.6), "{s:?}");
+        assert!((s.log_likelihood_per_1000 + 2000.0).abs() < 1e-9, "{s:?}");
+        let median = s.residual_median_m.unwrap();
+        assert!(
+            [0.02f64, -0.01].iter().any(|r| (median - r).abs() < 1e-6),
+            "{s:?}"
+        );
+    }
+
     #[test]
     fn an_effect_as_good_as_the_chosen_one_is_named_as_confounded() {
         // Gains 45 000 [9 000, 90 000] and 44 800 [20 000, 70 000]: each inside the other's.
