@@ -231,7 +231,30 @@ fn widened(value: f64, (lo, hi): Interval, sigma: f64) -> Interval {
 
 #[cfg(test)]
 mod tests {
-    use super::widened;
+    use super::{irls, widened, Row};
+
+    /// The robust fit of a line e = 2 + 3 x through points with 1 cm scatter and one gross
+    /// outlier: Huber's weights leave the outlier little say, and a block counted zero times
+    /// (left out of this bootstrap resample) none.
+    #[test]
+    fn irls_fits_a_line_through_an_outlier_and_skips_uncounted_blocks() {
+        let mut rows: Vec<Row> = (0..40)
+            .map(|i| {
+                let x = f64::from(i) * 0.1;
+                let scatter = if i % 2 == 0 { 0.01 } else { -0.01 };
+                (0, vec![1.0, x], 2.0 + 3.0 * x + scatter)
+            })
+            .collect();
+        rows.push((0, vec![1.0, 2.0], 50.0));
+        // A block of wrong rows that the resample does not count.
+        rows.extend((0..40).map(|i| (1, vec![1.0, f64::from(i)], -100.0)));
+        let fit = irls(&rows, 0.01, &[1, 0]).unwrap();
+        assert!(
+            (fit[0] - 2.0).abs() < 0.02 && (fit[1] - 3.0).abs() < 0.01,
+            "{fit:?}"
+        );
+        assert_eq!(irls(&[], 0.01, &[1]), None);
+    }
 
     #[test]
     fn the_reference_widens_each_side_in_quadrature() {
