@@ -204,3 +204,38 @@ impl Study {
         Ok(scenes)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Study;
+    use std::path::{Path, PathBuf};
+
+    /// Several runs need one of each role; a single run is split in time instead.
+    #[test]
+    fn several_runs_need_a_run_of_each_role() {
+        let model = Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/fixtures/parking/idealized.toml"
+        ));
+        let scene = Path::new("scene.toml");
+        let (a, b) = (PathBuf::from("a.mcap"), PathBuf::from("b.mcap"));
+        let only_fit = Study::from_lists(&[a.clone(), b.clone()], &[], scene, model, None)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(
+            only_fit.contains("no run has role \"validate\""),
+            "{only_fit}"
+        );
+        let only_validate = Study::from_lists(&[], &[a.clone(), b.clone()], scene, model, None)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(
+            only_validate.contains("no run has role \"fit\""),
+            "{only_validate}"
+        );
+        assert!(Study::from_lists(&[a.clone()], &[b], scene, model, None).is_ok());
+        assert!(Study::from_lists(&[a], &[], scene, model, None).is_ok());
+    }
+}
