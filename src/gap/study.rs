@@ -235,7 +235,7 @@ mod tests {
             only_validate.contains("no run has role \"fit\""),
             "{only_validate}"
         );
-        assert!(Study::from_lists(&[a.clone()], &[b], scene, model, None).is_ok());
+        assert!(Study::from_lists(std::slice::from_ref(&a), &[b], scene, model, None).is_ok());
         assert!(Study::from_lists(&[a], &[], scene, model, None).is_ok());
     }
 }
