@@ -242,12 +242,28 @@ pub fn found_only(out: &Outcome, first: &str, hidden: &[&str]) -> Vec<(String, s
         "{}",
         out.stdout
     );
-    for (i, (name, _)) in f.iter().enumerate() {
+    for (i, (name, params)) in f.iter().enumerate() {
         assert!(
             hidden.contains(&name.as_str()) && !f[..i].iter().any(|x| &x.0 == name),
             "{name} added, hidden were {hidden:?}:\n{}",
             out.stdout
         );
+        // A re-fitted parameter ("detection_threshold.reference_range_m (re-fitted)") belongs
+        // to an effect added before: re-fitting must not bring in an effect of its own.
+        for p in params.as_array().into_iter().flatten() {
+            let Some(refit) = p["name"]
+                .as_str()
+                .and_then(|n| n.strip_suffix(" (re-fitted)"))
+            else {
+                continue;
+            };
+            let effect = refit.split('.').next().unwrap_or_default();
+            assert!(
+                f[..i].iter().any(|x| x.0 == effect),
+                "{name} re-fitted {refit}, an effect not in the model:\n{}",
+                out.stdout
+            );
+        }
     }
     f
 }
