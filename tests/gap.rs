@@ -186,6 +186,9 @@ fn hidden_rain_is_fitted_with_its_clutter_and_the_threshold_refitted() {
     let p = param(&f[0].1, "clutter_probability");
     assert!((alpha - 0.012).abs() < 0.2 * 0.012, "extinction {alpha}");
     assert!((p - 0.02).abs() < 0.2 * 0.02, "clutter {p}");
+    // The droplets' span: uniform from the blind zone to the model's default 3 m.
+    let reach = param(&f[0].1, "clutter_max_range_m");
+    assert!((reach - 3.0).abs() < 0.1 * 3.0, "clutter reach {reach} m");
     validation_improved(&report, &["avm:returns_per_scan"]);
 }
 
