@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{hilrig_bin, interop_script};
+use common::{hilrig_bin, hilrig_ok, interop_script};
 use serde_json::Value;
 use std::process::Command;
 
@@ -23,17 +23,18 @@ fn ishigami(noise: f64, resamples: usize) -> Vec<(Value, Value)> {
     let dir = tempfile::tempdir().unwrap();
     let params = dir.path().join("ishigami.toml");
     std::fs::write(&params, PARAMS).unwrap();
-    let out = Command::new(hilrig_bin())
-        .args(["efast", "sample", "--params"])
-        .arg(&params)
-        .args(["-N", "1000", "-M", "4", "--seed", "5"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = hilrig_ok(&[
+        "efast".as_ref(),
+        "sample".as_ref(),
+        "--params".as_ref(),
+        params.as_os_str(),
+        "-N".as_ref(),
+        "1000".as_ref(),
+        "-M".as_ref(),
+        "4".as_ref(),
+        "--seed".as_ref(),
+        "5".as_ref(),
+    ]);
     let text = String::from_utf8(out.stdout).unwrap();
     let samples = dir.path().join("x.csv");
     std::fs::write(&samples, &text).unwrap();
@@ -58,20 +59,18 @@ fn ishigami(noise: f64, resamples: usize) -> Vec<(Value, Value)> {
     std::fs::write(&outputs, format!("y\n{}\n", body.join("\n"))).unwrap();
     let json = dir.path().join("si.json");
     let resamples = resamples.to_string();
-    let out = Command::new(hilrig_bin())
-        .args(["efast", "analyze", "--params"])
-        .arg(&params)
-        .arg(&samples)
-        .arg(&outputs)
-        .args(["--resamples", &resamples, "--json"])
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    hilrig_ok(&[
+        "efast".as_ref(),
+        "analyze".as_ref(),
+        "--params".as_ref(),
+        params.as_os_str(),
+        samples.as_os_str(),
+        outputs.as_os_str(),
+        "--resamples".as_ref(),
+        resamples.as_ref(),
+        "--json".as_ref(),
+        json.as_os_str(),
+    ]);
     let ours: Vec<Value> = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let stdout = interop_script(
         "salib_fast.py",

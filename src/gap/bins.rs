@@ -191,6 +191,18 @@ mod tests {
         }
     }
 
+    /// `n` firings on a mid-grey surface seen head-on.
+    fn plain_features(n: usize) -> Vec<Feature> {
+        vec![
+            Feature {
+                rho: 0.5,
+                cos: 1.0,
+                ..Feature::default()
+            };
+            n
+        ]
+    }
+
     /// Three range bins whose disagreement is known by construction: one where the sensor
     /// reads 5 cm farther than the model on every firing, one where it loses every tenth
     /// return, one that agrees to the millimetre; firings the model did not cast count nowhere.
@@ -214,14 +226,7 @@ mod tests {
         for _ in 0..100 {
             o.push(obs(f32::NAN, 15.0, false));
         }
-        let f = vec![
-            Feature {
-                rho: 0.5,
-                cos: 1.0,
-                ..Feature::default()
-            };
-            o.len()
-        ];
+        let f = plain_features(o.len());
         let t = tables(&[(&o, &f)]);
         let range = t.iter().find(|t| t.feature == "range_m").unwrap();
         let bin = |from: f64| range.bins.iter().find(|b| b.from == from).unwrap();
@@ -254,14 +259,7 @@ mod tests {
             .rev()
             .map(|k| obs(30.0 + k as f32 * 0.001, 30.0, true))
             .collect();
-        let f = vec![
-            Feature {
-                rho: 0.5,
-                cos: 1.0,
-                ..Feature::default()
-            };
-            o.len()
-        ];
+        let f = plain_features(o.len());
         let t = tables(&[(&o, &f)]);
         let bin = &t.iter().find(|t| t.feature == "range_m").unwrap().bins[0];
         assert_eq!(bin.both, 40);

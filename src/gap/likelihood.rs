@@ -361,14 +361,17 @@ mod tests {
         assert_eq!(noise_from_differences(&[], 0.004), None);
     }
 
+    /// Droplet echoes in 10 % of the firings, from 0.5 to 3 m, of a 5 % target's brightness.
+    const DRIZZLE: Clutter = Clutter {
+        probability: 0.1,
+        min_m: 0.5,
+        max_m: 3.0,
+        reflectivity: 0.05,
+    };
+
     #[test]
     fn clutter_wins_only_where_it_outshines_the_target() {
-        let c = Clutter {
-            probability: 0.1,
-            min_m: 0.5,
-            max_m: 3.0,
-            reflectivity: 0.05,
-        };
+        let c = DRIZZLE;
         assert_eq!(c.wins(None), 1.0);
         // A bright close target (power 1): no droplet between 0.5 and 3 m outshines it.
         assert_eq!(c.wins(Some(1.0)), 0.0);
@@ -554,12 +557,7 @@ mod tests {
     /// w = the clutter probability where droplets outshine the target: all of it here).
     #[test]
     fn clutter_mixes_a_uniform_range_density_into_a_predicted_return() {
-        let c = Clutter {
-            probability: 0.1,
-            min_m: 0.5,
-            max_m: 3.0,
-            reflectivity: 0.05,
-        };
+        let c = DRIZZLE;
         let rain = Random {
             clutter: Some(c),
             ..Random::default()
@@ -625,12 +623,7 @@ mod tests {
 
     #[test]
     fn clutter_adds_returns_where_nothing_is_predicted() {
-        let c = Clutter {
-            probability: 0.1,
-            min_m: 0.5,
-            max_m: 3.0,
-            reflectivity: 0.05,
-        };
+        let c = DRIZZLE;
         let rain = Random {
             clutter: Some(c),
             ..Random::default()

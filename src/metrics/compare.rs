@@ -577,13 +577,8 @@ mod tests {
 
     fn row(ocr: f64, precision: f64, distance_m: f64, chamfer_m: f64) -> ScanRow {
         ScanRow {
-            t_s: 0.0,
-            stamp_ns: 0,
-            ego_speed_mps: 0.0,
             objects_in_view: 1,
             mean_distance_m: Some(distance_m),
-            real_points: 0,
-            sim_points: 0,
             grid: Some(GridScores {
                 ocr: Some(ocr),
                 precision: Some(precision),
@@ -597,11 +592,7 @@ mod tests {
                 chamfer_m,
                 hausdorff_m: 10.0 * chamfer_m,
             }),
-            range_diff_mean_m: None,
-            range_diff_rms_m: None,
-            only_real: 0,
-            only_sim: 0,
-            objects: Vec::new(),
+            ..ScanRow::default()
         }
     }
 

@@ -54,7 +54,7 @@ pub struct Snapshot {
 pub const SNAPSHOT_POINTS: usize = 5000;
 
 /// One scan pair.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ScanRow {
     /// Seconds after the first paired scan.
     pub t_s: f64,

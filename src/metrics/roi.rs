@@ -59,12 +59,10 @@ pub fn object_bounds(scene: &Scene) -> Vec<(String, Bounds)> {
                 height,
                 ..
             } => {
-                // All eight corners of the box around the cylinder in its own frame: four of
-                // them (as here once) miss the top of a tilted one.
-                for k in 0..8 {
-                    let s = |bit: i32| if k & (1 << bit) == 0 { -1.0 } else { 1.0 };
-                    let z = if k & 4 == 0 { 0.0 } else { *height };
-                    bounds.grow(&(pose * Point3::new(s(0) * radius, s(1) * radius, z)));
+                // The box the BVH bounds it by (four of its corners, as here once, miss the
+                // rims of a tilted cylinder).
+                for p in crate::scene::geometry::cylinder_box(pose, *radius, *height) {
+                    bounds.grow(&p);
                 }
             }
         }

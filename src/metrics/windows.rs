@@ -237,13 +237,6 @@ mod tests {
 
     fn row(ocr: f64) -> ScanRow {
         ScanRow {
-            t_s: 0.0,
-            stamp_ns: 0,
-            ego_speed_mps: 0.0,
-            objects_in_view: 0,
-            mean_distance_m: None,
-            real_points: 0,
-            sim_points: 0,
             grid: Some(GridScores {
                 ocr: Some(ocr),
                 precision: None,
@@ -253,12 +246,7 @@ mod tests {
                 sim_cells: 1,
                 both_cells: 1,
             }),
-            points: None,
-            range_diff_mean_m: None,
-            range_diff_rms_m: None,
-            only_real: 0,
-            only_sim: 0,
-            objects: Vec::new(),
+            ..ScanRow::default()
         }
     }
 

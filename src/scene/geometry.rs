@@ -213,6 +213,17 @@ fn v3a(p: &Point3<f64>) -> Vec3A {
     Vec3A::new(p.x as f32, p.y as f32, p.z as f32)
 }
 
+/// The eight corners of the box around a capped cylinder (axis along z of `pose`, base centre
+/// at its origin), in the frame `pose` maps to: their bounds hold the cylinder however it is
+/// turned (four corners miss the rims of a tilted one).
+pub fn cylinder_box(pose: &Isometry3<f64>, radius: f64, height: f64) -> [Point3<f64>; 8] {
+    std::array::from_fn(|k| {
+        let s = |bit: usize| if k & (1 << bit) == 0 { -radius } else { radius };
+        let z = if k & 4 == 0 { 0.0 } else { height };
+        pose.transform_point(&Point3::new(s(0), s(1), z))
+    })
+}
+
 impl Boundable for Primitive {
     fn aabb(&self) -> Aabb {
         let mut b = Aabb::empty();
@@ -228,14 +239,8 @@ impl Boundable for Primitive {
                 height,
                 ..
             } => {
-                for &(x, y) in &[(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)] {
-                    for z in [0.0, *height] {
-                        b.extend(v3a(&pose.transform_point(&Point3::new(
-                            x * radius,
-                            y * radius,
-                            z,
-                        ))));
-                    }
+                for p in cylinder_box(pose, *radius, *height) {
+                    b.extend(v3a(&p));
                 }
             }
         }
