@@ -26,6 +26,18 @@ use std::path::{Path, PathBuf};
 /// Firing slots per packet: blocks × channels.
 pub const SLOTS: usize = BLOCKS * CHANNELS;
 
+/// The slot of a firing within its packet's [`SLOTS`]: observations and features are paired
+/// by it, so both are written through this one function.
+fn slot(block: u8, channel: u8) -> usize {
+    usize::from(block) * CHANNELS + usize::from(channel)
+}
+
+/// The index of a slot of the `sample`-th sampled packet among all the run's slots (a
+/// feature's `neighbour`).
+fn slot_index(sample: usize, slot: u32) -> u32 {
+    (sample * SLOTS) as u32 + slot
+}
+
 /// "No return" in the f32 columns.
 pub const NONE: f32 = f32::NAN;
 
@@ -155,6 +167,12 @@ impl Feature {
 /// the catalogue (VLP-16: 3.0 × 1.5 mrad full angle).
 const PROBE_RAD: f64 = 2.5e-3;
 
+/// Whether a mark's window touches a part of a run (both closed intervals): a mark that
+/// begins before the part and reaches into it leaves the part's first scans out.
+fn overlaps(window: (UtcNanos, UtcNanos), part: (UtcNanos, UtcNanos)) -> bool {
+    window.0 <= part.1 && part.0 <= window.1
+}
+
 /// Loads a run: checks its reference data (refusing a run that fails unless `force`), smooths
 /// its trajectory and samples about `firings` firings from the scans in `part` (all when
 /// `None`).
@@ -207,7 +225,7 @@ pub fn load_run(
     let marked: Vec<Fault> = report
         .marks
         .iter()
-        .filter(|m| m.window().0 <= part_to && part_from <= m.window().1)
+        .filter(|m| overlaps(m.window(), (part_from, part_to)))
         .cloned()
         .collect();
     let total: usize = index.iter().map(|s| s.packets as usize).sum();
@@ -349,7 +367,7 @@ pub fn evaluate(run: &RunData, model: &ModelFile) -> Result<Vec<Obs>, GapError> 
                 i as u64,
                 &mut stats,
                 &mut |f: &Firing| {
-                    let slot = usize::from(f.block) * CHANNELS + usize::from(f.channel);
+                    let slot = slot(f.block, f.channel);
                     let ch = s.packet.blocks[usize::from(f.block)].channels[usize::from(f.channel)];
                     let o = &mut slots[slot];
                     o.cast = true;
@@ -392,7 +410,7 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                 i as u64,
                 &mut stats,
                 &mut |f: &Firing| {
-                    let slot = usize::from(f.block) * CHANNELS + usize::from(f.channel);
+                    let slot = slot(f.block, f.channel);
                     let d = f.direction;
                     let centre = scene.cast(&f.origin, &d, 0.0, max, &actors);
                     // Probe rays across (u) and along elevation (w).
@@ -426,7 +444,7 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                     };
                     let neighbour = last_of_laser
                         .insert(f.laser, slot as u32)
-                        .map_or(u32::MAX, |p| (i * SLOTS) as u32 + p);
+                        .map_or(u32::MAX, |p| slot_index(i, p));
                     slots[slot] = Feature {
                         scan: s.scan,
                         laser: f.laser,
@@ -458,8 +476,46 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
 
 #[cfg(test)]
 mod tests {
-    use super::deterministic;
+    use super::{deterministic, overlaps, slot, slot_index, SLOTS};
     use crate::sim::model::{Effect, ModelFile};
+    use hilrig_stamp::UtcNanos;
+    use hilrig_velodyne::packet::{BLOCKS, CHANNELS};
+
+    #[test]
+    fn every_firing_of_a_run_has_a_slot_of_its_own() {
+        let mut seen = vec![0u32; 3 * SLOTS];
+        for sample in 0..3 {
+            for block in 0..BLOCKS as u8 {
+                for channel in 0..CHANNELS as u8 {
+                    let s = slot(block, channel);
+                    assert!(s < SLOTS, "block {block} channel {channel}: slot {s}");
+                    seen[slot_index(sample, s as u32) as usize] += 1;
+                }
+            }
+        }
+        assert!(seen.iter().all(|&n| n == 1), "{seen:?}");
+    }
+
+    #[test]
+    fn a_mark_belongs_to_every_part_it_touches() {
+        let w = |a: i64, b: i64| (UtcNanos(a), UtcNanos(b));
+        let part = w(10, 20);
+        // Inside, across either end, around it, and touching an end.
+        for m in [
+            w(12, 15),
+            w(5, 12),
+            w(18, 25),
+            w(0, 30),
+            w(20, 22),
+            w(3, 10),
+        ] {
+            assert!(overlaps(m, part), "{m:?}");
+        }
+        // Wholly before or after.
+        for m in [w(0, 9), w(21, 30)] {
+            assert!(!overlaps(m, part), "{m:?}");
+        }
+    }
 
     /// What the model predicts for a firing: every effect but its random parts, which the
     /// likelihood adds analytically (noise and dropout gone, intensity noise and clutter 0).

@@ -48,6 +48,19 @@ fn intensity_noise(rows: &[(f64, f64)]) -> f64 {
     (s * s - 1.0 / 12.0).max(0.0).sqrt()
 }
 
+/// Whether a divergence candidate re-fits the model's detection threshold. Beam divergence
+/// spreads the power over the footprint, so a threshold of the current model is re-fitted at
+/// every grid point (cast without it, the threshold swept on the result and applied: exact for
+/// the strongest echo, which is below the threshold only when every echo is). A model without
+/// a threshold gets none (re-fitting must not bring an effect in unnamed), and a model with
+/// weather keeps its own: the extinction was fitted with that threshold.
+fn refits_threshold(effects: &[Effect]) -> bool {
+    effects
+        .iter()
+        .any(|e| matches!(e, Effect::DetectionThreshold { .. }))
+        && !effects.iter().any(|e| matches!(e, Effect::Weather { .. }))
+}
+
 impl Fitting<'_> {
     pub(super) fn divergence(&self) -> Result<Candidate, GapError> {
         let make = |h: f64, v: f64, n: u32| Effect::BeamDivergence {
@@ -58,21 +71,7 @@ impl Fitting<'_> {
         };
         // (horizontal, vertical, sub-rays, log-likelihood, scores)
         let mut grid: Vec<(f64, f64, u32, f64, Vec<Scored>)> = Vec::new();
-        // Beam divergence spreads the power over the footprint, so a detection threshold of
-        // the current model is re-fitted at every grid point (cast without it, the threshold
-        // swept on the result and applied: exact for the strongest echo, which is below the
-        // threshold only when every echo is).
-        // (Not with weather in the model: its extinction needs the threshold.)
-        let threshold = self
-            .current
-            .effects
-            .iter()
-            .any(|e| matches!(e, Effect::DetectionThreshold { .. }))
-            && !self
-                .current
-                .effects
-                .iter()
-                .any(|e| matches!(e, Effect::Weather { .. }));
+        let threshold = refits_threshold(&self.current.effects);
         let mut base = self.current.clone();
         if threshold {
             base.effects
@@ -329,6 +328,26 @@ mod tests {
             })
             .filter(|(m, _)| *m <= 100.0)
             .collect()
+    }
+
+    #[test]
+    fn the_threshold_is_re_fitted_only_when_the_model_has_one_and_no_weather() {
+        let threshold = Effect::DetectionThreshold {
+            reference_range_m: 35.0,
+            reference_reflectivity: 0.1,
+        };
+        let weather = Effect::Weather {
+            extinction_per_m: 0.01,
+            clutter_probability: 0.0,
+            clutter_max_range_m: 3.0,
+            clutter_reflectivity: 0.05,
+        };
+        let bias = Effect::RangeBias { bias_m: 0.01 };
+        assert!(!refits_threshold(&[]));
+        assert!(!refits_threshold(std::slice::from_ref(&bias)));
+        assert!(refits_threshold(&[bias.clone(), threshold.clone()]));
+        assert!(!refits_threshold(&[threshold.clone(), weather.clone()]));
+        assert!(!refits_threshold(&[weather, bias]));
     }
 
     #[test]

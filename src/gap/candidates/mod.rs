@@ -583,7 +583,14 @@ mod tests {
             .collect();
         rows[10].2 = true;
         rows[700].2 = false;
+        // Out of order, with rows no power can be read for (no surface hit: NaN; behind the
+        // sensor: 0), which the sweep must not count as missed returns below every threshold.
+        rows.reverse();
+        rows.push((0, f64::NAN, false));
+        rows.push((0, 0.0, false));
+        rows.swap(3, 500);
         sort_rows(&mut rows);
+        assert_eq!(rows.len(), 1000);
         let k = sweep(&rows, 1.0, &|_| 1.0);
         let p = power_at(&rows, k).unwrap();
         assert!((p - 299.5e-6).abs() < 1e-6, "{p}");
