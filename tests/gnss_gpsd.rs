@@ -261,11 +261,201 @@ fn serial_interface_of_a_pcapng_capture_gives_the_same_fixes() {
     }
     let capture = w.finish().unwrap();
     let mut from_capture = Vec::new();
-    let summary = hilrig::decode::gnss::decode_gnss(std::io::Cursor::new(capture), &mut |f| {
-        from_capture.push(f.clone());
+    let summary = hilrig::decode::gnss::decode_gnss(std::io::Cursor::new(capture), &mut |r| {
+        if let hilrig::decode::gnss::GnssReport::Fix(f) = r {
+            from_capture.push(f.clone());
+        }
         Ok(())
     })
     .unwrap();
     assert_eq!(summary.interfaces, vec!["/dev/ttyACM0".to_string()]);
     assert_eq!(from_capture, decode(&log, 4096));
+}
+
+/// `hilrig decode --kind gnss LOG --format jsonl`: its attitude records (`"kind":
+/// "attitude"`), in order, and the summary on stderr.
+fn attitude_records(log: &std::path::Path) -> (Vec<serde_json::Value>, String) {
+    let out = std::process::Command::new(common::hilrig_bin())
+        .args(["decode", "--kind", "gnss", "--format", "jsonl"])
+        .arg(log)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let records = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["kind"] == "attitude")
+        .collect();
+    (records, stderr)
+}
+
+/// Every `ATT` object of gpsd's expected output appears, in order, among hilrig's attitude
+/// records: heading, pitch and roll to 0.01° where gpsd reports them, and the same time where
+/// gpsd gives one. (gpsd merges the messages of a cycle into one report, so hilrig, which
+/// reports each message, has more.) gpsd's `yaw` is ESF-ALG's mounting yaw: hilrig reports
+/// it as `yaw_deg` of `"of": "sensor_mounting"`, never as a heading.
+fn check_attitude(name: &str, sources: &[&str]) {
+    let dir = common::real_data().join("gnss");
+    let chk = std::fs::read_to_string(dir.join(format!("{name}.chk"))).unwrap();
+    let expected: Vec<serde_json::Value> = chk
+        .lines()
+        .filter(|l| l.starts_with('{'))
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|v| v["class"] == "ATT")
+        .collect();
+    assert!(!expected.is_empty(), "{name}: gpsd reports no ATT");
+    let (ours, stderr) = attitude_records(&dir.join(name));
+    let mut at = 0;
+    for (k, e) in expected.iter().enumerate() {
+        // gpsd keeps the last ESF-ALG's yaw in the reports after it; hilrig reports the
+        // vehicle's attitude and the IMU's mounting apart. A gpsd report with a heading is
+        // the vehicle's (its yaw, if any, must be a mounting yaw hilrig reported before);
+        // one with a yaw alone is the mounting's.
+        let vehicle = e["heading"].is_number();
+        let agrees = |o: &serde_json::Value| {
+            let fields: &[&str] = if vehicle {
+                &["heading", "pitch", "roll"]
+            } else {
+                &["yaw", "pitch", "roll"]
+            };
+            o["of"]
+                == if vehicle {
+                    "vehicle"
+                } else {
+                    "sensor_mounting"
+                }
+                && fields.iter().all(|f| match e[*f].as_f64() {
+                    Some(x) => o[format!("{f}_deg")]
+                        .as_f64()
+                        .is_some_and(|y| (x - y).abs() <= 0.01),
+                    None => true,
+                })
+                && e["time"].as_str().is_none_or(|t| o["time"] == t)
+        };
+        if let (true, Some(yaw)) = (vehicle, e["yaw"].as_f64()) {
+            assert!(
+                ours[..at].iter().any(|o| o["of"] == "sensor_mounting"
+                    && o["yaw_deg"].as_f64().is_some_and(|y| (y - yaw).abs() <= 0.01)),
+                "{name}: gpsd's ATT {k} ({e}) carries a mounting yaw hilrig did not report before it"
+            );
+        }
+        match ours[at..].iter().position(agrees) {
+            Some(i) => at += i + 1,
+            None => panic!(
+                "{name}: gpsd's ATT {k} ({e}) is not among hilrig's attitude records after record {at}:\n{}",
+                ours.iter().map(|o| o.to_string()).collect::<Vec<_>>().join("\n")
+            ),
+        }
+    }
+    for o in &ours {
+        assert!(sources.contains(&o["source"].as_str().unwrap()), "{o}");
+    }
+    assert!(
+        stderr.contains(&format!("attitude reports: {}", ours.len())),
+        "{stderr}"
+    );
+    println!(
+        "{name}: {} gpsd ATT objects found in order among {} attitude records",
+        expected.len(),
+        ours.len()
+    );
+}
+
+#[test]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
+fn skytraq_dual_antenna_attitude_matches_gpsd() {
+    check_attitude("skytraq-PX1172RH_DS.log", &["THS", "HDT", "PSTI,036"]);
+}
+
+#[test]
+#[cfg_attr(
+    not(hilrig_real_data),
+    ignore = "needs HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
+fn ublox_m8u_high_rate_attitude_matches_gpsd() {
+    check_attitude("ublox-neo-m8u-hnr.log", &["HNR-ATT", "ESF-ALG"]);
+}
+
+/// Attitude messages that are malformed or flagged invalid are counted and never reported:
+/// a THS in mode V, a PSTI,036 in mode N, a PASHR with a NaN roll and one with a heading of
+/// 400°, a NAV-ATT with a wrong checksum, a NAV-PVAT with no valid angle; the good ones
+/// around them (a PASHR, a NAV-ATT, a NAV-PVAT with its heading only) are reported.
+#[test]
+fn bad_attitude_messages_are_counted_and_not_used() {
+    use hilrig::gnss::framer::{nmea_sentence, ubx_frame};
+    let mut log: Vec<u8> = Vec::new();
+    for body in [
+        "GPRMC,120000.00,A,4807.038,N,01131.000,E,0.0,0.0,251126,,,R",
+        "GPGGA,120000.00,4807.038,N,01131.000,E,4,12,0.9,545.4,M,46.9,M,1.0,0001",
+        "GPTHS,123.40,V",
+        "PSTI,036,120000.000,251126,123.40,1.00,0.50,N",
+        "PASHR,120000.00,123.40,T,NaN,+0.31,+0.01,0.029,0.029,0.059,2,1",
+        "PASHR,120000.00,400.00,T,-0.30,+0.31,+0.01,0.029,0.029,0.059,2,1",
+        "PASHR,120000.10,123.45,T,-0.30,+0.31,+0.01,0.029,0.029,0.059,2,1",
+        "GPGGA,120001.00,4807.038,N,01131.000,E,4,12,0.9,545.4,M,46.9,M,1.0,0001",
+    ] {
+        log.extend(nmea_sentence(body).bytes());
+    }
+    let att = |heading_e5: i32| {
+        let mut p = [0u8; 32];
+        p[0..4].copy_from_slice(&345_600_000u32.to_le_bytes());
+        p[16..20].copy_from_slice(&heading_e5.to_le_bytes());
+        p[28..32].copy_from_slice(&5_000u32.to_le_bytes());
+        ubx_frame(0x01, 0x05, &p)
+    };
+    log.extend(att(12_345_000));
+    let mut broken = att(12_345_000);
+    let n = broken.len();
+    broken[n - 1] ^= 0xFF;
+    log.extend(broken);
+    let pvat = |flags: u8| {
+        let mut p = [0u8; 116];
+        p[25] = flags;
+        p[80..84].copy_from_slice(&9_000_000i32.to_le_bytes());
+        p[92..94].copy_from_slice(&12u16.to_le_bytes());
+        ubx_frame(0x01, 0x17, &p)
+    };
+    log.extend(pvat(0x01 | 0x20));
+    log.extend(pvat(0x01));
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("attitude.log");
+    std::fs::write(&path, &log).unwrap();
+    let (ours, stderr) = attitude_records(&path);
+    let got: Vec<(String, Option<f64>)> = ours
+        .iter()
+        .map(|o| {
+            (
+                o["source"].as_str().unwrap().to_owned(),
+                o["heading_deg"].as_f64(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        got,
+        vec![
+            ("PASHR".to_owned(), Some(123.45)),
+            ("NAV-ATT".to_owned(), Some(123.45)),
+            ("NAV-PVAT".to_owned(), Some(90.0)),
+        ],
+        "{stderr}"
+    );
+    assert_eq!(ours[1]["sigma_heading_deg"].as_f64(), Some(0.05));
+    assert_eq!(ours[2]["sigma_heading_deg"].as_f64(), Some(0.12));
+    assert!(ours[2]["roll_deg"].is_null() && ours[2]["pitch_deg"].is_null());
+    // The PASHR's own time on the date the RMC gave.
+    assert_eq!(ours[0]["time"], "2026-11-25T12:00:00.100Z");
+    assert!(
+        stderr.contains(
+            "attitude reports: 3, attitude messages flagged invalid (not used): NAV-PVAT 1, PSTI,036 1, THS 1"
+        ),
+        "{stderr}"
+    );
+    // The two malformed PASHRs fail to decode; the NAV-ATT with the wrong checksum is rejected.
+    assert!(
+        stderr.contains("rejected frames: 1, undecodable frames: 2"),
+        "{stderr}"
+    );
 }

@@ -1188,3 +1188,153 @@ fn the_real_vls128_capture_records_all_2193_data_packets() {
         common::decode_file(&capture, &hilrig::decode::lidar::LidarOptions::default());
     assert_eq!(summary.data_packets, 2193);
 }
+
+/// The attitude reports of `hilrig decode --kind gnss LOG --format jsonl` that have a time.
+fn timed_attitudes(log: &std::path::Path) -> Vec<serde_json::Value> {
+    let out = std::process::Command::new(common::hilrig_bin())
+        .args(["decode", "--kind", "gnss", "--format", "jsonl"])
+        .arg(log)
+        .output()
+        .unwrap();
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["kind"] == "attitude" && v["time"].is_string())
+        .collect()
+}
+
+/// Issue 32: the reference system's attitude is recorded on /gnss/attitude
+/// (`hilrig_msgs/msg/Attitude`, its schema in the file), one message per report that
+/// `decode` gives, at the report's own UTC, read back by the PyPI `mcap` reader and `rosbags`
+/// from the schema alone: the dual-antenna SkyTraq's HDT, THS and PSTI,036, and the M8U's
+/// HNR-ATT and ESF-ALG.
+#[test]
+#[cfg_attr(
+    not(all(hilrig_python, hilrig_real_data)),
+    ignore = "needs HILRIG_PYTHON and HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
+fn attitude_reports_are_recorded_on_their_own_topic() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, sources) in [
+        ("skytraq-PX1172RH_DS.log", &["HDT", "THS", "PSTI,036"][..]),
+        ("ublox-neo-m8u-hnr.log", &["HNR-ATT", "ESF-ALG"][..]),
+    ] {
+        let log = common::real_data().join("gnss").join(name);
+        let out = dir.path().join(format!("{name}.mcap"));
+        let st = common::record_from(&common::demo_rig(), &[&log], &out);
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+        let expected = timed_attitudes(&log);
+        assert!(!expected.is_empty(), "{name}");
+        let v = common::mcap_json(&out, &["--decode", "/gnss/attitude"]);
+        let ch = &v["channels"]["/gnss/attitude"];
+        assert_eq!(ch["type"], "hilrig_msgs/msg/Attitude", "{name}: {ch}");
+        let mut got = v["messages"]["/gnss/attitude"].as_array().unwrap().clone();
+        assert_eq!(got.len(), expected.len(), "{name}");
+        // The file is read in log-time order, `decode` writes in stream order (an ESF-ALG
+        // may come after high-rate reports younger than it): compared in time order.
+        let mut expected = expected;
+        expected.sort_by(|a, b| {
+            (a["time"].as_str(), a["source"].as_str())
+                .cmp(&(b["time"].as_str(), b["source"].as_str()))
+        });
+        const SOURCES: [&str; 9] = [
+            "HDT",
+            "THS",
+            "PASHR",
+            "PSTI,036",
+            "NAV-ATT",
+            "NAV-PVAT",
+            "NAV-RELPOSNED",
+            "HNR-ATT",
+            "ESF-ALG",
+        ];
+        got.sort_by_key(|g| {
+            (
+                g["_log_time"].as_i64(),
+                SOURCES[g["source"].as_u64().unwrap() as usize],
+            )
+        });
+        for (g, e) in got.iter().zip(&expected) {
+            let source = SOURCES[g["source"].as_u64().unwrap() as usize];
+            assert_eq!(source, e["source"], "{name}: {g} vs {e}");
+            assert!(sources.contains(&source), "{name}: {source}");
+            assert_eq!(
+                g["of"].as_u64().unwrap(),
+                u64::from(e["of"] == "sensor_mounting"),
+                "{g}"
+            );
+            for f in [
+                "heading_deg",
+                "yaw_deg",
+                "pitch_deg",
+                "roll_deg",
+                "sigma_heading_deg",
+                "sigma_pitch_deg",
+                "sigma_roll_deg",
+            ] {
+                assert_eq!(g[f], e[f], "{name}: {f} of {g} vs {e}");
+            }
+            // Logged at the report's own UTC (a log without receive times).
+            let stamp = &g["header"]["stamp"];
+            let ns =
+                stamp["sec"].as_i64().unwrap() * 1_000_000_000 + stamp["nanosec"].as_i64().unwrap();
+            assert_eq!(ns, g["_log_time"].as_i64().unwrap(), "{g}");
+            assert_eq!(
+                hilrig::stamp::civil::iso8601_millis(hilrig::stamp::UtcNanos(ns)),
+                e["time"].as_str().unwrap()
+            );
+        }
+    }
+}
+
+/// The same recordings read by Foxglove's own libraries (`@mcap/core` with
+/// `@foxglove/rosmsg2-serialization`): every /gnss/attitude message decodes from the schema
+/// in the file.
+#[test]
+#[cfg_attr(
+    not(all(hilrig_foxglove, hilrig_real_data)),
+    ignore = "needs HILRIG_FOXGLOVE and HILRIG_REAL_DATA (set by .ci/run): did not run"
+)]
+fn foxglove_reads_the_attitude_topic() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for name in ["skytraq-PX1172RH_DS.log", "ublox-neo-m8u-hnr.log"] {
+        let log = common::real_data().join("gnss").join(name);
+        let out = dir.path().join(format!("{name}.mcap"));
+        let st = common::record_from(&common::demo_rig(), &[&log], &out);
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+        files.push((out, timed_attitudes(&log).len()));
+    }
+    let fox = std::path::PathBuf::from(std::env::var("HILRIG_FOXGLOVE").unwrap());
+    let out = std::process::Command::new("node")
+        .arg(fox.join("read_mcap.mjs"))
+        .args(files.iter().map(|f| &f.0))
+        .current_dir(&fox)
+        .output()
+        .expect("run node");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<serde_json::Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), files.len(), "{stdout}");
+    for (v, (path, n)) in lines.iter().zip(&files) {
+        assert_eq!(v["ok"], true, "{}: {v}", path.display());
+        let t = &v["topics"]["/gnss/attitude"];
+        assert_eq!(t["schema"], "hilrig_msgs/msg/Attitude", "{v}");
+        assert_eq!(t["messages"].as_u64(), Some(*n as u64), "{v}");
+    }
+}

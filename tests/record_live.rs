@@ -135,6 +135,15 @@ fn live_recording_of_udp_and_pty_finishes_cleanly_on_sigint() {
         sock.send_to(p, ("127.0.0.1", to)).unwrap();
     }
     let mut sentences = 0;
+    // The date first, so that the attitude sentences (THS, PASHR: an INS beside the
+    // receiver) have a UTC; an invalid THS (mode V) is recorded raw and not as an attitude.
+    let mut attitudes = 0;
+    r.gnss
+        .write_all(
+            nmea_sentence("GNRMC,120000.00,A,4807.038,N,01131.000,E,0.0,0.0,251126,,,R").as_bytes(),
+        )
+        .unwrap();
+    sentences += 1;
     for i in 0..50 {
         let body = format!(
             "GNGGA,1200{:02}.{}0,4807.0380000,N,01131.0000000,E,4,12,0.8,545.40,M,46.90,M,1.0,0042",
@@ -143,6 +152,20 @@ fn live_recording_of_udp_and_pty_finishes_cleanly_on_sigint() {
         );
         r.gnss.write_all(nmea_sentence(&body).as_bytes()).unwrap();
         sentences += 1;
+        let extra = match i % 10 {
+            0 => format!("GNTHS,{}.50,A", 100 + i),
+            5 => format!(
+                "PASHR,1200{:02}.{}0,{}.25,T,-0.30,+0.31,+0.01,0.029,0.029,0.059,2,1",
+                i / 10,
+                i % 10,
+                100 + i
+            ),
+            7 => "GNTHS,10.00,V".to_owned(),
+            _ => continue,
+        };
+        r.gnss.write_all(nmea_sentence(&extra).as_bytes()).unwrap();
+        sentences += 1;
+        attitudes += usize::from(i % 10 != 7);
     }
     r.gnss.flush().unwrap();
     std::thread::sleep(Duration::from_millis(500));
@@ -168,6 +191,11 @@ fn live_recording_of_udp_and_pty_finishes_cleanly_on_sigint() {
     assert_eq!(packets, data, "every data packet");
     assert_eq!(v["channels"]["/velodyne_position"]["count"], position);
     assert_eq!(v["channels"]["/gnss/nmea"]["count"], sentences);
+    assert_eq!(v["channels"]["/gnss/attitude"]["count"], attitudes);
+    assert_eq!(
+        v["channels"]["/gnss/attitude"]["type"],
+        "hilrig_msgs/msg/Attitude"
+    );
     assert_eq!(v["metadata"]["hilrig/end"]["lidar_dropped"], "0");
     // Pairs since the hour source settled (the fixture's position packet may arrive after the
     // first data packets: then the model restarts on the RMC's hour).

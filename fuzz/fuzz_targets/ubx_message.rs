@@ -9,7 +9,16 @@ fuzz_target!(|data: &[u8]| {
     }
     let payload = &data[2..];
     let _ = hilrig_gnss::ubx::decode(data[0], data[1], payload);
-    for id in [0x07, 0x14, 0x3C] {
-        let _ = hilrig_gnss::ubx::decode(0x01, id, payload);
+    for (class, id) in [
+        (0x01, 0x07),
+        (0x01, 0x14),
+        (0x01, 0x3C),
+        (0x01, 0x05),
+        (0x01, 0x17),
+        (0x28, 0x00),
+        (0x28, 0x01),
+        (0x10, 0x14),
+    ] {
+        let _ = hilrig_gnss::ubx::decode(class, id, payload);
     }
 });

@@ -95,6 +95,76 @@ pub fn nav_sat_fix_type() -> MessageType {
     }
 }
 
+/// `hilrig_msgs/msg/Attitude`: one attitude report of the reference system (an INS or a
+/// dual-antenna receiver), as the GNSS driver reads it. No standard message fits: a heading
+/// sensor reports the heading alone (HDT, THS), and `sensor_msgs/Imu` cannot say that roll and
+/// pitch are unknown while the heading is known. Angles absent from the message are NaN.
+pub fn attitude_type() -> MessageType {
+    MessageType {
+        name: "hilrig_msgs/msg/Attitude",
+        schema: with_deps(
+            concat!(
+                "# The message the report came from.\n",
+                "uint8 SOURCE_HDT=0\nuint8 SOURCE_THS=1\nuint8 SOURCE_PASHR=2\nuint8 SOURCE_PSTI_036=3\n",
+                "uint8 SOURCE_NAV_ATT=4\nuint8 SOURCE_NAV_PVAT=5\nuint8 SOURCE_NAV_RELPOSNED=6\n",
+                "uint8 SOURCE_HNR_ATT=7\nuint8 SOURCE_ESF_ALG=8\n",
+                "# What it is the attitude of: the vehicle, or the receiver's IMU in the vehicle.\n",
+                "uint8 OF_VEHICLE=0\nuint8 OF_SENSOR_MOUNTING=1\n",
+                "# How the source obtained it.\n",
+                "uint8 MODE_MEASURED=0\nuint8 MODE_ESTIMATED=1\nuint8 MODE_MANUAL=2\nuint8 MODE_SIMULATOR=3\n",
+                "std_msgs/Header header\n",
+                "uint8 source\nuint8 of\nuint8 mode\n",
+                "# Degrees; heading clockwise from true north; NaN where the message has none.\n",
+                "float64 heading_deg\nfloat64 yaw_deg\nfloat64 pitch_deg\nfloat64 roll_deg\n",
+                "# Accuracies (1 sigma) as the message states them, degrees; NaN where it states none.\n",
+                "float64 sigma_heading_deg\nfloat64 sigma_pitch_deg\nfloat64 sigma_roll_deg\n",
+            ),
+            &[("std_msgs/Header", HEADER), ("builtin_interfaces/Time", TIME)],
+        ),
+    }
+}
+
+/// An attitude report as `hilrig_msgs/msg/Attitude` (see [`attitude_type`]).
+pub fn attitude(stamp: UtcNanos, frame_id: &str, a: &hilrig_gnss::Attitude) -> Vec<u8> {
+    use hilrig_gnss::{AttitudeMode, AttitudeOf, AttitudeSource as S};
+    let mut w = CdrWriter::with_capacity(128);
+    header(&mut w, stamp, frame_id);
+    let source = match a.source {
+        S::Hdt => 0,
+        S::Ths => 1,
+        S::Pashr => 2,
+        S::Psti036 => 3,
+        S::NavAtt => 4,
+        S::NavPvat => 5,
+        S::NavRelposned => 6,
+        S::HnrAtt => 7,
+        S::EsfAlg => 8,
+    };
+    let of = match a.of {
+        AttitudeOf::Vehicle => 0,
+        AttitudeOf::SensorMounting => 1,
+    };
+    let mode = match a.mode {
+        AttitudeMode::Measured => 0,
+        AttitudeMode::Estimated => 1,
+        AttitudeMode::Manual => 2,
+        AttitudeMode::Simulator => 3,
+    };
+    w.u8(source).u8(of).u8(mode);
+    for v in [
+        a.heading_deg,
+        a.yaw_deg,
+        a.pitch_deg,
+        a.roll_deg,
+        a.sigma_heading_deg,
+        a.sigma_pitch_deg,
+        a.sigma_roll_deg,
+    ] {
+        w.f64(v.unwrap_or(f64::NAN));
+    }
+    w.finish()
+}
+
 /// `can_msgs/msg/Frame`.
 pub fn can_frame_type() -> MessageType {
     MessageType {

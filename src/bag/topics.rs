@@ -11,6 +11,8 @@ pub const GNSS_NMEA: &str = "/gnss/nmea";
 pub const GNSS_UBX: &str = "/gnss/ubx";
 /// Fixes.
 pub const GNSS_FIX: &str = "/gnss/fix";
+/// Attitude reports of the reference system (INS, dual antenna): `hilrig_msgs/msg/Attitude`.
+pub const GNSS_ATTITUDE: &str = "/gnss/attitude";
 /// CAN frames.
 pub const CAN_FRAMES: &str = "/can/frames";
 /// Ego speed and yaw rate.

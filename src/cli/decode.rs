@@ -260,9 +260,13 @@ fn gnss(args: &DecodeArgs) -> Result<ExitCode> {
     let out = open_output(args.output.as_deref())?;
     let mut out = BufWriter::new(out);
     let write = matches!(args.format, Format::Jsonl);
-    let summary = hilrig::decode::gnss::decode_gnss(BufReader::new(file), &mut |fix| {
+    let summary = hilrig::decode::gnss::decode_gnss(BufReader::new(file), &mut |r| {
+        use hilrig::decode::gnss::{attitude_json, fix_json, GnssReport};
         if write {
-            writeln!(out, "{}", hilrig::decode::gnss::fix_json(fix))?;
+            match r {
+                GnssReport::Fix(f) => writeln!(out, "{}", fix_json(f))?,
+                GnssReport::Attitude(a) => writeln!(out, "{}", attitude_json(a))?,
+            }
         }
         Ok(())
     })
@@ -273,6 +277,22 @@ fn gnss(args: &DecodeArgs) -> Result<ExitCode> {
         "{path}: fixes: {}, NMEA sentences: {}, UBX frames: {}, RTCM3 frames: {}, rejected frames: {}, undecodable frames: {}, bytes outside frames: {} of {}",
         summary.fixes, summary.nmea, summary.ubx, summary.rtcm3, summary.rejected, summary.decode_errors, summary.skipped_bytes, summary.bytes
     );
+    if summary.attitudes > 0 || !summary.invalid_attitudes.is_empty() {
+        let invalid: Vec<String> = summary
+            .invalid_attitudes
+            .iter()
+            .map(|(k, n)| format!("{k} {n}"))
+            .collect();
+        eprintln!(
+            "{path}: attitude reports: {}, attitude messages flagged invalid (not used): {}",
+            summary.attitudes,
+            if invalid.is_empty() {
+                "none".to_owned()
+            } else {
+                invalid.join(", ")
+            }
+        );
+    }
     if !summary.interfaces.is_empty() {
         eprintln!(
             "{path}: serial interfaces: {}",

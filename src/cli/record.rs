@@ -65,6 +65,12 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
             eprintln!("  {line}");
         }
     }
+    if summary.attitude_untimed > 0 {
+        eprintln!(
+            "note: {out}: {} attitude reports came before the GNSS stream showed its date and are not on /gnss/attitude (their raw messages are on /gnss/nmea and /gnss/ubx)",
+            summary.attitude_untimed
+        );
+    }
     // The rig's GNSS port is where the live receiver is; a capture brings its own serial
     // interfaces, which are read whatever their names. Say so when they differ.
     if let Some(g) = &rig.gnss {

@@ -95,6 +95,9 @@ pub struct RecordSummary {
     /// Names of the captures' serial interfaces that carried bytes (read as the GNSS stream,
     /// whatever the rig's `gnss.port` says: that is the live port).
     pub serial_interfaces: std::collections::BTreeSet<String>,
+    /// Attitude reports not written to /gnss/attitude because they came before the stream
+    /// showed its date (their raw sentences and frames are in /gnss/nmea and /gnss/ubx).
+    pub attitude_untimed: u64,
 }
 
 struct Context<'a> {
@@ -168,6 +171,8 @@ struct Output<'a> {
     points: Option<Decoder>,
     frame_lidar: String,
     frame_gnss: String,
+    /// Attitude reports without a time (see [`RecordSummary::attitude_untimed`]).
+    attitude_untimed: u64,
     last_speed: Option<f64>,
     last_yaw: Option<f64>,
     rig: &'a Rig,
@@ -391,6 +396,7 @@ impl Context<'_> {
         entry.timeless = host.is_none();
         entry.framer.push(bytes);
         let mut fixes = Vec::new();
+        let mut attitudes = Vec::new();
         while let Some(it) = entry.framer.next_frame() {
             let Item::Frame { frame, .. } = it else {
                 continue;
@@ -414,6 +420,8 @@ impl Context<'_> {
                         )?;
                     }
                     if let Ok(sentence) = hilrig_gnss::nmea::parse(&s) {
+                        let time = entry.nmea.attitude_time(&sentence);
+                        attitudes.push((hilrig_gnss::attitude::from_nmea(&sentence, time), t));
                         fixes.extend(entry.nmea.push(&sentence).map(|f| (f, epoch_host)));
                     }
                 }
@@ -430,6 +438,8 @@ impl Context<'_> {
                     }
                     if let Ok(m) = hilrig_gnss::ubx::decode(class, id, &payload) {
                         fixes.extend(entry.ubx.push(&m).map(|f| (f, epoch_host)));
+                        let time = entry.ubx.attitude_time(&m);
+                        attitudes.push((hilrig_gnss::attitude::from_ubx(&m, time), t));
                     }
                 }
                 Frame::Rtcm3 { .. } => {}
@@ -438,6 +448,26 @@ impl Context<'_> {
                 if let Some(ft) = f.time {
                     entry.last_fix = Some(ft);
                 }
+            }
+        }
+        if let Some(o) = out.as_deref_mut() {
+            for (r, host) in attitudes {
+                let hilrig_gnss::attitude::Reading::Attitude(a) = r else {
+                    continue;
+                };
+                let Some(at) = a.time else {
+                    o.attitude_untimed += 1;
+                    continue;
+                };
+                // Without receive times the report's own time is its host time.
+                let host = if entry.timeless { at } else { host };
+                o.bag.write(
+                    topics::GNSS_ATTITUDE,
+                    &msgs::attitude_type(),
+                    sync(o.gnss, at),
+                    host,
+                    &msgs::attitude(at, &o.frame_gnss, &a),
+                )?;
             }
         }
         for (f, h) in fixes {
@@ -778,6 +808,7 @@ pub fn record_from(
             .gnss
             .as_ref()
             .map_or("gnss".into(), |g| g.frame_id.clone()),
+        attitude_untimed: 0,
         last_speed: None,
         last_yaw: None,
         rig,
@@ -858,7 +889,12 @@ pub fn record_from(
         summary.lidar_lost = rot.loss().lost;
     }
     summary.lidar_rejects = std::mem::take(&mut src.rejects);
+    summary.attitude_untimed = out.attitude_untimed;
     let mut meta = BTreeMap::new();
+    meta.insert(
+        "gnss_attitude_untimed".to_owned(),
+        summary.attitude_untimed.to_string(),
+    );
     meta.insert(
         "lidar_lost_packets".to_owned(),
         summary.lidar_lost.to_string(),

@@ -66,6 +66,7 @@ fn types() -> &'static BTreeMap<&'static str, MessageType> {
         m.insert("raw", msgs::raw_packet_type());
         m.insert("nmea", msgs::nmea_sentence_type());
         m.insert("fix", msgs::nav_sat_fix_type());
+        m.insert("attitude", msgs::attitude_type());
         m.insert("can", msgs::can_frame_type());
         m.insert("points", msgs::point_cloud2_type());
         m
@@ -604,6 +605,7 @@ async fn gnss_task(
             last_host = Some(host);
             h.received.fetch_add(1, Ordering::Relaxed);
             let mut fixes = Vec::new();
+            let mut attitude = None;
             match f {
                 Frame::Nmea(s) => {
                     send(
@@ -618,7 +620,11 @@ async fn gnss_task(
                         },
                     );
                     match hilrig_gnss::nmea::parse(&s) {
-                        Ok(sentence) => fixes.extend(nmea.push(&sentence)),
+                        Ok(sentence) => {
+                            let time = nmea.attitude_time(&sentence);
+                            attitude = Some(hilrig_gnss::attitude::from_nmea(&sentence, time));
+                            fixes.extend(nmea.push(&sentence));
+                        }
                         Err(_) => {
                             h.decode_errors.fetch_add(1, Ordering::Relaxed);
                         }
@@ -639,9 +645,35 @@ async fn gnss_task(
                     );
                     if let Ok(m) = hilrig_gnss::ubx::decode(class, id, &payload) {
                         fixes.extend(ubx.push(&m));
+                        let time = ubx.attitude_time(&m);
+                        attitude = Some(hilrig_gnss::attitude::from_ubx(&m, time));
                     }
                 }
                 Frame::Rtcm3 { .. } => {}
+            }
+            // An attitude report at its own UTC on the GNSS clock (one without a time, before
+            // the stream showed its date, stays in the raw topics only).
+            if let Some(hilrig_gnss::attitude::Reading::Attitude(a)) = attitude {
+                if let Some(time) = a.time {
+                    let synced = {
+                        let mut c = clocks.lock().unwrap_or_else(|e| e.into_inner());
+                        c.entry("gnss")
+                            .or_default()
+                            .model()
+                            .map_or(time, |m| m.to_host(time))
+                    };
+                    send(
+                        &tx,
+                        &h,
+                        Event {
+                            topic: crate::bag::topics::GNSS_ATTITUDE,
+                            ty: &t["attitude"],
+                            log_time: synced,
+                            publish_time: host,
+                            cdr: msgs::attitude(time, &frame, &a),
+                        },
+                    );
+                }
             }
             for fix in fixes {
                 let Some(time) = fix.time else { continue };

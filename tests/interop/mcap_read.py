@@ -29,6 +29,9 @@ def register(store, name, schema):
 
 
 def plain(v):
+    # NaN (an angle a message lacks) as null: JSON has no NaN.
+    if isinstance(v, float) and v != v:
+        return None
     if hasattr(v, "__dataclass_fields__") or hasattr(v, "__msgtype__"):
         return {k: plain(getattr(v, k)) for k in v.__dataclass_fields__ if k != "__msgtype__"}
     if hasattr(v, "tolist"):

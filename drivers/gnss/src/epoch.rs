@@ -12,6 +12,7 @@
 //! UBX: an epoch is the messages with the same GPS time of week; NAV-PVT gives the fix, a
 //! following NAV-HPPOSLLH of the same epoch refines position and accuracy.
 
+use crate::attitude::{Attitude, Reading};
 use crate::nmea::{self, Sentence};
 use crate::ubx::{CarrierSolution, Ubx};
 use hilrig_stamp::civil::utc_from_civil;
@@ -143,7 +144,13 @@ impl NmeaEpochs {
             Sentence::Zda(z) => z.time_of_day,
             Sentence::Gns(g) => g.time_of_day,
             Sentence::Gbs(g) => g.time_of_day,
-            Sentence::Hdt(_) | Sentence::Vtg(_) | Sentence::Other { .. } => None,
+            // The attitude sentences do not start epochs: an INS writes them at its own rate.
+            Sentence::Hdt(_)
+            | Sentence::Vtg(_)
+            | Sentence::Ths(_)
+            | Sentence::Pashr(_)
+            | Sentence::Psti036(_)
+            | Sentence::Other { .. } => None,
         };
         let mut done = None;
         if let Some(t) = tod {
@@ -228,7 +235,11 @@ impl NmeaEpochs {
                     f.heading_deg = v.course_deg.or(f.heading_deg);
                 }
             }
-            Sentence::Gbs(_) | Sentence::Other { .. } => {}
+            Sentence::Gbs(_)
+            | Sentence::Ths(_)
+            | Sentence::Pashr(_)
+            | Sentence::Psti036(_)
+            | Sentence::Other { .. } => {}
         }
         done
     }
@@ -240,18 +251,40 @@ impl NmeaEpochs {
 
     fn take(&mut self) -> Option<Fix> {
         let mut f = self.current.take()?;
-        if let (Some(tod), Some(((y, m, d), seen_tod))) = (f.time_of_day, self.date) {
-            // A time of day well before the one the date was seen at is the next day.
-            // A date that does not exist gives no time, as a missing one does.
-            f.time = utc_from_civil(y, m, d, tod).map(|t| {
-                if seen_tod.saturating_sub(tod) > DAY_NS / 2 {
-                    UtcNanos(t.0.saturating_add(DAY_NS))
-                } else {
-                    t
-                }
-            });
-        }
+        f.time = f.time_of_day.and_then(|tod| self.utc_of(tod));
         Some(f)
+    }
+
+    /// The UTC of a time of day on the date last seen. A time of day well before the one the
+    /// date was seen at is the next day; a date that does not exist gives no time, as a
+    /// missing one does.
+    fn utc_of(&self, tod: i64) -> Option<UtcNanos> {
+        let ((y, m, d), seen_tod) = self.date?;
+        utc_from_civil(y, m, d, tod).map(|t| {
+            if seen_tod.saturating_sub(tod) > DAY_NS / 2 {
+                UtcNanos(t.0.saturating_add(DAY_NS))
+            } else {
+                t
+            }
+        })
+    }
+
+    /// The UTC of an attitude sentence: its own time (and date), or for HDT and THS, which
+    /// have none, the epoch's in progress.
+    pub fn attitude_time(&self, s: &Sentence) -> Option<UtcNanos> {
+        match s {
+            Sentence::Pashr(p) => p.time_of_day.and_then(|t| self.utc_of(t)),
+            Sentence::Psti036(p) => match (p.date, p.time_of_day) {
+                (Some((y, m, d)), Some(t)) => utc_from_civil(y, m, d, t),
+                (None, Some(t)) => self.utc_of(t),
+                _ => None,
+            },
+            _ => self
+                .current
+                .as_ref()
+                .and_then(|c| c.time_of_day)
+                .and_then(|t| self.utc_of(t)),
+        }
     }
 }
 
@@ -259,6 +292,14 @@ impl NmeaEpochs {
 #[derive(Debug, Default)]
 pub struct UbxEpochs {
     current: Option<(u32, Fix)>,
+    /// The last (time of week, UTC) pair seen: the week and leap seconds of the attitude
+    /// messages that carry only a time of week.
+    week: Option<(u32, UtcNanos)>,
+}
+
+/// The UTC of a UBX epoch: on the receiver's millisecond grid (see NAV-PVT below).
+fn on_ms_grid(t: UtcNanos) -> UtcNanos {
+    UtcNanos(t.0.saturating_add(500_000).div_euclid(1_000_000) * 1_000_000)
 }
 
 impl UbxEpochs {
@@ -271,9 +312,10 @@ impl UbxEpochs {
                 // The navigation epoch is on the receiver's millisecond grid (iTOW); the UTC
                 // fields plus `nano` land a few hundred microseconds off it by the receiver clock
                 // bias. The epoch's time is the grid point, as gpsd reports it.
-                f.time = p.utc.map(|t| {
-                    UtcNanos(t.0.saturating_add(500_000).div_euclid(1_000_000) * 1_000_000)
-                });
+                f.time = p.utc.map(on_ms_grid);
+                if let Some(t) = f.time {
+                    self.week = Some((p.itow_ms, t));
+                }
                 f.lat = Some(p.lat_deg);
                 f.lon = Some(p.lon_deg);
                 f.alt_msl = Some(p.h_msl_m);
@@ -329,8 +371,33 @@ impl UbxEpochs {
                 }
                 None
             }
-            Ubx::Other { .. } => None,
+            Ubx::NavPvat(p) => {
+                if let Some(t) = p.utc {
+                    self.week = Some((p.itow_ms, on_ms_grid(t)));
+                }
+                None
+            }
+            Ubx::HnrPvt(p) => {
+                if let Some(t) = p.utc {
+                    self.week = Some((p.itow_ms, on_ms_grid(t)));
+                }
+                None
+            }
+            Ubx::NavAtt(_) | Ubx::HnrAtt(_) | Ubx::EsfAlg(_) | Ubx::Other { .. } => None,
         }
+    }
+
+    /// The UTC of a message's time of week, once a NAV-PVT, NAV-PVAT or HNR-PVT has shown
+    /// the week.
+    pub fn attitude_time(&self, m: &Ubx) -> Option<UtcNanos> {
+        let itow = match m {
+            Ubx::NavAtt(a) | Ubx::HnrAtt(a) => a.itow_ms,
+            Ubx::NavRelposned(r) => r.itow_ms,
+            Ubx::NavPvat(p) => p.itow_ms,
+            Ubx::EsfAlg(a) => a.itow_ms,
+            _ => return None,
+        };
+        self.week.map(|w| crate::attitude::utc_of_itow(itow, w))
     }
 
     /// Ends the stream: the epoch in progress.
@@ -346,6 +413,10 @@ pub struct DecodeStats {
     pub nmea_errors: u64,
     /// UBX frames that framed but did not decode.
     pub ubx_errors: u64,
+    /// Attitude reports (all, whether collected or not).
+    pub attitudes: u64,
+    /// Attitude messages their own flags mark invalid, by message: counted, never used.
+    pub invalid_attitudes: std::collections::BTreeMap<&'static str, u64>,
 }
 
 /// The whole sans-IO pipeline: bytes in, fixes out (framer + decoders + both assemblers).
@@ -357,6 +428,8 @@ pub struct GnssStream {
     ubx: UbxEpochs,
     /// Decode error counters.
     pub stats: DecodeStats,
+    /// Attitude reports not yet taken, when collected.
+    attitudes: Option<Vec<Attitude>>,
 }
 
 impl GnssStream {
@@ -365,6 +438,34 @@ impl GnssStream {
         GnssStream {
             framer: crate::framer::Framer::for_gpsd_log(),
             ..GnssStream::default()
+        }
+    }
+
+    /// The same stream collecting attitude reports for [`GnssStream::take_attitudes`] (they
+    /// are counted either way; a stream whose reader never takes them does not collect them).
+    pub fn with_attitude(mut self) -> GnssStream {
+        self.attitudes = Some(Vec::new());
+        self
+    }
+
+    /// The attitude reports decoded since the last call, in stream order.
+    pub fn take_attitudes(&mut self) -> Vec<Attitude> {
+        self.attitudes
+            .as_mut()
+            .map(std::mem::take)
+            .unwrap_or_default()
+    }
+
+    fn attitude(&mut self, r: Reading) {
+        match r {
+            Reading::None => {}
+            Reading::Attitude(a) => {
+                self.stats.attitudes += 1;
+                if let Some(v) = self.attitudes.as_mut() {
+                    v.push(a);
+                }
+            }
+            Reading::Invalid(s) => *self.stats.invalid_attitudes.entry(s.name()).or_default() += 1,
         }
     }
 
@@ -390,14 +491,22 @@ impl GnssStream {
                     frame: Frame::Nmea(s),
                     ..
                 } => match nmea::parse(&s) {
-                    Ok(sentence) => out.extend(self.nmea.push(&sentence)),
+                    Ok(sentence) => {
+                        let t = self.nmea.attitude_time(&sentence);
+                        self.attitude(crate::attitude::from_nmea(&sentence, t));
+                        out.extend(self.nmea.push(&sentence));
+                    }
                     Err(_) => self.stats.nmea_errors += 1,
                 },
                 Item::Frame {
                     frame: Frame::Ubx { class, id, payload },
                     ..
                 } => match crate::ubx::decode(class, id, &payload) {
-                    Ok(m) => out.extend(self.ubx.push(&m)),
+                    Ok(m) => {
+                        out.extend(self.ubx.push(&m));
+                        let t = self.ubx.attitude_time(&m);
+                        self.attitude(crate::attitude::from_ubx(&m, t));
+                    }
                     Err(_) => self.stats.ubx_errors += 1,
                 },
                 Item::Frame {

@@ -8,6 +8,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod attitude;
 pub mod epoch;
 pub mod framer;
 pub mod nmea;
@@ -15,5 +16,6 @@ pub mod nmea;
 pub mod serial;
 pub mod ubx;
 
+pub use attitude::{Attitude, AttitudeMode, AttitudeOf, AttitudeSource};
 pub use epoch::{Fix, FixSource, GnssStream, RtkState};
 pub use framer::{Frame, Framer, Item, RejectReason};

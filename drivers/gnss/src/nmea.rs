@@ -171,6 +171,62 @@ pub struct Hdt {
     pub heading_deg: Option<f64>,
 }
 
+/// THS: true heading with its mode (NMEA 0183 v4).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ths {
+    /// Heading, degrees true.
+    pub heading_deg: Option<f64>,
+    /// Mode indicator: A autonomous, E estimated (dead reckoning), M manual input,
+    /// S simulator, V not valid.
+    pub mode: Option<char>,
+}
+
+/// PASHR in the form INS units write it (OxTS, Applanix, NovAtel SPAN, Trimble): attitude
+/// with its accuracies. The older Ashtech forms (`PASHR,ATT`, `PASHR,HPR`, ...), whose first
+/// field names the message, are other sentences.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pashr {
+    /// Nanoseconds of the UTC day.
+    pub time_of_day: Option<i64>,
+    /// Heading, degrees true.
+    pub heading_deg: Option<f64>,
+    /// Roll, degrees.
+    pub roll_deg: Option<f64>,
+    /// Pitch, degrees.
+    pub pitch_deg: Option<f64>,
+    /// Heave, metres.
+    pub heave_m: Option<f64>,
+    /// Roll accuracy, degrees (1 sigma).
+    pub sigma_roll_deg: Option<f64>,
+    /// Pitch accuracy, degrees (1 sigma).
+    pub sigma_pitch_deg: Option<f64>,
+    /// Heading accuracy, degrees (1 sigma).
+    pub sigma_heading_deg: Option<f64>,
+    /// GNSS quality flag (0: no position; the other values differ between makers).
+    pub gnss_quality: Option<u8>,
+    /// INS aiding or alignment status (0: GNSS only, not aligned; absent before NovAtel
+    /// firmware 7.03).
+    pub ins_status: Option<u8>,
+}
+
+/// SkyTraq PSTI,036: heading, pitch and roll of a dual-antenna receiver's baseline.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Psti036 {
+    /// Nanoseconds of the UTC day.
+    pub time_of_day: Option<i64>,
+    /// Date (year, month, day).
+    pub date: Option<(i64, u32, u32)>,
+    /// Heading, degrees true.
+    pub heading_deg: Option<f64>,
+    /// Pitch, degrees.
+    pub pitch_deg: Option<f64>,
+    /// Roll, degrees.
+    pub roll_deg: Option<f64>,
+    /// Mode: N not valid, A autonomous, D differential, E estimated, M manual, S simulator,
+    /// F float RTK, R fixed RTK.
+    pub mode: Option<char>,
+}
+
 /// VTG: course and speed over ground.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Vtg {
@@ -239,6 +295,12 @@ pub enum Sentence {
     Gns(Gns),
     /// GBS.
     Gbs(Gbs),
+    /// THS.
+    Ths(Ths),
+    /// PASHR (INS attitude).
+    Pashr(Pashr),
+    /// PSTI,036 (SkyTraq attitude).
+    Psti036(Psti036),
     /// A valid sentence of a type not decoded here (GSV, GSA, proprietary, ...).
     Other {
         /// The address field, e.g. `GPGSV` or `PSTI`.
@@ -288,6 +350,19 @@ impl<'a> Fields<'a> {
         let v: Option<f64> = self.num(i, field)?;
         match v {
             Some(x) if !x.is_finite() => Err(self.err(i, field)),
+            v => Ok(v),
+        }
+    }
+    /// An angle, degrees, within `min..=max` (a heading 0..360, pitch ±90, roll ±180).
+    fn angle(
+        &self,
+        i: usize,
+        field: &'static str,
+        min: f64,
+        max: f64,
+    ) -> Result<Option<f64>, NmeaError> {
+        match self.float(i, field)? {
+            Some(x) if !(min..=max).contains(&x) => Err(self.err(i, field)),
             v => Ok(v),
         }
     }
@@ -356,6 +431,14 @@ pub fn parse(sentence: &str) -> Result<Sentence, NmeaError> {
     // (Only ASCII addresses: a multi-byte character must not be split; found by cargo-fuzz.)
     let kind = if address.len() == 5 && address.is_ascii() && !address.starts_with('P') {
         &address[2..]
+    } else if address == "PASHR"
+        && f.first()
+            .is_some_and(|t| t.starts_with(|c: char| c.is_ascii_digit()))
+    {
+        // The INS form begins with a time; the Ashtech forms with a message name.
+        "PASHR"
+    } else if address == "PSTI" && f.first() == Some(&"036") {
+        "PSTI036"
     } else {
         ""
     };
@@ -465,6 +548,45 @@ pub fn parse(sentence: &str) -> Result<Sentence, NmeaError> {
                 err_alt_m: x.float(3, "altitude error")?,
             })
         }
+        "THS" => {
+            let x = mk("THS");
+            x.need(2)?;
+            Sentence::Ths(Ths {
+                heading_deg: x.angle(0, "heading", 0.0, 360.0)?,
+                mode: x.ch(1),
+            })
+        }
+        "PASHR" => {
+            let x = mk("PASHR");
+            x.need(10)?;
+            if x.get(2) != "T" && !x.get(2).is_empty() {
+                return Err(x.err(2, "true heading flag"));
+            }
+            Sentence::Pashr(Pashr {
+                time_of_day: x.time(0)?,
+                heading_deg: x.angle(1, "heading", 0.0, 360.0)?,
+                roll_deg: x.angle(3, "roll", -180.0, 180.0)?,
+                pitch_deg: x.angle(4, "pitch", -90.0, 90.0)?,
+                heave_m: x.float(5, "heave")?,
+                sigma_roll_deg: x.angle(6, "roll accuracy", 0.0, 180.0)?,
+                sigma_pitch_deg: x.angle(7, "pitch accuracy", 0.0, 180.0)?,
+                sigma_heading_deg: x.angle(8, "heading accuracy", 0.0, 180.0)?,
+                gnss_quality: x.num(9, "GNSS quality")?,
+                ins_status: x.num(10, "INS status")?,
+            })
+        }
+        "PSTI036" => {
+            let x = mk("PSTI036");
+            x.need(7)?;
+            Sentence::Psti036(Psti036 {
+                time_of_day: x.time(1)?,
+                date: x.ddmmyy(2)?,
+                heading_deg: x.angle(3, "heading", 0.0, 360.0)?,
+                pitch_deg: x.angle(4, "pitch", -90.0, 90.0)?,
+                roll_deg: x.angle(5, "roll", -180.0, 180.0)?,
+                mode: x.ch(6),
+            })
+        }
         _ => Sentence::Other {
             address: address.to_owned(),
         },
@@ -540,8 +662,32 @@ mod tests {
 
     proptest! {
         #[test]
-        fn never_panics(body in "[A-Z]{2}(GGA|RMC|GST|ZDA|HDT|VTG|GNS|GBS)(,[0-9A-Z.+-]{0,12}){0,16}") {
+        fn never_panics(body in "[A-Z]{2}(GGA|RMC|GST|ZDA|HDT|VTG|GNS|GBS|THS)(,[0-9A-Z.+-]{0,12}){0,16}") {
             let _ = parse(&crate::framer::nmea_sentence(&body));
+        }
+
+        #[test]
+        fn attitude_sentences_never_panic(body in "(PASHR|PSTI,036)(,[0-9A-Z.+-]{0,12}){0,14}") {
+            let _ = parse(&crate::framer::nmea_sentence(&body));
+        }
+
+        /// A PASHR of any in-range attitude reads back to the printed precision; out of
+        /// range, it is an error naming the field.
+        #[test]
+        fn pashr_round_trips(h in 0.0f64..360.0, r in -180.0f64..180.0, p in -90.0f64..90.0, bad in 90.01f64..1e6) {
+            let s = crate::framer::nmea_sentence(&format!(
+                "PASHR,120000.00,{h:.2},T,{r:+.2},{p:+.2},+0.01,0.030,0.031,0.060,2,1"
+            ));
+            let Sentence::Pashr(a) = parse(&s).unwrap() else { panic!("{s}") };
+            prop_assert!((a.heading_deg.unwrap() - h).abs() <= 0.005 + 1e-9);
+            prop_assert!((a.roll_deg.unwrap() - r).abs() <= 0.005 + 1e-9);
+            prop_assert!((a.pitch_deg.unwrap() - p).abs() <= 0.005 + 1e-9);
+            prop_assert_eq!(a.sigma_heading_deg, Some(0.06));
+            let s = crate::framer::nmea_sentence(&format!(
+                "PASHR,120000.00,{h:.2},T,{r:+.2},{bad:+.2},+0.01,0.030,0.031,0.060,2,1"
+            ));
+            let e = parse(&s).unwrap_err().to_string();
+            prop_assert!(e.contains("PASHR field pitch (4)"), "{}", e);
         }
     }
 }

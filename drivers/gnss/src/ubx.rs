@@ -1,4 +1,6 @@
-//! u-blox UBX navigation messages: NAV-PVT, NAV-HPPOSLLH, NAV-RELPOSNED.
+//! u-blox UBX navigation messages: NAV-PVT, NAV-HPPOSLLH, NAV-RELPOSNED, and the attitude
+//! messages NAV-ATT, NAV-PVAT (F9R), HNR-ATT (M8U high rate), with HNR-PVT for the UTC of
+//! the high-rate stream.
 //!
 //! Decoded here from the payloads the framer delivers. The `ublox` crate was not used for the
 //! stream: its mixed-protocol parser (`consume_ubx_rtcm_nmea`, 0.10) lost frames on the real
@@ -17,9 +19,23 @@ pub const ID_PVT: u8 = 0x07;
 pub const ID_HPPOSLLH: u8 = 0x14;
 /// NAV-RELPOSNED id.
 pub const ID_RELPOSNED: u8 = 0x3C;
+/// NAV-ATT id.
+pub const ID_ATT: u8 = 0x05;
+/// NAV-PVAT id.
+pub const ID_PVAT: u8 = 0x17;
+/// UBX class ESF (external sensor fusion).
+pub const CLASS_ESF: u8 = 0x10;
+/// ESF-ALG id.
+pub const ID_ESF_ALG: u8 = 0x14;
+/// UBX class HNR (high navigation rate, M8 ADR/UDR).
+pub const CLASS_HNR: u8 = 0x28;
+/// HNR-PVT id.
+pub const ID_HNR_PVT: u8 = 0x00;
+/// HNR-ATT id.
+pub const ID_HNR_ATT: u8 = 0x01;
 
 /// A UBX payload that does not fit its message layout.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum UbxError {
     /// Wrong payload length.
     #[error("UBX {name} payload has {got} bytes, expected {expected}")]
@@ -30,6 +46,21 @@ pub enum UbxError {
         expected: usize,
         /// Actual length.
         got: usize,
+    },
+    /// An angle outside the range its field can hold (roll and heading ±180° / 0-360°, pitch
+    /// ±90°): the payload is not what the layout says.
+    #[error("UBX {name} {field} is {value}°, outside {min}..{max}")]
+    Angle {
+        /// Message name.
+        name: &'static str,
+        /// Field name.
+        field: &'static str,
+        /// The value read, degrees.
+        value: f64,
+        /// Smallest valid value.
+        min: f64,
+        /// Largest valid value.
+        max: f64,
     },
     /// A message version this decoder does not know.
     #[error("UBX {name} version {version} is not supported")]
@@ -90,6 +121,39 @@ fn u32le(b: &[u8], o: usize) -> u32 {
 }
 fn i32le(b: &[u8], o: usize) -> i32 {
     u32le(b, o) as i32
+}
+
+/// UTC from the date and time fields every UBX PVT layout shares (year U2 at `at`, then month,
+/// day, hour, minute, second; nanoseconds I4 at `nano`), when `valid` and in range.
+fn utc_at(p: &[u8], at: usize, valid: bool, nano: usize) -> Option<UtcNanos> {
+    let (mo, d, h, mi, s) = (p[at + 2], p[at + 3], p[at + 4], p[at + 5], p[at + 6]);
+    if !(valid && (1..=12).contains(&mo) && (1..=31).contains(&d) && h < 24 && mi < 60 && s < 61) {
+        return None;
+    }
+    let tod = ((i64::from(h) * 60 + i64::from(mi)) * 60 + i64::from(s)) * 1_000_000_000
+        + i64::from(i32le(p, nano));
+    utc_from_civil(i64::from(u16le(p, at)), u32::from(mo), u32::from(d), tod)
+}
+
+/// An angle field, degrees, checked against the range the field can hold.
+fn angle(
+    name: &'static str,
+    field: &'static str,
+    value: f64,
+    min: f64,
+    max: f64,
+) -> Result<f64, UbxError> {
+    if (min..=max).contains(&value) {
+        Ok(value)
+    } else {
+        Err(UbxError::Angle {
+            name,
+            field,
+            value,
+            min,
+            max,
+        })
+    }
 }
 
 /// NAV-PVT: the receiver's navigation solution.
@@ -153,26 +217,7 @@ impl NavPvt {
     /// Decodes a 92-byte NAV-PVT payload.
     pub fn decode(p: &[u8]) -> Result<NavPvt, UbxError> {
         check("NAV-PVT", p, 92, None)?;
-        let valid = p[11];
-        let utc = (valid & 0x03 == 0x03
-            && (1..=12).contains(&p[6])
-            && (1..=31).contains(&p[7])
-            && p[8] < 24
-            && p[9] < 60
-            && p[10] < 61)
-            .then_some(())
-            .and_then(|()| {
-                let nano = i64::from(i32le(p, 16));
-                let tod = ((i64::from(p[8]) * 60 + i64::from(p[9])) * 60 + i64::from(p[10]))
-                    * 1_000_000_000
-                    + nano;
-                utc_from_civil(
-                    i64::from(u16le(p, 4)),
-                    u32::from(p[6]),
-                    u32::from(p[7]),
-                    tod,
-                )
-            });
+        let utc = utc_at(p, 4, p[11] & 0x03 == 0x03, 16);
         let flags = p[21];
         let carrier = carrier(u32::from(flags >> 6));
         let flags3 = u16le(p, 78);
@@ -254,10 +299,14 @@ pub struct NavRelposned {
     pub acc_ned_m: [f64; 3],
     /// Heading of the relative position vector, degrees, when valid.
     pub heading_deg: Option<f64>,
+    /// Accuracy of that heading, degrees (1 sigma, as the receiver states it).
+    pub heading_acc_deg: f64,
     /// Carrier-phase solution.
     pub carrier: CarrierSolution,
     /// The relative position is valid.
     pub valid: bool,
+    /// The reference is a moving base (a dual-antenna heading receiver), not a static station.
+    pub moving_base: bool,
 }
 
 impl NavRelposned {
@@ -277,8 +326,175 @@ impl NavRelposned {
                 f64::from(u32le(p, 44)) * 1e-4,
             ],
             heading_deg: (flags & 0x100 != 0).then(|| f64::from(i32le(p, 24)) * 1e-5),
+            heading_acc_deg: f64::from(u32le(p, 52)) * 1e-5,
             carrier: carrier(flags >> 3),
             valid: flags & 0x04 != 0,
+            moving_base: flags & 0x20 != 0,
+        })
+    }
+}
+
+/// NAV-ATT and HNR-ATT (the same layout): roll, pitch and heading of the vehicle from the
+/// receiver's sensor fusion, with their accuracies.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Att {
+    /// GPS time of week, ms.
+    pub itow_ms: u32,
+    /// Roll, degrees.
+    pub roll_deg: f64,
+    /// Pitch, degrees.
+    pub pitch_deg: f64,
+    /// Heading, degrees.
+    pub heading_deg: f64,
+    /// Roll accuracy, degrees.
+    pub roll_acc_deg: f64,
+    /// Pitch accuracy, degrees.
+    pub pitch_acc_deg: f64,
+    /// Heading accuracy, degrees.
+    pub heading_acc_deg: f64,
+}
+
+impl Att {
+    /// Decodes a 32-byte NAV-ATT (message version 0) or HNR-ATT (version 1) payload; `name`
+    /// says which. The version byte follows the time of week.
+    pub fn decode(name: &'static str, version: u8, p: &[u8]) -> Result<Att, UbxError> {
+        check(name, p, 32, None)?;
+        if p[4] != version {
+            return Err(UbxError::Version {
+                name,
+                version: p[4],
+            });
+        }
+        let deg = |o: usize| f64::from(i32le(p, o)) / 1e5;
+        let acc = |o: usize| f64::from(u32le(p, o)) / 1e5;
+        Ok(Att {
+            itow_ms: u32le(p, 0),
+            roll_deg: angle(name, "roll", deg(8), -180.0, 180.0)?,
+            pitch_deg: angle(name, "pitch", deg(12), -90.0, 90.0)?,
+            heading_deg: angle(name, "heading", deg(16), -180.0, 360.0)?,
+            roll_acc_deg: acc(20),
+            pitch_acc_deg: acc(24),
+            heading_acc_deg: acc(28),
+        })
+    }
+}
+
+/// NAV-PVAT (F9R): the navigation solution with the vehicle's attitude; each angle only when
+/// the receiver marks it valid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NavPvat {
+    /// GPS time of week, ms.
+    pub itow_ms: u32,
+    /// UTC of the epoch, when date and time are valid.
+    pub utc: Option<UtcNanos>,
+    /// Vehicle roll, degrees, when valid.
+    pub roll_deg: Option<f64>,
+    /// Vehicle pitch, degrees, when valid.
+    pub pitch_deg: Option<f64>,
+    /// Vehicle heading, degrees, when valid.
+    pub heading_deg: Option<f64>,
+    /// Heading of motion, degrees.
+    pub motion_heading_deg: f64,
+    /// Roll accuracy, degrees.
+    pub roll_acc_deg: f64,
+    /// Pitch accuracy, degrees.
+    pub pitch_acc_deg: f64,
+    /// Heading accuracy, degrees.
+    pub heading_acc_deg: f64,
+}
+
+impl NavPvat {
+    /// Decodes a 116-byte NAV-PVAT payload (version 0).
+    pub fn decode(p: &[u8]) -> Result<NavPvat, UbxError> {
+        const NAME: &str = "NAV-PVAT";
+        check(NAME, p, 116, None)?;
+        if p[4] != 0 {
+            return Err(UbxError::Version {
+                name: NAME,
+                version: p[4],
+            });
+        }
+        let flags = p[25];
+        let deg = |o: usize| f64::from(i32le(p, o)) / 1e5;
+        let acc = |o: usize| f64::from(u16le(p, o)) / 1e2;
+        let valid = |bit: u8, field: &'static str, o: usize, min: f64, max: f64| {
+            if flags & bit != 0 {
+                angle(NAME, field, deg(o), min, max).map(Some)
+            } else {
+                Ok(None)
+            }
+        };
+        Ok(NavPvat {
+            itow_ms: u32le(p, 0),
+            utc: utc_at(p, 6, p[5] & 0x03 == 0x03, 20),
+            roll_deg: valid(0x08, "vehRoll", 72, -180.0, 180.0)?,
+            pitch_deg: valid(0x10, "vehPitch", 76, -90.0, 90.0)?,
+            heading_deg: valid(0x20, "vehHeading", 80, -180.0, 360.0)?,
+            motion_heading_deg: deg(84),
+            roll_acc_deg: acc(88),
+            pitch_acc_deg: acc(90),
+            heading_acc_deg: acc(92),
+        })
+    }
+}
+
+/// ESF-ALG: the angles the receiver's IMU is mounted at in the vehicle (its automatic
+/// alignment), not the vehicle's attitude.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EsfAlg {
+    /// GPS time of week, ms.
+    pub itow_ms: u32,
+    /// Alignment status (0 user-defined angles, 1-2 alignment ongoing, 3 coarse, 4 fine).
+    pub status: u8,
+    /// An alignment error flag is set (tilt, yaw or angle).
+    pub error: bool,
+    /// Yaw of the IMU in the vehicle, degrees.
+    pub yaw_deg: f64,
+    /// Pitch, degrees.
+    pub pitch_deg: f64,
+    /// Roll, degrees.
+    pub roll_deg: f64,
+}
+
+impl EsfAlg {
+    /// Decodes a 16-byte ESF-ALG payload (version 1).
+    pub fn decode(p: &[u8]) -> Result<EsfAlg, UbxError> {
+        const NAME: &str = "ESF-ALG";
+        check(NAME, p, 16, None)?;
+        if p[4] != 1 {
+            return Err(UbxError::Version {
+                name: NAME,
+                version: p[4],
+            });
+        }
+        let i16le = |o: usize| u16le(p, o) as i16;
+        Ok(EsfAlg {
+            itow_ms: u32le(p, 0),
+            status: (p[5] >> 1) & 0x07,
+            error: p[6] & 0x07 != 0,
+            yaw_deg: angle(NAME, "yaw", f64::from(u32le(p, 8)) / 1e2, 0.0, 360.0)?,
+            pitch_deg: angle(NAME, "pitch", f64::from(i16le(12)) / 1e2, -90.0, 90.0)?,
+            roll_deg: angle(NAME, "roll", f64::from(i16le(14)) / 1e2, -180.0, 180.0)?,
+        })
+    }
+}
+
+/// HNR-PVT, the part the attitude needs: the UTC of a GPS time of week at the high rate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HnrPvt {
+    /// GPS time of week, ms.
+    pub itow_ms: u32,
+    /// UTC, when date and time are valid.
+    pub utc: Option<UtcNanos>,
+}
+
+impl HnrPvt {
+    /// Decodes a 72-byte HNR-PVT payload (its time fields).
+    pub fn decode(p: &[u8]) -> Result<HnrPvt, UbxError> {
+        check("HNR-PVT", p, 72, None)?;
+        Ok(HnrPvt {
+            itow_ms: u32le(p, 0),
+            utc: utc_at(p, 4, p[11] & 0x03 == 0x03, 12),
         })
     }
 }
@@ -292,6 +508,16 @@ pub enum Ubx {
     NavHpposllh(NavHpposllh),
     /// NAV-RELPOSNED.
     NavRelposned(NavRelposned),
+    /// NAV-ATT.
+    NavAtt(Att),
+    /// NAV-PVAT.
+    NavPvat(NavPvat),
+    /// HNR-ATT.
+    HnrAtt(Att),
+    /// HNR-PVT (its time).
+    HnrPvt(HnrPvt),
+    /// ESF-ALG.
+    EsfAlg(EsfAlg),
     /// Any other class/id (valid frame, not decoded).
     Other {
         /// Class.
@@ -307,6 +533,11 @@ pub fn decode(class: u8, id: u8, payload: &[u8]) -> Result<Ubx, UbxError> {
         (CLASS_NAV, ID_PVT) => Ubx::NavPvt(NavPvt::decode(payload)?),
         (CLASS_NAV, ID_HPPOSLLH) => Ubx::NavHpposllh(NavHpposllh::decode(payload)?),
         (CLASS_NAV, ID_RELPOSNED) => Ubx::NavRelposned(NavRelposned::decode(payload)?),
+        (CLASS_NAV, ID_ATT) => Ubx::NavAtt(Att::decode("NAV-ATT", 0, payload)?),
+        (CLASS_NAV, ID_PVAT) => Ubx::NavPvat(NavPvat::decode(payload)?),
+        (CLASS_HNR, ID_HNR_ATT) => Ubx::HnrAtt(Att::decode("HNR-ATT", 1, payload)?),
+        (CLASS_HNR, ID_HNR_PVT) => Ubx::HnrPvt(HnrPvt::decode(payload)?),
+        (CLASS_ESF, ID_ESF_ALG) => Ubx::EsfAlg(EsfAlg::decode(payload)?),
         _ => Ubx::Other { class, id },
     })
 }
