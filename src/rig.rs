@@ -96,6 +96,72 @@ pub struct GnssConfig {
     /// Antenna phase centre in the vehicle frame (the lever arm).
     #[serde(default)]
     pub antenna: Mounting,
+    /// The reference system's own heading, when it measures one (an INS, a dual-antenna
+    /// receiver): which of its messages `check` fuses, and how it is mounted.
+    #[serde(default)]
+    pub heading: Option<HeadingConfig>,
+}
+
+/// The heading reference of the rig (`[gnss.heading]`).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeadingConfig {
+    /// The message that carries it.
+    pub source: HeadingSource,
+    /// The source's heading axis against the vehicle's x axis, degrees clockwise seen from
+    /// above: a dual-antenna baseline across the car reads 90 (or -90) off the vehicle's
+    /// heading; an INS aligned with the car, 0. `check` estimates what remains.
+    #[serde(default)]
+    pub yaw_offset_deg: f64,
+    /// Expected accuracy (1 sigma), degrees, for messages that state none (HDT, THS,
+    /// PSTI,036) and as a floor under those that do.
+    pub sigma_deg: f64,
+}
+
+/// A message that can carry the heading reference.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+pub enum HeadingSource {
+    /// NMEA HDT.
+    #[serde(rename = "HDT")]
+    Hdt,
+    /// NMEA THS.
+    #[serde(rename = "THS")]
+    Ths,
+    /// PASHR.
+    #[serde(rename = "PASHR")]
+    Pashr,
+    /// SkyTraq PSTI,036.
+    #[serde(rename = "PSTI,036")]
+    Psti036,
+    /// UBX NAV-ATT.
+    #[serde(rename = "NAV-ATT")]
+    NavAtt,
+    /// UBX NAV-PVAT.
+    #[serde(rename = "NAV-PVAT")]
+    NavPvat,
+    /// UBX NAV-RELPOSNED (moving base).
+    #[serde(rename = "NAV-RELPOSNED")]
+    NavRelposned,
+    /// UBX HNR-ATT.
+    #[serde(rename = "HNR-ATT")]
+    HnrAtt,
+}
+
+impl HeadingSource {
+    /// The driver's name for the message.
+    pub fn attitude_source(self) -> hilrig_gnss::AttitudeSource {
+        use hilrig_gnss::AttitudeSource as A;
+        match self {
+            HeadingSource::Hdt => A::Hdt,
+            HeadingSource::Ths => A::Ths,
+            HeadingSource::Pashr => A::Pashr,
+            HeadingSource::Psti036 => A::Psti036,
+            HeadingSource::NavAtt => A::NavAtt,
+            HeadingSource::NavPvat => A::NavPvat,
+            HeadingSource::NavRelposned => A::NavRelposned,
+            HeadingSource::HnrAtt => A::HnrAtt,
+        }
+    }
 }
 
 /// The CAN bus.
@@ -259,6 +325,10 @@ pub struct Thresholds {
     /// (`benches/check_campaign.py`), and more before it has moved far enough to show its
     /// heading, or in slow turns.
     pub max_heading_sigma_deg: f64,
+    /// The largest offset of the heading source against the track beyond the rig file's
+    /// `[gnss.heading] yaw_offset_deg`, degrees. Default 3: a dual-antenna baseline is laid out
+    /// to a degree or two; more is a mounting the rig file does not describe.
+    pub max_heading_offset_deg: f64,
     /// The range at which a heading error is counted in the accuracy budget, m. Default 30:
     /// beyond it a VLP-16's rings are more than half a metre apart and carry little of what the
     /// metrics compare.
@@ -282,6 +352,7 @@ impl Default for Thresholds {
             require_pps: true,
             max_jump_sigma: 5.0,
             max_heading_sigma_deg: 0.2,
+            max_heading_offset_deg: 3.0,
             heading_range_m: 30.0,
         }
     }

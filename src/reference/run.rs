@@ -64,6 +64,9 @@ pub struct Run {
     pub damage: Option<String>,
     /// The rig file attached by the recorder, if any.
     pub rig_toml: Option<String>,
+    /// Attitude reports of the reference system (INS, dual antenna), decoded from the raw GNSS
+    /// topics, with the host time they were received at.
+    pub attitudes: Vec<(UtcNanos, hilrig_gnss::Attitude)>,
 }
 
 /// Why a run cannot be read at all.
@@ -107,12 +110,22 @@ pub fn load_with_rig(
 }
 
 /// Collects a [`Run`] from the events of a recording, in file order.
-#[derive(Default)]
 struct Collector {
     run: Run,
     nmea: GnssStream,
     ubx: GnssStream,
     fixes: Vec<Fix>,
+}
+
+impl Default for Collector {
+    fn default() -> Collector {
+        Collector {
+            run: Run::default(),
+            nmea: GnssStream::default().with_attitude(),
+            ubx: GnssStream::default().with_attitude(),
+            fixes: Vec::new(),
+        }
+    }
 }
 
 impl Collector {
@@ -142,6 +155,8 @@ impl Collector {
                             let line = format!("{s}\r\n");
                             self.nmea.push(line.as_bytes(), &mut self.fixes);
                             run.fixes.extend(self.fixes.drain(..).map(|f| (host, f)));
+                            run.attitudes
+                                .extend(self.nmea.take_attitudes().into_iter().map(|a| (host, a)));
                         }
                     }
                     topics::GNSS_UBX => {
@@ -149,6 +164,9 @@ impl Collector {
                             if let Some(b) = c.bytes(n as usize) {
                                 self.ubx.push(b, &mut self.fixes);
                                 run.fixes.extend(self.fixes.drain(..).map(|f| (host, f)));
+                                run.attitudes.extend(
+                                    self.ubx.take_attitudes().into_iter().map(|a| (host, a)),
+                                );
                             }
                         }
                     }

@@ -172,6 +172,41 @@ pub struct GnssStream {
     pub geoid_separation_m: f64,
 }
 
+/// The heading source's stream (an INS, a dual-antenna receiver), as the rig's
+/// `[gnss.heading]` message on the GNSS port: its truth, noise and faults.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeadingStream {
+    /// Reports per second (THS and HDT, which have no time of their own, come with each GNSS
+    /// epoch instead).
+    #[serde(default = "d_heading_rate")]
+    pub rate_hz: f64,
+    /// Noise, 1 sigma, degrees (white: a dual antenna's carrier-phase heading, an INS's
+    /// filtered one).
+    #[serde(default = "d_heading_sigma")]
+    pub sigma_deg: f64,
+    /// How far the source's axis really is turned beyond the rig file's `yaw_offset_deg`,
+    /// degrees clockwise (the baseline's misalignment that `check` estimates).
+    #[serde(default)]
+    pub misalignment_deg: f64,
+    /// Delay from the report's instant to the host stamp, ms.
+    #[serde(default = "d_heading_latency")]
+    pub latency_ms: f64,
+    /// Stretches in which the source dead-reckons and says so (THS mode E; other messages
+    /// have no such mode and report as measured).
+    #[serde(default)]
+    pub estimated: Vec<Window>,
+    /// Stretches in which the source repeats its last heading (a frozen output).
+    #[serde(default)]
+    pub frozen: Vec<Window>,
+}
+
+impl Default for HeadingStream {
+    fn default() -> Self {
+        toml::from_str("").expect("defaults")
+    }
+}
+
 /// CAN stream errors and settings.
 #[derive(Clone, Copy, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -227,6 +262,9 @@ defaults! {
     d_speed_noise: f64 = 0.01;
     d_yaw_noise: f64 = 0.002;
     d_survey: f64 = 0.10;
+    d_heading_rate: f64 = 20.0;
+    d_heading_sigma: f64 = 0.05;
+    d_heading_latency: f64 = 10.0;
 }
 
 impl Default for LidarStream {
@@ -403,6 +441,9 @@ pub struct DriveFile {
     /// CAN stream.
     #[serde(default)]
     pub can: CanStream,
+    /// The heading source's stream, written when the rig has `[gnss.heading]`.
+    #[serde(default)]
+    pub heading: HeadingStream,
     /// Survey of static objects.
     #[serde(default)]
     pub survey: Survey,

@@ -3,7 +3,7 @@
 //! through the rig's DBC mapping, each with the injected faults of the drive file. Each stream
 //! draws from its own random stream, so adding one never changes another.
 
-use super::drive::{CanStream, Driven, Faults, GnssStream};
+use super::drive::{CanStream, Driven, Faults, GnssStream, HeadingStream};
 use crate::rig::{CanConfig, GnssConfig};
 use crate::scene::file::Wgs84;
 use crate::scene::geodesy::Enu;
@@ -181,6 +181,87 @@ impl Streams<'_> {
             t = UtcNanos(t.0 + step_ns);
         }
 
+        Ok((events, sentences))
+    }
+
+    /// The rig's heading source's reports of the vehicle's true heading (plus the source's
+    /// mounting and misalignment, and noise): serial byte chunks with their receive times,
+    /// and the sentence count. Written as the rig's message: THS (mode A, or E where the
+    /// drive says the source dead-reckons), HDT, PASHR (with its sigma) or PSTI,036.
+    ///
+    /// THS and HDT carry no time of their own: a receiver writes them in its epoch's burst of
+    /// sentences, and a reader tags them with that epoch. They are written so here, at the
+    /// GNSS rate just after the epoch's GGA, whatever the drive's heading rate says.
+    pub(super) fn heading(
+        &self,
+        hs: &HeadingStream,
+        gs: &GnssStream,
+        cfg: &crate::rig::HeadingConfig,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<(Vec<Timed>, u64), String> {
+        use crate::rig::HeadingSource as H;
+        let in_epoch = matches!(cfg.source, H::Ths | H::Hdt);
+        let (rate_hz, latency_ms) = if in_epoch {
+            (gs.rate_hz, gs.latency_ms + 6.0 * gs.jitter_ms + 1.0)
+        } else {
+            (hs.rate_hz, hs.latency_ms)
+        };
+        if !(hs.rate_hz > 0.0 && hs.sigma_deg >= 0.0) {
+            return Err(format!(
+                "[heading] rate_hz = {} and sigma_deg = {}: the rate must be positive and the noise not negative",
+                hs.rate_hz, hs.sigma_deg
+            ));
+        }
+        let noise = Normal::new(0.0, hs.sigma_deg).map_err(|e| e.to_string())?;
+        let (start, end) = self.span;
+        let step_ns = (1e9 / rate_hz).round() as i64;
+        let mut t = UtcNanos(start.0 + (step_ns - start.0.rem_euclid(step_ns)) % step_ns);
+        let mut hint = 0;
+        let mut events = Vec::new();
+        let mut sentences = 0;
+        let mut last: Option<f64> = None;
+        while t <= end {
+            let Some(p) = self.driven.ego.sample_at(t, &mut hint) else {
+                t = UtcNanos(t.0 + step_ns);
+                continue;
+            };
+            let ts = self.since_start(t);
+            // The vehicle's heading clockwise from north, as the source's axis reads it.
+            let true_heading = 90.0 - p.yaw.to_degrees() + cfg.yaw_offset_deg + hs.misalignment_deg;
+            let mut h = true_heading + if self.errors { noise.sample(rng) } else { 0.0 };
+            if hs.frozen.iter().any(|w| w.contains(ts)) {
+                h = last.unwrap_or(h);
+            }
+            last = Some(h);
+            let h = h.rem_euclid(360.0);
+            let estimated = hs.estimated.iter().any(|w| w.contains(ts));
+            let (hms_s, date) = hms(t);
+            let body = match cfg.source {
+                H::Ths => format!("GNTHS,{h:.3},{}", if estimated { 'E' } else { 'A' }),
+                H::Hdt => format!("GNHDT,{h:.3},T"),
+                H::Pashr => format!(
+                    "PASHR,{hms_s},{h:.3},T,+0.00,+0.00,+0.00,0.000,0.000,{:.3},2,{}",
+                    hs.sigma_deg.max(0.001),
+                    if estimated { 2 } else { 4 }
+                ),
+                H::Psti036 => format!(
+                    "PSTI,036,{hms_s},{date},{h:.3},0.00,0.00,{}",
+                    if estimated { 'E' } else { 'R' }
+                ),
+                other => {
+                    return Err(format!(
+                        "synth writes the heading as THS, HDT, PASHR or PSTI,036; the rig's source is {:?}",
+                        other.attitude_source().name()
+                    ))
+                }
+            };
+            sentences += 1;
+            events.push((
+                t.0 + (latency_ms * 1e6).round() as i64,
+                nmea_sentence(&body).into_bytes(),
+            ));
+            t = UtcNanos(t.0 + step_ns);
+        }
         Ok((events, sentences))
     }
 

@@ -307,6 +307,18 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         .map_err(input)?;
     summary.sentences += sentences;
     events.extend(gnss.into_iter().map(|(t, b)| (t, SER, b)));
+    if let Some(h) = gnss_cfg.heading.as_ref() {
+        let (heading, n) = streams
+            .heading(
+                &job.drive.heading,
+                &job.drive.gnss,
+                h,
+                &mut stream_rng(job.seed, rep, 6),
+            )
+            .map_err(input)?;
+        summary.sentences += n;
+        events.extend(heading.into_iter().map(|(t, b)| (t, SER, b)));
+    }
     let can = streams
         .can(
             &job.drive.can,

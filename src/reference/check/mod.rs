@@ -31,6 +31,7 @@
 mod budget;
 mod consistency;
 mod faults;
+mod heading;
 mod names;
 pub mod report;
 mod sources;
@@ -91,6 +92,7 @@ fn unusable(run: &Run, why: String, spatial: Spatial) -> Report {
         warnings: Vec::new(),
         segments: Vec::new(),
         damage: run.damage.clone(),
+        heading_source: None,
     }
 }
 
@@ -153,6 +155,7 @@ fn without_trajectory(
         marks: Vec::new(),
         warnings: Vec::new(),
         damage: run.damage.clone(),
+        heading_source: None,
     }
 }
 
@@ -258,9 +261,22 @@ fn check_into(
         settings.yaw_jerk_noise,
         settings.yaw_rate_sigma
     );
-    let traj = match EgoTrajectory::smooth(&obs, &motion, &settings) {
+    // The rig's heading source, when it has one: fused with its stated sigma, in the
+    // GNSS epochs' time base (the reports' own UTC).
+    let heading_cfg = rig.gnss.as_ref().and_then(|g| g.heading.as_ref());
+    let heading_reports = heading_cfg.map(|c| heading::reports(run, c));
+    let heading_obs = heading_reports.as_ref().map_or(&[][..], |r| &r.obs[..]);
+    let traj = match EgoTrajectory::smooth_with_heading(&obs, &motion, heading_obs, &settings) {
         Ok(t) => t,
         Err(e) => return unusable(run, e.to_string(), sp),
+    };
+    let heading_source = match (heading_cfg, &heading_reports) {
+        (Some(c), Some(r)) => {
+            let period = temporal::median_interval(&r.obs.iter().map(|o| o.t).collect::<Vec<_>>())
+                .unwrap_or(gnss_period);
+            Some(heading::judge(r, &traj, c, th, period, &mut log))
+        }
+        _ => None,
     };
     // Epochs good enough to differentiate: fixed and within the sigma limits.
     let good: Vec<bool> = epochs
@@ -348,6 +364,7 @@ fn check_into(
         warnings,
         segments,
         damage: run.damage.clone(),
+        heading_source,
     }
 }
 

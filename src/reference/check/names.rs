@@ -41,6 +41,14 @@ pub enum FaultName {
     NothingUsable,
     /// A mark: the smoothed heading less certain than the limit.
     HeadingUncertain,
+    /// Consecutive heading-source reports beyond 3 sigma of the smoothed heading.
+    HeadingSourceDisagrees,
+    /// Heading-source reports in a mode other than measured (estimated, manual, simulator).
+    HeadingSourceNotMeasured,
+    /// The heading source's offset against the track beyond the rig's limit.
+    HeadingSourceOffset,
+    /// The rig has a heading source that reported no measured heading.
+    HeadingSourceMissing,
     /// No lidar data packets at all: nothing to re-simulate or compare.
     NoLidarData,
     /// No (or one) GNSS epoch with a position: no reference trajectory.
@@ -69,6 +77,10 @@ impl FaultName {
             FaultName::CanGap => "can_gap",
             FaultName::NothingUsable => "nothing_usable",
             FaultName::HeadingUncertain => "heading_uncertain",
+            FaultName::HeadingSourceDisagrees => "heading_source_disagrees",
+            FaultName::HeadingSourceNotMeasured => "heading_source_not_measured",
+            FaultName::HeadingSourceOffset => "heading_source_offset",
+            FaultName::HeadingSourceMissing => "heading_source_missing",
             FaultName::NoLidarData => "no_lidar_data",
             FaultName::NoGnssFixes => "no_gnss_fixes",
             FaultName::NoEgoMotion => "no_ego_motion",

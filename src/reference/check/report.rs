@@ -304,6 +304,9 @@ pub struct Report {
     pub segments: Vec<Segment>,
     /// Problems reading the recording.
     pub damage: Option<String>,
+    /// The rig's heading source, when it has one and it reported: what was used and how it
+    /// fits the track.
+    pub heading_source: Option<super::heading::HeadingReport>,
 }
 
 impl Fault {
@@ -370,6 +373,7 @@ impl Report {
             "smallest admissible grid cell: {:.2} m (Rosenberger et al. 2019, §6)",
             a.grid_cell_m
         );
+        let _ = writeln!(s, "{}", super::heading::text(self.heading_source.as_ref()));
         let sp = &self.spatial;
         let _ = writeln!(
             s,

@@ -1,0 +1,230 @@
+//! The rig's heading source (an INS, a dual-antenna receiver): its reports as measurements of
+//! the smoother, and the verdict on them. The smoother estimates the source's constant offset
+//! against the track (the baseline's misalignment beyond what the rig file says); a report
+//! is measured against the smoothed heading with that offset, and a stretch of reports that
+//! does not fit the stated accuracy, a source that reports in a mode other than measured (dead
+//! reckoning held over an outage, manual input, a simulator) or an offset beyond the limit is a
+//! fault, named and located.
+
+use super::faults::FaultLog;
+use super::names::FaultName;
+use crate::reference::run::Run;
+use crate::reference::trajectory::{EgoTrajectory, HeadingObs};
+use crate::rig::{HeadingConfig, Thresholds};
+use hilrig_gnss::{AttitudeMode, AttitudeOf};
+use hilrig_stamp::UtcNanos;
+use serde::Serialize;
+
+/// Consecutive reports beyond 3 sigma that make a fault. One report in 370 lies beyond 3 sigma
+/// by chance; five in a row, about one in 10^12.
+const RUN_BEYOND_3_SIGMA: usize = 5;
+
+/// The source's reports sorted for the smoother.
+pub(super) struct Reports {
+    /// The measured ones, as the smoother takes them.
+    pub obs: Vec<HeadingObs>,
+    /// Times of reports in a mode other than measured (not used).
+    pub not_measured: Vec<(UtcNanos, AttitudeMode)>,
+    /// Reports of the source without a time (before the stream showed its date; not used).
+    pub untimed: usize,
+}
+
+/// The rig's heading source's reports in `run`: the heading turned into the smoother's
+/// frame (from east, counter-clockwise) with the rig's mounting offset taken off, and the
+/// larger of the stated and the rig's sigma.
+pub(super) fn reports(run: &Run, cfg: &HeadingConfig) -> Reports {
+    let source = cfg.source.attitude_source();
+    let mut out = Reports {
+        obs: Vec::new(),
+        not_measured: Vec::new(),
+        untimed: 0,
+    };
+    for (_, a) in &run.attitudes {
+        if a.source != source || a.of != AttitudeOf::Vehicle {
+            continue;
+        }
+        let Some(heading) = a.heading_deg else {
+            continue;
+        };
+        let Some(t) = a.time else {
+            out.untimed += 1;
+            continue;
+        };
+        if a.mode != AttitudeMode::Measured {
+            out.not_measured.push((t, a.mode));
+            continue;
+        }
+        let sigma = a.sigma_heading_deg.unwrap_or(0.0).max(cfg.sigma_deg);
+        out.obs.push(HeadingObs {
+            t,
+            yaw: std::f64::consts::FRAC_PI_2 - (heading - cfg.yaw_offset_deg).to_radians(),
+            sigma: sigma.to_radians(),
+        });
+    }
+    out.obs.sort_by_key(|o| o.t);
+    out
+}
+
+/// What `check` says of the heading source (check.json `heading_source`).
+#[derive(Clone, Debug, Serialize)]
+pub struct HeadingReport {
+    /// The message used.
+    pub source: &'static str,
+    /// Reports used.
+    pub used: usize,
+    /// Reports left out: in a mode other than measured.
+    pub not_measured: usize,
+    /// Reports left out: without a time.
+    pub untimed: usize,
+    /// The accuracy the rig file states, deg.
+    pub sigma_deg: f64,
+    /// The mounting offset the rig file states, deg (clockwise).
+    pub yaw_offset_rig_deg: f64,
+    /// The source's offset beyond that, as the drive shows it, deg (clockwise: the source
+    /// reads this much more than the vehicle's heading); `None` without reports.
+    pub offset_deg: Option<f64>,
+    /// Its 1-sigma, deg.
+    pub offset_sigma_deg: Option<f64>,
+    /// sqrt(mean NIS) of the reports against the smoothed heading: about 1 when the source
+    /// is as accurate as it says.
+    pub rms_normalized: Option<f64>,
+    /// Reports more than 3 sigma off the smoothed heading.
+    pub beyond_3_sigma: usize,
+}
+
+/// Judges the reports against the smoothed trajectory, logging faults.
+pub(super) fn judge(
+    reports: &Reports,
+    traj: &EgoTrajectory,
+    cfg: &HeadingConfig,
+    th: &Thresholds,
+    period: i64,
+    log: &mut FaultLog,
+) -> HeadingReport {
+    let name = cfg.source.attitude_source().name();
+    let mut report = HeadingReport {
+        source: name,
+        used: reports.obs.len(),
+        not_measured: reports.not_measured.len(),
+        untimed: reports.untimed,
+        sigma_deg: cfg.sigma_deg,
+        yaw_offset_rig_deg: cfg.yaw_offset_deg,
+        offset_deg: None,
+        offset_sigma_deg: None,
+        rms_normalized: None,
+        beyond_3_sigma: 0,
+    };
+    let (a, z) = traj.span();
+    let Some((b, sb)) = traj.heading_offset() else {
+        log.fault(
+            FaultName::HeadingSourceMissing,
+            a,
+            z,
+            format!(
+                "the rig's heading source {name} reported no measured heading with a time ({} in another mode, {} without a time): the recording is not what the rig file describes",
+                reports.not_measured.len(),
+                reports.untimed
+            ),
+        );
+        return report;
+    };
+    let res = &traj.heading_residuals;
+    let mean_nis = res.iter().map(|r| r.nis).sum::<f64>() / res.len().max(1) as f64;
+    // Runs of consecutive reports beyond 3 sigma.
+    let mut i = 0;
+    let mut beyond = 0;
+    while i < res.len() {
+        if res[i].nis <= 9.0 {
+            i += 1;
+            continue;
+        }
+        let mut j = i;
+        while j < res.len() && res[j].nis > 9.0 {
+            j += 1;
+        }
+        beyond += j - i;
+        if j - i >= RUN_BEYOND_3_SIGMA {
+            let worst = res[i..j]
+                .iter()
+                .map(|r| r.error.abs())
+                .fold(0.0, f64::max)
+                .to_degrees();
+            log.fault(
+                FaultName::HeadingSourceDisagrees,
+                res[i].t,
+                UtcNanos(res[j - 1].t.0 + period),
+                format!(
+                    "{} {} reports in a row more than 3 sigma ({:.3}°) off the smoothed heading, up to {worst:.3}°: a frozen or disturbed source, or a wrong mounting",
+                    j - i,
+                    cfg.source.attitude_source().name(),
+                    cfg.sigma_deg
+                ),
+            );
+        }
+        i = j;
+    }
+    // Reports in another mode, located as runs.
+    let mut k = 0;
+    let nm = &reports.not_measured;
+    while k < nm.len() {
+        let mut j = k + 1;
+        while j < nm.len() && nm[j].0 .0 - nm[j - 1].0 .0 <= period * 3 / 2 && nm[j].1 == nm[k].1 {
+            j += 1;
+        }
+        log.fault(
+            FaultName::HeadingSourceNotMeasured,
+            nm[k].0,
+            UtcNanos(nm[j - 1].0 .0 + period),
+            format!(
+                "{} {} reports in mode {}: not measured, not used",
+                j - k,
+                cfg.source.attitude_source().name(),
+                nm[k].1.name()
+            ),
+        );
+        k = j;
+    }
+    // The smoother's offset is in its own (counter-clockwise) sense.
+    let offset_deg = -b.to_degrees();
+    if offset_deg.abs() > th.max_heading_offset_deg && offset_deg.abs() > 3.0 * sb.to_degrees() {
+        log.fault(
+            FaultName::HeadingSourceOffset,
+            a,
+            z,
+            format!(
+                "the source reads {offset_deg:+.2}° ± {:.2}° off the track beyond the rig's yaw_offset_deg = {}; limit {}°: check the mounting in the rig file",
+                sb.to_degrees(),
+                cfg.yaw_offset_deg,
+                th.max_heading_offset_deg
+            ),
+        );
+    }
+    report.offset_deg = Some(offset_deg);
+    report.offset_sigma_deg = Some(sb.to_degrees());
+    report.rms_normalized = Some(mean_nis.sqrt());
+    report.beyond_3_sigma = beyond;
+    report
+}
+
+/// The report's line on the heading source.
+pub(super) fn text(h: Option<&HeadingReport>) -> String {
+    let Some(h) = h else {
+        return "heading source: none (the heading is the track's: RTK and CAN)".to_owned();
+    };
+    match (h.offset_deg, h.offset_sigma_deg, h.rms_normalized) {
+        (Some(o), Some(so), Some(rms)) => format!(
+            "heading source: {} ({} reports used, {} not measured, {} without a time); offset against the track {o:+.3}° ± {so:.3}° beyond the rig's {}°; reports fit their {:.3}° at {rms:.2} of it (rms normalised), {} beyond 3 sigma",
+            h.source,
+            h.used,
+            h.not_measured,
+            h.untimed,
+            h.yaw_offset_rig_deg,
+            h.sigma_deg,
+            h.beyond_3_sigma
+        ),
+        _ => format!(
+            "heading source: {}: no measured report ({} not measured, {} without a time)",
+            h.source, h.not_measured, h.untimed
+        ),
+    }
+}
