@@ -8,12 +8,12 @@
 
 use super::faults::FaultLog;
 use super::names::FaultName;
+use super::report::HeadingReport;
 use crate::reference::run::Run;
 use crate::reference::trajectory::{EgoTrajectory, HeadingObs};
 use crate::rig::{HeadingConfig, Thresholds};
 use hilrig_gnss::{AttitudeMode, AttitudeOf};
 use hilrig_stamp::UtcNanos;
-use serde::Serialize;
 
 /// Consecutive reports beyond 3 sigma that make a fault. One report in 370 lies beyond 3 sigma
 /// by chance; five in a row, about one in 10^12.
@@ -63,33 +63,6 @@ pub(super) fn reports(run: &Run, cfg: &HeadingConfig) -> Reports {
     }
     out.obs.sort_by_key(|o| o.t);
     out
-}
-
-/// What `check` says of the heading source (check.json `heading_source`).
-#[derive(Clone, Debug, Serialize)]
-pub struct HeadingReport {
-    /// The message used.
-    pub source: &'static str,
-    /// Reports used.
-    pub used: usize,
-    /// Reports left out: in a mode other than measured.
-    pub not_measured: usize,
-    /// Reports left out: without a time.
-    pub untimed: usize,
-    /// The accuracy the rig file states, deg.
-    pub sigma_deg: f64,
-    /// The mounting offset the rig file states, deg (clockwise).
-    pub yaw_offset_rig_deg: f64,
-    /// The source's offset beyond that, as the drive shows it, deg (clockwise: the source
-    /// reads this much more than the vehicle's heading); `None` without reports.
-    pub offset_deg: Option<f64>,
-    /// Its 1-sigma, deg.
-    pub offset_sigma_deg: Option<f64>,
-    /// sqrt(mean NIS) of the reports against the smoothed heading: about 1 when the source
-    /// is as accurate as it says.
-    pub rms_normalized: Option<f64>,
-    /// Reports more than 3 sigma off the smoothed heading.
-    pub beyond_3_sigma: usize,
 }
 
 /// Judges the reports against the smoothed trajectory, logging faults.
@@ -204,27 +177,4 @@ pub(super) fn judge(
     report.rms_normalized = Some(mean_nis.sqrt());
     report.beyond_3_sigma = beyond;
     report
-}
-
-/// The report's line on the heading source.
-pub(super) fn text(h: Option<&HeadingReport>) -> String {
-    let Some(h) = h else {
-        return "heading source: none (the heading is the track's: RTK and CAN)".to_owned();
-    };
-    match (h.offset_deg, h.offset_sigma_deg, h.rms_normalized) {
-        (Some(o), Some(so), Some(rms)) => format!(
-            "heading source: {} ({} reports used, {} not measured, {} without a time); offset against the track {o:+.3}° ± {so:.3}° beyond the rig's {}°; reports fit their {:.3}° at {rms:.2} of it (rms normalised), {} beyond 3 sigma",
-            h.source,
-            h.used,
-            h.not_measured,
-            h.untimed,
-            h.yaw_offset_rig_deg,
-            h.sigma_deg,
-            h.beyond_3_sigma
-        ),
-        _ => format!(
-            "heading source: {}: no measured report ({} not measured, {} without a time)",
-            h.source, h.not_measured, h.untimed
-        ),
-    }
 }

@@ -306,7 +306,7 @@ pub struct Report {
     pub damage: Option<String>,
     /// The rig's heading source, when it has one and it reported: what was used and how it
     /// fits the track.
-    pub heading_source: Option<super::heading::HeadingReport>,
+    pub heading_source: Option<HeadingReport>,
 }
 
 impl Fault {
@@ -373,7 +373,7 @@ impl Report {
             "smallest admissible grid cell: {:.2} m (Rosenberger et al. 2019, §6)",
             a.grid_cell_m
         );
-        let _ = writeln!(s, "{}", super::heading::text(self.heading_source.as_ref()));
+        let _ = writeln!(s, "{}", heading_text(self.heading_source.as_ref()));
         let sp = &self.spatial;
         let _ = writeln!(
             s,
@@ -498,5 +498,55 @@ impl Report {
                 }
             );
         }
+    }
+}
+
+/// What `check` says of the heading source (check.json `heading_source`).
+#[derive(Clone, Debug, Serialize)]
+pub struct HeadingReport {
+    /// The message used.
+    pub source: &'static str,
+    /// Reports used.
+    pub used: usize,
+    /// Reports left out: in a mode other than measured.
+    pub not_measured: usize,
+    /// Reports left out: without a time.
+    pub untimed: usize,
+    /// The accuracy the rig file states, deg.
+    pub sigma_deg: f64,
+    /// The mounting offset the rig file states, deg (clockwise).
+    pub yaw_offset_rig_deg: f64,
+    /// The source's offset beyond that, as the drive shows it, deg (clockwise: the source
+    /// reads this much more than the vehicle's heading); `None` without reports.
+    pub offset_deg: Option<f64>,
+    /// Its 1-sigma, deg.
+    pub offset_sigma_deg: Option<f64>,
+    /// sqrt(mean NIS) of the reports against the smoothed heading: about 1 when the source
+    /// is as accurate as it says.
+    pub rms_normalized: Option<f64>,
+    /// Reports more than 3 sigma off the smoothed heading.
+    pub beyond_3_sigma: usize,
+}
+
+/// The report's line on the heading source.
+fn heading_text(h: Option<&HeadingReport>) -> String {
+    let Some(h) = h else {
+        return "heading source: none (the heading is the track's: RTK and CAN)".to_owned();
+    };
+    match (h.offset_deg, h.offset_sigma_deg, h.rms_normalized) {
+        (Some(o), Some(so), Some(rms)) => format!(
+            "heading source: {} ({} reports used, {} not measured, {} without a time); offset against the track {o:+.3}° ± {so:.3}° beyond the rig's {}°; reports fit their {:.3}° at {rms:.2} of it (rms normalised), {} beyond 3 sigma",
+            h.source,
+            h.used,
+            h.not_measured,
+            h.untimed,
+            h.yaw_offset_rig_deg,
+            h.sigma_deg,
+            h.beyond_3_sigma
+        ),
+        _ => format!(
+            "heading source: {}: no measured report ({} not measured, {} without a time)",
+            h.source, h.not_measured, h.untimed
+        ),
     }
 }
