@@ -775,6 +775,14 @@ impl EgoTrajectory {
         })
     }
 
+    /// What the heading source should read at `t`: the heading plus the source's offset
+    /// (rad, from east counter-clockwise), and the variance of that sum.
+    pub fn source_heading_at(&self, t: UtcNanos) -> Option<(f64, f64)> {
+        let (x, p) = self.state_at(t)?;
+        let var = p[(2, 2)] + p[(HEADING_BIAS, HEADING_BIAS)] + 2.0 * p[(2, HEADING_BIAS)];
+        Some((x[2] + x[HEADING_BIAS], var.max(0.0)))
+    }
+
     /// State `[x, y, ψ, v, ω, a, δ, lever x, GNSS wander east, north, α, heading offset]` and its covariance at
     /// `t` (propagated from the smoothed state before it).
     pub fn state_at(&self, t: UtcNanos) -> Option<(S, P)> {

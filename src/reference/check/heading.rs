@@ -10,7 +10,9 @@ use super::faults::FaultLog;
 use super::names::FaultName;
 use super::report::HeadingReport;
 use crate::reference::run::Run;
-use crate::reference::trajectory::{EgoTrajectory, HeadingObs};
+use crate::reference::trajectory::{
+    EgoTrajectory, GnssObs, HeadingObs, HeadingResidual, Settings, TrajectoryError,
+};
 use crate::rig::{HeadingConfig, Thresholds};
 use hilrig_gnss::{AttitudeMode, AttitudeOf};
 use hilrig_stamp::UtcNanos;
@@ -65,15 +67,119 @@ pub(super) fn reports(run: &Run, cfg: &HeadingConfig) -> Reports {
     out
 }
 
-/// Judges the reports against the smoothed trajectory, logging faults.
+/// Runs of at least [`RUN_BEYOND_3_SIGMA`] consecutive residuals beyond 3 sigma, as index
+/// ranges.
+pub(super) fn disagreeing(res: &[HeadingResidual]) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < res.len() {
+        if res[i].nis <= 9.0 {
+            i += 1;
+            continue;
+        }
+        let mut j = i;
+        while j < res.len() && res[j].nis > 9.0 {
+            j += 1;
+        }
+        if j - i >= RUN_BEYOND_3_SIGMA {
+            out.push((i, j));
+        }
+        i = j;
+    }
+    out
+}
+
+/// The reports without those in stretches that disagree with `traj`: what the trajectory is
+/// smoothed again with, so that a frozen or disturbed stretch does not pull the reference
+/// heading along (it is located against the trajectory made without it).
+pub(super) fn without_disagreeing(
+    obs: &[HeadingObs],
+    traj: &EgoTrajectory,
+) -> Option<Vec<HeadingObs>> {
+    let res = &traj.heading_residuals;
+    let runs = disagreeing(res);
+    if runs.is_empty() {
+        return None;
+    }
+    let windows: Vec<(UtcNanos, UtcNanos)> = runs
+        .iter()
+        .map(|&(i, j)| (res[i].t, res[j - 1].t))
+        .collect();
+    Some(
+        obs.iter()
+            .filter(|o| !windows.iter().any(|(a, b)| *a <= o.t && o.t <= *b))
+            .copied()
+            .collect(),
+    )
+}
+
+/// The trajectory with the heading reports fused, and the source's offset. Stretches of
+/// reports that disagree with the track are left out and the trajectory made again without
+/// them; the offset is the one fused from what is left (or, when nothing is left, from all).
+pub(super) fn smooth(
+    gnss: &[GnssObs],
+    motion: &[(UtcNanos, f64, f64)],
+    obs: &[HeadingObs],
+    settings: &Settings,
+) -> Result<(EgoTrajectory, Option<(f64, f64)>), TrajectoryError> {
+    let traj = EgoTrajectory::smooth_with_heading(gnss, motion, obs, settings)?;
+    let offset = traj.heading_offset();
+    match without_disagreeing(obs, &traj) {
+        None => Ok((traj, offset)),
+        Some(kept) => {
+            let again = EgoTrajectory::smooth_with_heading(gnss, motion, &kept, settings)?;
+            let offset = again.heading_offset().or(offset);
+            Ok((again, offset))
+        }
+    }
+}
+
+/// Every report against `traj` (the reports left out of the smoothing too): the error, and
+/// its square over the report's variance plus the trajectory's. A trajectory without the
+/// source's offset (every report was left out) takes `offset` with its variance.
+fn residuals(
+    obs: &[HeadingObs],
+    traj: &EgoTrajectory,
+    offset: (f64, f64),
+) -> Vec<(HeadingResidual, f64)> {
+    let fused = traj.heading_offset().is_some();
+    obs.iter()
+        .filter_map(|o| {
+            let (expected, var) = if fused {
+                traj.source_heading_at(o.t)?
+            } else {
+                let (x, p) = traj.state_at(o.t)?;
+                (x[2] + offset.0, p[(2, 2)].max(0.0) + offset.1 * offset.1)
+            };
+            let d = o.yaw - expected;
+            let error =
+                (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            Some((
+                HeadingResidual {
+                    t: o.t,
+                    error,
+                    nis: error * error / (o.sigma * o.sigma + var),
+                },
+                o.sigma,
+            ))
+        })
+        .collect()
+}
+
+/// Judges the reports against the smoothed trajectory and the source's offset (`None`: no
+/// report was fused), logging faults.
 pub(super) fn judge(
     reports: &Reports,
     traj: &EgoTrajectory,
+    offset: Option<(f64, f64)>,
     cfg: &HeadingConfig,
     th: &Thresholds,
-    period: i64,
+    gnss_period: i64,
     log: &mut FaultLog,
 ) -> HeadingReport {
+    let period =
+        super::temporal::median_interval(&reports.obs.iter().map(|o| o.t).collect::<Vec<_>>())
+            .unwrap_or(gnss_period);
     let name = cfg.source.attitude_source().name();
     let mut report = HeadingReport {
         source: name,
@@ -88,7 +194,7 @@ pub(super) fn judge(
         beyond_3_sigma: 0,
     };
     let (a, z) = traj.span();
-    let Some((b, sb)) = traj.heading_offset() else {
+    let Some((b, sb)) = offset else {
         log.fault(
             FaultName::HeadingSourceMissing,
             a,
@@ -101,40 +207,35 @@ pub(super) fn judge(
         );
         return report;
     };
-    let res = &traj.heading_residuals;
-    let mean_nis = res.iter().map(|r| r.nis).sum::<f64>() / res.len().max(1) as f64;
-    // Runs of consecutive reports beyond 3 sigma.
-    let mut i = 0;
-    let mut beyond = 0;
-    while i < res.len() {
-        if res[i].nis <= 9.0 {
-            i += 1;
-            continue;
-        }
-        let mut j = i;
-        while j < res.len() && res[j].nis > 9.0 {
-            j += 1;
-        }
-        beyond += j - i;
-        if j - i >= RUN_BEYOND_3_SIGMA {
-            let worst = res[i..j]
-                .iter()
-                .map(|r| r.error.abs())
-                .fold(0.0, f64::max)
-                .to_degrees();
-            log.fault(
-                FaultName::HeadingSourceDisagrees,
-                res[i].t,
-                UtcNanos(res[j - 1].t.0 + period),
-                format!(
-                    "{} {} reports in a row more than 3 sigma ({:.3}°) off the smoothed heading, up to {worst:.3}°: a frozen or disturbed source, or a wrong mounting",
-                    j - i,
-                    cfg.source.attitude_source().name(),
-                    cfg.sigma_deg
-                ),
-            );
-        }
-        i = j;
+    let (res, sigmas): (Vec<HeadingResidual>, Vec<f64>) =
+        residuals(&reports.obs, traj, (b, sb)).into_iter().unzip();
+    // Whether the reports fit their stated accuracy: their errors against the smoothed
+    // heading in units of that accuracy (the trajectory's own error is small beside it where
+    // the reports were fused; where they were left out it does not matter).
+    let mean_nis = res
+        .iter()
+        .zip(&sigmas)
+        .map(|(r, s)| (r.error / s).powi(2))
+        .sum::<f64>()
+        / res.len().max(1) as f64;
+    let beyond = res.iter().filter(|r| r.nis > 9.0).count();
+    for (i, j) in disagreeing(&res) {
+        let worst = res[i..j]
+            .iter()
+            .map(|r| r.error.abs())
+            .fold(0.0, f64::max)
+            .to_degrees();
+        log.fault(
+            FaultName::HeadingSourceDisagrees,
+            res[i].t,
+            UtcNanos(res[j - 1].t.0 + period),
+            format!(
+                "{} {} reports in a row more than 3 sigma ({:.3}°) off the smoothed heading, up to {worst:.3}°: a frozen or disturbed source, or a wrong mounting (left out of the trajectory)",
+                j - i,
+                cfg.source.attitude_source().name(),
+                cfg.sigma_deg
+            ),
+        );
     }
     // Reports in another mode, located as runs.
     let mut k = 0;

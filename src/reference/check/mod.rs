@@ -261,23 +261,17 @@ fn check_into(
         settings.yaw_jerk_noise,
         settings.yaw_rate_sigma
     );
-    // The rig's heading source, when it has one: fused with its stated sigma, in the
-    // GNSS epochs' time base (the reports' own UTC).
+    // The rig's heading source, when it has one (see heading.rs).
     let heading_cfg = rig.gnss.as_ref().and_then(|g| g.heading.as_ref());
     let heading_reports = heading_cfg.map(|c| heading::reports(run, c));
     let heading_obs = heading_reports.as_ref().map_or(&[][..], |r| &r.obs[..]);
-    let traj = match EgoTrajectory::smooth_with_heading(&obs, &motion, heading_obs, &settings) {
+    let (traj, heading_offset) = match heading::smooth(&obs, &motion, heading_obs, &settings) {
         Ok(t) => t,
         Err(e) => return unusable(run, e.to_string(), sp),
     };
-    let heading_source = match (heading_cfg, &heading_reports) {
-        (Some(c), Some(r)) => {
-            let period = temporal::median_interval(&r.obs.iter().map(|o| o.t).collect::<Vec<_>>())
-                .unwrap_or(gnss_period);
-            Some(heading::judge(r, &traj, c, th, period, &mut log))
-        }
-        _ => None,
-    };
+    let heading_source = heading_cfg
+        .zip(heading_reports.as_ref())
+        .map(|(c, r)| heading::judge(r, &traj, heading_offset, c, th, gnss_period, &mut log));
     // Epochs good enough to differentiate: fixed and within the sigma limits.
     let good: Vec<bool> = epochs
         .iter()
