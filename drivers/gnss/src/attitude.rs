@@ -321,6 +321,8 @@ mod tests {
         );
         // Out of range and NaN fail to decode: a malformed sentence, not an attitude.
         assert!(parse(&crate::framer::nmea_sentence("GNTHS,361.0,A")).is_err());
+        // Found by cargo-fuzz: an HDT of 828° was taken as a heading.
+        assert!(parse(&crate::framer::nmea_sentence("GPHDT,828,T")).is_err());
         assert!(parse(&crate::framer::nmea_sentence("GNTHS,NaN,A")).is_err());
     }
 

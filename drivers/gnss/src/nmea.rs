@@ -510,7 +510,7 @@ pub fn parse(sentence: &str) -> Result<Sentence, NmeaError> {
             let x = mk("HDT");
             x.need(1)?;
             Sentence::Hdt(Hdt {
-                heading_deg: x.float(0, "heading")?,
+                heading_deg: x.angle(0, "heading", 0.0, 360.0)?,
             })
         }
         "VTG" => {
