@@ -402,6 +402,12 @@ mod tests {
             from_ubx(&frame(valid | moving), None),
             Reading::Invalid(AttitudeSource::NavRelposned)
         );
+        // Found by cargo-fuzz: a heading flagged valid at -7717.5° was reported. Malformed.
+        let mut p = [0u8; 64];
+        p[0] = 1;
+        p[24..28].copy_from_slice(&(-771_751_936i32).to_le_bytes());
+        p[60..64].copy_from_slice(&(valid | moving | heading).to_le_bytes());
+        assert!(crate::ubx::decode(0x01, 0x3C, &p).is_err());
     }
 
     /// NAV-PVAT: each angle only with its valid flag, accuracies in 0.01°; ESF-ALG: the IMU's

@@ -325,8 +325,18 @@ impl NavRelposned {
                 f64::from(u32le(p, 40)) * 1e-4,
                 f64::from(u32le(p, 44)) * 1e-4,
             ],
-            heading_deg: (flags & 0x100 != 0).then(|| f64::from(i32le(p, 24)) * 1e-5),
-            heading_acc_deg: f64::from(u32le(p, 52)) * 1e-5,
+            heading_deg: (flags & 0x100 != 0)
+                .then(|| {
+                    angle(
+                        "NAV-RELPOSNED",
+                        "relPosHeading",
+                        f64::from(i32le(p, 24)) / 1e5,
+                        -180.0,
+                        360.0,
+                    )
+                })
+                .transpose()?,
+            heading_acc_deg: f64::from(u32le(p, 52)) / 1e5,
             carrier: carrier(flags >> 3),
             valid: flags & 0x04 != 0,
             moving_base: flags & 0x20 != 0,
