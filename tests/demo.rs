@@ -421,18 +421,12 @@ fn the_report_renders_in_chromium_without_network() {
 )]
 fn foxglove_reads_every_message_of_the_demo_s_recordings() {
     let d = demo_dir();
-    let dir = PathBuf::from(std::env::var("HILRIG_FOXGLOVE").unwrap());
     let files = [
         d.join("rec/rep-01.mcap"),
         d.join("sim/idealized/rep-01.mcap"),
         d.join("sim/truth/rep-02.mcap"),
     ];
-    let out = Command::new("node")
-        .arg(dir.join("read_mcap.mjs"))
-        .args(&files)
-        .current_dir(&dir)
-        .output()
-        .expect("run node");
+    let out = common::foxglove_read(&files.iter().map(PathBuf::as_path).collect::<Vec<_>>());
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -467,11 +461,6 @@ fn foxglove_reads_every_message_of_the_demo_s_recordings() {
     let cut = tempfile::NamedTempFile::new().unwrap();
     let bytes = std::fs::read(&files[1]).unwrap();
     std::fs::write(cut.path(), &bytes[..bytes.len() / 2]).unwrap();
-    let out = Command::new("node")
-        .arg(dir.join("read_mcap.mjs"))
-        .arg(cut.path())
-        .current_dir(&dir)
-        .output()
-        .unwrap();
+    let out = common::foxglove_read(&[cut.path()]);
     assert!(!out.status.success(), "a cut-off file passed the reader");
 }

@@ -272,23 +272,6 @@ fn serial_interface_of_a_pcapng_capture_gives_the_same_fixes() {
     assert_eq!(from_capture, decode(&log, 4096));
 }
 
-/// `hilrig decode --kind gnss LOG --format jsonl`: its attitude records (`"kind":
-/// "attitude"`), in order, and the summary on stderr.
-fn attitude_records(log: &std::path::Path) -> (Vec<serde_json::Value>, String) {
-    let out = std::process::Command::new(common::hilrig_bin())
-        .args(["decode", "--kind", "gnss", "--format", "jsonl"])
-        .arg(log)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    let records = String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
-        .filter(|v| v["kind"] == "attitude")
-        .collect();
-    (records, stderr)
-}
-
 /// Every `ATT` object of gpsd's expected output appears, in order, among hilrig's attitude
 /// records: heading, pitch and roll to 0.01° where gpsd reports them, and the same time where
 /// gpsd gives one. (gpsd merges the messages of a cycle into one report, so hilrig, which
@@ -304,7 +287,7 @@ fn check_attitude(name: &str, sources: &[&str]) {
         .filter(|v| v["class"] == "ATT")
         .collect();
     assert!(!expected.is_empty(), "{name}: gpsd reports no ATT");
-    let (ours, stderr) = attitude_records(&dir.join(name));
+    let (ours, stderr) = common::decode_attitudes(&dir.join(name));
     let mut at = 0;
     for (k, e) in expected.iter().enumerate() {
         // gpsd keeps the last ESF-ALG's yaw in the reports after it; hilrig reports the
@@ -423,7 +406,7 @@ fn bad_attitude_messages_are_counted_and_not_used() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("attitude.log");
     std::fs::write(&path, &log).unwrap();
-    let (ours, stderr) = attitude_records(&path);
+    let (ours, stderr) = common::decode_attitudes(&path);
     let got: Vec<(String, Option<f64>)> = ours
         .iter()
         .map(|o| {

@@ -1191,15 +1191,10 @@ fn the_real_vls128_capture_records_all_2193_data_packets() {
 
 /// The attitude reports of `hilrig decode --kind gnss LOG --format jsonl` that have a time.
 fn timed_attitudes(log: &std::path::Path) -> Vec<serde_json::Value> {
-    let out = std::process::Command::new(common::hilrig_bin())
-        .args(["decode", "--kind", "gnss", "--format", "jsonl"])
-        .arg(log)
-        .output()
-        .unwrap();
-    String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
-        .filter(|v| v["kind"] == "attitude" && v["time"].is_string())
+    common::decode_attitudes(log)
+        .0
+        .into_iter()
+        .filter(|v| v["time"].is_string())
         .collect()
 }
 
@@ -1313,13 +1308,8 @@ fn foxglove_reads_the_attitude_topic() {
         );
         files.push((out, timed_attitudes(&log).len()));
     }
-    let fox = std::path::PathBuf::from(std::env::var("HILRIG_FOXGLOVE").unwrap());
-    let out = std::process::Command::new("node")
-        .arg(fox.join("read_mcap.mjs"))
-        .args(files.iter().map(|f| &f.0))
-        .current_dir(&fox)
-        .output()
-        .expect("run node");
+    let paths: Vec<&std::path::Path> = files.iter().map(|f| f.0.as_path()).collect();
+    let out = common::foxglove_read(&paths);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),

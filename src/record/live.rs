@@ -655,13 +655,7 @@ async fn gnss_task(
             // the stream showed its date, stays in the raw topics only).
             if let Some(hilrig_gnss::attitude::Reading::Attitude(a)) = attitude {
                 if let Some(time) = a.time {
-                    let synced = {
-                        let mut c = clocks.lock().unwrap_or_else(|e| e.into_inner());
-                        c.entry("gnss")
-                            .or_default()
-                            .model()
-                            .map_or(time, |m| m.to_host(time))
-                    };
+                    let synced = gnss_on_host(&clocks, time, None);
                     send(
                         &tx,
                         &h,
@@ -677,12 +671,7 @@ async fn gnss_task(
             }
             for fix in fixes {
                 let Some(time) = fix.time else { continue };
-                let synced = {
-                    let mut c = clocks.lock().unwrap_or_else(|e| e.into_inner());
-                    let est = c.entry("gnss").or_default();
-                    est.handle(time, epoch_host);
-                    est.model().map_or(time, |m| m.to_host(time))
-                };
+                let synced = gnss_on_host(&clocks, time, Some(epoch_host));
                 if let Some(nav) = crate::record::messages::nav_sat_fix(&fix) {
                     send(
                         &tx,
@@ -699,6 +688,22 @@ async fn gnss_task(
             }
         }
     }
+}
+
+/// A GNSS time on the host clock through the GNSS clock model; `pair` (the host time the
+/// epoch was received at) first teaches the model, as a fix does (an attitude report only
+/// reads it).
+fn gnss_on_host(
+    clocks: &Mutex<BTreeMap<&'static str, ClockEstimator>>,
+    time: UtcNanos,
+    pair: Option<UtcNanos>,
+) -> UtcNanos {
+    let mut c = clocks.lock().unwrap_or_else(|e| e.into_inner());
+    let est = c.entry("gnss").or_default();
+    if let Some(host) = pair {
+        est.handle(time, host);
+    }
+    est.model().map_or(time, |m| m.to_host(time))
 }
 
 async fn can_task(

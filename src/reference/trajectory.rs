@@ -70,7 +70,7 @@ pub struct HeadingResidual {
 }
 
 /// An angle wrapped to (-π, π].
-fn wrap(a: f64) -> f64 {
+pub(crate) fn wrap(a: f64) -> f64 {
     let t = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
     if t <= -std::f64::consts::PI {
         t + std::f64::consts::TAU

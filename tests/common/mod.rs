@@ -108,6 +108,35 @@ pub fn mcap_json(path: &std::path::Path, args: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&o.stdout).unwrap()
 }
 
+/// `hilrig decode --kind gnss LOG --format jsonl`: its attitude records (`"kind":
+/// "attitude"`) in stream order, and its stderr (the summary).
+pub fn decode_attitudes(log: &std::path::Path) -> (Vec<serde_json::Value>, String) {
+    let out = std::process::Command::new(hilrig_bin())
+        .args(["decode", "--kind", "gnss", "--format", "jsonl"])
+        .arg(log)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    let records = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["kind"] == "attitude")
+        .collect();
+    (records, stderr)
+}
+
+/// Foxglove's own MCAP libraries (tests/interop/foxglove/read_mcap.mjs, from
+/// `HILRIG_FOXGLOVE`) run over `files`: one JSON line per file on stdout.
+pub fn foxglove_read(files: &[&std::path::Path]) -> std::process::Output {
+    let dir = PathBuf::from(std::env::var("HILRIG_FOXGLOVE").unwrap());
+    std::process::Command::new("node")
+        .arg(dir.join("read_mcap.mjs"))
+        .args(files)
+        .current_dir(&dir)
+        .output()
+        .expect("run node")
+}
+
 /// The demo rig file.
 pub fn demo_rig() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/rigs/demo.toml"))

@@ -105,6 +105,24 @@ fn check(
     }
 }
 
+/// [`check`] for the messages whose version byte follows the time of week (offset 4:
+/// NAV-ATT, NAV-PVAT, HNR-ATT, ESF-ALG).
+fn check_after_itow(
+    name: &'static str,
+    p: &[u8],
+    expected: usize,
+    version: u8,
+) -> Result<(), UbxError> {
+    check(name, p, expected, None)?;
+    if p[4] != version {
+        return Err(UbxError::Version {
+            name,
+            version: p[4],
+        });
+    }
+    Ok(())
+}
+
 fn carrier(bits: u32) -> CarrierSolution {
     match bits & 0x03 {
         1 => CarrierSolution::Float,
@@ -368,13 +386,7 @@ impl Att {
     /// Decodes a 32-byte NAV-ATT (message version 0) or HNR-ATT (version 1) payload; `name`
     /// says which. The version byte follows the time of week.
     pub fn decode(name: &'static str, version: u8, p: &[u8]) -> Result<Att, UbxError> {
-        check(name, p, 32, None)?;
-        if p[4] != version {
-            return Err(UbxError::Version {
-                name,
-                version: p[4],
-            });
-        }
+        check_after_itow(name, p, 32, version)?;
         let deg = |o: usize| f64::from(i32le(p, o)) / 1e5;
         let acc = |o: usize| f64::from(u32le(p, o)) / 1e5;
         Ok(Att {
@@ -417,13 +429,7 @@ impl NavPvat {
     /// Decodes a 116-byte NAV-PVAT payload (version 0).
     pub fn decode(p: &[u8]) -> Result<NavPvat, UbxError> {
         const NAME: &str = "NAV-PVAT";
-        check(NAME, p, 116, None)?;
-        if p[4] != 0 {
-            return Err(UbxError::Version {
-                name: NAME,
-                version: p[4],
-            });
-        }
+        check_after_itow(NAME, p, 116, 0)?;
         let flags = p[25];
         let deg = |o: usize| f64::from(i32le(p, o)) / 1e5;
         let acc = |o: usize| f64::from(u16le(p, o)) / 1e2;
@@ -470,13 +476,7 @@ impl EsfAlg {
     /// Decodes a 16-byte ESF-ALG payload (version 1).
     pub fn decode(p: &[u8]) -> Result<EsfAlg, UbxError> {
         const NAME: &str = "ESF-ALG";
-        check(NAME, p, 16, None)?;
-        if p[4] != 1 {
-            return Err(UbxError::Version {
-                name: NAME,
-                version: p[4],
-            });
-        }
+        check_after_itow(NAME, p, 16, 1)?;
         let i16le = |o: usize| u16le(p, o) as i16;
         Ok(EsfAlg {
             itow_ms: u32le(p, 0),

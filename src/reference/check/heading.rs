@@ -11,7 +11,7 @@ use super::names::FaultName;
 use super::report::HeadingReport;
 use crate::reference::run::Run;
 use crate::reference::trajectory::{
-    EgoTrajectory, GnssObs, HeadingObs, HeadingResidual, Settings, TrajectoryError,
+    wrap, EgoTrajectory, GnssObs, HeadingObs, HeadingResidual, Settings, TrajectoryError,
 };
 use crate::rig::{HeadingConfig, Thresholds};
 use hilrig_gnss::{AttitudeMode, AttitudeOf};
@@ -151,9 +151,7 @@ fn residuals(
                 let (x, p) = traj.state_at(o.t)?;
                 (x[2] + offset.0, p[(2, 2)].max(0.0) + offset.1 * offset.1)
             };
-            let d = o.yaw - expected;
-            let error =
-                (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            let error = wrap(o.yaw - expected);
             Some((
                 HeadingResidual {
                     t: o.t,
@@ -237,26 +235,29 @@ pub(super) fn judge(
             ),
         );
     }
-    // Reports in another mode, located as runs.
-    let mut k = 0;
-    let nm = &reports.not_measured;
-    while k < nm.len() {
-        let mut j = k + 1;
-        while j < nm.len() && nm[j].0 .0 - nm[j - 1].0 .0 <= period * 3 / 2 && nm[j].1 == nm[k].1 {
-            j += 1;
-        }
-        log.fault(
+    // Reports in another mode, located as runs of each mode.
+    for mode in [
+        AttitudeMode::Estimated,
+        AttitudeMode::Manual,
+        AttitudeMode::Simulator,
+    ] {
+        let flagged: Vec<(UtcNanos, f64)> = reports
+            .not_measured
+            .iter()
+            .filter(|(_, m)| *m == mode)
+            .map(|&(t, _)| (t, 0.0))
+            .collect();
+        log.runs(
             FaultName::HeadingSourceNotMeasured,
-            nm[k].0,
-            UtcNanos(nm[j - 1].0 .0 + period),
-            format!(
-                "{} {} reports in mode {}: not measured, not used",
-                j - k,
-                cfg.source.attitude_source().name(),
-                nm[k].1.name()
-            ),
+            &flagged,
+            period,
+            |n, _| {
+                format!(
+                    "{n} {name} reports in mode {}: not measured, not used",
+                    mode.name()
+                )
+            },
         );
-        k = j;
     }
     // The smoother's offset is in its own (counter-clockwise) sense.
     let offset_deg = -b.to_degrees();
