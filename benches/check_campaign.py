@@ -27,10 +27,19 @@
    worst usable second of each drive from its first second on (issue 32, must-hold 2).
    Fault kinds and the lever grid are skipped.
 
+6. With --paths mixed: the clean drives are not only the parking drive (21 m at 1.4-2.6 m/s)
+   but, in turn, the parking drive at 2.0-2.6 m/s, a loop of about 250 m at 3-10 m/s, a slalom
+   at 3-7 m/s and a 160 m straight at 5-15 m/s (no pedestrian on those), each starting standing,
+   already moving or moving in a turn. Every mode prints, per drive and pooled, how honest the
+   heading sigma is: the share of seconds whose heading error is within 2 sigma (one sample at
+   each whole second) and rms(error/sigma) (issue 32, must-hold 4).
+
 usage: python3 benches/check_campaign.py [CLEAN_DRIVES] [SEEDS_PER_FAULT] [FIRST_CLEAN_SEED]
            [--gnss-sigma M] [--gnss-correlation S] [--gnss-rate HZ] [--can-rate HZ]
            [--yaw-rate-noise RAD/S] [--sigma-limits DEG,DEG,...] [--heading SOURCE]
-       (default 30 10 100; another first seed draws another set of clean drives; the options
+           [--paths parking|mixed] [--keep DIR]
+       (default 30 10 100; SEEDS_PER_FAULT 0 leaves out the fault kinds and the lever grid;
+       another first seed draws another set of clean drives; the options
        replace the parking drive's [gnss] and [can] stream settings: other receivers and cars)
 """
 import argparse
@@ -40,6 +49,7 @@ import datetime
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -56,6 +66,10 @@ ap.add_argument("--can-rate", type=float)
 ap.add_argument("--yaw-rate-noise", type=float)
 ap.add_argument("--sigma-limits", type=lambda t: [float(x) for x in t.split(",")], default=[])
 ap.add_argument("--heading", choices=["THS", "HDT", "PASHR", "PSTI,036"])
+ap.add_argument("--paths", choices=["parking", "mixed"], default="parking")
+ap.add_argument("--keep", metavar="DIR",
+                help="make the drives in DIR and keep them; a drive whose run.mcap exists there "
+                     "is checked again without synthesizing and recording it anew")
 args = ap.parse_args()
 n_clean, n_fault, first_seed = args.n_clean, args.n_fault, args.first_seed
 subprocess.run(["cargo", "build", "--release", "--quiet"], cwd=root, check=True)
@@ -71,14 +85,57 @@ for old, value in [("sigma_horizontal_m = 0.010", args.gnss_sigma),
         base = base.replace(old, old.split("=")[0] + f"= {value}" + ("\n" if old.endswith("\n") else ""))
 CAN_LATENCY_MS = 1.0
 STARTS = ["standing", "moving", "turning"]
+# Real-length paths (--paths mixed), each entering heading east at its first waypoint, with the
+# speeds it is driven at: (name, waypoints or None for the parking drive's, lowest, highest m/s).
+PATHS = [
+    ("parking", None, 2.0, 2.6),
+    ("loop", [[-60.0, 0.0], [-20.0, 0.0], [10.0, -5.0], [30.0, 10.0], [35.0, 35.0],
+              [15.0, 50.0], [-20.0, 45.0], [-45.0, 30.0]], 3.0, 10.0),
+    ("slalom", [[-60.0, 0.0], [-40.0, 6.0], [-20.0, -6.0], [0.0, 6.0], [20.0, -6.0],
+                [40.0, 6.0]], 3.0, 7.0),
+    ("straight", [[-80.0, 0.0], [80.0, 0.0]], 5.0, 15.0),
+]
 
 
-def start_condition(text, how, speed):
-    """The parking drive, starting as `how` says."""
+def entry_curve(waypoints, speed):
+    """`waypoints` entered through a left-hand arc driven at `speed` with 3 m/s² of lateral
+    acceleration (radius at least 6 m) that ends tangent to the first segment: a recording that
+    begins in a turn. The first segment is cut into pieces of about the arc's step, so that the
+    spline through the waypoints, whose pieces take equal parameter steps, follows the arc
+    instead of overshooting where the spacing changes."""
+    (x0, y0), (x1, y1) = waypoints[0], waypoints[1]
+    length = math.hypot(x1 - x0, y1 - y0)
+    radius = max(6.0, speed * speed / 3.0)
+    if len(waypoints) > 2:
+        # Where more segments follow, the pieces must not be much shorter than they: at most
+        # two pieces in the first segment (a wider arc).
+        radius = max(radius, length / 2 / (2 * math.sin(math.radians(15))))
+    dx, dy = (x1 - x0) / length, (y1 - y0) / length
+    step = 2 * radius * math.sin(math.radians(15))
+    cx, cy = x0 - radius * dy, y0 + radius * dx
+    end = math.atan2(dy, dx) - math.pi / 2
+    arc = [[round(cx + radius * math.cos(end - math.radians(a)), 2),
+            round(cy + radius * math.sin(end - math.radians(a)), 2)] for a in (90, 60, 30)]
+    pieces = max(1, round(length / step))
+    along = [[round(x0 + k * length / pieces * dx, 2), round(y0 + k * length / pieces * dy, 2)]
+             for k in range(1, pieces)]
+    return arc + [waypoints[0]] + along + waypoints[1:]
+
+
+def start_condition(text, how, speed, waypoints=None):
+    """The drive, on `waypoints` (None: the parking drive's), starting as `how` says."""
+    if waypoints is not None:
+        # No pedestrian to yield to on the open road, and a car that accelerates as on one.
+        text = re.sub(r"\[\[walker\]\].*?(?=\[variation\])", "", text, flags=re.S)
+        text = text.replace("acceleration_mps2 = 0.8", "acceleration_mps2 = 1.5")
+        # The slalom turns from its first waypoint on: its turning start is its moving one.
+        if how == "turning" and not (len(waypoints) > 2 and waypoints[1][1] != waypoints[0][1]):
+            waypoints = entry_curve(waypoints, speed)
+        text = re.sub(r"waypoints = \[.*\]\n", f"waypoints = {waypoints}\n", text)
     if how == "standing":
         return text
     text = text.replace("lead_in_s = 0.8", f"lead_in_s = 0.8\nstart_speed_mps = {speed}")
-    if how == "turning":
+    if how == "turning" and waypoints is None:
         # A left curve into the aisle: the recording begins mid-turn.
         text = text.replace("waypoints = [[-16.0, 0.0],",
                             "waypoints = [[-21.0, -5.0], [-19.0, -1.5], [-16.0, 0.0],")
@@ -123,9 +180,9 @@ def heading_rig(tmp):
     return path
 
 
-def drive(tmp, name, faults, seed, speed=2.2, start="standing", heading=None):
+def drive(tmp, name, faults, seed, speed=2.2, start="standing", heading=None, waypoints=None):
     text = start_condition(base.replace("cruise_speed_mps = 2.2", f"cruise_speed_mps = {speed}"),
-                           start, speed)
+                           start, speed, waypoints)
     if heading is not None:
         text = text.replace(f'rig = "{os.path.join(root, "rigs/demo.toml")}"',
                             f'rig = "{heading_rig(tmp)}"')
@@ -133,12 +190,19 @@ def drive(tmp, name, faults, seed, speed=2.2, start="standing", heading=None):
     d = os.path.join(tmp, name)
     os.makedirs(d, exist_ok=True)
     path = os.path.join(d, "drive.toml")
-    open(path, "w").write(text + ("\n[faults]\n" + faults + "\n" if faults else ""))
-    subprocess.run([exe, "synth", "--scene", os.path.join(root, "fixtures/parking/scene.toml"),
-                    "--drive", path, "--truth", os.path.join(root, "fixtures/parking/idealized.toml"),
-                    "--reps", "1", "--seed", str(seed), "-o", d], check=True,
-                   stderr=subprocess.DEVNULL)
+    text += "\n[faults]\n" + faults + "\n" if faults else ""
+    text += f"# synthesized with --seed {seed}\n"
     run = os.path.join(d, "run.mcap")
+    if args.keep and os.path.exists(run) and open(path).read() == text:
+        return d, check(d, run, heading_rig=heading_rig(tmp) if heading is not None else None)
+    open(path, "w").write(text)
+    p = subprocess.run([exe, "synth", "--scene",
+                        os.path.join(root, "fixtures/parking/scene.toml"), "--drive", path,
+                        "--truth", os.path.join(root, "fixtures/parking/idealized.toml"),
+                        "--reps", "1", "--seed", str(seed), "-o", d],
+                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    if p.returncode != 0:
+        raise SystemExit(f"synth {path}: exit {p.returncode}\n{p.stderr}")
     subprocess.run([exe, "record", "--rig", os.path.join(root, "rigs/demo.toml"), "--from",
                     os.path.join(d, "rep-01/drive.pcapng"), "-o", run], check=True,
                    stderr=subprocess.DEVNULL)
@@ -219,7 +283,9 @@ def located(v, expected, window):
                f["to_s"] >= window[0] - 0.2 for f in v["faults"])
 
 
-with tempfile.TemporaryDirectory() as tmp:
+with (tempfile.TemporaryDirectory() if not args.keep else
+      __import__("contextlib").nullcontext(os.path.abspath(args.keep))) as tmp:
+    os.makedirs(tmp, exist_ok=True)
     false = 0
     truths = [("can_speed_scale", "can_speed_scale_sigma", 1.0),
               ("gnss_time_offset_ms", "gnss_time_offset_sigma_ms", -CAN_LATENCY_MS),
@@ -230,11 +296,17 @@ with tempfile.TemporaryDirectory() as tmp:
     pooled = []
     # Per heading limit: usable samples, all samples, drives above 0.1° (usable p95), worst.
     limits = {lim: [0, 0, 0, 0.0] for lim in args.sigma_limits}
+    # Per path: drives, seconds within 2 sigma, seconds, sum of (error/sigma)² over them.
+    calibration = {}
     for k in range(n_clean):
         speed = 1.4 + 0.3 * (k % 5)
+        path, waypoints = "parking", None
+        if args.paths == "mixed":
+            path, waypoints, low, high = PATHS[k % len(PATHS)]
+            speed = round(low + (high - low) * ((k * 0.382) % 1.0), 1)
         start = STARTS[k % 3]
         misalignment = round(0.2 + 1.8 * ((k * 0.618) % 1.0), 2) if args.heading else None
-        d, v = drive(tmp, f"clean{k}", "", first_seed + k, speed, start, misalignment)
+        d, v = drive(tmp, f"clean{k}", "", first_seed + k, speed, start, misalignment, waypoints)
         for lim, acc in limits.items():
             vl = check(d, os.path.join(d, "run.mcap"), heading_limit=lim)
             hl = heading_errors(d, vl)
@@ -261,6 +333,17 @@ with tempfile.TemporaryDirectory() as tmp:
                   f"{o if o is None else round(o, 3)} ± {so if so is None else round(so, 3)}° "
                   f"({'inside' if inside else 'OUTSIDE'} 2 sigma), rms normalised "
                   f"{hs.get('rms_normalized')}, worst usable second p95 {worst_second:.4f}°")
+        # The sigma's honesty: one sample at each whole second of the drive.
+        seconds = {}
+        for e, sg, _, rel in heading_errors(d, v, with_time=True):
+            seconds.setdefault(int(rel), (e, sg))
+        cal = calibration.setdefault(path, [0, 0, 0, 0.0])
+        within = sum(abs(e) <= 2 * sg for e, sg in seconds.values())
+        z2 = sum((e / sg) ** 2 for e, sg in seconds.values())
+        cal[0] += 1
+        cal[1] += within
+        cal[2] += len(seconds)
+        cal[3] += z2
         names = [f["name"] for f in v["faults"]]
         false += bool(names)
         for t in truths:
@@ -270,7 +353,8 @@ with tempfile.TemporaryDirectory() as tmp:
         usable = [abs(e) for e, _, u in h if u]
         worst_usable = max(worst_usable, p95(usable) if usable else 0.0)
         z = math.sqrt(sum((e / s) ** 2 for e, s, _ in h) / len(h))
-        print(f"clean seed {first_seed + k} {start} at {speed:.1f} m/s: faults {names}; heading error "
+        print(f"clean seed {first_seed + k} {path} {start} at {speed:.1f} m/s: faults {names}; "
+              f"seconds within 2 sigma {within}/{len(seconds)}; heading error "
               f"p95 {p95(usable):.3f}° in usable ({len(usable) / len(h):.0%} of the drive), "
               f"{p95([abs(e) for e, _, _ in h]):.3f}° overall, rms error/sigma {z:.2f}; "
               f"warnings {[w['name'] for w in v['warnings']]}")
@@ -285,6 +369,14 @@ with tempfile.TemporaryDirectory() as tmp:
           f"({len(usable) / len(pooled):.0%} usable), worst drive {worst_usable:.3f}°; "
           f"{p95([abs(e) for e, _, _ in pooled]):.3f}° over everything; rms error/sigma "
           f"{math.sqrt(sum((e / s) ** 2 for e, s, _ in pooled) / len(pooled)):.2f}")
+    for path, (drives, within, secs, z2) in calibration.items():
+        print(f"heading sigma on {path} ({drives} drives): {within / max(secs, 1):.1%} of "
+              f"{secs} seconds within 2 sigma, rms(error/sigma) {math.sqrt(z2 / max(secs, 1)):.2f}")
+    within = sum(c[1] for c in calibration.values())
+    secs = sum(c[2] for c in calibration.values())
+    z2 = sum(c[3] for c in calibration.values())
+    print(f"heading sigma over all drives: {within / max(secs, 1):.1%} of {secs} seconds within "
+          f"2 sigma, rms(error/sigma) {math.sqrt(z2 / max(secs, 1)):.2f}")
     for lim, (u, n, above, worst) in sorted(limits.items(), reverse=True):
         print(f"max_heading_sigma_deg {lim}: {u / max(n, 1):.0%} of the drives usable; heading "
               f"p95 in the usable stretches above 0.1° in {above} of {n_clean} drives "
@@ -303,6 +395,9 @@ with tempfile.TemporaryDirectory() as tmp:
             print(f"{name} seed {200 + s}: faults {names}")
         extra = f", interval contains the truth {inside}/{n_fault}" if est else ""
         print(f"{name}: detected {found}/{n_fault}, located {where}/{n_fault}{extra}")
+    if n_fault == 0:
+        # No fault kinds asked for: the lever grid (a fault-free study of its own) is skipped too.
+        raise SystemExit(0)
     ok = total = 0
     for true_x in [0.0, 0.4, 0.8, 1.2]:
         name = f"lever{true_x}"

@@ -535,6 +535,67 @@ fn the_heading_is_as_good_as_its_sigma_says() {
     );
 }
 
+/// A slalom (±40° of heading) at 6.5 m/s from standstill, without the pedestrian, with a
+/// receiver of 5 mm white noise at 5 Hz and a CAN yaw rate measured only while moving (the car
+/// stands 0.8 s: too short to read the sensor's noise there). The filter starts on the course
+/// of the first metre, which lies in the first bend: the smoothed heading must still be right
+/// from the first instant, within 3 of its own sigmas.
+/// Smoothed a second time from the first pass's start only, the start erred by 0.9° against a
+/// sigma of 0.03° (benches/check_campaign.py --paths mixed, slalom seed 118).
+#[test]
+fn a_slalom_from_standstill_starts_on_the_true_heading() {
+    let edit = |t: String| {
+        let (a, b) = (
+            t.find("[[walker]]").unwrap(),
+            t.find("[variation]").unwrap(),
+        );
+        let t = format!("{}{}", &t[..a], &t[b..]);
+        let from = t.find("waypoints = [").unwrap();
+        let to = from + t[from..].find('\n').unwrap();
+        format!(
+            "{}waypoints = [[-60.0, 0.0], [-40.0, 6.0], [-20.0, -6.0], [0.0, 6.0], [20.0, -6.0], [40.0, 6.0]]{}",
+            &t[..from],
+            &t[to..]
+        )
+        .replace("cruise_speed_mps = 2.2", "cruise_speed_mps = 6.5")
+        .replace("acceleration_mps2 = 0.8", "acceleration_mps2 = 1.5")
+        .replace("rate_hz = 10\n", "rate_hz = 5\n")
+        .replace("sigma_horizontal_m = 0.010", "sigma_horizontal_m = 0.005")
+        .replace("correlation_s = 2.0", "correlation_s = 0.0")
+    };
+    let d = synth_and_record_edited(edit, "", 118, true);
+    let (code, v, _) = check_with_trajectory(&d, None);
+    assert_eq!(code, Some(0), "faults {:?}", names(&v));
+    let truth = Truth::read(&d);
+    let rows: Vec<Vec<f64>> = std::fs::read_to_string(d.dir.path().join("trajectory.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    let (mut z2, mut n) = (0.0, 0);
+    for r in &rows {
+        let Some((_, yaw)) = truth.at(r[0]) else {
+            continue;
+        };
+        let e = (r[3] - yaw + 180.0).rem_euclid(360.0) - 180.0;
+        if r[0] - rows[0][0] < 1.0 {
+            assert!(
+                e.abs() <= 3.0 * r[5],
+                "{:.2} s after the start: heading error {e:.3}° against a sigma of {:.3}°",
+                r[0] - rows[0][0],
+                r[5]
+            );
+        }
+        z2 += (e / r[5]).powi(2);
+        n += 1;
+    }
+    // Not yet within 1.25 here: the slaloms are where the sigma is least honest (1.64 on
+    // this drive; pooled over the benches' slaloms 1.16-1.38, see the closing notes).
+    let rms = (z2 / n as f64).sqrt();
+    assert!((0.5..=2.0).contains(&rms), "rms error/sigma {rms:.2}");
+}
+
 #[test]
 fn rtk_float_sigma_spike_lidar_gap_and_free_running_lidar_clock_are_found_and_located() {
     let (code, v) = drive_and_check(

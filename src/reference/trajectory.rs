@@ -250,6 +250,9 @@ enum Meas {
     Motion(f64, f64, bool),
 }
 
+/// At most this many passes of filter and smoother (see [`EgoTrajectory::smooth_with_heading`]).
+const MAX_PASSES: usize = 6;
+
 /// The yaw rate of a car standing still: zero, to within 1e-4 rad/s (0.3° in a minute).
 const STILL_YAW_SIGMA: f64 = 1e-4;
 
@@ -393,7 +396,6 @@ fn process_noise(dt: f64, still: bool, s: &Settings) -> P {
                 q[(a, b)] = qj * m[i][j];
             }
         }
-        q[(2, 2)] += 1e-7 * dt;
     }
     let qa = s.accel_noise.powi(2);
     q[(3, 3)] += qa * dt3;
@@ -444,7 +446,11 @@ impl<'a> Events<'a> {
 }
 
 /// The extended Kalman filter over GNSS fixes and CAN motion in time order.
-fn filter(ev: &Events<'_>, s: &Settings, start: Option<&S>) -> Filtered {
+/// `about`: a previous pass's smoothed states, one per event, to linearise the motion and the
+/// antenna about (an iterated extended Kalman smoother, Bell 1994): the filter's own estimate
+/// is what an extended Kalman filter linearises about, and where that is far off (the start of
+/// a recording in a turn) the linearisation error stays in the result. `None`: the filter's own.
+fn filter(ev: &Events<'_>, s: &Settings, start: Option<&S>, about: Option<&[S]>) -> Filtered {
     let (gnss, motion, events) = (ev.gnss, ev.motion, &ev.ordered);
     let wander = s.gnss_noise.wanders();
     let share = if wander {
@@ -477,11 +483,17 @@ fn filter(ev: &Events<'_>, s: &Settings, start: Option<&S>) -> Filtered {
     let mut still_now = false;
     // The wandering error's steady variance, from the latest fix's sigmas.
     let mut bias_var = b0;
-    for (t, m) in events {
+    for (k, (t, m)) in events.iter().enumerate() {
         let dt = ((t.0 - t_prev.0) as f64 * 1e-9).max(0.0);
         t_prev = *t;
-        let mut f = jacobian(|y| ctrv(y, dt), &x);
-        x = ctrv(&x, dt);
+        // The step's linearisation point: the previous event's smoothed state of the last pass
+        // (for the first event, the start itself), or the filter's own estimate.
+        let prev = match about {
+            Some(a) if k > 0 => a[k - 1],
+            _ => x,
+        };
+        let mut f = jacobian(|y| ctrv(y, dt), &prev);
+        x = ctrv(&prev, dt) + f * (x - prev);
         let mut q = process_noise(dt, still_now, s);
         if wander {
             let phi = (-dt / s.gnss_noise.correlation_s).exp();
@@ -497,10 +509,11 @@ fn filter(ev: &Events<'_>, s: &Settings, start: Option<&S>) -> Filtered {
         out.fs.push(f);
         match m {
             Meas::Gnss(g) => {
-                let h = jacobian(|y| antenna(y, &s.lever), &x);
+                let at = about.map_or(x, |a| a[k]);
+                let h = jacobian(|y| antenna(y, &s.lever), &at);
                 let white = (1.0 - share) * g.sigma.component_mul(&g.sigma);
                 let r = SMatrix::<f64, 2, 2>::from_diagonal(&white);
-                let y = g.position - antenna(&x, &s.lever);
+                let y = g.position - antenna(&at, &s.lever) - h * (x - at);
                 let sm = h * p * h.transpose() + r;
                 if let Some(si) = sm.try_inverse() {
                     out.log_likelihood -=
@@ -592,6 +605,32 @@ pub fn fit_yaw_jerk_noise(gnss: &[GnssObs], motion: &[(UtcNanos, f64, f64)], s: 
         .unwrap_or(s.yaw_jerk_noise)
 }
 
+/// The yaw-rate sensors' noises the CAN yaw rate's noise is chosen from, rad/s.
+const YAW_RATE_SIGMAS: [f64; 8] = [0.0005, 0.001, 0.002, 0.003, 0.005, 0.01, 0.02, 0.05];
+
+/// The CAN yaw rate's noise as the drive's own yaw rate shows it while moving, for drives that
+/// never stand long enough to measure it directly ([`crate::reference::noise::yaw_rate_noise`]):
+/// among 0.5 to 50 mrad/s, the one under which the filter's yaw-rate innovations while moving
+/// are most likely, with the yaw-jerk noise of `s` (so fitted in turn with
+/// [`fit_yaw_jerk_noise`]: the jerk makes the yaw rate vary between samples, the sensor's noise
+/// makes it scatter about that, and the innovations tell the two apart by their correlation).
+pub fn fit_yaw_rate_noise(gnss: &[GnssObs], motion: &[(UtcNanos, f64, f64)], s: &Settings) -> f64 {
+    Events::new(gnss, motion, &[])
+        .ok()
+        .and_then(|events| {
+            most_likely(
+                &events,
+                YAW_RATE_SIGMAS,
+                |sigma| Settings {
+                    yaw_rate_sigma: sigma,
+                    ..*s
+                },
+                |f| f.yaw_log_likelihood,
+            )
+        })
+        .unwrap_or(s.yaw_rate_sigma)
+}
+
 /// Of the `candidates`, the first one under which the filter over `events` (with the settings
 /// `settings(candidate)`) scores highest by `score`, a log-likelihood; `None` when none scores
 /// above -∞.
@@ -603,7 +642,7 @@ fn most_likely<T: Copy>(
 ) -> Option<T> {
     let mut best: (f64, Option<T>) = (f64::NEG_INFINITY, None);
     for c in candidates {
-        let l = score(&filter(events, &settings(c), None));
+        let l = score(&filter(events, &settings(c), None, None));
         if l > best.0 {
             best = (l, Some(c));
         }
@@ -613,12 +652,14 @@ fn most_likely<T: Copy>(
 
 /// The correlation times the GNSS error model is chosen from, s (0: white).
 const CORRELATION_TIMES_S: [f64; 8] = [0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 60.0];
-/// The shares of the variance that wander. Not 99 %: an RTK fix's white part (the carrier
-/// phase's own noise) is millimetric, but a model that says so lets twenty fixes a second pin
-/// the short-term motion, and what the motion model cannot follow (a slalom's yaw changes) then
-/// goes into the heading: on a 6 m/s slalom the heading erred by 0.175° (p95) with a sigma of
-/// 0.034°, against 0.054° with 95 % at most (`benches/check_other_drives.py`, slalom seed 3).
-const CORRELATED_SHARES: [f64; 2] = [0.6, 0.95];
+/// The shares of the variance that wander. An RTK fix's white part (the carrier phase's own
+/// noise) is millimetric: a receiver whose error all wanders (1.5 cm over 10 s at 20 Hz) was
+/// fitted at 95 % with a correlation time of 16-60 s instead, and its heading sigma was too
+/// small (rms error/sigma 1.28 over 30 drives; with 99 % among the shares, 1.16). 99 % once
+/// let twenty fixes a second pin what the motion model could not follow (a 6 m/s slalom's
+/// heading erred by 0.175°, p95); since the smoothing is iterated about its own trajectory,
+/// that slalom errs by 0.046-0.054° (`benches/check_other_drives.py`, slalom seed 3).
+const CORRELATED_SHARES: [f64; 3] = [0.6, 0.95, 0.99];
 
 /// The GNSS error model the drive itself supports best: among white noise and Gauss-Markov
 /// wander with correlation times from 0.5 s to a minute (holding 60 % or 95 % of each epoch's
@@ -675,13 +716,37 @@ impl EgoTrajectory {
         s: &Settings,
     ) -> Result<EgoTrajectory, TrajectoryError> {
         let events = Events::new(gnss, motion, headings)?;
-        let first = Self::smooth_from(&events, s, None);
-        // Once more from the first pass's start (see [`initial_state`]).
-        Ok(Self::smooth_from(&events, s, Some(&first.states[0])))
+        // An extended Kalman filter linearises about its own estimate, and its first state (the
+        // course of the first metre, the first CAN sample) is off by much of a turn when the
+        // recording begins in one: the linearisation error then stays in the smoothed result
+        // (0.9° at the start of a 6.5 m/s slalom from standstill with 5 Hz fixes, with a sigma
+        // of 0.03°). So the smoothing is iterated (Gauss-Newton): each pass starts from the
+        // last one's smoothed start and linearises about its smoothed trajectory, until no
+        // heading moves by more than 0.001° (far below any sigma the smoother gives).
+        let mut pass = Self::smooth_from(&events, s, None, None);
+        for _ in 1..MAX_PASSES {
+            let next = Self::smooth_from(&events, s, Some(&pass.states[0]), Some(&pass.states));
+            let moved = next
+                .states
+                .iter()
+                .zip(&pass.states)
+                .map(|(a, b)| wrap(a[2] - b[2]).abs())
+                .fold(0.0, f64::max);
+            pass = next;
+            if moved < 1.7e-5 {
+                break;
+            }
+        }
+        Ok(pass)
     }
 
-    fn smooth_from(events: &Events<'_>, s: &Settings, start: Option<&S>) -> EgoTrajectory {
-        let fl = filter(events, s, start);
+    fn smooth_from(
+        events: &Events<'_>,
+        s: &Settings,
+        start: Option<&S>,
+        about: Option<&[S]>,
+    ) -> EgoTrajectory {
+        let fl = filter(events, s, start, about);
         // Rauch-Tung-Striebel. Constants that are not estimated have no variance at all, so the
         // predicted covariance is singular in their rows and columns: the gain is taken on the
         // states that vary (a failed inverse would silently leave the filter's estimate, which

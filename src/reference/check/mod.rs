@@ -48,7 +48,9 @@ pub use report::{
 
 use super::noise::yaw_rate_noise;
 use super::run::Run;
-use super::trajectory::{fit_gnss_noise, fit_yaw_jerk_noise, EgoTrajectory, GnssObs, Settings};
+use super::trajectory::{
+    fit_gnss_noise, fit_yaw_jerk_noise, fit_yaw_rate_noise, EgoTrajectory, GnssObs, Settings,
+};
 use crate::rig::Rig;
 use crate::scene::file::Wgs84;
 use crate::scene::geodesy::Enu;
@@ -190,6 +192,61 @@ fn run_span(run: &Run, epochs: &[(UtcNanos, &hilrig_gnss::Fix)]) -> (UtcNanos, U
     (start, end)
 }
 
+/// The smoother's settings for a drive: the antenna's lever arm from the rig, and the noise of
+/// the CAN yaw rate, the yaw jerk and the GNSS error as the drive's own data show them.
+fn noise_settings(
+    obs: &[GnssObs],
+    motion: &[(UtcNanos, f64, f64)],
+    lever: Vector2<f64>,
+) -> Settings {
+    // The yaw-rate sensor's noise as the drive shows it while standing (the default where the
+    // vehicle never stands), never below 0.5 mrad/s: a quiet sensor still has a bias.
+    let settings = Settings {
+        lever,
+        yaw_rate_sigma: yaw_rate_noise(motion)
+            .map_or(Settings::default().yaw_rate_sigma, |s| s.max(5e-4)),
+        ..Settings::default()
+    };
+    // How smoothly the yaw rate changes, as the drive's CAN yaw rate shows it: it decides how
+    // closely the heading follows the integrated yaw rate between GNSS fixes.
+    let settings = Settings {
+        yaw_jerk_noise: fit_yaw_jerk_noise(obs, motion, &settings),
+        ..settings
+    };
+    // A drive that never stands long enough shows its yaw-rate noise only against the motion:
+    // fitted with the yaw jerk, in turn (the default of 5 mrad/s against a sensor of 2 mrad/s
+    // made the heading's sigma a quarter too large on such drives).
+    let settings = if yaw_rate_noise(motion).is_none() {
+        let s = Settings {
+            yaw_rate_sigma: fit_yaw_rate_noise(obs, motion, &settings).max(5e-4),
+            ..settings
+        };
+        Settings {
+            yaw_jerk_noise: fit_yaw_jerk_noise(obs, motion, &s),
+            ..s
+        }
+    } else {
+        settings
+    };
+    // RTK errors wander over seconds: weighted as if independent, ten epochs a second would pull
+    // the trajectory (and its heading) along their wander. The smoothing models the wander as
+    // states, with the correlation time and share that the drive's own GNSS innovations make
+    // most likely (white, if that is what they are), so that CAN motion carries the short term
+    // and GNSS the long term.
+    let settings = Settings {
+        gnss_noise: fit_gnss_noise(obs, motion, &settings),
+        ..settings
+    };
+    tracing::debug!(
+        "check: GNSS error wanders over {} s with {:.0} % of its variance; yaw jerk {} rad/s³/√s; yaw-rate noise {:.4} rad/s",
+        settings.gnss_noise.correlation_s,
+        settings.gnss_noise.correlated_share * 100.0,
+        settings.yaw_jerk_noise,
+        settings.yaw_rate_sigma
+    );
+    settings
+}
+
 fn check_into(
     run: &Run,
     rig: &Rig,
@@ -227,40 +284,11 @@ fn check_into(
         .iter()
         .map(|m| (m.t, m.speed, m.yaw_rate))
         .collect();
-    // The yaw-rate sensor's noise as the drive shows it while standing (the default where the
-    // vehicle never stands), never below 0.5 mrad/s: a quiet sensor still has a bias.
-    let settings = Settings {
-        lever,
-        yaw_rate_sigma: yaw_rate_noise(&motion)
-            .map_or(Settings::default().yaw_rate_sigma, |s| s.max(5e-4)),
-        ..Settings::default()
-    };
+    let settings = noise_settings(&obs, &motion, lever);
     let fixed: Vec<bool> = epochs
         .iter()
         .map(|(_, f)| f.rtk == RtkState::Fixed)
         .collect();
-    // How smoothly the yaw rate changes, as the drive's CAN yaw rate shows it: it decides how
-    // closely the heading follows the integrated yaw rate between GNSS fixes.
-    let settings = Settings {
-        yaw_jerk_noise: fit_yaw_jerk_noise(&obs, &motion, &settings),
-        ..settings
-    };
-    // RTK errors wander over seconds: weighted as if independent, ten epochs a second would pull
-    // the trajectory (and its heading) along their wander. The smoothing models the wander as
-    // states, with the correlation time and share that the drive's own GNSS innovations make
-    // most likely (white, if that is what they are), so that CAN motion carries the short term
-    // and GNSS the long term.
-    let settings = Settings {
-        gnss_noise: fit_gnss_noise(&obs, &motion, &settings),
-        ..settings
-    };
-    tracing::debug!(
-        "check: GNSS error wanders over {} s with {:.0} % of its variance; yaw jerk {} rad/s³/√s; yaw-rate noise {:.4} rad/s",
-        settings.gnss_noise.correlation_s,
-        settings.gnss_noise.correlated_share * 100.0,
-        settings.yaw_jerk_noise,
-        settings.yaw_rate_sigma
-    );
     // The rig's heading source, when it has one (see heading.rs).
     let heading_cfg = rig.gnss.as_ref().and_then(|g| g.heading.as_ref());
     let heading_reports = heading_cfg.map(|c| heading::reports(run, c));
