@@ -1551,6 +1551,103 @@ fn a_heading_source_is_fused_and_its_misalignment_estimated() {
     }
 }
 
+/// Issue 32, must-hold 6: a THS in "invalid" mode, one whose heading is out of its range and
+/// one with a checksum that fails, written into the serial stream of a clean drive after its
+/// first THS in the middle of the drive: none is used, the invalid one and the one out of range
+/// are counted in `check`'s report and text (the one that fails its checksum never frames, so
+/// the recorder keeps no message of it), and the drive still passes.
+#[test]
+fn invalid_and_malformed_heading_messages_are_counted_and_not_used() {
+    use hilrig::capture::{CaptureReader, LinkType, PcapngWriter};
+    let rigs = tempfile::tempdir().unwrap();
+    let rig = heading_rig(rigs.path(), "THS");
+    let d = synth_and_record_edited(
+        |t| {
+            t.replace(
+                "rig = \"../../rigs/demo.toml\"",
+                &format!("rig = {:?}", rig.display().to_string()),
+            )
+        },
+        "[heading]\nmisalignment_deg = 0.5\n",
+        44,
+        true,
+    );
+    let (_, clean, _) = check_with_trajectory(&d, Some(&rig));
+    let nmea = |body: &str| {
+        let sum = body.bytes().fold(0u8, |a, b| a ^ b);
+        format!("${body}*{sum:02X}\r\n")
+    };
+    let bad = format!(
+        "{}{}$GNTHS,123.000,A*00\r\n",
+        nmea("GNTHS,123.000,V"),
+        nmea("GNTHS,400.000,A")
+    );
+    let pcap = d.rep.join("drive.pcapng");
+    let mut r =
+        CaptureReader::new(std::io::BufReader::new(std::fs::File::open(&pcap).unwrap())).unwrap();
+    let mut w = PcapngWriter::new(Vec::new(), "tests/check.rs").unwrap();
+    let (mut declared, mut serial, mut injected) = (0usize, 0usize, false);
+    while let Some(rec) = r.next_record() {
+        let rec = rec.unwrap();
+        let (interface, link, time, mut data) =
+            (rec.interface, rec.link, rec.time, rec.data.to_vec());
+        while declared <= interface as usize {
+            let i = r.interfaces()[declared].clone();
+            w.add_interface(i.link, i.name.as_deref().unwrap_or(""))
+                .unwrap();
+            declared += 1;
+        }
+        if link == LinkType::USER0 && data.windows(5).any(|x| x == b"GNTHS") {
+            serial += 1;
+            if serial == 100 && !injected {
+                data.extend_from_slice(bad.as_bytes());
+                injected = true;
+            }
+        }
+        w.write_packet(interface, time, &data).unwrap();
+    }
+    assert!(injected, "{serial} serial chunks with a THS");
+    let edited = d.dir.path().join("edited.pcapng");
+    std::fs::write(&edited, w.finish().unwrap()).unwrap();
+    let run = d.dir.path().join("edited.mcap");
+    let rec = Command::new(hilrig_bin())
+        .args(["record", "--rig"])
+        .arg(&rig)
+        .arg("--from")
+        .arg(&edited)
+        .arg("-o")
+        .arg(&run)
+        .output()
+        .unwrap();
+    assert!(run.exists(), "{}", String::from_utf8_lossy(&rec.stderr));
+    let json = d.dir.path().join("edited.json");
+    let out = Command::new(hilrig_bin())
+        .arg("check")
+        .arg(&run)
+        .arg("--rig")
+        .arg(&rig)
+        .arg("--scene")
+        .arg(d.rep.join("scene.toml"))
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let h = &v["heading_source"];
+    assert_eq!(out.status.code(), Some(0), "{:?} {h}", names(&v));
+    assert_eq!(h["invalid"], 1, "{h}");
+    assert_eq!(h["malformed_gnss"], 1, "{h}");
+    assert_eq!(clean["heading_source"]["invalid"], 0);
+    assert_eq!(clean["heading_source"]["malformed_gnss"], 0);
+    // Neither is used: the same reports as the clean drive's.
+    assert_eq!(h["used"], clean["heading_source"]["used"], "{h}");
+    assert!(
+        text.contains("1 flagged invalid; 1 GNSS messages malformed"),
+        "{text}"
+    );
+}
+
 /// Issue 32, must-hold 3: a source that dead-reckons and says so (THS mode E), one whose
 /// output freezes while the car turns, and one mounted 6° off what the rig file says are
 /// each named and located as a fault.

@@ -67,6 +67,19 @@ pub struct Run {
     /// Attitude reports of the reference system (INS, dual antenna), decoded from the raw GNSS
     /// topics, with the host time they were received at.
     pub attitudes: Vec<(UtcNanos, hilrig_gnss::Attitude)>,
+    /// GNSS messages of the raw topics that were not used, counted (the recording keeps them).
+    pub gnss_rejected: GnssRejected,
+}
+
+/// GNSS messages that a run holds but that give nothing: counted, named, never used.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct GnssRejected {
+    /// Sentences and frames that did not frame (a checksum that fails, a broken frame).
+    pub not_framed: u64,
+    /// Messages that framed but did not decode (a field out of its range, NaN, too short).
+    pub not_decoded: u64,
+    /// Attitude messages their own flags mark invalid, by message.
+    pub invalid_attitudes: BTreeMap<&'static str, u64>,
 }
 
 /// Why a run cannot be read at all.
@@ -234,6 +247,14 @@ impl Collector {
         let mut run = self.run;
         self.nmea.finish(&mut self.fixes);
         self.ubx.finish(&mut self.fixes);
+        for s in [&self.nmea, &self.ubx] {
+            let r = &mut run.gnss_rejected;
+            r.not_framed += s.framer.stats.rejected;
+            r.not_decoded += s.stats.nmea_errors + s.stats.ubx_errors;
+            for (k, n) in &s.stats.invalid_attitudes {
+                *r.invalid_attitudes.entry(k).or_default() += n;
+            }
+        }
         let last = run.fixes.last().map_or(UtcNanos(0), |f| f.0);
         run.fixes.extend(self.fixes.drain(..).map(|f| (last, f)));
         run.damage = result.err();

@@ -29,6 +29,10 @@ pub(super) struct Reports {
     pub not_measured: Vec<(UtcNanos, AttitudeMode)>,
     /// Reports of the source without a time (before the stream showed its date; not used).
     pub untimed: usize,
+    /// Messages of the source flagged invalid by their own flags (not used).
+    pub invalid: u64,
+    /// GNSS messages of the run that did not frame or decode (not used).
+    pub malformed: u64,
 }
 
 /// The rig's heading source's reports in `run`: the heading turned into the smoother's
@@ -40,6 +44,13 @@ pub(super) fn reports(run: &Run, cfg: &HeadingConfig) -> Reports {
         obs: Vec::new(),
         not_measured: Vec::new(),
         untimed: 0,
+        invalid: run
+            .gnss_rejected
+            .invalid_attitudes
+            .get(source.name())
+            .copied()
+            .unwrap_or(0),
+        malformed: run.gnss_rejected.not_framed + run.gnss_rejected.not_decoded,
     };
     for (_, a) in &run.attitudes {
         if a.source != source || a.of != AttitudeOf::Vehicle {
@@ -184,6 +195,8 @@ pub(super) fn judge(
         used: reports.obs.len(),
         not_measured: reports.not_measured.len(),
         untimed: reports.untimed,
+        invalid: reports.invalid,
+        malformed_gnss: reports.malformed,
         sigma_deg: cfg.sigma_deg,
         yaw_offset_rig_deg: cfg.yaw_offset_deg,
         offset_deg: None,

@@ -512,6 +512,12 @@ pub struct HeadingReport {
     pub not_measured: usize,
     /// Reports left out: without a time.
     pub untimed: usize,
+    /// Messages of the source that its own flags mark invalid (THS mode V, a NAV-ATT or
+    /// RELPOSNED without its valid flag): counted, not used.
+    pub invalid: u64,
+    /// GNSS messages of the run, of any kind, that did not frame or decode (a checksum that
+    /// fails, a heading out of its range, NaN): counted, not used.
+    pub malformed_gnss: u64,
     /// The accuracy the rig file states, deg.
     pub sigma_deg: f64,
     /// The mounting offset the rig file states, deg (clockwise).
@@ -535,18 +541,20 @@ fn heading_text(h: Option<&HeadingReport>) -> String {
     };
     match (h.offset_deg, h.offset_sigma_deg, h.rms_normalized) {
         (Some(o), Some(so), Some(rms)) => format!(
-            "heading source: {} ({} reports used, {} not measured, {} without a time); offset against the track {o:+.3}° ± {so:.3}° beyond the rig's {}°; reports fit their {:.3}° at {rms:.2} of it (rms normalised), {} beyond 3 sigma",
+            "heading source: {} ({} reports used, {} not measured, {} without a time, {} flagged invalid; {} GNSS messages malformed); offset against the track {o:+.3}° ± {so:.3}° beyond the rig's {}°; reports fit their {:.3}° at {rms:.2} of it (rms normalised), {} beyond 3 sigma",
             h.source,
             h.used,
             h.not_measured,
             h.untimed,
+            h.invalid,
+            h.malformed_gnss,
             h.yaw_offset_rig_deg,
             h.sigma_deg,
             h.beyond_3_sigma
         ),
         _ => format!(
-            "heading source: {}: no measured report ({} not measured, {} without a time)",
-            h.source, h.not_measured, h.untimed
+            "heading source: {}: no measured report ({} not measured, {} without a time, {} flagged invalid; {} GNSS messages malformed)",
+            h.source, h.not_measured, h.untimed, h.invalid, h.malformed_gnss
         ),
     }
 }
