@@ -316,16 +316,22 @@ impl Truth {
     }
 }
 
-/// The smoothed heading's error against the truth (deg) and the smoother's own 1-sigma (deg)
-/// at every sample of `trajectory.csv` (written beside the run by [`drive_seeded_and_check`])
-/// that lies in a usable segment of the report `v`.
-fn usable_heading_errors(d: &SynthRun, truth: &Truth, v: &Value) -> Vec<(f64, f64)> {
-    let rows: Vec<Vec<f64>> = std::fs::read_to_string(d.dir.path().join("trajectory.csv"))
+/// The numbers of a CSV file of numbers (`truth.csv`, `trajectory.csv`), row by row, without
+/// its header.
+fn csv_rows(path: &std::path::Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(path)
         .unwrap()
         .lines()
         .skip(1)
         .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
-        .collect();
+        .collect()
+}
+
+/// The smoothed heading's error against the truth (deg) and the smoother's own 1-sigma (deg)
+/// at every sample of `trajectory.csv` (written beside the run by [`drive_seeded_and_check`])
+/// that lies in a usable segment of the report `v`.
+fn usable_heading_errors(d: &SynthRun, truth: &Truth, v: &Value) -> Vec<(f64, f64)> {
+    let rows = csv_rows(&d.dir.path().join("trajectory.csv"));
     // The segments are counted from the run's start (to the millisecond).
     let run_start = rows[0][0].min(truth.span().0);
     let segments = v["segments"].as_array().unwrap();
@@ -479,17 +485,9 @@ fn the_heading_is_as_good_as_its_sigma_says() {
         let d = synth_and_record_edited(edit, "", seed, true);
         let (code, v, traj) = check_with_trajectory(&d, None);
         assert_eq!(code, Some(0), "{start}: faults {:?}", names(&v));
-        let rows = |p: &std::path::Path| -> Vec<Vec<f64>> {
-            std::fs::read_to_string(p)
-                .unwrap()
-                .lines()
-                .skip(1)
-                .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
-                .collect()
-        };
         // truth.csv: t, x, y, z, yaw_deg; trajectory.csv: t, x, y, yaw_deg, sigma_xy, sigma_yaw.
-        let truth = rows(&d.rep.join("truth.csv"));
-        let est = rows(&traj);
+        let truth = csv_rows(&d.rep.join("truth.csv"));
+        let est = csv_rows(&traj);
         let run_start = est[0][0].min(truth[0][0]);
         let segments = v["segments"].as_array().unwrap();
         let usable_at = |t: f64| {
@@ -567,12 +565,7 @@ fn a_slalom_from_standstill_starts_on_the_true_heading() {
     let (code, v, _) = check_with_trajectory(&d, None);
     assert_eq!(code, Some(0), "faults {:?}", names(&v));
     let truth = Truth::read(&d);
-    let rows: Vec<Vec<f64>> = std::fs::read_to_string(d.dir.path().join("trajectory.csv"))
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
-        .collect();
+    let rows = csv_rows(&d.dir.path().join("trajectory.csv"));
     let (mut z2, mut n) = (0.0, 0);
     for r in &rows {
         let Some((_, yaw)) = truth.at(r[0]) else {
@@ -1188,34 +1181,48 @@ fn a_run_marked_not_usable_throughout_fails() {
     assert!(!d.dir.path().join("sim.mcap").exists());
 }
 
-/// The capture `src` without the packets of its interfaces of link type `drop` (the interface
-/// itself stays declared): what a silent serial line or CAN bus leaves in a capture.
-fn capture_without(
+/// Copies the capture `src` to `out`, each record's data passed through `edit`, which keeps
+/// the record (possibly changed) or drops it (false).
+fn rewrite_capture(
     src: &std::path::Path,
-    drop: hilrig::capture::LinkType,
     out: &std::path::Path,
-) -> usize {
+    mut edit: impl FnMut(hilrig::capture::LinkType, &mut Vec<u8>) -> bool,
+) {
     use hilrig::capture::{CaptureReader, PcapngWriter};
     let mut r =
         CaptureReader::new(std::io::BufReader::new(std::fs::File::open(src).unwrap())).unwrap();
     let mut w = PcapngWriter::new(Vec::new(), "tests/check.rs").unwrap();
-    let (mut declared, mut dropped) = (0usize, 0usize);
+    let mut declared = 0usize;
     while let Some(rec) = r.next_record() {
         let rec = rec.unwrap();
-        let (interface, link, time, data) = (rec.interface, rec.link, rec.time, rec.data.to_vec());
+        let (interface, link, time, mut data) =
+            (rec.interface, rec.link, rec.time, rec.data.to_vec());
         while declared <= interface as usize {
             let i = r.interfaces()[declared].clone();
             w.add_interface(i.link, i.name.as_deref().unwrap_or(""))
                 .unwrap();
             declared += 1;
         }
-        if link == drop {
-            dropped += 1;
-        } else {
+        if edit(link, &mut data) {
             w.write_packet(interface, time, &data).unwrap();
         }
     }
     std::fs::write(out, w.finish().unwrap()).unwrap();
+}
+
+/// The capture `src` without the packets of its interfaces of link type `drop` (the interface
+/// itself stays declared): what a silent serial line or CAN bus leaves in a capture. Returns
+/// how many were dropped.
+fn capture_without(
+    src: &std::path::Path,
+    drop: hilrig::capture::LinkType,
+    out: &std::path::Path,
+) -> usize {
+    let mut dropped = 0;
+    rewrite_capture(src, out, |link, _| {
+        dropped += usize::from(link == drop);
+        link != drop
+    });
     dropped
 }
 
@@ -1558,7 +1565,7 @@ fn a_heading_source_is_fused_and_its_misalignment_estimated() {
 /// the recorder keeps no message of it), and the drive still passes.
 #[test]
 fn invalid_and_malformed_heading_messages_are_counted_and_not_used() {
-    use hilrig::capture::{CaptureReader, LinkType, PcapngWriter};
+    use hilrig::capture::LinkType;
     let rigs = tempfile::tempdir().unwrap();
     let rig = heading_rig(rigs.path(), "THS");
     let d = synth_and_record_edited(
@@ -1582,21 +1589,9 @@ fn invalid_and_malformed_heading_messages_are_counted_and_not_used() {
         nmea("GNTHS,123.000,V"),
         nmea("GNTHS,400.000,A")
     );
-    let pcap = d.rep.join("drive.pcapng");
-    let mut r =
-        CaptureReader::new(std::io::BufReader::new(std::fs::File::open(&pcap).unwrap())).unwrap();
-    let mut w = PcapngWriter::new(Vec::new(), "tests/check.rs").unwrap();
-    let (mut declared, mut serial, mut injected) = (0usize, 0usize, false);
-    while let Some(rec) = r.next_record() {
-        let rec = rec.unwrap();
-        let (interface, link, time, mut data) =
-            (rec.interface, rec.link, rec.time, rec.data.to_vec());
-        while declared <= interface as usize {
-            let i = r.interfaces()[declared].clone();
-            w.add_interface(i.link, i.name.as_deref().unwrap_or(""))
-                .unwrap();
-            declared += 1;
-        }
+    let edited = d.dir.path().join("edited.pcapng");
+    let (mut serial, mut injected) = (0usize, false);
+    rewrite_capture(&d.rep.join("drive.pcapng"), &edited, |link, data| {
         if link == LinkType::USER0 && data.windows(5).any(|x| x == b"GNTHS") {
             serial += 1;
             if serial == 100 && !injected {
@@ -1604,11 +1599,9 @@ fn invalid_and_malformed_heading_messages_are_counted_and_not_used() {
                 injected = true;
             }
         }
-        w.write_packet(interface, time, &data).unwrap();
-    }
+        true
+    });
     assert!(injected, "{serial} serial chunks with a THS");
-    let edited = d.dir.path().join("edited.pcapng");
-    std::fs::write(&edited, w.finish().unwrap()).unwrap();
     let run = d.dir.path().join("edited.mcap");
     let rec = Command::new(hilrig_bin())
         .args(["record", "--rig"])

@@ -16,7 +16,7 @@
 //! heading source (an INS, a dual-antenna receiver) its heading with its stated sigma, against
 //! the state's heading plus a constant offset of the source (the baseline's misalignment,
 //! estimated as a twelfth state from a 10° prior). Jacobians are taken
-//! numerically: eleven states, and the model stays readable.
+//! numerically: twelve states, and the model stays readable.
 //!
 //! Long file: the filter, the smoother, the choice of the noise models (yaw jerk, GNSS) and the
 //! sampling of the result share one private state layout (the index constants, the state and

@@ -201,10 +201,10 @@ fn noise_settings(
 ) -> Settings {
     // The yaw-rate sensor's noise as the drive shows it while standing (the default where the
     // vehicle never stands), never below 0.5 mrad/s: a quiet sensor still has a bias.
+    let measured = yaw_rate_noise(motion);
     let settings = Settings {
         lever,
-        yaw_rate_sigma: yaw_rate_noise(motion)
-            .map_or(Settings::default().yaw_rate_sigma, |s| s.max(5e-4)),
+        yaw_rate_sigma: measured.map_or(Settings::default().yaw_rate_sigma, |s| s.max(5e-4)),
         ..Settings::default()
     };
     // How smoothly the yaw rate changes, as the drive's CAN yaw rate shows it: it decides how
@@ -216,7 +216,7 @@ fn noise_settings(
     // A drive that never stands long enough shows its yaw-rate noise only against the motion:
     // fitted with the yaw jerk, in turn (the default of 5 mrad/s against a sensor of 2 mrad/s
     // made the heading's sigma a quarter too large on such drives).
-    let settings = if yaw_rate_noise(motion).is_none() {
+    let settings = if measured.is_none() {
         let s = Settings {
             yaw_rate_sigma: fit_yaw_rate_noise(obs, motion, &settings).max(5e-4),
             ..settings
