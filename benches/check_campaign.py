@@ -20,12 +20,17 @@
    (issue 12, must-hold 1). This shows what marking by the smoother's own sigma can buy.
 
 5. With --heading SOURCE (THS, HDT, PASHR or PSTI,036): the clean drives get a heading source
-   of 0.05 deg at 20 Hz (THS and HDT with each GNSS epoch) on the rig (`[gnss.heading]`, its
+   of 0.05 deg (PASHR and PSTI,036 at 20 Hz, THS and HDT with each GNSS epoch: add
+   --gnss-rate 20 for 20 Hz) on the rig (`[gnss.heading]`, its
    baseline across the car: yaw_offset_deg = 90) whose real misalignment beyond that is drawn
    per drive from 0.2-2 deg: the offset `check` estimates against the truth (within 2 sigma),
    the reports' rms normalised residual, and the heading error's 95th percentile in the
    worst usable second of each drive from its first second on (issue 32, must-hold 2).
-   Fault kinds and the lever grid are skipped.
+   Fault kinds and the lever grid are skipped. With --calibrated-mounting SIGMA as well, the
+   rig that `check` reads states the mounting as a calibration would (`yaw_offset_deg` the
+   true one plus an error drawn with SIGMA degrees, `yaw_offset_sigma_deg = SIGMA`): the
+   offset to estimate is then that error, and a short drive no longer has to find the
+   mounting from its own track.
 
 6. With --paths mixed: the clean drives are not only the parking drive (21 m at 1.4-2.6 m/s)
    but, in turn, the parking drive at 2.0-2.6 m/s, a loop of about 250 m at 3-10 m/s, a slalom
@@ -37,6 +42,7 @@
 usage: python3 benches/check_campaign.py [CLEAN_DRIVES] [SEEDS_PER_FAULT] [FIRST_CLEAN_SEED]
            [--gnss-sigma M] [--gnss-correlation S] [--gnss-rate HZ] [--can-rate HZ]
            [--yaw-rate-noise RAD/S] [--sigma-limits DEG,DEG,...] [--heading SOURCE]
+           [--calibrated-mounting DEG]
            [--paths parking|mixed] [--keep DIR]
        (default 30 10 100; SEEDS_PER_FAULT 0 leaves out the fault kinds and the lever grid;
        another first seed draws another set of clean drives; the options
@@ -49,6 +55,7 @@ import datetime
 import json
 import math
 import os
+import random
 import re
 import subprocess
 import sys
@@ -66,6 +73,7 @@ ap.add_argument("--can-rate", type=float)
 ap.add_argument("--yaw-rate-noise", type=float)
 ap.add_argument("--sigma-limits", type=lambda t: [float(x) for x in t.split(",")], default=[])
 ap.add_argument("--heading", choices=["THS", "HDT", "PASHR", "PSTI,036"])
+ap.add_argument("--calibrated-mounting", type=float, metavar="DEG")
 ap.add_argument("--paths", choices=["parking", "mixed"], default="parking")
 ap.add_argument("--keep", metavar="DIR",
                 help="make the drives in DIR and keep them; a drive whose run.mcap exists there "
@@ -178,6 +186,23 @@ def heading_rig(tmp):
     open(path, "w").write(rig + f'\n[gnss.heading]\nsource = "{args.heading}"\n'
                           'yaw_offset_deg = 90.0\nsigma_deg = 0.05\n')
     return path
+
+
+def calibrated_rig(tmp, k, misalignment):
+    """With --calibrated-mounting SIGMA: the heading rig of drive `k` as a calibration left it,
+    its `yaw_offset_deg` the true mounting plus an error drawn with SIGMA, and that SIGMA as
+    `yaw_offset_sigma_deg`. Returns the rig and the offset that remains beyond it (what `check`
+    should estimate); without the option, the plain heading rig and `misalignment`."""
+    if args.calibrated_mounting is None:
+        return heading_rig(tmp), misalignment
+    error = round(random.Random(k).gauss(0.0, args.calibrated_mounting), 4)
+    path = os.path.join(tmp, f"calibrated-rig-{k}.toml")
+    text = open(heading_rig(tmp)).read().replace(
+        "yaw_offset_deg = 90.0\n",
+        f"yaw_offset_deg = {90.0 + misalignment + error}\n"
+        f"yaw_offset_sigma_deg = {args.calibrated_mounting}\n")
+    open(path, "w").write(text)
+    return path, -error
 
 
 def drive(tmp, name, faults, seed, speed=2.2, start="standing", heading=None, waypoints=None):
@@ -316,7 +341,8 @@ with (tempfile.TemporaryDirectory() if not args.keep else
             acc[2] += bool(ul) and p95(ul) > 0.1
             acc[3] = max(acc[3], p95(ul) if ul else 0.0)
         # The default rig last: `trajectory.csv` and the report below are its.
-        v = check(d, os.path.join(d, "run.mcap"), heading_rig=heading_rig(tmp))
+        rig, misalignment = calibrated_rig(tmp, k, misalignment) if args.heading else (None, None)
+        v = check(d, os.path.join(d, "run.mcap"), heading_rig=rig)
         if args.heading:
             hs = v.get("heading_source") or {}
             o, so = hs.get("offset_deg"), hs.get("offset_sigma_deg")

@@ -113,9 +113,36 @@ pub struct HeadingConfig {
     /// heading; an INS aligned with the car, 0. `check` estimates what remains.
     #[serde(default)]
     pub yaw_offset_deg: f64,
+    /// How well `yaw_offset_deg` is known, 1 sigma, degrees: set it when a calibration measured
+    /// the mounting (a long drive's `check` reports the offset it estimated, `offset_deg ±
+    /// offset_sigma_deg` in `heading_source`). `check` then takes it as the offset's prior.
+    /// Without it the drive alone decides the offset, and a drive can tell it only as well as
+    /// its track tells the heading: on a 20 m parking manoeuvre with 1 cm RTK noise that is
+    /// about 0.035°, which the smoothed heading then inherits.
+    #[serde(default)]
+    pub yaw_offset_sigma_deg: Option<f64>,
     /// Expected accuracy (1 sigma), degrees, for messages that state none (HDT, THS,
     /// PSTI,036) and as a floor under those that do.
     pub sigma_deg: f64,
+}
+
+impl HeadingConfig {
+    /// Refuses accuracies that are not positive: a zero sigma would make the smoother take
+    /// every report, or the mounting, as exact.
+    fn check(&self) -> Result<(), String> {
+        if self.sigma_deg <= 0.0 {
+            return Err(format!(
+                "gnss.heading.sigma_deg = {}: the source's accuracy must be positive",
+                self.sigma_deg
+            ));
+        }
+        match self.yaw_offset_sigma_deg {
+            Some(s) if s <= 0.0 => Err(format!(
+                "gnss.heading.yaw_offset_sigma_deg = {s}: how well the mounting is known must be positive (leave it out to estimate the offset from the drive)"
+            )),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// A message that can carry the heading reference.
@@ -437,6 +464,12 @@ impl Rig {
             message: e.to_string(),
         })?;
         rig.base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        if let Some(h) = rig.gnss.as_ref().and_then(|g| g.heading.as_ref()) {
+            h.check().map_err(|message| RigError::Parse {
+                path: path.display().to_string(),
+                message,
+            })?;
+        }
         if let Some(l) = &rig.lidar {
             l.model
                 .parse::<hilrig_velodyne::Model>()

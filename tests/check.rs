@@ -1698,3 +1698,69 @@ fn a_heading_source_the_rig_names_but_the_run_lacks_is_a_fault() {
     assert_eq!(code, Some(0), "{:?}", names(&v));
     assert!(v["heading_source"].is_null());
 }
+
+/// A 20 m parking manoeuvre tells the heading source's mounting only as well as its track tells
+/// the heading (about 0.035° with 1 cm RTK), and the smoothed heading inherits that. A rig that
+/// states its mounting as a calibration measured it (`yaw_offset_sigma_deg`) lends the drive the
+/// calibration's accuracy: the offset's sigma and the heading's drop below what the track alone
+/// gives, the small offset the calibration left is still found within 2 sigma, and the heading
+/// stays within its sigma. A sigma that is not positive is refused, naming the key.
+#[test]
+fn a_calibrated_mounting_carries_a_short_drive() {
+    let (code, v, d, rigs) = heading_drive("THS", "misalignment_deg = 1.2\n", 44);
+    assert_eq!(code, Some(0), "{:?}", names(&v));
+    let alone = v["heading_source"]["offset_sigma_deg"].as_f64().unwrap();
+    assert!(alone > 0.02, "the drive alone gives the offset to {alone}°");
+    // The calibration left 0.004° of the mounting unknown, and says it is good to 0.01°.
+    let plain = std::fs::read_to_string(rigs.path().join("heading-rig.toml")).unwrap();
+    let calibrated = |sigma: &str| {
+        let path = rigs.path().join(format!("calibrated-{sigma}.toml"));
+        let text = plain.replace(
+            "yaw_offset_deg = 90.0\n",
+            &format!("yaw_offset_deg = 91.204\nyaw_offset_sigma_deg = {sigma}\n"),
+        );
+        assert_ne!(text, plain);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let (code, v, _) = check_with_trajectory(&d, Some(&calibrated("0.01")));
+    assert_eq!(code, Some(0), "{:?}", names(&v));
+    let h = &v["heading_source"];
+    let (o, so) = (
+        h["offset_deg"].as_f64().unwrap(),
+        h["offset_sigma_deg"].as_f64().unwrap(),
+    );
+    assert!(
+        so < 0.01 && so < alone / 2.0,
+        "offset {o} ± {so} (alone ± {alone})"
+    );
+    assert!(
+        (o + 0.004).abs() <= 2.0 * so,
+        "offset {o} ± {so}, truth -0.004"
+    );
+    let e = usable_heading_errors(&d, &Truth::read(&d), &v);
+    assert!(e.len() > 100);
+    let worst_sigma = e.iter().map(|x| x.1).fold(0.0, f64::max);
+    assert!(
+        worst_sigma < alone,
+        "heading sigma up to {worst_sigma}° with the calibration, the offset alone {alone}°"
+    );
+    let z = (e.iter().map(|(err, s)| (err / s).powi(2)).sum::<f64>() / e.len() as f64).sqrt();
+    assert!(z < 1.5, "rms(error/sigma) {z}");
+    let p95 = quantile(e.iter().map(|x| x.0.abs()).collect(), 0.95);
+    // Issue 32's bound for a heading source of 0.05°.
+    assert!(p95 <= 0.05, "heading error p95 {p95:.4}°");
+    println!("alone ± {alone:.4}°; calibrated: offset {o:.4}° ± {so:.4}°, heading sigma up to {worst_sigma:.4}°, error p95 {p95:.4}°, rms z {z:.2}");
+    for bad in ["0.0", "-0.01"] {
+        let out = Command::new(hilrig_bin())
+            .arg("check")
+            .arg(&d.run)
+            .arg("--rig")
+            .arg(calibrated(bad))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{bad}: {err}");
+        assert!(err.contains("yaw_offset_sigma_deg"), "{bad}: {err}");
+    }
+}

@@ -44,7 +44,7 @@ const YAW_ACC: usize = 10;
 const HEADING_BIAS: usize = 11;
 /// The prior of the heading source's offset, rad (10°: a baseline misaligned by more is a
 /// mounting error, and the data decide within that).
-const HEADING_BIAS_PRIOR: f64 = 0.1745;
+pub const HEADING_BIAS_PRIOR: f64 = 0.1745;
 
 /// One heading measurement of the rig's heading source, in the smoother's frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -108,6 +108,9 @@ pub struct Settings {
     pub estimate_offset_and_lever: bool,
     /// How the GNSS error wanders (white by default).
     pub gnss_noise: GnssNoise,
+    /// 1-sigma prior of the heading source's offset, rad: [`HEADING_BIAS_PRIOR`] (10°) when the
+    /// drive alone decides it, the calibration's sigma when the rig file states one.
+    pub heading_offset_sigma: f64,
 }
 
 /// The GNSS error as the smoother models it: a share of each epoch's variance wanders as a
@@ -148,6 +151,7 @@ impl Default for Settings {
             yaw_rate_sigma: 0.005,
             estimate_offset_and_lever: false,
             gnss_noise: GnssNoise::WHITE,
+            heading_offset_sigma: HEADING_BIAS_PRIOR,
         }
     }
 }
@@ -337,7 +341,7 @@ fn initial_state(
     let var_heading_bias = if headings.is_empty() {
         0.0
     } else {
-        HEADING_BIAS_PRIOR * HEADING_BIAS_PRIOR
+        s.heading_offset_sigma * s.heading_offset_sigma
     };
     let p = P::from_diagonal(&S::from_column_slice(&[
         1.0,

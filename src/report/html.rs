@@ -205,6 +205,21 @@ fn usable_percent(check: &Value) -> Option<f64> {
         .map(|d| 100.0 * usable / d)
 }
 
+/// Where a checked run's heading came from: the track (RTK and CAN), or the rig's heading
+/// source with the offset `check` found for it.
+fn heading_from(check: &Value) -> String {
+    match check.get("heading_source").filter(|h| !h.is_null()) {
+        None => "track (RTK, CAN)".into(),
+        Some(h) => format!(
+            "{}: {} reports, offset {}° ± {}°",
+            esc(text(h, "source")),
+            fixed(num(h, &["used"]), 0),
+            fixed(num(h, &["offset_deg"]), 3),
+            fixed(num(h, &["offset_sigma_deg"]), 3)
+        ),
+    }
+}
+
 fn check_section(out: &mut String, checks: &[&Input]) {
     out.push_str("<h2 id=\"section-check\">Reference data (Rosenberger et al. 2019, §6)</h2>\n<p class=\"note\">Each run's trajectory and timing are checked before anything is re-simulated; the grid cell of the metrics follows from the accuracy found (at least ten times the reference accuracy).</p>\n");
     let rows: Vec<Vec<String>> = checks
@@ -222,6 +237,7 @@ fn check_section(out: &mut String, checks: &[&Input]) {
                 ),
                 fixed(num(v, &["accuracy", "ego_m"]), 3),
                 fixed(num(v, &["accuracy", "heading_sigma_deg"]), 3),
+                heading_from(v),
                 fixed(num(v, &["accuracy", "reference_m"]), 3),
                 fixed(num(v, &["accuracy", "grid_cell_m"]), 2),
                 arr(v, "faults").len().to_string(),
@@ -239,6 +255,7 @@ fn check_section(out: &mut String, checks: &[&Input]) {
             "RTK fixed, %",
             "ego accuracy, m",
             "heading σ, °",
+            "heading from",
             "reference accuracy, m",
             "admissible cell, m",
             "faults",
@@ -584,7 +601,7 @@ fn inputs_section(out: &mut String, inputs: &[Input]) {
 
 #[cfg(test)]
 mod tests {
-    use super::usable_percent;
+    use super::{heading_from, usable_percent};
     use serde_json::json;
 
     /// Usable is the passing segments' share of the run: 2 s marked and 1 s failing of 10 s
@@ -598,5 +615,19 @@ mod tests {
             {"from_s": 7.0, "to_s": 10.0, "verdict": "pass"}]});
         assert!((usable_percent(&check).unwrap() - 70.0).abs() < 1e-9);
         assert_eq!(usable_percent(&json!({"verdict": "unusable"})), None);
+    }
+
+    /// A run without a heading source took its heading from the track; one with names the
+    /// message, the reports used and the offset found.
+    #[test]
+    fn the_heading_column_names_its_source() {
+        assert_eq!(
+            heading_from(&json!({"heading_source": null})),
+            "track (RTK, CAN)"
+        );
+        assert_eq!(heading_from(&json!({})), "track (RTK, CAN)");
+        let h = json!({"heading_source": {"source": "THS", "used": 412,
+            "offset_deg": 1.2034, "offset_sigma_deg": 0.0051}});
+        assert_eq!(heading_from(&h), "THS: 412 reports, offset 1.203° ± 0.005°");
     }
 }

@@ -199,6 +199,7 @@ pub(super) fn judge(
         malformed_gnss: reports.malformed,
         sigma_deg: cfg.sigma_deg,
         yaw_offset_rig_deg: cfg.yaw_offset_deg,
+        yaw_offset_sigma_rig_deg: cfg.yaw_offset_sigma_deg,
         offset_deg: None,
         offset_sigma_deg: None,
         rms_normalized: None,

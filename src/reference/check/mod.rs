@@ -293,6 +293,14 @@ fn check_into(
     let heading_cfg = rig.gnss.as_ref().and_then(|g| g.heading.as_ref());
     let heading_reports = heading_cfg.map(|c| heading::reports(run, c));
     let heading_obs = heading_reports.as_ref().map_or(&[][..], |r| &r.obs[..]);
+    // A calibrated mounting (the rig states how well `yaw_offset_deg` is known) starts the
+    // source's offset from that calibration; otherwise the drive alone decides it.
+    let settings = Settings {
+        heading_offset_sigma: heading_cfg
+            .and_then(|c| c.yaw_offset_sigma_deg)
+            .map_or(settings.heading_offset_sigma, f64::to_radians),
+        ..settings
+    };
     let (traj, heading_offset) = match heading::smooth(&obs, &motion, heading_obs, &settings) {
         Ok(t) => t,
         Err(e) => return unusable(run, e.to_string(), sp),

@@ -522,6 +522,9 @@ pub struct HeadingReport {
     pub sigma_deg: f64,
     /// The mounting offset the rig file states, deg (clockwise).
     pub yaw_offset_rig_deg: f64,
+    /// How well the rig file says that mounting is known (a calibration's 1-sigma, deg); `None`:
+    /// the drive alone decided the offset.
+    pub yaw_offset_sigma_rig_deg: Option<f64>,
     /// The source's offset beyond that, as the drive shows it, deg (clockwise: the source
     /// reads this much more than the vehicle's heading); `None` without reports.
     pub offset_deg: Option<f64>,
@@ -541,7 +544,7 @@ fn heading_text(h: Option<&HeadingReport>) -> String {
     };
     match (h.offset_deg, h.offset_sigma_deg, h.rms_normalized) {
         (Some(o), Some(so), Some(rms)) => format!(
-            "heading source: {} ({} reports used, {} not measured, {} without a time, {} flagged invalid; {} GNSS messages malformed); offset against the track {o:+.3}° ± {so:.3}° beyond the rig's {}°; reports fit their {:.3}° at {rms:.2} of it (rms normalised), {} beyond 3 sigma",
+            "heading source: {} ({} reports used, {} not measured, {} without a time, {} flagged invalid; {} GNSS messages malformed); offset against the track {o:+.3}° ± {so:.3}° beyond the rig's {}°{}; reports fit their {:.3}° at {rms:.2} of it (rms normalised), {} beyond 3 sigma",
             h.source,
             h.used,
             h.not_measured,
@@ -549,6 +552,8 @@ fn heading_text(h: Option<&HeadingReport>) -> String {
             h.invalid,
             h.malformed_gnss,
             h.yaw_offset_rig_deg,
+            h.yaw_offset_sigma_rig_deg
+                .map_or(String::new(), |c| format!(" (calibrated to ± {c}°)")),
             h.sigma_deg,
             h.beyond_3_sigma
         ),
