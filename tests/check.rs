@@ -1612,7 +1612,17 @@ fn invalid_and_malformed_heading_messages_are_counted_and_not_used() {
         .arg(&run)
         .output()
         .unwrap();
-    assert!(run.exists(), "{}", String::from_utf8_lossy(&rec.stderr));
+    // The recorder keeps everything that frames and says what it could not: the THS with the
+    // wrong checksum is not in the file, counted, named, and the exit status says so.
+    let err = String::from_utf8_lossy(&rec.stderr);
+    assert_eq!(rec.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("1 GNSS serial frames were not recorded")
+            && err.contains("NMEA sentence with a wrong checksum: 1 (first: serial interface"),
+        "{err}"
+    );
+    let left_out: hilrig::record::rejects::GnssRejects = common::recorded_rejects(&run);
+    assert_eq!(left_out.total(), 1, "{left_out:?}");
     let json = d.dir.path().join("edited.json");
     let out = Command::new(hilrig_bin())
         .arg("check")

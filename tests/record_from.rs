@@ -904,7 +904,7 @@ fn records_every_packet(model: Model, mode: ReturnMode) {
         got == drive.payloads,
         "{model} {mode:?}: byte for byte, in order"
     );
-    let rejects = common::recorded_rejects(&out);
+    let rejects = common::recorded_rejects::<hilrig::record::rejects::RejectReason>(&out);
     assert!(rejects.is_empty(), "{model} {mode:?}: {rejects:?}");
     // The position packet says PPS locked (the HDL-32E reports no PPS state): what resim,
     // compare and gap read back to take the packet stamps for GNSS time.
@@ -1146,7 +1146,7 @@ fn malformed_packets_among_good_ones_are_counted_per_reason_and_exit_1() {
     ] {
         assert!(stderr.contains(line), "{line:?} in {stderr}");
     }
-    let r = common::recorded_rejects(&out);
+    let r = common::recorded_rejects::<hilrig::record::rejects::RejectReason>(&out);
     use hilrig::record::rejects::RejectReason as R;
     let counts: Vec<(R, u64)> = r.counts.clone().into_iter().collect();
     assert_eq!(
@@ -1182,7 +1182,7 @@ fn the_real_vls128_capture_records_all_2193_data_packets() {
     let got = common::lidar_data(&out);
     assert_eq!(got.len(), 2193);
     assert!(got == want, "byte for byte, in order");
-    assert!(common::recorded_rejects(&out).is_empty());
+    assert!(common::recorded_rejects::<hilrig::record::rejects::RejectReason>(&out).is_empty());
     // What `hilrig decode` reads of the same capture.
     let (summary, _) =
         common::decode_file(&capture, &hilrig::decode::lidar::LidarOptions::default());

@@ -525,7 +525,9 @@ fn vls128_packets_over_udp_are_all_recorded() {
         let got = common::lidar_data(&r.out);
         assert_eq!(got.len(), 400, "{mode:?}: data packets");
         assert!(got == drive.payloads, "{mode:?}: byte for byte, in order");
-        assert!(common::recorded_rejects(&r.out).is_empty());
+        assert!(
+            common::recorded_rejects::<hilrig::record::rejects::RejectReason>(&r.out).is_empty()
+        );
         assert!(stderr.contains("lidar: received 400,"), "{stderr}");
     }
 }
@@ -561,7 +563,7 @@ fn another_sensor_s_and_malformed_packets_on_the_live_port_are_counted_and_exit_
     ] {
         assert!(stderr.contains(text), "{text:?} in {stderr}");
     }
-    let rejects = common::recorded_rejects(&r.out);
+    let rejects = common::recorded_rejects::<hilrig::record::rejects::RejectReason>(&r.out);
     use hilrig::record::rejects::RejectReason as R;
     assert_eq!(
         rejects.counts.into_iter().collect::<Vec<_>>(),
@@ -607,5 +609,60 @@ fn a_vls128_capture_replayed_into_the_live_recorder_loses_no_packet() {
         .find(|c| c.topic == "/velodyne_position")
         .map_or(0, |c| c.count);
     assert_eq!(positions, 1);
-    assert!(common::recorded_rejects(&r.out).is_empty());
+    assert!(common::recorded_rejects::<hilrig::record::rejects::RejectReason>(&r.out).is_empty());
+}
+
+/// A sentence whose checksum fails, and a UBX frame whose checksum fails, among good NMEA on the
+/// live serial port: the recorder keeps every good sentence, counts and names the two it could
+/// not frame (in its output and the file's `hilrig/end` metadata) and exits 1.
+#[test]
+fn gnss_frames_that_fail_their_checksum_on_the_live_port_are_counted_and_exit_1() {
+    let mut r = rig();
+    let child = start_with(&r, std::process::Stdio::piped());
+    std::thread::sleep(Duration::from_millis(300));
+    let mut good = 0u64;
+    for i in 0..20 {
+        let body = format!(
+            "GNGGA,1200{:02}.{}0,4807.0380000,N,01131.0000000,E,4,12,0.8,545.40,M,46.90,M,1.0,0042",
+            i / 10,
+            i % 10
+        );
+        let mut line = nmea_sentence(&body);
+        if i == 7 {
+            // One character changed after the checksum was taken.
+            line = line.replacen("4807.038", "4807.039", 1);
+        } else {
+            good += 1;
+        }
+        r.gnss.write_all(line.as_bytes()).unwrap();
+        if i == 12 {
+            let mut ubx = hilrig::gnss::framer::ubx_frame(0x01, 0x05, &[0u8; 32]);
+            let n = ubx.len();
+            ubx[n - 1] ^= 0xFF;
+            r.gnss.write_all(&ubx).unwrap();
+        }
+    }
+    r.gnss.flush().unwrap();
+    let (code, stderr) = stop(child);
+    assert_eq!(code, Some(1), "{stderr}");
+    for text in [
+        "2 GNSS serial frames were not recorded",
+        "  NMEA sentence with a wrong checksum: 1 (first: stream byte ",
+        "  UBX frame with a wrong checksum: 1 (first: stream byte ",
+    ] {
+        assert!(stderr.contains(text), "{text:?} in {stderr}");
+    }
+    let info = hilrig::bag::info::info(&r.out).unwrap();
+    let nmea = info
+        .channels
+        .iter()
+        .find(|c| c.topic == "/gnss/nmea")
+        .map_or(0, |c| c.count);
+    assert_eq!(nmea, good, "every good sentence is recorded");
+    let rejects: hilrig::record::rejects::GnssRejects = common::recorded_rejects(&r.out);
+    use hilrig::gnss::framer::RejectReason as F;
+    assert_eq!(
+        rejects.counts.into_iter().collect::<Vec<_>>(),
+        [(F::NmeaChecksum, 1), (F::UbxChecksum, 1)]
+    );
 }

@@ -56,15 +56,9 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
         eprintln!("error: {e} (everything before it was recorded)");
     }
     let rejects = &summary.lidar_rejects;
-    if !rejects.is_empty() {
-        eprintln!(
-            "error: {out}: {} lidar packets were not recorded (counted in the file's hilrig/end metadata):",
-            rejects.total()
-        );
-        for line in rejects.lines() {
-            eprintln!("  {line}");
-        }
-    }
+    let gnss_rejects = &summary.gnss_rejects;
+    print_rejects(&out.to_string(), "lidar packets", rejects);
+    print_rejects(&out.to_string(), "GNSS serial frames", gnss_rejects);
     if summary.attitude_untimed > 0 {
         eprintln!(
             "note: {out}: {} attitude reports came before the GNSS stream showed its date and are not on /gnss/attitude (their raw messages are on /gnss/nmea and /gnss/ubx)",
@@ -112,7 +106,11 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
         );
     }
     Ok(
-        if summary.input_errors.is_empty() && no_lidar.is_none() && rejects.is_empty() {
+        if summary.input_errors.is_empty()
+            && no_lidar.is_none()
+            && rejects.is_empty()
+            && gnss_rejects.is_empty()
+        {
             ExitCode::SUCCESS
         } else {
             ExitCode::from(1)
@@ -131,19 +129,33 @@ fn live(rig: &hilrig::rig::Rig, text: &str, output: Option<PathBuf>) -> Result<E
         eprintln!("{}: {topic}: {n} messages", output.display());
     }
     let rejects = &summary.lidar_rejects;
-    if !rejects.is_empty() {
-        eprintln!(
-            "error: {}: {} lidar packets were not recorded (counted in the file's hilrig/end metadata):",
-            output.display(),
-            rejects.total()
-        );
-        for line in rejects.lines() {
-            eprintln!("  {line}");
-        }
+    let gnss_rejects = &summary.gnss_rejects;
+    let out = output.display().to_string();
+    print_rejects(&out, "lidar packets", rejects);
+    print_rejects(&out, "GNSS serial frames", gnss_rejects);
+    Ok(
+        if summary.dropped() == 0 && rejects.is_empty() && gnss_rejects.is_empty() {
+            ExitCode::SUCCESS
+        } else {
+            ExitCode::from(1)
+        },
+    )
+}
+
+/// Says what a recording left out, per reason with its first occurrence.
+fn print_rejects<R: hilrig::record::rejects::Reason>(
+    out: &str,
+    what: &str,
+    rejects: &hilrig::record::rejects::Rejects<R>,
+) {
+    if rejects.is_empty() {
+        return;
     }
-    Ok(if summary.dropped() == 0 && rejects.is_empty() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
-    })
+    eprintln!(
+        "error: {out}: {} {what} were not recorded (counted in the file's hilrig/end metadata):",
+        rejects.total()
+    );
+    for line in rejects.lines() {
+        eprintln!("  {line}");
+    }
 }

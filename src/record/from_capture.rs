@@ -18,7 +18,7 @@ use crate::bag::topics;
 use crate::bag::{BagError, BagWriter};
 use crate::record::clock::{ClockEstimator, ClockModel};
 use crate::record::messages::{cloud_cdr, nav_sat_fix};
-use crate::record::rejects::{LidarRejects, RejectReason};
+use crate::record::rejects::{GnssRejects, LidarRejects, RejectReason};
 use crate::rig::Rig;
 use hilrig_can::ego::{EgoSample, EgoTracker, Quantity};
 use hilrig_can::Database;
@@ -90,6 +90,9 @@ pub struct RecordSummary {
     pub input_errors: Vec<String>,
     /// Lidar packets not recorded, per reason (any makes `record` exit 1).
     pub lidar_rejects: LidarRejects,
+    /// GNSS serial frames not recorded (a checksum that fails, a malformed sentence), per
+    /// reason (any makes `record` exit 1).
+    pub gnss_rejects: GnssRejects,
     /// UDP datagrams that went to no lidar port of the rig, by destination port.
     pub other_udp_ports: BTreeMap<u16, u64>,
     /// Names of the captures' serial interfaces that carried bytes (read as the GNSS stream,
@@ -124,6 +127,8 @@ struct Sources {
     lidar_checked: u64,
     /// Lidar packets left out, per reason.
     rejects: LidarRejects,
+    /// GNSS frames left out, per reason.
+    gnss_rejects: GnssRejects,
 }
 
 /// A serial interface's framer and epoch assemblers, with the receive time of the last frame:
@@ -152,6 +157,7 @@ impl Sources {
             pps_byte: None,
             lidar_checked: 0,
             rejects: LidarRejects::default(),
+            gnss_rejects: GnssRejects::default(),
         }
     }
 }
@@ -398,8 +404,17 @@ impl Context<'_> {
         let mut fixes = Vec::new();
         let mut attitudes = Vec::new();
         while let Some(it) = entry.framer.next_frame() {
-            let Item::Frame { frame, .. } = it else {
-                continue;
+            let frame = match it {
+                Item::Frame { frame, .. } => frame,
+                Item::Rejected { offset, reason } => {
+                    src.gnss_rejects.add(reason, || {
+                        format!(
+                            "serial interface {interface}, stream byte {offset}{}",
+                            host.map_or(String::new(), |h| format!(", received {h}"))
+                        )
+                    });
+                    continue;
+                }
             };
             let t = host
                 .or(entry.last_fix)
@@ -889,6 +904,7 @@ pub fn record_from(
         summary.lidar_lost = rot.loss().lost;
     }
     summary.lidar_rejects = std::mem::take(&mut src.rejects);
+    summary.gnss_rejects = std::mem::take(&mut src.gnss_rejects);
     summary.attitude_untimed = out.attitude_untimed;
     let mut meta = BTreeMap::new();
     meta.insert(
@@ -903,6 +919,7 @@ pub fn record_from(
     if model.is_some() {
         summary.lidar_rejects.write_metadata(&mut meta);
     }
+    summary.gnss_rejects.write_metadata(&mut meta);
     out.bag.metadata("hilrig/end", meta)?;
     summary.counts = out.bag.finish()?;
     Ok(summary)

@@ -16,7 +16,7 @@
 use crate::bag::msgs::{self, MessageType};
 use crate::bag::{BagError, BagWriter};
 use crate::record::clock::ClockEstimator;
-use crate::record::rejects::{LidarRejects, RejectReason};
+use crate::record::rejects::{GnssRejects, LidarRejects, RejectReason};
 use crate::rig::Rig;
 use hilrig_gnss::epoch::{NmeaEpochs, UbxEpochs};
 use hilrig_gnss::framer::{Frame, Framer, Item};
@@ -93,6 +93,9 @@ pub struct LiveSummary {
     pub health: BTreeMap<String, [u64; 6]>,
     /// Lidar packets not recorded, per reason (any makes `record` exit 1).
     pub lidar_rejects: LidarRejects,
+    /// GNSS serial frames not recorded (a checksum that fails, a malformed sentence), per
+    /// reason (any makes `record` exit 1).
+    pub gnss_rejects: GnssRejects,
 }
 
 /// Why the recorder stopped with an error.
@@ -236,6 +239,7 @@ pub async fn record_live(
         .and_then(|l| l.model.parse::<Model>().ok());
     let mut health: BTreeMap<&'static str, Arc<Health>> = BTreeMap::new();
     let rejects: Arc<Mutex<LidarRejects>> = Arc::default();
+    let gnss_rejects: Arc<Mutex<GnssRejects>> = Arc::default();
     let mut tasks = Vec::new();
 
     // Open every source before writing anything: a wrong port stops the recorder at start.
@@ -287,6 +291,7 @@ pub async fn record_live(
             tx.clone(),
             h,
             clocks.clone(),
+            gnss_rejects.clone(),
             shutdown.clone(),
         )));
     }
@@ -382,6 +387,10 @@ pub async fn record_live(
     summary.lidar_rejects = rejects.lock().map(|r| r.clone()).unwrap_or_default();
     if rig.lidar.is_some() {
         summary.lidar_rejects.write_metadata(&mut end);
+    }
+    summary.gnss_rejects = gnss_rejects.lock().map(|r| r.clone()).unwrap_or_default();
+    if rig.gnss.is_some() {
+        summary.gnss_rejects.write_metadata(&mut end);
     }
     bag.metadata("hilrig/end", end)?;
     print_health(&health, &rejects);
@@ -580,6 +589,7 @@ async fn gnss_task(
     tx: SyncSender<Event>,
     h: Arc<Health>,
     clocks: Arc<Mutex<BTreeMap<&'static str, ClockEstimator>>>,
+    rejects: Arc<Mutex<GnssRejects>>,
     mut shutdown: tokio::sync::watch::Receiver<bool>,
 ) {
     let mut framer = Framer::new();
@@ -598,9 +608,14 @@ async fn gnss_task(
         while let Some(item) = framer.next_frame() {
             let host = chunk.host;
             let epoch_host = last_host.unwrap_or(host);
-            let Item::Frame { frame: f, .. } = item else {
-                h.decode_errors.fetch_add(1, Ordering::Relaxed);
-                continue;
+            let f = match item {
+                Item::Frame { frame, .. } => frame,
+                Item::Rejected { offset, reason } => {
+                    h.decode_errors.fetch_add(1, Ordering::Relaxed);
+                    let mut r = rejects.lock().unwrap_or_else(|e| e.into_inner());
+                    r.add(reason, || format!("stream byte {offset}, received {host}"));
+                    continue;
+                }
             };
             last_host = Some(host);
             h.received.fetch_add(1, Ordering::Relaxed);

@@ -1,10 +1,13 @@
-//! Lidar packets the recorder left out, counted per reason.
+//! Data the recorder left out, counted per reason: lidar packets, and GNSS serial frames that
+//! failed their checksum or did not frame.
 //!
-//! Both recorders (`--from` and live) keep one [`LidarRejects`]: printed at the end (and in the
-//! live health lines), written into the recording's `hilrig/end` metadata and read back from it
-//! through the same type, so that a recording says itself what it is missing and why. Any
-//! rejected packet makes `hilrig record` exit 1.
+//! Both recorders (`--from` and live) keep one [`LidarRejects`] and one [`GnssRejects`]:
+//! printed at the end (the lidar's also in the live health lines), written into the
+//! recording's `hilrig/end` metadata and read back from it through the same type, so that a
+//! recording says itself what it is missing and why. Anything rejected makes `hilrig record`
+//! exit 1.
 
+use hilrig_gnss::framer::RejectReason as FrameReject;
 use hilrig_velodyne::source::PacketPort;
 use hilrig_velodyne::DecodeError;
 use std::collections::BTreeMap;
@@ -107,33 +110,94 @@ impl fmt::Display for RejectReason {
     }
 }
 
-/// Metadata key of the total (in `hilrig/end`); per reason `lidar_rejected.KEY`, and its first
-/// packet `lidar_rejected.KEY.first`.
-const TOTAL: &str = "lidar_rejected";
+/// A reason the recorder counts left-out data by.
+pub trait Reason: Copy + Ord {
+    /// Metadata key of the total (in `hilrig/end`); per reason `TOTAL.KEY`, and its first
+    /// occurrence `TOTAL.KEY.first`.
+    const TOTAL: &'static str;
+    /// The key of this reason in the metadata.
+    fn key(self) -> String;
+    /// The reason named by [`Reason::key`].
+    fn from_key(key: &str) -> Option<Self>;
+    /// The reason in words.
+    fn describe(self) -> String;
+}
 
-/// The lidar packets a recording left out: counts per reason and, per reason, where the first
-/// one was and what was wrong with it (the full error: offsets, expected and found values).
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct LidarRejects {
-    /// Packets per reason.
-    pub counts: BTreeMap<RejectReason, u64>,
-    /// The first packet of each reason: where (file and byte offset, or receive time) and why.
-    pub first: BTreeMap<RejectReason, String>,
+impl Reason for RejectReason {
+    const TOTAL: &'static str = "lidar_rejected";
+    fn key(self) -> String {
+        RejectReason::key(self)
+    }
+    fn from_key(key: &str) -> Option<Self> {
+        RejectReason::from_key(key)
+    }
+    fn describe(self) -> String {
+        self.to_string()
+    }
+}
+
+/// Why the GNSS framer refused a candidate frame: it is then not in the recording (the bytes
+/// are skipped and framing goes on).
+impl Reason for FrameReject {
+    const TOTAL: &'static str = "gnss_rejected";
+    fn key(self) -> String {
+        match self {
+            FrameReject::NmeaChecksum => "nmea_checksum",
+            FrameReject::NmeaMalformed => "nmea_malformed",
+            FrameReject::UbxChecksum => "ubx_checksum",
+            FrameReject::Rtcm3Crc => "rtcm3_crc",
+        }
+        .into()
+    }
+    fn from_key(key: &str) -> Option<Self> {
+        Some(match key {
+            "nmea_checksum" => FrameReject::NmeaChecksum,
+            "nmea_malformed" => FrameReject::NmeaMalformed,
+            "ubx_checksum" => FrameReject::UbxChecksum,
+            "rtcm3_crc" => FrameReject::Rtcm3Crc,
+            _ => return None,
+        })
+    }
+    fn describe(self) -> String {
+        match self {
+            FrameReject::NmeaChecksum => "NMEA sentence with a wrong checksum",
+            FrameReject::NmeaMalformed => {
+                "NMEA sentence malformed (non-printable bytes, no *hh, too long)"
+            }
+            FrameReject::UbxChecksum => "UBX frame with a wrong checksum",
+            FrameReject::Rtcm3Crc => "RTCM3 frame with a wrong CRC",
+        }
+        .into()
+    }
+}
+
+/// What a recording left out: counts per reason and, per reason, where the first one was and
+/// what was wrong with it (for lidar packets the full error: offsets, expected and found
+/// values).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Rejects<R: Reason> {
+    /// Items per reason.
+    pub counts: BTreeMap<R, u64>,
+    /// The first item of each reason: where (file and byte offset, or receive time) and why.
+    pub first: BTreeMap<R, String>,
+}
+
+/// The lidar packets a recording left out.
+pub type LidarRejects = Rejects<RejectReason>;
+
+/// The GNSS serial frames a recording left out.
+pub type GnssRejects = Rejects<FrameReject>;
+
+impl<R: Reason> Default for Rejects<R> {
+    fn default() -> Self {
+        Rejects {
+            counts: BTreeMap::new(),
+            first: BTreeMap::new(),
+        }
+    }
 }
 
 impl LidarRejects {
-    /// Counts one packet; `describe` says where it was and why (called for a reason's first
-    /// packet only, so counting stays cheap).
-    pub fn add(&mut self, reason: RejectReason, describe: impl FnOnce() -> String) {
-        *self.counts.entry(reason).or_default() += 1;
-        self.first.entry(reason).or_insert_with(describe);
-    }
-
-    /// Packets rejected, data and position.
-    pub fn total(&self) -> u64 {
-        self.counts.values().sum()
-    }
-
     /// Data packets rejected.
     pub fn data_packets(&self) -> u64 {
         self.counts
@@ -141,6 +205,20 @@ impl LidarRejects {
             .filter(|(r, _)| r.is_data())
             .map(|(_, n)| n)
             .sum()
+    }
+}
+
+impl<R: Reason> Rejects<R> {
+    /// Counts one item; `describe` says where it was and why (called for a reason's first
+    /// item only, so counting stays cheap).
+    pub fn add(&mut self, reason: R, describe: impl FnOnce() -> String) {
+        *self.counts.entry(reason).or_default() += 1;
+        self.first.entry(reason).or_insert_with(describe);
+    }
+
+    /// Items rejected.
+    pub fn total(&self) -> u64 {
+        self.counts.values().sum()
     }
 
     /// Nothing rejected.
@@ -152,18 +230,18 @@ impl LidarRejects {
     pub fn brief(&self) -> String {
         self.counts
             .iter()
-            .map(|(r, n)| format!("{r} {n}"))
+            .map(|(r, n)| format!("{} {n}", r.describe()))
             .collect::<Vec<_>>()
             .join(", ")
     }
 
-    /// One line per reason with its count and first packet, for the end of a recording.
+    /// One line per reason with its count and first item, for the end of a recording.
     pub fn lines(&self) -> Vec<String> {
         self.counts
             .iter()
             .map(|(r, n)| match self.first.get(r) {
-                Some(first) => format!("{r}: {n} (first: {first})"),
-                None => format!("{r}: {n}"),
+                Some(first) => format!("{}: {n} (first: {first})", r.describe()),
+                None => format!("{}: {n}", r.describe()),
             })
             .collect()
     }
@@ -171,24 +249,24 @@ impl LidarRejects {
     /// Writes the counts into `meta` (the `hilrig/end` metadata); the total always, so that a
     /// recording without rejects says so.
     pub fn write_metadata(&self, meta: &mut BTreeMap<String, String>) {
-        meta.insert(TOTAL.to_owned(), self.total().to_string());
+        meta.insert(R::TOTAL.to_owned(), self.total().to_string());
         for (r, n) in &self.counts {
-            meta.insert(format!("{TOTAL}.{}", r.key()), n.to_string());
+            meta.insert(format!("{}.{}", R::TOTAL, r.key()), n.to_string());
         }
         for (r, first) in &self.first {
-            meta.insert(format!("{TOTAL}.{}.first", r.key()), first.clone());
+            meta.insert(format!("{}.{}.first", R::TOTAL, r.key()), first.clone());
         }
     }
 
-    /// Reads what [`LidarRejects::write_metadata`] wrote; `None` when the metadata has no
-    /// reject counts (a recording by an older hilrig), an error naming the entry that does not
-    /// read.
-    pub fn from_metadata(meta: &BTreeMap<String, String>) -> Result<Option<LidarRejects>, String> {
-        let Some(total) = meta.get(TOTAL) else {
+    /// Reads what [`Rejects::write_metadata`] wrote; `None` when the metadata has no reject
+    /// counts (a recording by an older hilrig), an error naming the entry that does not read.
+    pub fn from_metadata(meta: &BTreeMap<String, String>) -> Result<Option<Self>, String> {
+        let total_key = R::TOTAL;
+        let Some(total) = meta.get(total_key) else {
             return Ok(None);
         };
-        let mut out = LidarRejects::default();
-        let prefix = format!("{TOTAL}.");
+        let mut out = Self::default();
+        let prefix = format!("{total_key}.");
         for (k, v) in meta {
             let Some(rest) = k.strip_prefix(&prefix) else {
                 continue;
@@ -197,7 +275,7 @@ impl LidarRejects {
                 Some(key) => (key, true),
                 None => (rest, false),
             };
-            let reason = RejectReason::from_key(key)
+            let reason = R::from_key(key)
                 .ok_or_else(|| format!("metadata {k}: no reject reason is called {key}"))?;
             if first {
                 out.first.insert(reason, v.clone());
@@ -210,10 +288,10 @@ impl LidarRejects {
         }
         let total: u64 = total
             .parse()
-            .map_err(|_| format!("metadata {TOTAL}: {total:?} is not a count"))?;
+            .map_err(|_| format!("metadata {total_key}: {total:?} is not a count"))?;
         if total != out.total() {
             return Err(format!(
-                "metadata {TOTAL} is {total} but the reasons add up to {}",
+                "metadata {total_key} is {total} but the reasons add up to {}",
                 out.total()
             ));
         }
@@ -276,6 +354,36 @@ mod tests {
             RejectReason::Other,
         ] {
             assert_eq!(RejectReason::from_key(&reason.key()), Some(reason));
+        }
+    }
+
+    #[test]
+    fn gnss_frame_rejects_round_trip_through_the_metadata() {
+        let mut r = GnssRejects::default();
+        r.add(FrameReject::NmeaChecksum, || "serial 0 byte 77".into());
+        r.add(FrameReject::NmeaChecksum, || "serial 0 byte 901".into());
+        r.add(FrameReject::UbxChecksum, || "serial 1 byte 12".into());
+        assert_eq!(r.total(), 3);
+        assert_eq!(r.first[&FrameReject::NmeaChecksum], "serial 0 byte 77");
+        let mut meta = BTreeMap::new();
+        r.write_metadata(&mut meta);
+        assert_eq!(meta["gnss_rejected"], "3");
+        assert_eq!(meta["gnss_rejected.nmea_checksum"], "2");
+        assert_eq!(GnssRejects::from_metadata(&meta), Ok(Some(r.clone())));
+        // The lidar's counts live beside them under their own keys.
+        assert_eq!(LidarRejects::from_metadata(&meta), Ok(None));
+        assert!(r.lines()[0]
+            .starts_with("NMEA sentence with a wrong checksum: 2 (first: serial 0 byte 77)"));
+        for reason in [
+            FrameReject::NmeaChecksum,
+            FrameReject::NmeaMalformed,
+            FrameReject::UbxChecksum,
+            FrameReject::Rtcm3Crc,
+        ] {
+            assert_eq!(
+                <FrameReject as Reason>::from_key(&Reason::key(reason)),
+                Some(reason)
+            );
         }
     }
 }

@@ -3,7 +3,7 @@
 //! reference data hold, what the simulation gets wrong and where, whether it is valid, and what
 //! the gap workflow found), each figure an inline SVG and each table plain HTML.
 
-use super::plots::{self, arr, fixed, num, text};
+use super::plots::{self, arr, fixed, heading_from, num, text, usable_percent};
 use super::{Input, Kind};
 use serde_json::Value;
 use std::fmt::Write;
@@ -192,34 +192,6 @@ fn verdict(v: &str) -> String {
     format!("<span class=\"{class}\">{}</span>", esc(v))
 }
 
-/// The share of a checked run that its segments call usable, %: marked and failing stretches
-/// are left out of the metrics, so this is what the run contributes.
-fn usable_percent(check: &Value) -> Option<f64> {
-    let usable: f64 = arr(check, "segments")
-        .iter()
-        .filter(|g| text(g, "verdict") == "pass")
-        .filter_map(|g| Some(num(g, &["to_s"])? - num(g, &["from_s"])?))
-        .sum();
-    num(check, &["duration_s"])
-        .filter(|&d| d > 0.0)
-        .map(|d| 100.0 * usable / d)
-}
-
-/// Where a checked run's heading came from: the track (RTK and CAN), or the rig's heading
-/// source with the offset `check` found for it.
-fn heading_from(check: &Value) -> String {
-    match check.get("heading_source").filter(|h| !h.is_null()) {
-        None => "track (RTK, CAN)".into(),
-        Some(h) => format!(
-            "{}: {} reports, offset {}° ± {}°",
-            esc(text(h, "source")),
-            fixed(num(h, &["used"]), 0),
-            fixed(num(h, &["offset_deg"]), 3),
-            fixed(num(h, &["offset_sigma_deg"]), 3)
-        ),
-    }
-}
-
 fn check_section(out: &mut String, checks: &[&Input]) {
     out.push_str("<h2 id=\"section-check\">Reference data (Rosenberger et al. 2019, §6)</h2>\n<p class=\"note\">Each run's trajectory and timing are checked before anything is re-simulated; the grid cell of the metrics follows from the accuracy found (at least ten times the reference accuracy).</p>\n");
     let rows: Vec<Vec<String>> = checks
@@ -237,7 +209,7 @@ fn check_section(out: &mut String, checks: &[&Input]) {
                 ),
                 fixed(num(v, &["accuracy", "ego_m"]), 3),
                 fixed(num(v, &["accuracy", "heading_sigma_deg"]), 3),
-                heading_from(v),
+                esc(&heading_from(v)),
                 fixed(num(v, &["accuracy", "reference_m"]), 3),
                 fixed(num(v, &["accuracy", "grid_cell_m"]), 2),
                 arr(v, "faults").len().to_string(),
@@ -597,37 +569,4 @@ fn inputs_section(out: &mut String, inputs: &[Input]) {
         }
     }
     table(out, "inputs", &["file", "kind", "bytes", "SHA-256"], &rows);
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{heading_from, usable_percent};
-    use serde_json::json;
-
-    /// Usable is the passing segments' share of the run: 2 s marked and 1 s failing of 10 s
-    /// leave 70 %; a run without duration has none.
-    #[test]
-    fn the_usable_share_counts_passing_segments_only() {
-        let check = json!({"duration_s": 10.0, "segments": [
-            {"from_s": 0.0, "to_s": 2.0, "verdict": "unusable"},
-            {"from_s": 2.0, "to_s": 6.0, "verdict": "pass"},
-            {"from_s": 6.0, "to_s": 7.0, "verdict": "fail"},
-            {"from_s": 7.0, "to_s": 10.0, "verdict": "pass"}]});
-        assert!((usable_percent(&check).unwrap() - 70.0).abs() < 1e-9);
-        assert_eq!(usable_percent(&json!({"verdict": "unusable"})), None);
-    }
-
-    /// A run without a heading source took its heading from the track; one with names the
-    /// message, the reports used and the offset found.
-    #[test]
-    fn the_heading_column_names_its_source() {
-        assert_eq!(
-            heading_from(&json!({"heading_source": null})),
-            "track (RTK, CAN)"
-        );
-        assert_eq!(heading_from(&json!({})), "track (RTK, CAN)");
-        let h = json!({"heading_source": {"source": "THS", "used": 412,
-            "offset_deg": 1.2034, "offset_sigma_deg": 0.0051}});
-        assert_eq!(heading_from(&h), "THS: 412 reports, offset 1.203° ± 0.005°");
-    }
 }

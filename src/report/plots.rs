@@ -38,6 +38,34 @@ pub(super) fn fixed(x: Option<f64>, d: usize) -> String {
         .map_or_else(|| "–".into(), |x| format!("{x:.d$}"))
 }
 
+/// The share of a checked run that its segments call usable, %: marked and failing stretches
+/// are left out of the metrics, so this is what the run contributes.
+pub(super) fn usable_percent(check: &Value) -> Option<f64> {
+    let usable: f64 = arr(check, "segments")
+        .iter()
+        .filter(|g| text(g, "verdict") == "pass")
+        .filter_map(|g| Some(num(g, &["to_s"])? - num(g, &["from_s"])?))
+        .sum();
+    num(check, &["duration_s"])
+        .filter(|&d| d > 0.0)
+        .map(|d| 100.0 * usable / d)
+}
+
+/// Where a checked run's heading came from: the track (RTK and CAN), or the rig's heading
+/// source with the offset `check` found for it.
+pub(super) fn heading_from(check: &Value) -> String {
+    match check.get("heading_source").filter(|h| !h.is_null()) {
+        None => "track (RTK, CAN)".into(),
+        Some(h) => format!(
+            "{}: {} reports, offset {}° ± {}°",
+            text(h, "source"),
+            fixed(num(h, &["used"]), 0),
+            fixed(num(h, &["offset_deg"]), 3),
+            fixed(num(h, &["offset_sigma_deg"]), 3)
+        ),
+    }
+}
+
 /// Counts of green, yellow, red and black cells in a `validate` JSON.
 pub fn lights(v: &Value) -> [usize; 4] {
     let mut n = [0; 4];
@@ -460,6 +488,37 @@ pub fn calibration_curve(compares: &[(&str, &Value)]) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Usable is the passing segments' share of the run: 2 s marked and 1 s failing of 10 s
+    /// leave 70 %; a run without duration has none.
+    #[test]
+    fn the_usable_share_counts_passing_segments_only() {
+        let check = serde_json::json!({"duration_s": 10.0, "segments": [
+            {"from_s": 0.0, "to_s": 2.0, "verdict": "unusable"},
+            {"from_s": 2.0, "to_s": 6.0, "verdict": "pass"},
+            {"from_s": 6.0, "to_s": 7.0, "verdict": "fail"},
+            {"from_s": 7.0, "to_s": 10.0, "verdict": "pass"}]});
+        assert!((usable_percent(&check).unwrap() - 70.0).abs() < 1e-9);
+        assert_eq!(
+            usable_percent(&serde_json::json!({"verdict": "unusable"})),
+            None
+        );
+    }
+
+    /// A run without a heading source took its heading from the track; one with names the
+    /// message, the reports used and the offset found.
+    #[test]
+    fn the_heading_column_names_its_source() {
+        use serde_json::json;
+        assert_eq!(
+            heading_from(&json!({"heading_source": null})),
+            "track (RTK, CAN)"
+        );
+        assert_eq!(heading_from(&json!({})), "track (RTK, CAN)");
+        let h = json!({"heading_source": {"source": "THS", "used": 412,
+            "offset_deg": 1.2034, "offset_sigma_deg": 0.0051}});
+        assert_eq!(heading_from(&h), "THS: 412 reports, offset 1.203° ± 0.005°");
+    }
 
     #[test]
     fn a_plot_is_an_svg_with_its_labels_as_text() {

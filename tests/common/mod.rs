@@ -440,14 +440,17 @@ pub fn lidar_data(path: &std::path::Path) -> Vec<Vec<u8>> {
         .collect()
 }
 
-/// The lidar packets a recording says it left out (its `hilrig/end` metadata).
-pub fn recorded_rejects(path: &std::path::Path) -> hilrig::record::rejects::LidarRejects {
+/// What a recording says it left out of one kind (its `hilrig/end` metadata): the lidar
+/// packets (`LidarRejects`) or the GNSS serial frames (`GnssRejects`).
+pub fn recorded_rejects<R: hilrig::record::rejects::Reason>(
+    path: &std::path::Path,
+) -> hilrig::record::rejects::Rejects<R> {
     let info = hilrig::bag::info::info(path).unwrap();
     let end = info
         .metadata
         .get("hilrig/end")
         .expect("hilrig/end metadata");
-    hilrig::record::rejects::LidarRejects::from_metadata(end)
+    hilrig::record::rejects::Rejects::from_metadata(end)
         .unwrap()
-        .expect("lidar reject counts in hilrig/end")
+        .expect("reject counts in hilrig/end")
 }
