@@ -34,6 +34,9 @@ pub(super) struct Inputs<'a> {
     pub motion: &'a [(UtcNanos, f64, f64)],
     /// The CAN yaw-rate noise the smoother assumes, rad/s.
     pub yaw_rate_sigma: f64,
+    /// The yaw jerk noise the drive's CAN yaw rate shows, rad/s³ per √s (see
+    /// [`crate::reference::trajectory::fit_yaw_jerk_noise`]).
+    pub yaw_jerk_noise: f64,
     /// The GNSS error model the drive supports best (see
     /// [`crate::reference::trajectory::fit_gnss_noise`]); the time offset and lever arm are
     /// fitted under it, so that their uncertainties account for the wander of the errors.
@@ -348,24 +351,55 @@ fn offset_and_lever(inp: &Inputs<'_>, speed_scale: f64) -> Fit {
         .collect();
     // Fitted twice: the second fit starts from the first one's lever arm, so that the rig
     // file's value (which only seeds the linearisation) leaves no trace in the estimate.
-    let fit = |lever: Vector2<f64>| {
-        EgoTrajectory::smooth(
-            &fixed_only,
-            &motion_fit,
-            &Settings {
-                lever,
-                estimate_offset_and_lever: true,
-                yaw_rate_sigma: inp.yaw_rate_sigma,
-                gnss_noise: inp.gnss_noise,
-                ..Settings::default()
-            },
-        )
-        .ok()
+    let fit_under = |noise: GnssNoise| {
+        let fit = |lever: Vector2<f64>| {
+            EgoTrajectory::smooth(
+                &fixed_only,
+                &motion_fit,
+                &Settings {
+                    lever,
+                    estimate_offset_and_lever: true,
+                    yaw_rate_sigma: inp.yaw_rate_sigma,
+                    yaw_jerk_noise: inp.yaw_jerk_noise,
+                    gnss_noise: noise,
+                    ..Settings::default()
+                },
+            )
+            .ok()
+        };
+        fit(inp.lever).and_then(|first| {
+            let (_, _, x, _) = first.offset_and_lever();
+            fit(Vector2::new(x, inp.lever.y)).or(Some(first))
+        })
     };
-    let fitted = fit(inp.lever).and_then(|first| {
-        let (_, _, x, _) = first.offset_and_lever();
-        fit(Vector2::new(x, inp.lever.y)).or(Some(first))
-    });
+    let fitted = fit_under(inp.gnss_noise);
+    // How much the estimates hang on the wander's correlation time, which the drive tells only
+    // to within the candidates' factor of two: under a time longer than the receiver's, the
+    // filter takes the wander's swings over a second or two for changes of speed and turns,
+    // and the time offset and lever arm take them up (20 Hz fixes wandering over 2 s, fitted
+    // as 4 s, on a slow loop: offsets of ±25 ms against a sigma of 3.6 ms, where half and twice
+    // the time gave -5 and -57 ms). The spread of the estimates under half and twice the
+    // fitted time joins their uncertainty.
+    let spread = if inp.gnss_noise.wanders() {
+        fitted.as_ref().map_or((0.0, 0.0), |f| {
+            let (d, _, x, _) = f.offset_and_lever();
+            [0.5, 2.0]
+                .iter()
+                .filter_map(|k| {
+                    fit_under(GnssNoise {
+                        correlation_s: inp.gnss_noise.correlation_s * k,
+                        ..inp.gnss_noise
+                    })
+                })
+                .map(|g| {
+                    let (dg, _, xg, _) = g.offset_and_lever();
+                    ((dg - d).abs(), (xg - x).abs())
+                })
+                .fold((0.0, 0.0), |a: (f64, f64), b| (a.0.max(b.0), a.1.max(b.1)))
+        })
+    } else {
+        (0.0, 0.0)
+    };
     let motion = &inp.run.motion;
     let moving = motion.iter().filter(|m| m.speed > 0.5).count() >= 50;
     let turning = motion
@@ -387,8 +421,8 @@ fn offset_and_lever(inp: &Inputs<'_>, speed_scale: f64) -> Fit {
                 correlation.sqrt()
             };
             (
-                moving.then_some((d, sd * k)),
-                turning.then_some((x, sx * k)),
+                moving.then_some((d, (sd * k).hypot(spread.0))),
+                turning.then_some((x, (sx * k).hypot(spread.1))),
             )
         }
         None => (None, None),
@@ -551,6 +585,7 @@ mod tests {
             good: &all,
             motion: &tuples,
             yaw_rate_sigma: 0.005,
+            yaw_jerk_noise: Settings::default().yaw_jerk_noise,
             gnss_noise: GnssNoise::WHITE,
             lever: RIG_LEVER,
             gnss_period: 100_000_000,

@@ -326,6 +326,7 @@ fn check_into(
         good: &good,
         motion: &motion,
         yaw_rate_sigma: settings.yaw_rate_sigma,
+        yaw_jerk_noise: settings.yaw_jerk_noise,
         gnss_noise: settings.gnss_noise,
         lever,
         gnss_period,
