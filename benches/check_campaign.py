@@ -316,6 +316,8 @@ with (tempfile.TemporaryDirectory() if not args.keep else
               ("gnss_time_offset_ms", "gnss_time_offset_sigma_ms", -CAN_LATENCY_MS),
               ("lever_arm_x_measured_m", "lever_arm_x_sigma_m", 0.60)]
     cover = {t[0]: 0 for t in truths}
+    # Drives on which `check` gives no estimate (a lever arm on a straight: not determinable).
+    undetermined = {t[0]: 0 for t in truths}
     heading_cover, heading_worst = 0, 0.0
     worst_usable = 0.0
     pooled = []
@@ -374,6 +376,7 @@ with (tempfile.TemporaryDirectory() if not args.keep else
         false += bool(names)
         for t in truths:
             cover[t[0]] += covered(v, t)
+            undetermined[t[0]] += v["spatial"].get(t[0]) is None
         h = heading_errors(d, v)
         pooled += h
         usable = [abs(e) for e, _, u in h if u]
@@ -389,7 +392,10 @@ with (tempfile.TemporaryDirectory() if not args.keep else
               f"{n_clean} drives; heading error p95 in the worst usable second of any drive "
               f"{heading_worst:.4f}°")
     print(f"clean: {false} of {n_clean} drives with a fault; 2-sigma intervals containing the "
-          f"truth: " + ", ".join(f"{k} {c}/{n_clean}" for k, c in cover.items()))
+          f"truth: " + ", ".join(
+              f"{k} {c}/{n_clean - undetermined[k]}"
+              + (f" ({undetermined[k]} not determinable)" if undetermined[k] else "")
+              for k, c in cover.items()))
     usable = [abs(e) for e, _, u in pooled if u]
     print(f"heading: p95 error {p95(usable):.3f}° over the usable segments of all drives "
           f"({len(usable) / len(pooled):.0%} usable), worst drive {worst_usable:.3f}°; "
