@@ -1828,3 +1828,55 @@ fn a_slow_loop_with_wandering_20_hz_fixes_raises_no_timing_or_lever_fault() {
         assert!((x - 0.6).abs() <= 2.0 * sx, "seed {seed}: {x} ± {sx} m");
     }
 }
+
+/// The mounting a drive measured, as `check` prints it for the rig file, calibrates the rig for
+/// the next drive: the printed value holds the true mounting within 2 sigma, and a second drive
+/// checked with it finds its source on that mounting within 2 sigma, with a sigma smaller than
+/// the calibration's (the second drive adds what it saw).
+#[test]
+fn the_printed_mounting_calibrates_the_rig_for_the_next_drive() {
+    let (_, _, first, rigs) = heading_drive("THS", "misalignment_deg = 1.2\n", 41);
+    let rig = rigs.path().join("heading-rig.toml");
+    let out = Command::new(hilrig_bin())
+        .arg("check")
+        .arg(&first.run)
+        .arg("--rig")
+        .arg(&rig)
+        .arg("--scene")
+        .arg(first.rep.join("scene.toml"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    let line = text
+        .lines()
+        .find(|l| l.contains("for the rig file's [gnss.heading]"))
+        .unwrap_or_else(|| panic!("no calibration line in {text}"));
+    let value = |key: &str| -> f64 {
+        line.split(&format!("{key} = "))
+            .nth(1)
+            .and_then(|v| v.split([',', ' ']).next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("{key} in {line}"))
+    };
+    let (yaw, sigma) = (value("yaw_offset_deg"), value("yaw_offset_sigma_deg"));
+    assert!((yaw - 91.2).abs() <= 2.0 * sigma, "{line}");
+    let calibrated = rigs.path().join("calibrated.toml");
+    let plain = std::fs::read_to_string(&rig).unwrap();
+    let with = plain.replace(
+        "yaw_offset_deg = 90.0\n",
+        &format!("yaw_offset_deg = {yaw}\nyaw_offset_sigma_deg = {sigma}\n"),
+    );
+    assert_ne!(with, plain);
+    std::fs::write(&calibrated, with).unwrap();
+    let (_, _, second, _rigs) = heading_drive("THS", "misalignment_deg = 1.2\n", 45);
+    let (code, v, _) = check_with_trajectory(&second, Some(&calibrated));
+    assert_eq!(code, Some(0), "{:?}", names(&v));
+    let h = &v["heading_source"];
+    let (o, so) = (
+        h["offset_deg"].as_f64().unwrap(),
+        h["offset_sigma_deg"].as_f64().unwrap(),
+    );
+    println!("calibrated {yaw} ± {sigma}°; second drive: {o:+.4} ± {so:.4}° beyond it");
+    assert!((o - (91.2 - yaw)).abs() <= 2.0 * so, "{o} ± {so}");
+    assert!(so < sigma, "{so} against the calibration's {sigma}");
+}

@@ -556,6 +556,10 @@ fn heading_text(h: Option<&HeadingReport>) -> String {
                 .map_or(String::new(), |c| format!(" (calibrated to ± {c}°)")),
             h.sigma_deg,
             h.beyond_3_sigma
+        ) + &format!(
+            "\n  the mounting this drive measured, for the rig file's [gnss.heading] once the source is trusted: yaw_offset_deg = {:.4}, yaw_offset_sigma_deg = {:.4}",
+            h.yaw_offset_rig_deg + o,
+            so
         ),
         _ => format!(
             "heading source: {}: no measured report ({} not measured, {} without a time, {} flagged invalid; {} GNSS messages malformed)",
