@@ -377,9 +377,9 @@ fn offset_and_lever(inp: &Inputs<'_>, speed_scale: f64) -> Fit {
     // to within the candidates' factor of two: under a time longer than the receiver's, the
     // filter takes the wander's swings over a second or two for changes of speed and turns,
     // and the time offset and lever arm take them up (20 Hz fixes wandering over 2 s, fitted
-    // as 4 s, on a slow loop: offsets of ±25 ms against a sigma of 3.6 ms, where half and twice
-    // the time gave -5 and -57 ms). The spread of the estimates under half and twice the
-    // fitted time joins their uncertainty.
+    // as 4 s, on a slow loop: -30 ms against a sigma of 3.6 ms, where 2 s and 8 s gave -11
+    // and -57 ms). The spread of the estimates under half and twice the fitted time joins
+    // their uncertainty.
     let spread = if inp.gnss_noise.wanders() {
         fitted.as_ref().map_or((0.0, 0.0), |f| {
             let (d, _, x, _) = f.offset_and_lever();
