@@ -179,6 +179,53 @@ fn records_from(
 /// data compress by well under 100x.
 const MAX_CHUNK_EXPANSION: u64 = 1000;
 
+/// Whether every length-prefixed field of a schema, channel or metadata record lies within its
+/// body (`None` where one does not). The `mcap` crate (0.26) reserves a string's or a byte
+/// field's claimed length before reading it, so a damaged length asks for gigabytes: fuzzing
+/// `check_run` found a 33-byte file whose schema name claimed 4 GB. A message's data has no
+/// prefix (it is the rest of the record).
+fn fields_fit(op: u8, body: &[u8]) -> Option<()> {
+    use mcap::records::op;
+    // The field at `at` (a u32 length, then that many bytes) ending by `end`; `at` moves past it.
+    fn field(body: &[u8], at: &mut usize, end: usize) -> Option<(usize, usize)> {
+        let len = u32::from_le_bytes(body.get(*at..*at + 4)?.try_into().ok()?) as usize;
+        let start = *at + 4;
+        let stop = start.checked_add(len).filter(|&e| e <= end)?;
+        *at = stop;
+        Some((start, stop))
+    }
+    // A map: its byte length, then key and value strings, each within the map.
+    fn map(body: &[u8], at: &mut usize, end: usize) -> Option<()> {
+        let (mut k, stop) = field(body, at, end)?;
+        while k < stop {
+            field(body, &mut k, stop)?;
+            field(body, &mut k, stop)?;
+        }
+        Some(())
+    }
+    let end = body.len();
+    match op {
+        op::SCHEMA => {
+            let mut at = 2;
+            field(body, &mut at, end)?;
+            field(body, &mut at, end)?;
+            field(body, &mut at, end).map(|_| ())
+        }
+        op::CHANNEL => {
+            let mut at = 4;
+            field(body, &mut at, end)?;
+            field(body, &mut at, end)?;
+            map(body, &mut at, end)
+        }
+        op::METADATA => {
+            let mut at = 0;
+            field(body, &mut at, end)?;
+            map(body, &mut at, end)
+        }
+        _ => Some(()),
+    }
+}
+
 /// One record of the data section (opcode, body); false at its end. Chunks are opened here rather
 /// than by the mcap crate, so that every size a damaged file claims (a chunk's, a record's inside
 /// it) is checked against the bytes really there before anything is allocated for it.
@@ -191,6 +238,18 @@ fn data_record(
     use mcap::records::op;
     match op {
         op::SCHEMA | op::CHANNEL | op::MESSAGE | op::METADATA => {
+            if fields_fit(op, body).is_none() {
+                return Err(format!(
+                    "a {} record of {} bytes whose fields claim more bytes than it has",
+                    match op {
+                        op::SCHEMA => "schema",
+                        op::CHANNEL => "channel",
+                        op::MESSAGE => "message",
+                        _ => "metadata",
+                    },
+                    body.len()
+                ));
+            }
             let record = mcap::parse_record(op, body).map_err(|e| e.to_string())?;
             record_into(record, channels, out)?;
         }
@@ -297,6 +356,39 @@ fn record_into(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 33-byte file (found by fuzzing `check_run`) whose schema record's name claims 4 GB:
+    /// refused before the mcap crate reserves the claimed length, naming the record and where
+    /// it starts. Well-formed records of each kind still fit.
+    #[test]
+    fn a_record_whose_fields_claim_more_than_it_has_is_refused_before_allocating() {
+        let damaged: [u8; 33] = [
+            0x27, 0x03, 0x11, 0, 0, 0, 0, 0, 0, 0, 0x11, 0x27, 0x02, 0, 0xf6, 0xf5, 0xff, 0xf5,
+            0x23, 0x11, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0x80, 0x80, 0x0a, 0x29,
+        ];
+        let mut bytes = mcap::MAGIC.to_vec();
+        bytes.extend_from_slice(&damaged[1..]);
+        let err = read(&bytes, &mut |_| Ok(())).unwrap_err();
+        assert!(
+            err.contains("schema record") && err.contains("claim more bytes than it has"),
+            "{err}"
+        );
+        use mcap::records::op;
+        let s = |t: &str| [&(t.len() as u32).to_le_bytes()[..], t.as_bytes()].concat();
+        let schema = [&[1u8, 0][..], &s("a"), &s("ros2msg"), &s("int32 x")].concat();
+        let pair = [s("k"), s("v")].concat();
+        let map = [&(pair.len() as u32).to_le_bytes()[..], &pair].concat();
+        let channel = [&[1u8, 0, 1, 0][..], &s("/t"), &s("cdr"), &map].concat();
+        let metadata = [s("m"), map.clone()].concat();
+        for (op, body) in [
+            (op::SCHEMA, &schema),
+            (op::CHANNEL, &channel),
+            (op::METADATA, &metadata),
+        ] {
+            assert_eq!(fields_fit(op, body), Some(()), "op {op}");
+            assert_eq!(fields_fit(op, &body[..body.len() - 1]), None, "op {op} cut");
+        }
+    }
 
     /// A recording cut after its data section (in the summary or footer) has every message, yet
     /// is damaged: reading hands over all messages and then says so.
