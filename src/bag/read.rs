@@ -179,10 +179,11 @@ fn records_from(
 /// data compress by well under 100x.
 const MAX_CHUNK_EXPANSION: u64 = 1000;
 
-/// Whether every length-prefixed field of a schema, channel or metadata record lies within its
-/// body (`None` where one does not). The `mcap` crate (0.26) reserves a string's or a byte
+/// Whether every length-prefixed field of a schema, channel, metadata or chunk record lies
+/// within its body (`None` where one does not). The `mcap` crate (0.26) reserves a string's or a byte
 /// field's claimed length before reading it, so a damaged length asks for gigabytes: fuzzing
-/// `check_run` found a 33-byte file whose schema name claimed 4 GB. A message's data has no
+/// `check_run` found a 33-byte file whose schema name claimed 4 GB, then a chunk whose
+/// compression name claimed 3 GB. A message's data has no
 /// prefix (it is the rest of the record).
 fn fields_fit(op: u8, body: &[u8]) -> Option<()> {
     use mcap::records::op;
@@ -222,6 +223,11 @@ fn fields_fit(op: u8, body: &[u8]) -> Option<()> {
             field(body, &mut at, end)?;
             map(body, &mut at, end)
         }
+        // Start and end time, uncompressed size and CRC, then the compression's name.
+        op::CHUNK => {
+            let mut at = 28;
+            field(body, &mut at, end).map(|_| ())
+        }
         _ => Some(()),
     }
 }
@@ -254,6 +260,12 @@ fn data_record(
             record_into(record, channels, out)?;
         }
         op::CHUNK => {
+            if fields_fit(op, body).is_none() {
+                return Err(format!(
+                    "a chunk record of {} bytes whose compression name claims more bytes than it has",
+                    body.len()
+                ));
+            }
             let mcap::records::Record::Chunk { header, data } =
                 mcap::parse_record(op, body).map_err(|e| e.to_string())?
             else {
@@ -380,6 +392,7 @@ mod tests {
         let map = [&(pair.len() as u32).to_le_bytes()[..], &pair].concat();
         let channel = [&[1u8, 0, 1, 0][..], &s("/t"), &s("cdr"), &map].concat();
         let metadata = [s("m"), map.clone()].concat();
+        let chunk = [&[0u8; 28][..], &s("zstd"), &[0u8; 8]].concat();
         for (op, body) in [
             (op::SCHEMA, &schema),
             (op::CHANNEL, &channel),
@@ -388,6 +401,10 @@ mod tests {
             assert_eq!(fields_fit(op, body), Some(()), "op {op}");
             assert_eq!(fields_fit(op, &body[..body.len() - 1]), None, "op {op} cut");
         }
+        // A chunk's compression name within it, and one claiming more than there is.
+        assert_eq!(fields_fit(op::CHUNK, &chunk), Some(()));
+        let claims = [&[0u8; 28][..], &100u32.to_le_bytes(), b"zstd", &[0u8; 8]].concat();
+        assert_eq!(fields_fit(op::CHUNK, &claims), None);
     }
 
     /// A recording cut after its data section (in the summary or footer) has every message, yet
