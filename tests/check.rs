@@ -1228,10 +1228,23 @@ fn capture_without(
 
 /// `check` of `run` with the surveyed scene: exit code, stdout, JSON report.
 fn check_json(d: &SynthRun, run: &std::path::Path, name: &str) -> (Option<i32>, String, Value) {
+    check_json_with(d, run, None, name)
+}
+
+/// [`check_json`] with the rig file `rig` instead of the recording's own.
+fn check_json_with(
+    d: &SynthRun,
+    run: &std::path::Path,
+    rig: Option<&std::path::Path>,
+    name: &str,
+) -> (Option<i32>, String, Value) {
     let json = d.dir.path().join(format!("{name}.json"));
-    let out = Command::new(hilrig_bin())
-        .arg("check")
-        .arg(run)
+    let mut cmd = Command::new(hilrig_bin());
+    cmd.arg("check").arg(run);
+    if let Some(r) = rig {
+        cmd.arg("--rig").arg(r);
+    }
+    let out = cmd
         .arg("--scene")
         .arg(d.rep.join("scene.toml"))
         .arg("--json")
@@ -1623,22 +1636,9 @@ fn invalid_and_malformed_heading_messages_are_counted_and_not_used() {
     );
     let left_out: hilrig::record::rejects::GnssRejects = common::recorded_rejects(&run);
     assert_eq!(left_out.total(), 1, "{left_out:?}");
-    let json = d.dir.path().join("edited.json");
-    let out = Command::new(hilrig_bin())
-        .arg("check")
-        .arg(&run)
-        .arg("--rig")
-        .arg(&rig)
-        .arg("--scene")
-        .arg(d.rep.join("scene.toml"))
-        .arg("--json")
-        .arg(&json)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let (code, text, v) = check_json_with(&d, &run, Some(&rig), "edited");
     let h = &v["heading_source"];
-    assert_eq!(out.status.code(), Some(0), "{:?} {h}", names(&v));
+    assert_eq!(code, Some(0), "{:?} {h}", names(&v));
     assert_eq!(h["invalid"], 1, "{h}");
     assert_eq!(h["malformed_gnss"], 1, "{h}");
     assert_eq!(clean["heading_source"]["invalid"], 0);
@@ -1837,16 +1837,7 @@ fn a_slow_loop_with_wandering_20_hz_fixes_raises_no_timing_or_lever_fault() {
 fn the_printed_mounting_calibrates_the_rig_for_the_next_drive() {
     let (_, _, first, rigs) = heading_drive("THS", "misalignment_deg = 1.2\n", 41);
     let rig = rigs.path().join("heading-rig.toml");
-    let out = Command::new(hilrig_bin())
-        .arg("check")
-        .arg(&first.run)
-        .arg("--rig")
-        .arg(&rig)
-        .arg("--scene")
-        .arg(first.rep.join("scene.toml"))
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
+    let (_, text, _) = check_json_with(&first, &first.run, Some(&rig), "first");
     let line = text
         .lines()
         .find(|l| l.contains("for the rig file's [gnss.heading]"))
