@@ -1616,15 +1616,7 @@ fn invalid_and_malformed_heading_messages_are_counted_and_not_used() {
     });
     assert!(injected, "{serial} serial chunks with a THS");
     let run = d.dir.path().join("edited.mcap");
-    let rec = Command::new(hilrig_bin())
-        .args(["record", "--rig"])
-        .arg(&rig)
-        .arg("--from")
-        .arg(&edited)
-        .arg("-o")
-        .arg(&run)
-        .output()
-        .unwrap();
+    let rec = record_from(&rig, &[&edited], &run);
     // The recorder keeps everything that frames and says what it could not: the THS with the
     // wrong checksum is not in the file, counted, named, and the exit status says so.
     let err = String::from_utf8_lossy(&rec.stderr);
