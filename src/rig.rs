@@ -443,10 +443,24 @@ impl Rig {
             path: name.to_owned(),
             message,
         })?;
-        toml::from_str(text).map_err(|e| RigError::Parse {
+        let rig: Rig = toml::from_str(text).map_err(|e| RigError::Parse {
             path: name.to_owned(),
             message: e.to_string(),
-        })
+        })?;
+        rig.check_heading(name)?;
+        Ok(rig)
+    }
+
+    /// The heading source's accuracies, checked (see [`HeadingConfig::check`]); `name` says
+    /// where the rig came from in the error.
+    fn check_heading(&self, name: &str) -> Result<(), RigError> {
+        match self.gnss.as_ref().and_then(|g| g.heading.as_ref()) {
+            Some(h) => h.check().map_err(|message| RigError::Parse {
+                path: name.to_owned(),
+                message,
+            }),
+            None => Ok(()),
+        }
     }
 
     /// Loads and checks a rig file.
@@ -464,12 +478,7 @@ impl Rig {
             message: e.to_string(),
         })?;
         rig.base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        if let Some(h) = rig.gnss.as_ref().and_then(|g| g.heading.as_ref()) {
-            h.check().map_err(|message| RigError::Parse {
-                path: path.display().to_string(),
-                message,
-            })?;
-        }
+        rig.check_heading(&path.display().to_string())?;
         if let Some(l) = &rig.lidar {
             l.model
                 .parse::<hilrig_velodyne::Model>()
