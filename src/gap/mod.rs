@@ -6,8 +6,9 @@
 //! workflow works firing by firing: [`observe`] casts a sample of each run's firings with a
 //! model and pairs them with the measured returns; [`bins`] shows where they disagree;
 //! [`likelihood`] scores how well a model explains them; [`candidates`] fits every effect the
-//! model lacks and scores it; [`workflow`] adds the best one, keeps it only when it improves
-//! the validation runs beyond their noise ([`bootstrap`]), and repeats; [`report`] is what it
+//! model lacks and scores it, on casts [`casts`] keeps from round to round; [`workflow`] adds the best one, keeps it only when it improves
+//! the validation runs beyond their noise ([`bootstrap`]), re-simulates them in full for the
+//! metrics a user reads ([`full_metrics`]), and repeats; [`report`] is what it
 //! writes. The runs and their
 //! roles come from a [`study`] file. Parameterization and validation data never mix
 //! (Rosenberger et al. 2019, §4).
@@ -15,6 +16,8 @@
 pub mod bins;
 pub mod bootstrap;
 pub mod candidates;
+pub mod casts;
+mod full_metrics;
 pub mod likelihood;
 pub mod observe;
 pub mod report;

@@ -11,6 +11,7 @@
 use super::study::Role;
 use super::GapError;
 use crate::bag::scans::{sensor_time, ScanStream};
+use crate::metrics::compare::Checked;
 use crate::reference::check::{check_with_trajectory, Fault, Verdict};
 use crate::rig::Rig;
 use crate::scene::pose::Trajectory;
@@ -89,6 +90,9 @@ pub struct RunData {
     /// What could not be read: the file's damage (read up to it) and data packets that did not
     /// decode, each said once; the workflow goes on with the rest and reports them.
     pub damage: Vec<String>,
+    /// The run as its full comparisons take it, from this one check (or why they cannot take
+    /// it): a validation run is compared after every round, and checked only here.
+    pub checked: Result<Checked, String>,
 }
 
 /// What one firing measured and what a model predicts for it (`NONE` where there is no return).
@@ -205,6 +209,7 @@ pub fn load_run(
             },
         });
     }
+    let smoothed_copy = smoothed.clone();
     let trajectory = smoothed
         .and_then(|t| t.sampled(10_000_000))
         .ok_or_else(|| input(format!("{}: no RTK+CAN trajectory", path.display())))?;
@@ -290,6 +295,8 @@ pub fn load_run(
     for d in &damage {
         tracing::warn!("{}: {d}", path.display());
     }
+    let checked = Checked::from_check(path, run, rig.clone(), report.clone(), smoothed_copy, None)
+        .map_err(|e| e.to_string());
     let file = path.file_name().map_or_else(
         || path.display().to_string(),
         |f| f.to_string_lossy().into(),
@@ -314,6 +321,7 @@ pub fn load_run(
         usable_scans,
         range_quantum_m: model.distance_resolution_m(),
         damage,
+        checked,
     })
 }
 

@@ -9,22 +9,18 @@
 use super::bins::tables;
 use super::bootstrap::{self, Blocks};
 use super::candidates::{random_of, with_effect, Candidate, Fitting};
+use super::casts::Casts;
+use super::full_metrics::run_metrics;
 use super::likelihood::{self, Scales, Scored};
 use super::observe::{count_scans, evaluate, features, load_run, Feature, Obs, RunData};
 use super::report::{
     alike, confounded_line, describe, firing_stats, no_effect_line, save, summary_line, GapReport,
-    Round, RunInfo, RunMetrics, Trial,
+    Round, RunInfo, Trial,
 };
 use super::study::{Role, Study};
 use super::GapError;
-use crate::metrics::compare::{compare_simulated, Options as CompareOptions, ToSimulate};
-use crate::metrics::features::scan_features;
-use crate::metrics::grid::Dims;
-use crate::metrics::roi::Region;
 use crate::sim::model::ModelFile;
-use crate::sim::resim::Resimulator;
-use crate::stats::repetitions::RunFeatures;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// How the workflow runs.
 #[derive(Clone, Debug)]
@@ -59,6 +55,8 @@ struct Set {
     feats: Vec<Vec<Feature>>,
     blocks: Blocks,
     resamples: Vec<Vec<u32>>,
+    /// Casts kept from round to round.
+    casts: Casts,
 }
 
 impl Set {
@@ -70,6 +68,7 @@ impl Set {
             feats,
             blocks,
             resamples,
+            casts: Casts::default(),
         }
     }
 
@@ -81,11 +80,7 @@ impl Set {
         scales: Option<&[Scales]>,
     ) -> Result<Evaluation, GapError> {
         let random = random_of(model);
-        let obs: Vec<Vec<Obs>> = self
-            .runs
-            .iter()
-            .map(|r| evaluate(r, model))
-            .collect::<Result<_, _>>()?;
+        let obs = self.casts.of(&self.runs, model)?;
         let scales: Vec<Scales> = match scales {
             Some(s) => s.to_vec(),
             None => obs
@@ -218,101 +213,6 @@ fn too_few_scans(fit: &[(String, usize)], val: &[(String, usize)]) -> Option<Str
             bootstrap::MIN_SCANS,
             bootstrap::BLOCK_SCANS
         )
-    })
-}
-
-/// Re-simulates the validation runs in full with `model` into `dir` and measures them: each run
-/// is read once, its scans cast batch by batch and compared as they come (OCR^K, precision,
-/// IoU at the admissible cell), and their features kept for the validation (Rosenberger et al.
-/// 2019, Fig. 7) of the simulated runs against the measured ones. The simulations are written
-/// to `dir` (their VelodyneScans) for the user to open.
-fn run_metrics(
-    val: &[RunData],
-    model: &ModelFile,
-    dir: &Path,
-    tag: &str,
-) -> Result<RunMetrics, GapError> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| GapError::Output(format!("{}: {e}", dir.display())))?;
-    let quiet = |_: u64, _: u64| {};
-    let (mut real_features, mut sim_features) = (Vec::new(), Vec::new());
-    let (mut ocr, mut precision, mut iou) = (Vec::new(), Vec::new(), Vec::new());
-    for (i, r) in val.iter().enumerate() {
-        let sim_path = dir.join(format!("{tag}-validation-{:02}.mcap", i + 1));
-        let (_, sensor, calibration) = r.rig.lidar_sensor().map_err(GapError::Input)?;
-        let decoder = hilrig_velodyne::Decoder::with_calibration(sensor, calibration);
-        let mut resim = Resimulator::new(
-            &r.path,
-            &r.rig,
-            &r.scene,
-            &r.scene_path,
-            model,
-            i as u64 + 1,
-            &sim_path,
-            r.trajectory.span().0,
-        )
-        .map_err(|e| GapError::Input(format!("re-simulating {}: {e}", r.name)))?;
-        let (mut real_scans, mut sim_scans) = (Vec::new(), Vec::new());
-        let c = compare_simulated(
-            &r.path,
-            &mut |t: ToSimulate<'_>| {
-                let sims = resim
-                    .cast(t.trajectory, t.pps_locked, t.scans)
-                    .map_err(|e| e.to_string())?;
-                real_scans.extend(scan_features(t.scans, &decoder));
-                sim_scans.extend(scan_features(&sims, &decoder));
-                Ok(sims)
-            },
-            Some(&r.rig),
-            Some(&r.scene),
-            CompareOptions {
-                cell_m: None,
-                k: 1,
-                dims: Dims::Voxel,
-                region: Region::All,
-                exclude_ground: true,
-                allow_small_cell: false,
-                trajectory: None,
-                sensor_frame: false,
-                grid_phases: crate::metrics::compare::DEFAULT_GRID_PHASES,
-                // The rounds report OCR, precision and IoU: no curve, no point metrics.
-                curve_every: 0,
-                point_metrics: false,
-            },
-            &quiet,
-        )
-        .map_err(|e| GapError::Input(format!("comparing {}: {e}", r.name)))?;
-        resim
-            .finish()
-            .map_err(|e| GapError::Output(format!("{}: {e}", sim_path.display())))?;
-        ocr.extend(c.summary.ocr_mean);
-        precision.extend(c.summary.precision_mean);
-        iou.extend(c.summary.iou_mean);
-        real_features.push(RunFeatures {
-            name: r.path.display().to_string(),
-            damage: None,
-            scans: real_scans,
-        });
-        sim_features.push(RunFeatures {
-            name: sim_path.display().to_string(),
-            damage: None,
-            scans: sim_scans,
-        });
-    }
-    let v = crate::stats::repetitions::validate_features(&real_features, &sim_features, &[])
-        .map_err(GapError::Input)?;
-    let mean = |v: &[f64]| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
-    Ok(RunMetrics {
-        ocr: mean(&ocr),
-        precision: mean(&precision),
-        iou: mean(&iou),
-        avm: v.cells.iter().map(|c| (c.metric.clone(), c.avm)).collect(),
-        lights: v
-            .cells
-            .iter()
-            .map(|c| (c.metric.clone(), format!("{:?}", c.light).to_lowercase()))
-            .collect(),
-        verdict: format!("{:?}", v.verdict).to_lowercase(),
     })
 }
 
@@ -470,13 +370,27 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
     }
     save(&opts.out, &model, &report)?;
     let metrics_dir = opts.out.join("sim");
+    let mut measured = Vec::new();
     let mut metrics_now = if opts.full_metrics && report.split.is_none() {
         progress.phase(0, "re-simulating the validation runs with the start model");
-        Some(run_metrics(&val.runs, &model, &metrics_dir, "round-0")?)
+        Some(run_metrics(
+            &val.runs,
+            &model,
+            &metrics_dir,
+            "round-0",
+            &mut measured,
+        )?)
     } else {
         None
     };
     for round in 1..=opts.max_rounds {
+        fit.casts.next_round();
+        val.casts.next_round();
+        tracing::debug!(
+            "round {round}: {} casts of the parameterization runs and {} of the validation runs kept from the round before",
+            fit.casts.len(),
+            val.casts.len()
+        );
         progress.phase(round, "re-simulating the parameterization runs");
         let Evaluation {
             obs,
@@ -498,6 +412,7 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             scales: &scales,
             blocks: &fit.blocks,
             resamples: &fit.resamples,
+            casts: &fit.casts,
         };
         let candidates =
             fitting.all(&|name| progress.phase(round, &format!("candidate {name}")))?;
@@ -568,7 +483,13 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
                 round,
                 "re-simulating the validation runs with the new model",
             );
-            let after = run_metrics(&val.runs, &model, &metrics_dir, &format!("round-{round}"))?;
+            let after = run_metrics(
+                &val.runs,
+                &model,
+                &metrics_dir,
+                &format!("round-{round}"),
+                &mut measured,
+            )?;
             this.metrics_after = Some(after.clone());
             metrics_now = Some(after);
         }

@@ -14,7 +14,9 @@
 //! The cell must not be smaller than the admissible cell `check` derives from the reference
 //! accuracy (§6): below it the metric measures the reference's errors, not the model's.
 
+pub use super::checked::Checked;
 use super::cloud::Frame;
+pub use super::error::CompareError;
 use super::grid::{Dims, GridScores, GridSpec};
 use super::measure::{measure, Measured, Residuals};
 use super::pairing::{Pair, Pairs};
@@ -23,8 +25,6 @@ use super::roi::{Region, Roi};
 use super::tally::{mean, Tally};
 use super::windows::{grid_phase, refuse_clamping_cell, windows, CurveSums, PointPair};
 use crate::bag::scans::{Scan, ScanStream};
-use crate::reference::check::{check_with_trajectory, Verdict};
-use crate::reference::run::Run;
 use crate::rig::Rig;
 use crate::scene::pose::{mounting_isometry, Trajectory};
 use crate::scene::Scene;
@@ -33,22 +33,6 @@ use crate::stats::rank::spearman_with_interval;
 use hilrig_velodyne::Decoder;
 use rayon::prelude::*;
 use std::path::Path;
-
-/// Why two files cannot be compared.
-#[derive(Debug, thiserror::Error)]
-pub enum CompareError {
-    /// An input is unusable, or the two do not belong together.
-    #[error("{0}")]
-    Input(String),
-    /// The cell is smaller than the reference data support.
-    #[error("a {cell:.3} m cell is smaller than the {admissible:.3} m the reference accuracy admits (Rosenberger et al. 2019, §6: the cell must be at least ten times the reference accuracy); the metric would measure the reference's errors: use --cell {admissible:.3} or more, or --allow-small-cell to compute it anyway")]
-    CellTooSmall {
-        /// Asked for, m.
-        cell: f64,
-        /// What `check` admits, m.
-        admissible: f64,
-    },
-}
 
 /// What to compute.
 #[derive(Clone, Debug)]
@@ -97,60 +81,6 @@ pub const DEFAULT_GRID_PHASES: usize = 4;
 pub use super::measure::MIN_POINTS_SEEN;
 pub use super::windows::CURVE_CELLS_M;
 
-/// What `compare` takes from the run besides its scans.
-struct Reference {
-    run: Run,
-    rig: Rig,
-    trajectory: Trajectory,
-    /// The admissible cell, m.
-    admissible: f64,
-    /// Stretches `check` marked not usable on this trajectory (none on a trajectory file).
-    not_usable: Vec<LeftOut>,
-}
-
-/// What `compare` needs of the run besides its scans: the run read as a stream (its scans only
-/// indexed), checked, and its trajectory.
-fn reference(
-    run_path: &Path,
-    rig: Option<&Rig>,
-    scene: Option<&Scene>,
-    trajectory: Option<Trajectory>,
-) -> Result<Reference, CompareError> {
-    let input = CompareError::Input;
-    let (run, rig) = crate::reference::run::load_with_rig(run_path, rig).map_err(input)?;
-    let (report, smoothed) = check_with_trajectory(&run, &rig, scene);
-    if report.verdict == Verdict::Unusable {
-        return Err(input(format!(
-            "{}: the reference data cannot be judged ({}): see `hilrig check`",
-            run_path.display(),
-            report.unusable.unwrap_or_default()
-        )));
-    }
-    let admissible = report.accuracy.grid_cell_m;
-    // The marks judge the smoothed trajectory: on a trajectory file they do not apply.
-    let marks = if trajectory.is_some() {
-        Vec::new()
-    } else {
-        report.marks
-    };
-    let trajectory = match trajectory {
-        Some(t) => t,
-        None => smoothed
-            .and_then(|t| t.sampled(10_000_000))
-            .ok_or_else(|| input(format!("{}: no RTK+CAN trajectory", run_path.display())))?,
-    };
-    Ok(Reference {
-        run,
-        rig,
-        trajectory,
-        admissible,
-        not_usable: marks
-            .into_iter()
-            .map(|mark| LeftOut { mark, scans: 0 })
-            .collect(),
-    })
-}
-
 /// The grid of the options (the cell defaults to the admissible one), once the options are
 /// known to be sound and the cell not below the admissible one (unless allowed).
 fn grid_spec(opts: &Options, admissible: f64) -> Result<GridSpec, CompareError> {
@@ -192,8 +122,8 @@ pub type Simulate<'a> = dyn FnMut(ToSimulate<'_>) -> Result<Vec<Scan>, String> +
 
 /// Where the simulated twins come from.
 enum Twins<'s, 'f> {
-    /// A re-simulation's file.
-    File(&'f Path),
+    /// A re-simulation's file, opened.
+    File(&'f Path, ScanStream),
     /// Made as the run is read.
     Simulated(&'s mut Simulate<'f>),
 }
@@ -212,24 +142,37 @@ pub fn compare(
     opts: Options,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Comparison, CompareError> {
-    compare_twins(run_path, Twins::File(sim_path), rig, scene, opts, progress)
+    // The simulation is opened first: a missing one fails before the run is checked.
+    let sim = ScanStream::open(sim_path).map_err(|e| CompareError::Input(e.to_string()))?;
+    let checked = Checked::new(run_path, rig, scene, opts.trajectory.clone())?;
+    compare_twins(
+        run_path,
+        checked,
+        Twins::File(sim_path, sim),
+        scene,
+        opts,
+        progress,
+    )
 }
 
 /// [`compare`] with a simulation made as the run is read: `simulate` is handed the measured
 /// scans batch by batch and gives their twins (what the gap workflow does: no simulation file
 /// to write in full and read back, one pass over the run instead of five).
+///
+/// `checked` is the run as [`Checked::new`] (or the caller's own check, through
+/// [`Checked::from_check`]) made it: a run compared again and again is checked once.
 pub fn compare_simulated(
     run_path: &Path,
+    checked: Checked,
     simulate: &mut Simulate<'_>,
-    rig: Option<&Rig>,
     scene: Option<&Scene>,
     opts: Options,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Comparison, CompareError> {
     compare_twins(
         run_path,
+        checked,
         Twins::Simulated(simulate),
-        rig,
         scene,
         opts,
         progress,
@@ -299,8 +242,8 @@ impl Iterator for Simulating<'_, '_, '_> {
 )]
 fn compare_twins(
     run_path: &Path,
+    mut reference: Checked,
     twins: Twins<'_, '_>,
-    rig: Option<&Rig>,
     scene: Option<&Scene>,
     opts: Options,
     progress: &(dyn Fn(u64, u64) + Sync),
@@ -313,11 +256,6 @@ fn compare_twins(
             started.elapsed().as_secs_f64()
         )
     };
-    let mut sim_stream = match &twins {
-        Twins::File(p) => Some(ScanStream::open(p).map_err(|e| input(e.to_string()))?),
-        Twins::Simulated(_) => None,
-    };
-    let mut reference = reference(run_path, rig, scene, opts.trajectory.clone())?;
     let admissible = reference.admissible;
     phase("reference checked");
     let spec = grid_spec(&opts, admissible)?;
@@ -351,11 +289,8 @@ fn compare_twins(
     let total = reference.run.scans.len() as u64;
     let mut real_stream = ScanStream::open(run_path).map_err(|e| input(e.to_string()))?;
     let mut curve = CurveSums::new(cell, admissible, opts.dims);
-    let (tally, paired, sim_path) = match twins {
-        Twins::File(sim_path) => {
-            let sim_stream = sim_stream
-                .as_mut()
-                .ok_or_else(|| input("no simulation".into()))?;
+    let (tally, paired, sim_path, sim_damage) = match twins {
+        Twins::File(sim_path, mut sim_stream) => {
             let mut pairs = Pairs::new(
                 real_stream.by_ref(),
                 &reference.run.scans,
@@ -372,7 +307,8 @@ fn compare_twins(
             if let Some(e) = pairs.finish_error(tally.rows.len(), (run_path, real_span), sim_path) {
                 return Err(input(e));
             }
-            (tally, pairs.paired, Some(sim_path))
+            let paired = pairs.paired;
+            (tally, paired, Some(sim_path), sim_stream.finish())
         }
         Twins::Simulated(simulate) => {
             let mut pairs = Simulating {
@@ -401,16 +337,13 @@ fn compare_twins(
                     run_path.display()
                 )));
             }
-            (tally, pairs.paired, None)
+            (tally, pairs.paired, None, None)
         }
     };
     // A damaged file is compared as far as it can be read, and says so.
     let damage: Vec<String> = [
         (run_path, real_stream.finish()),
-        (
-            sim_path.unwrap_or(run_path),
-            sim_stream.and_then(ScanStream::finish),
-        ),
+        (sim_path.unwrap_or(run_path), sim_damage),
     ]
     .into_iter()
     .filter_map(|(p, d)| {

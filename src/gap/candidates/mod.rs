@@ -31,8 +31,9 @@ use geometric::Axis;
 
 use super::bootstrap::{self, Blocks};
 use super::likelihood::{self, Random, Scored};
-use super::observe::{evaluate, Feature, Obs, RunData};
+use super::observe::{Feature, Obs, RunData};
 use super::GapError;
+use crate::gap::casts::Casts;
 use crate::sim::model::{Effect, ModelFile};
 
 /// A 95 % interval.
@@ -174,6 +175,8 @@ pub struct Fitting<'a> {
     pub blocks: &'a Blocks,
     /// Resamples of the blocks.
     pub resamples: &'a [Vec<u32>],
+    /// Casts of these runs kept from round to round.
+    pub casts: &'a Casts,
 }
 
 /// `model` with `effect` added (replacing one of the same name).
@@ -225,7 +228,7 @@ impl Fitting<'_> {
     }
 
     fn cast(&self, model: &ModelFile) -> Result<Vec<Vec<Obs>>, GapError> {
-        self.runs.iter().map(|r| evaluate(r, model)).collect()
+        self.casts.of(self.runs, model)
     }
 
     /// Gain per block of `scored` over the current model, its total and interval.

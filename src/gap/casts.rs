@@ -1,0 +1,225 @@
+//! Casts of the parameterization runs kept from one round to the next.
+//!
+//! A cast ([`evaluate`]) depends on the model only through its deterministic part
+//! ([`deterministic`]: the random parts are the likelihood's, added analytically). Adding an
+//! effect that is random only (range noise, dropout) leaves that part as it was, and a
+//! candidate that re-fits the detection threshold casts without it; so the next round casts
+//! many of the very models this one cast (on the real-size study, the 44 footprints of the
+//! beam-divergence search twice over). The same inputs give the same observations, bit for
+//! bit, so a kept cast is the cast; only the time differs.
+//!
+//! Memory: at most [`BUDGET_BYTES`] of casts, from the round under way and those of the round
+//! before that it used again, each the sample's size ([`Obs`] per sampled slot: about 14 MB
+//! for the 400 k firings the real-size study's two parameterization minutes sample), whatever
+//! the runs' length. When a cast does not fit, the ones quickest to cast again go first (a
+//! beam-divergence footprint of 5 × 5 sub-rays takes twice as long as one of 3 × 3, and ten
+//! times as long as a time offset's cast).
+
+use super::observe::{deterministic, evaluate, Obs, RunData};
+use super::GapError;
+use crate::sim::model::ModelFile;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, PoisonError};
+
+/// What decides a cast: the deterministic part of the model, its limits and effects in their
+/// order, each number in its exact (round-trip) form. Two models with the same key cast alike;
+/// two that differ only in the order of their effects get two keys (a second cast, never a
+/// wrong one).
+fn key(model: &ModelFile) -> String {
+    let m = deterministic(model);
+    format!("{:?} {:?}", m.limits, m.effects)
+}
+
+/// Bytes of casts kept at most: with the workflow's own 0.6 GB on the real-size study, the
+/// process stays near half of the 2 GiB it must fit in.
+pub const BUDGET_BYTES: usize = 640 << 20;
+
+/// A cast kept: its observations per run, what it took to cast, and whether the round under
+/// way asked for it.
+struct Kept {
+    obs: Arc<Vec<Vec<Obs>>>,
+    seconds: f64,
+    used: bool,
+}
+
+impl Kept {
+    fn bytes(&self) -> usize {
+        self.obs
+            .iter()
+            .map(|o| std::mem::size_of_val(o.as_slice()))
+            .sum()
+    }
+}
+
+/// The casts of one set of runs, by [`key`].
+#[derive(Default)]
+pub struct Casts {
+    kept: Mutex<HashMap<String, Kept>>,
+}
+
+impl Casts {
+    /// Every run of `runs` cast with `model` (see [`evaluate`]), from a cast kept when there is
+    /// one. `runs` must be the same set every time: the key does not name them.
+    pub fn of(&self, runs: &[RunData], model: &ModelFile) -> Result<Vec<Vec<Obs>>, GapError> {
+        let key = key(model);
+        let lock = || self.kept.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(k) = lock().get_mut(&key) {
+            k.used = true;
+            return Ok(k.obs.as_ref().clone());
+        }
+        // Cast without the lock: a cast takes seconds, and uses every core itself.
+        let started = std::time::Instant::now();
+        let obs: Vec<Vec<Obs>> = runs
+            .iter()
+            .map(|r| evaluate(r, model))
+            .collect::<Result<_, _>>()?;
+        let new = Kept {
+            obs: Arc::new(obs.clone()),
+            seconds: started.elapsed().as_secs_f64(),
+            used: true,
+        };
+        keep(&mut lock(), key, new, BUDGET_BYTES);
+        Ok(obs)
+    }
+
+    /// A round ends: the casts it did not ask for go (the round before cast them for its
+    /// own model), the others are kept for the next one.
+    pub fn next_round(&self) {
+        let mut kept = self.kept.lock().unwrap_or_else(PoisonError::into_inner);
+        kept.retain(|_, k| k.used);
+        for k in kept.values_mut() {
+            k.used = false;
+        }
+    }
+
+    /// Casts kept.
+    pub fn len(&self) -> usize {
+        self.kept
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .len()
+    }
+
+    /// No cast kept.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Keeps `new` under `key` within `budget` bytes: the casts quicker to cast again than it make
+/// room for it, quickest first; when they cannot make enough, nothing changes.
+fn keep(kept: &mut HashMap<String, Kept>, key: String, new: Kept, budget: usize) {
+    let mut total: usize = kept.values().map(Kept::bytes).sum::<usize>() + new.bytes();
+    let mut quicker: Vec<(f64, String, usize)> = kept
+        .iter()
+        .filter(|(_, k)| k.seconds < new.seconds)
+        .map(|(name, k)| (k.seconds, name.clone(), k.bytes()))
+        .collect();
+    if total - quicker.iter().map(|q| q.2).sum::<usize>() > budget {
+        return;
+    }
+    quicker.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for (_, name, bytes) in quicker {
+        if total <= budget {
+            break;
+        }
+        kept.remove(&name);
+        total -= bytes;
+    }
+    kept.insert(key, new);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::model::Effect;
+
+    fn model(effects: Vec<Effect>) -> ModelFile {
+        ModelFile {
+            name: "m".into(),
+            description: String::new(),
+            limits: None,
+            effects,
+        }
+    }
+
+    #[test]
+    fn a_cast_is_keyed_by_what_decides_it_only() {
+        let threshold = Effect::DetectionThreshold {
+            reference_range_m: 57.9,
+            reference_reflectivity: 0.1,
+        };
+        let bare = model(vec![threshold.clone()]);
+        // Random parts and the name do not change what a cast gives.
+        let mut noisy = model(vec![
+            Effect::RangeNoise { sigma_m: 0.013 },
+            threshold.clone(),
+            Effect::RandomDropout { probability: 0.003 },
+        ]);
+        noisy.name = "m (gap-fitted)".into();
+        assert_eq!(key(&bare), key(&noisy));
+        // A deterministic parameter does, to its last digit.
+        let moved = model(vec![Effect::DetectionThreshold {
+            reference_range_m: 57.900_000_000_000_01,
+            reference_reflectivity: 0.1,
+        }]);
+        assert_ne!(key(&bare), key(&moved));
+        assert_ne!(key(&bare), key(&model(Vec::new())));
+        let limited = ModelFile {
+            limits: Some(crate::sim::model::Limits {
+                min_range_m: Some(1.0),
+                max_range_m: None,
+            }),
+            ..bare.clone()
+        };
+        assert_ne!(key(&bare), key(&limited));
+    }
+
+    fn kept(n: usize, seconds: f64) -> Kept {
+        Kept {
+            obs: Arc::new(vec![vec![Obs::default(); n]]),
+            seconds,
+            used: true,
+        }
+    }
+
+    #[test]
+    fn over_budget_the_casts_quickest_to_redo_go_first() {
+        let size = std::mem::size_of::<Obs>();
+        let budget = 3 * 100 * size;
+        let mut map = HashMap::new();
+        keep(&mut map, "a".into(), kept(100, 1.0), budget);
+        keep(&mut map, "b".into(), kept(100, 0.2), budget);
+        keep(&mut map, "c".into(), kept(100, 0.5), budget);
+        assert_eq!(map.len(), 3);
+        // A fourth that took longer than the quickest: the quickest (b) makes room.
+        keep(&mut map, "d".into(), kept(100, 0.9), budget);
+        let mut names: Vec<&String> = map.keys().collect();
+        names.sort();
+        assert_eq!(names, ["a", "c", "d"]);
+        // One quicker than all kept is not kept.
+        keep(&mut map, "e".into(), kept(100, 0.1), budget);
+        assert!(!map.contains_key("e"));
+        // One larger than the whole budget is not kept, and nothing goes for it.
+        keep(&mut map, "f".into(), kept(400, 9.0), budget);
+        assert!(!map.contains_key("f"));
+        assert_eq!(map.len(), 3);
+    }
+
+    #[test]
+    fn a_round_keeps_what_it_used() {
+        let casts = Casts::default();
+        {
+            let mut map = casts.kept.lock().unwrap();
+            map.insert("used".into(), kept(1, 1.0));
+            let mut old = kept(1, 1.0);
+            old.used = false;
+            map.insert("unused".into(), old);
+        }
+        casts.next_round();
+        assert_eq!(casts.len(), 1);
+        // Not asked for in the round that follows: gone after it.
+        casts.next_round();
+        assert!(casts.is_empty());
+    }
+}
