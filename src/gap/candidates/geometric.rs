@@ -7,6 +7,7 @@ use crate::gap::likelihood;
 use crate::gap::GapError;
 use crate::sim::model::Effect;
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 
 /// A row of a linearised fit: bootstrap block, Jacobian row (intercept first), residual.
 type Row = (usize, Vec<f64>, f64);
@@ -107,10 +108,9 @@ impl Fitting<'_> {
         let all = vec![1u32; self.blocks.len()];
         let step = irls(&rows, s, &all).unwrap_or_else(|| vec![0.0; n + 1]);
         let mut intervals = Vec::with_capacity(n);
-        let boots: Vec<Vec<f64>> = self
-            .resamples
-            .iter()
-            .take(100)
+        // Each resample is solved by itself (on every core; in order, so the same intervals).
+        let boots: Vec<Vec<f64>> = self.resamples[..self.resamples.len().min(100)]
+            .par_iter()
             .filter_map(|c| irls(&rows, s, c))
             .collect();
         for k in 0..n {

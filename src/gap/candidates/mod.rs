@@ -35,6 +35,7 @@ use super::observe::{Feature, Obs, RunData};
 use super::GapError;
 use crate::gap::casts::Casts;
 use crate::sim::model::{Effect, ModelFile};
+use rayon::prelude::*;
 
 /// A 95 % interval.
 pub type Interval = (f64, f64);
@@ -303,9 +304,10 @@ impl Fitting<'_> {
         let res = self.residual_blocks(self.obs);
         let all: Vec<u32> = vec![1; self.blocks.len()];
         let b = bootstrap::weighted_median(&res, &all).unwrap_or(0.0);
+        // Each resample's median by itself (on every core; in order, so the same interval).
         let mut boots: Vec<f64> = self
             .resamples
-            .iter()
+            .par_iter()
             .filter_map(|c| bootstrap::weighted_median(&res, c))
             .collect();
         let interval = bootstrap::interval(&mut boots);
