@@ -20,6 +20,7 @@ use super::report::{
 use super::study::{Role, Study};
 use super::GapError;
 use crate::sim::model::ModelFile;
+use rayon::prelude::*;
 use std::path::PathBuf;
 
 /// How the workflow runs.
@@ -268,16 +269,23 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
                 .map(|(i, r)| (i, r.role, None)),
         );
     }
-    let loaded: Vec<RunData> = parts
-        .iter()
-        .map(|&(i, role, part)| {
-            let r = &study.runs[i];
-            // A split run needs its scene twice.
-            let scene = match scenes[i].take() {
-                Some(s) => s,
-                None => crate::scene::Scene::load(&r.scene_path)
-                    .map_err(|e| GapError::Input(e.to_string()))?,
-            };
+    // Each part with its scene (a split run needs its scene twice).
+    let mut with_scenes = Vec::with_capacity(parts.len());
+    for &(i, role, part) in &parts {
+        let r = &study.runs[i];
+        let scene = match scenes[i].take() {
+            Some(s) => s,
+            None => crate::scene::Scene::load(&r.scene_path)
+                .map_err(|e| GapError::Input(e.to_string()))?,
+        };
+        with_scenes.push((r, role, part, scene));
+    }
+    // The runs are checked and sampled side by side (a check is one thread's work); the first
+    // run that cannot be used, in the study's order, is the one reported.
+    let per_run = opts.firings / parts.len().max(1);
+    let loaded: Vec<Result<RunData, GapError>> = with_scenes
+        .into_par_iter()
+        .map(|(r, role, part, scene)| {
             load_run(
                 &r.recording,
                 scene,
@@ -285,11 +293,12 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
                 rig.as_ref(),
                 role,
                 part,
-                opts.firings / parts.len().max(1),
+                per_run,
                 opts.force,
             )
         })
-        .collect::<Result<_, _>>()?;
+        .collect();
+    let loaded: Vec<RunData> = loaded.into_iter().collect::<Result<_, _>>()?;
     let (fit_runs, val_runs): (Vec<RunData>, Vec<RunData>) =
         loaded.into_iter().partition(|r| r.role == Role::Fit);
     let usable = |runs: &[RunData]| -> Vec<(String, usize)> {
