@@ -144,7 +144,12 @@ pub fn compare(
 ) -> Result<Comparison, CompareError> {
     // The simulation is opened first: a missing one fails before the run is checked.
     let sim = ScanStream::open(sim_path).map_err(|e| CompareError::Input(e.to_string()))?;
+    let started = std::time::Instant::now();
     let checked = Checked::new(run_path, rig, scene, opts.trajectory.clone())?;
+    tracing::debug!(
+        "compare: run read and checked in {:.3} s",
+        started.elapsed().as_secs_f64()
+    );
     compare_twins(
         run_path,
         checked,
@@ -257,7 +262,6 @@ fn compare_twins(
         )
     };
     let admissible = reference.admissible;
-    phase("reference checked");
     let spec = grid_spec(&opts, admissible)?;
     let cell = spec.cell_m();
     let (Some(first_scan), Some(last_scan)) =
