@@ -469,16 +469,8 @@ impl Rig {
             path: path.display().to_string(),
             source: e,
         })?;
-        crate::config::check_finite(&text).map_err(|message| RigError::Parse {
-            path: path.display().to_string(),
-            message,
-        })?;
-        let mut rig: Rig = toml::from_str(&text).map_err(|e| RigError::Parse {
-            path: path.display().to_string(),
-            message: e.to_string(),
-        })?;
+        let mut rig = Rig::from_toml(&text, &path.display().to_string())?;
         rig.base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        rig.check_heading(&path.display().to_string())?;
         if let Some(l) = &rig.lidar {
             l.model
                 .parse::<hilrig_velodyne::Model>()

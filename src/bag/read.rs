@@ -250,7 +250,6 @@ fn data_record(
                     match op {
                         op::SCHEMA => "schema",
                         op::CHANNEL => "channel",
-                        op::MESSAGE => "message",
                         _ => "metadata",
                     },
                     body.len()

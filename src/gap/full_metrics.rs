@@ -34,7 +34,10 @@ pub(super) fn run_metrics(
         .map_err(|e| GapError::Output(format!("{}: {e}", dir.display())))?;
     let quiet = |_: u64, _: u64| {};
     let known = measured.len() == val.len();
-    let (mut real_features, mut sim_features) = (Vec::new(), Vec::new());
+    if !known {
+        measured.clear();
+    }
+    let mut sim_features = Vec::new();
     let (mut ocr, mut precision, mut iou) = (Vec::new(), Vec::new(), Vec::new());
     for (i, r) in val.iter().enumerate() {
         let sim_path = dir.join(format!("{tag}-validation-{:02}.mcap", i + 1));
@@ -93,19 +96,18 @@ pub(super) fn run_metrics(
         ocr.extend(c.summary.ocr_mean);
         precision.extend(c.summary.precision_mean);
         iou.extend(c.summary.iou_mean);
-        real_features.push(RunFeatures {
-            name: r.path.display().to_string(),
-            damage: None,
-            scans: real_scans,
-        });
+        if !known {
+            measured.push(RunFeatures {
+                name: r.path.display().to_string(),
+                damage: None,
+                scans: real_scans,
+            });
+        }
         sim_features.push(RunFeatures {
             name: sim_path.display().to_string(),
             damage: None,
             scans: sim_scans,
         });
-    }
-    if !known {
-        *measured = real_features;
     }
     let v = crate::stats::repetitions::validate_features(measured, &sim_features, &[])
         .map_err(GapError::Input)?;
