@@ -293,9 +293,24 @@ impl Scene {
         }
     }
 
-    /// The actors' hits nearer than `best` along `o + t d`.
+    /// The static geometry's part of [`Scene::cast`] for each ray of `rays` (own origin and
+    /// unit direction) into `out` (same length), neighbouring rays traversed together
+    /// ([`Geometry::cast_rays`]); [`Scene::actors_into`] completes each ray's cast with the
+    /// actors at its own time. Made for the neighbouring firings of one lidar packet.
+    pub fn cast_statics(
+        &self,
+        rays: &[geometry::RaySpec],
+        tmin: f64,
+        tmax: f64,
+        out: &mut [Option<Hit>],
+    ) {
+        self.statics.cast_rays(rays, tmin, tmax, out);
+    }
+
+    /// The actors' hits nearer than `best` along `o + t d`: with `best` from the static
+    /// geometry, exactly [`Scene::cast`].
     #[inline]
-    fn actors_into(
+    pub fn actors_into(
         &self,
         o: &Point3<f64>,
         d: &Vector3<f64>,

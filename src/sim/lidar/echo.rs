@@ -49,7 +49,8 @@ fn merge(subs: &[Echo], separation: f64, echoes: &mut [Echo; 4]) -> usize {
 impl LidarSim<'_> {
     /// [`LidarSim::fire`]; with `neighbourhood` (the beam's centre ray as cast already, and its
     /// witnesses), a divergent beam's sub-rays are cast only where the witnesses do not show
-    /// the footprint to lie on the centre hit's plane (footprint.rs).
+    /// the footprint to lie on the centre hit's plane (footprint.rs), and a beam without
+    /// divergence is not cast again.
     #[allow(clippy::too_many_arguments, reason = "the ray loop's state, handed on")]
     pub(super) fn fire_with(
         &self,
@@ -66,10 +67,17 @@ impl LidarSim<'_> {
             return Returns::default();
         }
         let tmax = self.max_range * 1.5;
+        // A beam without divergence is its centre ray: cast already when the caller has it.
+        let mut centre_ray = || match neighbourhood {
+            Some((c, _)) => c.hit,
+            None => {
+                stats.rays += 1;
+                self.scene.cast(o, d, 0.0, tmax, actors)
+            }
+        };
         if self.ideal_echo {
             // The idealized beam: one ray, one echo, no power model.
-            stats.rays += 1;
-            let Some(h) = self.scene.cast(o, d, 0.0, tmax, actors) else {
+            let Some(h) = centre_ray() else {
                 return Returns::default();
             };
             if h.range < self.min_range || h.range > self.max_range {
@@ -112,8 +120,7 @@ impl LidarSim<'_> {
         let mut n = 0usize;
         match &fx.divergence {
             None => {
-                stats.rays += 1;
-                if let Some(h) = self.scene.cast(o, d, 0.0, tmax, actors) {
+                if let Some(h) = centre_ray() {
                     let cos = -h.normal.dot(d);
                     echoes[0] = contribution(h.range, h.material.reflectivity, cos, 1.0);
                     n = 1;
