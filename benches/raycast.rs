@@ -13,8 +13,10 @@
 //!   on a generated street (a meshed road with a crown and a gentle grade, kerbs, building
 //!   fronts with balconies, parked cars, trees and lamp posts: surfaces in every direction).
 //! - at real size (a street of 800 000 triangles 500 m from the origin, a VLS-128's rotation
-//!   of 230 400 rays): single casts, and a diverging beam's five sub-rays cast one by one
-//!   against `Geometry::cast_bundle` (same hits bit for bit; the ratio is printed).
+//!   of 230 400 rays): single casts, a diverging beam's five sub-rays cast one by one
+//!   against `Geometry::cast_bundle` (same hits bit for bit; the ratio is printed), and
+//!   neighbouring firings cast together with `Geometry::cast_rays` in bundles of a few
+//!   adjacent sequences and lasers (the ratio to single casts is printed).
 //!
 //! `cargo bench --bench raycast` runs criterion on each and then prints the ratios from
 //! interleaved rounds, so that both sides of a ratio see the same machine load.
@@ -572,6 +574,29 @@ fn street_divergence(g: &Geometry, rays: &[Ray], bundled: bool) -> usize {
     hits
 }
 
+/// The rotation's rays cast in bundles of `sequences` adjacent columns times `lasers` adjacent
+/// beams (`Geometry::cast_rays`), as the lidar model casts a packet's neighbouring firings.
+fn street_neighbours(g: &Geometry, rays: &[Ray], sequences: usize, lasers: usize) -> usize {
+    let mut ordered: Vec<Ray> = Vec::with_capacity(rays.len());
+    for c0 in (0..1800).step_by(sequences) {
+        for l0 in (0..128).step_by(lasers) {
+            for c in c0..(c0 + sequences).min(1800) {
+                for l in l0..(l0 + lasers).min(128) {
+                    ordered.push(rays[c * 128 + l]);
+                }
+            }
+        }
+    }
+    let n = sequences * lasers;
+    let mut out = vec![None; n];
+    let mut hits = 0;
+    for r in ordered.chunks(n) {
+        g.cast_rays(r, 0.0, 367.5, &mut out[..r.len()]);
+        hits += out[..r.len()].iter().filter(|h| h.is_some()).count();
+    }
+    hits
+}
+
 fn bench(c: &mut Criterion) {
     let s = setup();
     let model = Model::Vlp16;
@@ -712,7 +737,23 @@ fn report() {
         t_bundle.push(t.elapsed().as_secs_f64());
         assert_eq!(one, bundled);
     }
-    for v in [&mut t_single, &mut t_one, &mut t_bundle] {
+    // Neighbouring firings together, in the shapes the lidar model uses (VLS-128: a packet's
+    // three sequences of two lasers adjacent in elevation; the others: four sequences of one
+    // laser) and one larger.
+    let shapes = [(3usize, 2usize), (4, 1), (4, 4)];
+    let mut t_shapes: Vec<Vec<f64>> = vec![Vec::new(); shapes.len()];
+    for _ in 0..5 {
+        let single = street_single(&street, &rays);
+        for (&(s, l), t) in shapes.iter().zip(t_shapes.iter_mut()) {
+            let start = Instant::now();
+            assert_eq!(street_neighbours(&street, &rays, s, l), single);
+            t.push(start.elapsed().as_secs_f64());
+        }
+    }
+    for v in [&mut t_single, &mut t_one, &mut t_bundle]
+        .into_iter()
+        .chain(t_shapes.iter_mut())
+    {
         v.sort_by(f64::total_cmp);
     }
     let n = rays.len() as f64;
@@ -727,6 +768,13 @@ fn report() {
         5.0 * n / t_bundle[2] / 1e6,
         t_one[2] / t_bundle[2]
     );
+    for (&(s, l), t) in shapes.iter().zip(&t_shapes) {
+        println!(
+            "  neighbouring firings cast together, {s} sequences x {l} lasers: {:.2} M casts/s, x{:.2} the single casts",
+            n / t[2] / 1e6,
+            t_single[2] / t[2]
+        );
+    }
     let t = Instant::now();
     let sc = Scene::load(&fixture("parking/rep-01/scene.toml")).unwrap();
     println!(

@@ -19,8 +19,9 @@ use rand_chacha::ChaCha8Rng;
 /// Centre rays cast together, about: a VLS-128 packet's three firing sequences of two lasers
 /// adjacent in elevation, four sequences of one laser of the other sensors. Larger bundles
 /// lose more to the nodes only some of their rays enter than they save: one VLS-128 rotation
-/// through a street of 800k triangles (benches/raycast.rs' street) cast 1.22-1.31 times as fast
-/// as ray by ray in bundles of 2 x 2 to 8 x 1 rays, 0.8-1.0 times in bundles of 16.
+/// through the 800k-triangle street of `cargo bench --bench raycast` is cast 1.20 times as fast
+/// as ray by ray in bundles of 3 x 2 and of 4 x 1 rays, 1.02 times in bundles of 4 x 4 (and in
+/// a first exploration 1.2-1.3 times for 2 x 2 to 8 x 1, 0.8 times for 1 x 16).
 const TOGETHER: usize = 6;
 
 /// Marks a (sequence, laser) the packet does not fire.
