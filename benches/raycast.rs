@@ -737,10 +737,9 @@ fn report() {
         t_bundle.push(t.elapsed().as_secs_f64());
         assert_eq!(one, bundled);
     }
-    // Neighbouring firings together, in the shapes the lidar model uses (VLS-128: a packet's
-    // three sequences of two lasers adjacent in elevation; the others: four sequences of one
-    // laser) and one larger.
-    let shapes = [(3usize, 2usize), (4, 1), (4, 4)];
+    // Neighbouring firings together, in the shapes the lidar model uses (a laser's firings in
+    // three or four adjacent sequences) and larger ones (adjacent lasers too).
+    let shapes = [(3usize, 1usize), (4, 1), (3, 2), (4, 4)];
     let mut t_shapes: Vec<Vec<f64>> = vec![Vec::new(); shapes.len()];
     for _ in 0..5 {
         let single = street_single(&street, &rays);

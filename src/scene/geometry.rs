@@ -463,8 +463,8 @@ impl Geometry {
     }
 
     /// [`Geometry::cast`] of each ray of `rays` (its own origin and unit direction) into `out`
-    /// (same length), bit for bit what `cast` finds for each: the rays into one octant are
-    /// traversed together, [`BUNDLE`] at a time. Made for neighbouring firings of a lidar
+    /// (same length), bit for bit what `cast` finds for each: `rays` are taken [`BUNDLE`] at
+    /// a time, and those of a bundle that go into one octant are traversed together. Made for neighbouring firings of a lidar
     /// (adjacent lasers, adjacent azimuths: a degree or less apart, origins millimetres apart),
     /// whose traversals share most of their nodes.
     ///

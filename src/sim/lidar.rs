@@ -117,8 +117,8 @@ pub struct Firing {
     pub reported: Option<Echo>,
 }
 
-/// One firing of a packet, placed (and its centre ray cast, with the adaptive footprint) before
-/// any effect is applied: the packet layouts plan, [`LidarSim::cast_planned`] casts.
+/// One firing of a packet, placed (and its centre ray cast, unless every sub-ray of its beam
+/// is) before any effect is applied: the packet layouts plan, [`LidarSim::cast_planned`] casts.
 struct Planned {
     /// The block its strongest (or only) return goes to.
     block: u8,
@@ -143,7 +143,8 @@ struct Planned {
 struct PacketPlan {
     /// In the packet's firing order.
     firings: Vec<Planned>,
-    /// Firing sequences in the packet ([`Planned::sequence`] is below this).
+    /// Firing sequences in the packet, with the witness sequences around it where there are
+    /// any ([`Planned::sequence`] is below this).
     sequences: usize,
     /// Cast footprints adaptively (footprint.rs), not every sub-ray.
     adaptive: bool,

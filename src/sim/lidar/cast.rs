@@ -16,13 +16,16 @@ use hilrig_velodyne::{DataPacket, ReturnMode};
 use nalgebra::{Point3, Vector3};
 use rand_chacha::ChaCha8Rng;
 
-/// Centre rays cast together, about: a VLS-128 packet's three firing sequences of two lasers
-/// adjacent in elevation, four sequences of one laser of the other sensors. Larger bundles
-/// lose more to the nodes only some of their rays enter than they save: one VLS-128 rotation
-/// through the 800k-triangle street of `cargo bench --bench raycast` is cast 1.20 times as fast
-/// as ray by ray in bundles of 3 x 2 and of 4 x 1 rays, 1.02 times in bundles of 4 x 4 (and in
-/// a first exploration 1.2-1.3 times for 2 x 2 to 8 x 1, 0.8 times for 1 x 16).
-const TOGETHER: usize = 6;
+/// Firing sequences of one laser cast together, at most: a VLS-128 packet's three (with the
+/// adaptive footprint's witnesses around them, five: three and two), a VLP-32C's twelve in
+/// threes of four. Adjacent lasers added to a bundle made it slower on a VLS-128 minute through
+/// an 800k-triangle street (`hilrig resim`, idealized model: 54.4-55.6 user CPU-s for three
+/// sequences of two lasers adjacent in elevation against 51.7-51.9 for three sequences of one),
+/// and larger bundles lose more to the nodes only some of their rays enter than they save
+/// (`cargo bench --bench raycast`, one VLS-128 rotation of synthetic, evenly spaced beams:
+/// three and four sequences of one laser 1.15-1.20 times as fast as ray by ray, three of two
+/// lasers 1.18-1.20 times, four of four lasers 1.00-1.02 times).
+const TOGETHER: usize = 4;
 
 /// Marks a (sequence, laser) the packet does not fire.
 const NONE: u16 = u16::MAX;
@@ -150,19 +153,23 @@ impl LidarSim<'_> {
     /// The static geometry's hit of every planned centre ray (along its direction normalised
     /// again when the footprint is adaptive: what the full cast's centre sub-ray is), into
     /// its `hit`; the actors are the caller's. Neighbouring firings are cast together
-    /// ([`crate::scene::Scene::cast_statics`]): a few lasers adjacent in elevation times a
-    /// few adjacent firing sequences, a degree or less apart, share most of their traversal.
+    /// ([`crate::scene::Scene::cast_statics`]): a laser's firings in a few adjacent firing
+    /// sequences, a fraction of a degree apart, share most of their traversal.
     fn cast_centres(&self, plan: &mut PacketPlan, stats: &mut SimStats) {
         let n = plan.firings.len();
-        let sequences = plan.sequences.max(1);
-        let per_sequence = sequences.min(4);
-        let per_laser = (TOGETHER / per_sequence).max(1);
-        let sequence_groups = sequences.div_ceil(per_sequence);
+        // The sequences the plan really casts (a banked packet's three, five with the
+        // witnesses around them; a VLP-32C's twelve), split into groups of at most TOGETHER
+        // of nearly equal size; a group's firings of one laser are cast together.
+        let first = plan.firings.iter().map(|p| p.sequence).min().unwrap_or(0);
+        let last = plan.firings.iter().map(|p| p.sequence).max().unwrap_or(0);
+        let sequences = usize::from(last - first) + 1;
+        let sequence_groups = sequences.div_ceil(TOGETHER);
+        let per_group = sequences.div_ceil(sequence_groups);
         let lasers = self.decoder.model().lasers();
-        let groups = lasers.div_ceil(per_laser) * sequence_groups;
+        let groups = lasers * sequence_groups;
         let group = |p: &Planned| {
-            (self.elevation.rank(usize::from(p.laser)) / per_laser) * sequence_groups
-                + (usize::from(p.sequence) / per_sequence).min(sequence_groups - 1)
+            usize::from(p.laser) * sequence_groups
+                + (usize::from(p.sequence - first) / per_group).min(sequence_groups - 1)
         };
         // A counting sort of the firings by group (in plan order within one).
         let mut starts = vec![0usize; groups + 1];

@@ -133,9 +133,6 @@ impl Pattern {
 pub(super) struct Elevation {
     above: Vec<Option<u16>>,
     below: Vec<Option<u16>>,
-    /// Each laser's place when all are sorted by elevation (what puts neighbouring beams
-    /// next to each other for casting them together).
-    rank: Vec<u16>,
 }
 
 impl Elevation {
@@ -163,22 +160,10 @@ impl Elevation {
                 })
                 .and_then(|(m, _)| u16::try_from(m).ok())
         };
-        let mut by_elevation: Vec<usize> = (0..lasers.len()).collect();
-        by_elevation.sort_by(|&a, &b| lasers[a].vertical_rad.total_cmp(&lasers[b].vertical_rad));
-        let mut rank = vec![0u16; lasers.len()];
-        for (r, &l) in by_elevation.iter().enumerate() {
-            rank[l] = u16::try_from(r).unwrap_or(u16::MAX);
-        }
         Elevation {
             above: (0..lasers.len()).map(|l| next(l, true)).collect(),
             below: (0..lasers.len()).map(|l| next(l, false)).collect(),
-            rank,
         }
-    }
-
-    /// `laser`'s place among the lasers sorted by elevation (0: the lowest).
-    pub(super) fn rank(&self, laser: usize) -> usize {
-        self.rank.get(laser).map_or(0, |&r| usize::from(r))
     }
 
     /// The laser above `laser` (same azimuth group), if any.
