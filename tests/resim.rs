@@ -120,6 +120,47 @@ fn re_simulating_a_noise_free_idealized_drive_reproduces_its_packets() {
     assert_eq!(info.metadata["sim"]["model"], "idealized");
     let clouds = info.channels.iter().find(|c| c.topic == "/sim/points");
     assert!(clouds.is_some_and(|c| c.count > 100), "{:?}", info.channels);
+    assert!(info.metadata["sim"]["viewing_clouds"].starts_with("written"));
+
+    // Without the viewing clouds: the same VelodyneScans, message for message, no /sim/points,
+    // a smaller file that says so in its metadata.
+    let bare = dir.path().join("bare.mcap");
+    let out = resim(
+        &d,
+        &bare,
+        &[
+            "--trajectory",
+            d.rep.join("truth.csv").to_str().unwrap(),
+            "--no-clouds",
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(data_packets(&bare), b);
+    let bare_info = hilrig::bag::info::info(&bare).unwrap();
+    assert!(
+        bare_info.channels.iter().all(|c| c.topic != "/sim/points"),
+        "{:?}",
+        bare_info.channels
+    );
+    let scans = |i: &hilrig::bag::info::Info| {
+        i.channels
+            .iter()
+            .find(|c| c.topic == "/velodyne_packets")
+            .map(|c| c.count)
+    };
+    assert_eq!(scans(&bare_info), scans(&info));
+    assert!(bare_info.metadata["sim"]["viewing_clouds"].starts_with("left out"));
+    let size = |p: &Path| std::fs::metadata(p).unwrap().len();
+    assert!(
+        size(&bare) * 3 < size(&exact),
+        "{} vs {} bytes",
+        size(&bare),
+        size(&exact)
+    );
 
     // With the trajectory the validator estimates from RTK and CAN: the same packets to within
     // the trajectory's error.

@@ -41,7 +41,7 @@ use crate::scene::file::SceneFile;
 use crate::scene::pose::Trajectory;
 use crate::scene::Scene;
 use crate::sim::drive::{parse_utc, DriveFile};
-use crate::sim::resim::{resim, PoseSource};
+use crate::sim::resim::{resim, PoseSource, ViewingClouds};
 use crate::sim::synth::{synth_rep, SynthJob};
 use crate::sim::ModelFile;
 use serde::Deserialize;
@@ -455,6 +455,8 @@ impl Scenario {
             PoseSource::File(truth.clone(), "the synthesizer's true trajectory".into()),
             true,
             seed,
+            // Only measured here: compare reads the VelodyneScans.
+            ViewingClouds::LeaveOut,
             &sim,
             &quiet,
         )
