@@ -6,6 +6,7 @@ pub mod drive;
 pub mod lidar;
 pub mod model;
 pub mod resim;
+mod sim_file;
 pub mod spin;
 mod streams;
 pub mod synth;

@@ -12,9 +12,9 @@
 
 use super::lidar::{LidarSim, PacketTime, SimStats};
 use super::model::ModelFile;
+use super::sim_file::{ScanMessages, Writer};
+use crate::bag::msgs;
 use crate::bag::scans::{sensor_time, Scan, ScanStream};
-use crate::bag::topics;
-use crate::bag::{msgs, BagOptions, BagWriter};
 use crate::reference::check::{check_with_trajectory, Report, Verdict};
 use crate::rig::Rig;
 use crate::scene::pose::Trajectory;
@@ -25,8 +25,7 @@ use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// Topic of the simulated clouds.
-pub const SIM_POINTS: &str = "/sim/points";
+pub use super::sim_file::SIM_POINTS;
 
 /// Why re-simulation did not run.
 #[derive(Debug, thiserror::Error)]
@@ -205,7 +204,8 @@ pub fn resim_recording(
             ViewingClouds::LeaveOut => format!("left out (no {SIM_POINTS}; --no-clouds)"),
         },
     );
-    let writer = Writer::start(out, meta, model.to_toml(), first_log)?;
+    let writer =
+        Writer::start(out, meta, model.to_toml(), first_log).map_err(ResimError::Output)?;
     let decoder = Decoder::with_calibration(sensor, calibration);
     let cast = Caster {
         clouds: clouds == ViewingClouds::Write,
@@ -227,7 +227,7 @@ pub fn resim_recording(
         for (scan, m) in batch.iter().zip(messages) {
             summary.scans += 1;
             summary.packets += scan.packets.len() as u64;
-            writer.send(m)?;
+            writer.send(m).map_err(ResimError::Output)?;
         }
         done += batch.len() as u64;
         progress(done, total);
@@ -243,7 +243,7 @@ pub fn resim_recording(
         }
     }
     flush(&mut batch, &mut summary)?;
-    writer.finish()?;
+    writer.finish().map_err(ResimError::Output)?;
     Ok(summary)
 }
 
@@ -258,14 +258,6 @@ const BATCH_PACKETS: usize = 256;
 struct CastState {
     previous: Option<DataPacket>,
     packets: u64,
-}
-
-/// One scan's simulated messages: log and publish time, the VelodyneScan, the viewing cloud.
-struct ScanMessages {
-    log: UtcNanos,
-    publish: UtcNanos,
-    packets_cdr: Vec<u8>,
-    cloud_cdr: Option<Vec<u8>>,
 }
 
 /// Casts batches of recorded scans.
@@ -461,7 +453,8 @@ impl<'a> Resimulator<'a> {
             frame_id: lidar.frame_id.clone(),
             seed,
             state: CastState::default(),
-            writer: Writer::start(out, meta, model.to_toml(), first_log)?,
+            writer: Writer::start(out, meta, model.to_toml(), first_log)
+                .map_err(ResimError::Output)?,
             stats: SimStats::default(),
         })
     }
@@ -485,7 +478,7 @@ impl<'a> Resimulator<'a> {
         };
         let simulated = caster.simulate(scans, &mut self.state, &mut self.stats);
         for m in caster.messages(scans, &simulated, caster.clouds) {
-            self.writer.send(m)?;
+            self.writer.send(m).map_err(ResimError::Output)?;
         }
         let mut packets = simulated.into_iter();
         Ok(scans
@@ -506,7 +499,7 @@ impl<'a> Resimulator<'a> {
 
     /// Closes the simulation's file; the firings cast.
     pub fn finish(self) -> Result<SimStats, ResimError> {
-        self.writer.finish()?;
+        self.writer.finish().map_err(ResimError::Output)?;
         Ok(self.stats)
     }
 }
@@ -530,92 +523,4 @@ fn sim_metadata(
         ("trajectory".to_owned(), trajectory),
         ("seed".to_owned(), seed.to_string()),
     ])
-}
-
-/// The simulation's file, written on a thread of its own (chunks are compressed there while
-/// the next scans are cast).
-struct Writer {
-    tx: Option<std::sync::mpsc::SyncSender<ScanMessages>>,
-    thread: Option<std::thread::JoinHandle<Result<(), String>>>,
-}
-
-/// Scans the writer may lag behind the casting.
-const WRITE_AHEAD_SCANS: usize = 16;
-
-impl Writer {
-    /// Creates `out` with the simulation's metadata and the model attached.
-    fn start(
-        out: &Path,
-        meta: BTreeMap<String, String>,
-        model_toml: String,
-        first_log: UtcNanos,
-    ) -> Result<Writer, ResimError> {
-        let output = |e: String| ResimError::Output(e);
-        let mut bag =
-            BagWriter::create(out, &BagOptions::default()).map_err(|e| output(e.to_string()))?;
-        bag.metadata("sim", meta)
-            .map_err(|e| output(e.to_string()))?;
-        bag.attach(
-            "model.toml",
-            "application/toml",
-            model_toml.as_bytes(),
-            first_log,
-        )
-        .map_err(|e| output(e.to_string()))?;
-        let (tx, rx) = std::sync::mpsc::sync_channel::<ScanMessages>(WRITE_AHEAD_SCANS);
-        let thread = std::thread::Builder::new()
-            .name("resim writer".into())
-            .spawn(move || -> Result<(), String> {
-                for m in rx {
-                    bag.write(
-                        topics::VELODYNE_PACKETS,
-                        &msgs::velodyne_scan_type(),
-                        m.log,
-                        m.publish,
-                        &m.packets_cdr,
-                    )
-                    .map_err(|e| e.to_string())?;
-                    if let Some(cloud) = &m.cloud_cdr {
-                        bag.write(
-                            SIM_POINTS,
-                            &msgs::point_cloud2_type(),
-                            m.log,
-                            m.publish,
-                            cloud,
-                        )
-                        .map_err(|e| e.to_string())?;
-                    }
-                }
-                bag.finish().map(|_| ()).map_err(|e| e.to_string())
-            })
-            .map_err(|e| output(e.to_string()))?;
-        Ok(Writer {
-            tx: Some(tx),
-            thread: Some(thread),
-        })
-    }
-
-    /// Hands one scan's messages to the writer; an error when writing failed.
-    fn send(&self, m: ScanMessages) -> Result<(), ResimError> {
-        let Some(tx) = &self.tx else {
-            return Err(ResimError::Output("the writer has stopped".into()));
-        };
-        if tx.send(m).is_err() {
-            // The writer stopped on an error: its reason comes with `finish`.
-            return Err(ResimError::Output(
-                "writing stopped (see the error that follows)".into(),
-            ));
-        }
-        Ok(())
-    }
-
-    /// Waits for the last messages and closes the file.
-    fn finish(mut self) -> Result<(), ResimError> {
-        self.tx = None;
-        match self.thread.take().map(std::thread::JoinHandle::join) {
-            Some(Ok(r)) => r.map_err(ResimError::Output),
-            Some(Err(_)) => Err(ResimError::Output("the writer thread failed".into())),
-            None => Ok(()),
-        }
-    }
 }
