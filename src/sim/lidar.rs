@@ -237,6 +237,12 @@ impl<'a> LidarSim<'a> {
         })
     }
 
+    /// How far rays are cast: half as far again as the sensor reaches, so that a return just
+    /// beyond its range is found (and refused) rather than what lies behind it.
+    fn casting_range(&self) -> f64 {
+        self.max_range * 1.5
+    }
+
     /// Whether footprints are cast adaptively (with the beam divergence effect).
     fn adaptive_footprint(&self) -> bool {
         self.footprint == FootprintCast::Adaptive && self.fx.divergence.is_some()

@@ -281,7 +281,7 @@ impl Caster<'_> {
         stats: &mut SimStats,
     ) -> Vec<ScanMessages> {
         let simulated = self.simulate(scans, state, stats);
-        self.messages(scans, &simulated, self.clouds)
+        self.messages(scans, &simulated)
     }
 
     /// Every packet of `scans` simulated, in order (a packet that does not decode is kept as
@@ -366,13 +366,8 @@ impl Caster<'_> {
     }
 
     /// The messages of `scans` with their simulated packets (`simulated`, in order), the
-    /// viewing clouds only when `clouds`.
-    fn messages(
-        &self,
-        scans: &[Scan],
-        simulated: &[[u8; DATA_PACKET_SIZE]],
-        clouds: bool,
-    ) -> Vec<ScanMessages> {
+    /// viewing clouds only when the caster writes them.
+    fn messages(&self, scans: &[Scan], simulated: &[[u8; DATA_PACKET_SIZE]]) -> Vec<ScanMessages> {
         let mut offsets = Vec::with_capacity(scans.len());
         let mut at = 0;
         for scan in scans {
@@ -393,7 +388,7 @@ impl Caster<'_> {
                     log: UtcNanos(scan.log_time as i64),
                     publish: UtcNanos(scan.publish_time as i64),
                     packets_cdr: msgs::velodyne_scan(scan.stamp, self.frame_id, &list),
-                    cloud_cdr: clouds.then(|| {
+                    cloud_cdr: self.clouds.then(|| {
                         crate::record::messages::cloud_cdr(
                             self.decoder,
                             scan.stamp,
@@ -477,7 +472,7 @@ impl<'a> Resimulator<'a> {
             seed: self.seed,
         };
         let simulated = caster.simulate(scans, &mut self.state, &mut self.stats);
-        for m in caster.messages(scans, &simulated, caster.clouds) {
+        for m in caster.messages(scans, &simulated) {
             self.writer.send(m).map_err(ResimError::Output)?;
         }
         let mut packets = simulated.into_iter();

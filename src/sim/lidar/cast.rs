@@ -56,30 +56,24 @@ impl LidarSim<'_> {
         let precast = adaptive || self.fx.divergence.is_none();
         // Which firing of the plan each (sequence, laser) is.
         let mut index = Vec::new();
+        if adaptive {
+            index = vec![NONE; plan.sequences * lasers];
+        }
         if precast {
             self.cast_centres(plan, stats);
+            let tmax = self.casting_range();
             for (i, p) in plan.firings.iter_mut().enumerate() {
                 pose_actors(p.actors_at, &mut actors);
                 let c = &mut p.centre;
                 if has_actors {
-                    let d = if adaptive {
-                        c.direction.normalize()
-                    } else {
-                        c.direction
-                    };
-                    let tmax = self.max_range * 1.5;
+                    let d = c.cast_direction(adaptive);
                     self.scene
                         .actors_into(&c.origin, &d, 0.0, tmax, &actors, &mut c.hit);
                 }
-                if adaptive {
-                    if index.is_empty() {
-                        index = vec![NONE; plan.sequences * lasers];
-                    }
-                    if let Some(slot) =
-                        index.get_mut(usize::from(p.sequence) * lasers + usize::from(p.laser))
-                    {
-                        *slot = i as u16;
-                    }
+                if let Some(slot) =
+                    index.get_mut(usize::from(p.sequence) * lasers + usize::from(p.laser))
+                {
+                    *slot = i as u16;
                 }
             }
         }
@@ -171,10 +165,15 @@ impl LidarSim<'_> {
             usize::from(p.laser) * sequence_groups
                 + (usize::from(p.sequence - first) / per_group).min(sequence_groups - 1)
         };
+        let keys: Vec<usize> = plan
+            .firings
+            .iter()
+            .map(|p| group(p).min(groups - 1))
+            .collect();
         // A counting sort of the firings by group (in plan order within one).
         let mut starts = vec![0usize; groups + 1];
-        for p in &plan.firings {
-            starts[group(p).min(groups - 1) + 1] += 1;
+        for &g in &keys {
+            starts[g + 1] += 1;
         }
         for g in 0..groups {
             starts[g + 1] += starts[g];
@@ -182,20 +181,13 @@ impl LidarSim<'_> {
         let mut next = starts.clone();
         let mut order = vec![0usize; n];
         let mut rays = vec![(Point3::origin(), Vector3::zeros()); n];
-        for (i, p) in plan.firings.iter().enumerate() {
-            let g = group(p).min(groups - 1);
+        for (i, (p, &g)) in plan.firings.iter().zip(&keys).enumerate() {
             order[next[g]] = i;
-            let c = &p.centre;
-            let d = if plan.adaptive {
-                c.direction.normalize()
-            } else {
-                c.direction
-            };
-            rays[next[g]] = (c.origin, d);
+            rays[next[g]] = (p.centre.origin, p.centre.cast_direction(plan.adaptive));
             next[g] += 1;
         }
         let mut hits = vec![None; n];
-        let tmax = self.max_range * 1.5;
+        let tmax = self.casting_range();
         for g in 0..groups {
             let r = starts[g]..starts[g + 1];
             self.scene

@@ -66,7 +66,7 @@ impl LidarSim<'_> {
         if fx.dropout > 0.0 && rng.random::<f64>() < fx.dropout {
             return Returns::default();
         }
-        let tmax = self.max_range * 1.5;
+        let tmax = self.casting_range();
         // A beam without divergence is its centre ray: cast already when the caller has it.
         let mut centre_ray = || match neighbourhood {
             Some((c, _)) => c.hit,
@@ -187,7 +187,7 @@ impl LidarSim<'_> {
         stats: &mut SimStats,
     ) {
         let (u, w) = beam_frame(d);
-        let tmax = self.max_range * 1.5;
+        let tmax = self.casting_range();
         let mut cast = |sd: &Vector3<f64>| self.scene.cast(o, sd, 0.0, tmax, actors);
         let Some((centre, witnesses)) = neighbourhood else {
             stats.footprints_cast += 1;

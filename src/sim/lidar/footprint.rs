@@ -94,6 +94,19 @@ pub(super) struct CentreRay {
     pub(super) hit: Option<Hit>,
 }
 
+impl CentreRay {
+    /// The direction it is cast along: with an adaptive footprint the unit direction
+    /// normalised again, as the full cast computes its centre sub-ray, so that both agree to
+    /// the bit; otherwise the direction as it is (what a beam without divergence casts).
+    pub(super) fn cast_direction(&self, adaptive: bool) -> Vector3<f64> {
+        if adaptive {
+            self.direction.normalize()
+        } else {
+            self.direction
+        }
+    }
+}
+
 /// The sub-rays of a divergent beam, as the beam_divergence effect lays them out.
 #[derive(Clone, Debug)]
 pub(super) struct Pattern {
