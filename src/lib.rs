@@ -16,6 +16,7 @@
 //! - [`metrics`]: a run against its re-simulation, scan by scan (`hilrig compare`);
 //! - [`gap`]: the gap workflow: the missing effect found, fitted and validated (`hilrig gap`);
 //! - [`stats`]: over repetitions: area validation metric, traffic lights, rank correlation;
+//! - [`output`]: the JSON files the commands write, one typed struct per kind in an envelope;
 //! - [`report`]: the HTML validation report from the JSON the steps write (`hilrig report`);
 //! - [`rig`]: the rig file every step reads (sensors, mounting, ports, thresholds).
 
@@ -27,6 +28,7 @@ pub mod config;
 pub mod decode;
 pub mod gap;
 pub mod metrics;
+pub mod output;
 pub mod record;
 pub mod reference;
 pub mod replay;

@@ -146,7 +146,7 @@ impl HeadingConfig {
 }
 
 /// A message that can carry the heading reference.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, serde::Serialize)]
 pub enum HeadingSource {
     /// NMEA HDT.
     #[serde(rename = "HDT")]
@@ -175,7 +175,12 @@ pub enum HeadingSource {
 }
 
 impl HeadingSource {
-    /// The driver's name for the message.
+    /// Its name, as in the rig file and the receiver's messages (`HDT`, `NAV-ATT`).
+    pub fn name(self) -> &'static str {
+        self.attitude_source().name()
+    }
+
+    /// The driver's attitude source for the message.
     pub fn attitude_source(self) -> hilrig_gnss::AttitudeSource {
         use hilrig_gnss::AttitudeSource as A;
         match self {

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// One channel's summary.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ChannelInfo {
     /// Topic.
     pub topic: String,
@@ -17,21 +17,48 @@ pub struct ChannelInfo {
     pub count: u64,
 }
 
-/// A file's summary.
-#[derive(Clone, Debug, PartialEq, Default, serde::Serialize)]
+/// The first and last message's log time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct LogSpan {
+    /// The first, ns since the Unix epoch.
+    pub first_ns: u64,
+    /// The last, ns since the Unix epoch.
+    pub last_ns: u64,
+}
+
+/// One attachment.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AttachmentInfo {
+    /// Name.
+    pub name: String,
+    /// Media type.
+    pub media_type: String,
+    /// Size, bytes.
+    pub bytes: u64,
+}
+
+/// A file's summary (and the JSON of `info --json`).
+#[derive(Clone, Debug, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Info {
+    /// The file, as given.
+    pub file: String,
     /// MCAP profile.
     pub profile: String,
     /// Channels by topic.
     pub channels: Vec<ChannelInfo>,
-    /// First and last message log time, ns.
-    pub span: Option<(u64, u64)>,
+    /// First and last message log time (none without messages).
+    pub span: Option<LogSpan>,
     /// Chunks.
     pub chunks: usize,
     /// Metadata records by name.
     pub metadata: BTreeMap<String, BTreeMap<String, String>>,
-    /// Attachments (name, media type, bytes).
-    pub attachments: Vec<(String, String, u64)>,
+    /// Attachments.
+    pub attachments: Vec<AttachmentInfo>,
+}
+
+impl crate::output::Output for Info {
+    const KIND: crate::output::OutputKind = crate::output::OutputKind::Recording;
+    const SCHEMA: u32 = 1;
 }
 
 /// Why a file could not be summarised.
@@ -101,6 +128,7 @@ pub fn info(path: &Path) -> Result<Info, InfoError> {
         .flatten()
         .ok_or_else(|| InfoError::NoSummary { path: p.clone() })?;
     let mut info = Info {
+        file: p.clone(),
         profile: header_profile,
         chunks: summary.chunk_indexes.len(),
         ..Info::default()
@@ -112,7 +140,10 @@ pub fn info(path: &Path) -> Result<Info, InfoError> {
         .unwrap_or_default();
     if let Some(s) = &summary.stats {
         if s.message_count > 0 {
-            info.span = Some((s.message_start_time, s.message_end_time));
+            info.span = Some(LogSpan {
+                first_ns: s.message_start_time,
+                last_ns: s.message_end_time,
+            });
         }
     }
     let mut channels: Vec<ChannelInfo> = summary
@@ -137,8 +168,11 @@ pub fn info(path: &Path) -> Result<Info, InfoError> {
         }
     }
     for a in &summary.attachment_indexes {
-        info.attachments
-            .push((a.name.clone(), a.media_type.clone(), a.data_size));
+        info.attachments.push(AttachmentInfo {
+            name: a.name.clone(),
+            media_type: a.media_type.clone(),
+            bytes: a.data_size,
+        });
     }
     Ok(info)
 }

@@ -50,8 +50,7 @@ pub fn run(args: CheckArgs) -> Result<ExitCode> {
     let (report, trajectory) = check::check_with_trajectory(&run, &rig, scene.as_ref());
     print!("{}", report.text());
     if let Some(p) = &args.json {
-        std::fs::write(p, serde_json::to_string_pretty(&report)?)
-            .with_context(|| format!("cannot write {}", p.display()))?;
+        hilrig::output::write(p, &report)?;
     }
     if let Some(p) = &args.trajectory {
         let Some(t) = &trajectory else {

@@ -112,7 +112,7 @@ fn text(c: &Comparison) -> String {
         "compared {} scans ({} of the run without a twin) in the {} frame; cell {:.3} m ({}, admissible {:.3} m), K = {}, region {}{}",
         s.scans,
         s.unpaired_run_scans,
-        c.frame,
+        c.frame.name(),
         c.cell_m,
         if c.dims == Dims::Bev { "2D" } else { "3D" },
         c.admissible_cell_m,
@@ -240,8 +240,7 @@ pub fn run(args: CompareArgs) -> Result<ExitCode> {
     }
     print!("{}", text(&c));
     if let Some(p) = &args.json {
-        std::fs::write(p, serde_json::to_string_pretty(&c)?)
-            .with_context(|| format!("cannot write {}", p.display()))?;
+        hilrig::output::write(p, &c)?;
     }
     if let Some(p) = &args.csv {
         std::fs::write(p, csv(&c)).with_context(|| format!("cannot write {}", p.display()))?;

@@ -1,6 +1,6 @@
 //! `hilrig info`: channels, counts, rates, time span and clock synchronisation of an MCAP.
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use std::io::{self, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -17,16 +17,13 @@ pub struct InfoArgs {
 pub fn run(args: InfoArgs) -> Result<ExitCode> {
     let i = hilrig::bag::info::info(&args.file)?;
     if let Some(path) = &args.json {
-        let mut v = serde_json::to_value(&i)?;
-        v["file"] = args.file.display().to_string().into();
-        std::fs::write(path, serde_json::to_string_pretty(&v)?)
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        hilrig::output::write(path, &i)?;
     }
     let mut out = io::stdout().lock();
     writeln!(out, "file: {}", args.file.display())?;
     writeln!(out, "profile: {}", i.profile)?;
-    let secs = i.span.map(|(a, b)| (b - a) as f64 * 1e-9);
-    match i.span {
+    let secs = i.span.map(|s| (s.last_ns - s.first_ns) as f64 * 1e-9);
+    match i.span.map(|s| (s.first_ns, s.last_ns)) {
         Some((a, b)) => writeln!(
             out,
             "time: {} .. {} ({:.3} s)",
@@ -53,8 +50,12 @@ pub fn run(args: InfoArgs) -> Result<ExitCode> {
         let kv: Vec<String> = m.iter().map(|(k, v)| format!("{k}={v}")).collect();
         writeln!(out, "metadata {name}: {}", kv.join(", "))?;
     }
-    for (name, ty, size) in &i.attachments {
-        writeln!(out, "attachment {name} ({ty}, {size} bytes)")?;
+    for a in &i.attachments {
+        writeln!(
+            out,
+            "attachment {} ({}, {} bytes)",
+            a.name, a.media_type, a.bytes
+        )?;
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -119,8 +119,7 @@ pub fn run(args: ValidateArgs) -> Result<ExitCode> {
     }
     println!("verdict: {:?}", v.verdict);
     if let Some(j) = &args.json {
-        std::fs::write(j, serde_json::to_string_pretty(&v)?)
-            .with_context(|| format!("cannot write {}", j.display()))?;
+        hilrig::output::write(j, &v)?;
     }
     Ok(ExitCode::from(match v.verdict {
         Verdict::Valid => 0,

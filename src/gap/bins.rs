@@ -8,7 +8,7 @@ use super::likelihood::{median, robust_sigma};
 use super::observe::{Feature, Obs};
 
 /// One bin of one feature.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Bin {
     /// Lower edge (inclusive), in the feature's unit.
     pub from: f64,
@@ -36,10 +36,10 @@ pub struct Bin {
 }
 
 /// The bins of one feature.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Table {
-    /// Feature name and unit.
-    pub feature: &'static str,
+    /// Feature name and unit (borrowed where binned, owned where read back).
+    pub feature: std::borrow::Cow<'static, str>,
     /// Its bins (empty ones left out).
     pub bins: Vec<Bin>,
 }
@@ -169,7 +169,7 @@ pub fn tables(runs: &[(&[Obs], &[Feature])]) -> Vec<Table> {
                 })
                 .collect();
             Table {
-                feature: name,
+                feature: name.into(),
                 bins,
             }
         })

@@ -4,7 +4,7 @@
 //! gap shrink on data the fit did not see.
 
 use super::observe::RunData;
-use super::report::RunMetrics;
+use super::report::{FeatureAvm, FeatureLight, RunMetrics};
 use super::GapError;
 use crate::metrics::compare::{compare_simulated, Options as CompareOptions, ToSimulate};
 use crate::metrics::features::scan_features;
@@ -116,12 +116,22 @@ pub(super) fn run_metrics(
         ocr: mean(&ocr),
         precision: mean(&precision),
         iou: mean(&iou),
-        avm: v.cells.iter().map(|c| (c.metric.clone(), c.avm)).collect(),
+        avm: v
+            .cells
+            .iter()
+            .map(|c| FeatureAvm {
+                metric: c.metric.clone(),
+                avm: c.avm,
+            })
+            .collect(),
         lights: v
             .cells
             .iter()
-            .map(|c| (c.metric.clone(), format!("{:?}", c.light).to_lowercase()))
+            .map(|c| FeatureLight {
+                metric: c.metric.clone(),
+                light: c.light,
+            })
             .collect(),
-        verdict: format!("{:?}", v.verdict).to_lowercase(),
+        verdict: v.verdict,
     })
 }

@@ -3,6 +3,7 @@
 //! and after) and the one-line findings, written atomically so an interrupted study leaves the
 //! last completed round.
 
+use crate::sim::model::EffectKind;
 use super::bins::Table;
 use super::candidates::{Candidate, Param};
 use super::likelihood::{self, Scored};
@@ -13,7 +14,7 @@ use crate::sim::model::ModelFile;
 use std::path::Path;
 
 /// Per-firing statistics of a set of runs under one model.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct FiringStats {
     /// Median residual (measured − predicted) away from edges, m.
     pub residual_median_m: Option<f64>,
@@ -28,7 +29,7 @@ pub struct FiringStats {
 }
 
 /// Full-run metrics on the validation runs.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct RunMetrics {
     /// Mean OCR^K over the validation runs at each run's admissible cell (K = 1, 3D): the
     /// share of the measured cells the simulation occupies too.
@@ -40,18 +41,36 @@ pub struct RunMetrics {
     pub iou: Option<f64>,
     /// Area validation metric per per-scan feature (real validation runs against their
     /// re-simulations), in the feature's unit.
-    pub avm: Vec<(String, Option<f64>)>,
+    pub avm: Vec<FeatureAvm>,
     /// Traffic lights per feature.
-    pub lights: Vec<(String, String)>,
+    pub lights: Vec<FeatureLight>,
     /// The validation verdict.
-    pub verdict: String,
+    pub verdict: crate::stats::validate::Verdict,
+}
+
+/// One feature's area validation metric.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct FeatureAvm {
+    /// The per-scan feature (as `validate` names it).
+    pub metric: String,
+    /// Its AVM, in the feature's unit (none where not evaluable).
+    pub avm: Option<f64>,
+}
+
+/// One feature's traffic light.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct FeatureLight {
+    /// The per-scan feature.
+    pub metric: String,
+    /// Its light.
+    pub light: crate::stats::avm::Light,
 }
 
 /// An added effect tested on the validation runs.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Trial {
     /// The effect.
-    pub effect: &'static str,
+    pub effect: EffectKind,
     /// Log-likelihood gain on the validation runs, nats.
     pub gain: f64,
     /// Its 95 % block-bootstrap interval.
@@ -65,7 +84,7 @@ pub struct Trial {
 }
 
 /// One round.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Round {
     /// 1-based.
     pub round: usize,
@@ -79,7 +98,7 @@ pub struct Round {
     /// The candidates tried on the validation runs, in order.
     pub trials: Vec<Trial>,
     /// The effect added in this round.
-    pub chosen: Option<String>,
+    pub chosen: Option<EffectKind>,
     /// Its fitted parameters.
     pub parameters: Vec<Param>,
     /// Full-run metrics on the validation runs before and after (when computed).
@@ -89,14 +108,14 @@ pub struct Round {
 }
 
 /// A run as listed in the report.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct RunInfo {
     /// Name.
     pub name: String,
     /// Role.
     pub role: Role,
     /// The check's verdict.
-    pub check: String,
+    pub check: crate::reference::check::Verdict,
     /// Firings sampled.
     pub sampled_firings: usize,
     /// Stretches left out where `check` marked the reference not usable (its marks).
@@ -106,8 +125,17 @@ pub struct RunInfo {
     pub damage: Vec<String>,
 }
 
+/// An effect's resolution floor: below it the workflow does not add the effect.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Floor {
+    /// The effect.
+    pub effect: EffectKind,
+    /// The floor, in words.
+    pub floor: String,
+}
+
 /// Everything `gap.json` holds.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct GapReport {
     /// The start model's file.
     pub start_model: String,
@@ -116,7 +144,7 @@ pub struct GapReport {
     /// Set when a single run was split in time.
     pub split: Option<String>,
     /// The resolution floors of the catalogue.
-    pub floors: Vec<(String, String)>,
+    pub floors: Vec<Floor>,
     /// The completed rounds.
     pub rounds: Vec<Round>,
     /// Whether the workflow finished (false while running or when interrupted).
@@ -136,9 +164,8 @@ fn write_atomic(path: &Path, text: &str) -> Result<(), GapError> {
 /// Writes the fitted model and `gap.json` into `out`.
 pub(super) fn save(out: &Path, model: &ModelFile, report: &GapReport) -> Result<(), GapError> {
     write_atomic(&out.join("model.fitted.toml"), &model.to_toml())?;
-    let json = serde_json::to_string_pretty(report)
-        .map_err(|e| GapError::Output(format!("gap.json: {e}")))?;
-    write_atomic(&out.join("gap.json"), &json)
+    crate::output::write(&out.join("gap.json"), report)
+        .map_err(|e| GapError::Output(e.to_string()))
 }
 
 /// The per-firing statistics of observations under a model.
@@ -281,7 +308,7 @@ pub(super) fn summary_line(
             }
         }
         let avm = |m: &RunMetrics, name: &str| {
-            m.avm.iter().find(|(n, _)| n == name).and_then(|(_, v)| *v)
+            m.avm.iter().find(|a| a.metric == name).and_then(|a| a.avm)
         };
         for (name, label) in [
             ("returns_per_scan", "AVM returns/scan"),
@@ -362,13 +389,13 @@ mod tests {
     use super::*;
     use crate::gap::candidates::Param;
 
-    fn candidate(effect: &'static str, value: f64, gain: f64, eligible: bool) -> Candidate {
+    fn candidate(effect: EffectKind, value: f64, gain: f64, eligible: bool) -> Candidate {
         Candidate {
             effect,
             fitted: None,
             refitted: Vec::new(),
             params: vec![Param {
-                name: "x",
+                name: "x".into(),
                 value,
                 interval: None,
             }],
@@ -381,7 +408,7 @@ mod tests {
         }
     }
 
-    fn trial(effect: &'static str, kept: bool) -> Trial {
+    fn trial(effect: EffectKind, kept: bool) -> Trial {
         let stats = FiringStats {
             residual_median_m: None,
             residual_sigma_m: None,
@@ -403,30 +430,30 @@ mod tests {
     /// threshold's reference reflectivity (fixed, not fitted) left out.
     #[test]
     fn fitted_values_are_printed_to_three_significant_digits() {
-        let mut c = candidate("range_noise", 0.0, 1.0, true);
+        let mut c = candidate(EffectKind::RangeNoise, 0.0, 1.0, true);
         c.params = vec![
             Param {
-                name: "sigma_m",
+                name: "sigma_m".into(),
                 value: 0.012_345,
                 interval: Some((0.011_94, 0.012_71)),
             },
             Param {
-                name: "reference_range_m",
+                name: "reference_range_m".into(),
                 value: 57.91,
                 interval: None,
             },
             Param {
-                name: "reference_reflectivity",
+                name: "reference_reflectivity".into(),
                 value: 0.3,
                 interval: None,
             },
             Param {
-                name: "probability",
+                name: "probability".into(),
                 value: 0.0,
                 interval: None,
             },
             Param {
-                name: "bias_m",
+                name: "bias_m".into(),
                 value: -1234.5,
                 interval: None,
             },
@@ -486,19 +513,19 @@ mod tests {
     #[test]
     fn an_effect_as_good_as_the_chosen_one_is_named_as_confounded() {
         // Gains 45 000 [9 000, 90 000] and 44 800 [20 000, 70 000]: each inside the other's.
-        let chosen = candidate("time_offset", -29.7, 45_000.0, true);
-        let mut rival = candidate("motion_distortion", 1.0, 44_800.0, true);
+        let chosen = candidate(EffectKind::TimeOffset, -29.7, 45_000.0, true);
+        let mut rival = candidate(EffectKind::MotionDistortion, 1.0, 44_800.0, true);
         rival.gain_interval = Some((20_000.0, 70_000.0));
-        let weaker = candidate("mount_misalignment", 0.2, 10_000.0, true);
-        let tried = [trial("time_offset", true)];
+        let weaker = candidate(EffectKind::MountMisalignment, 0.2, 10_000.0, true);
+        let tried = [trial(EffectKind::TimeOffset, true)];
         let line =
             confounded_line(&chosen, &[chosen.clone(), rival.clone(), weaker], &tried).unwrap();
         assert!(line.starts_with("confounded: time_offset (gain 45000.0 nats [22500.0, 67500.0], validation 340.0 [-85.8, 796.7]) and motion_distortion (gain 44800.0 nats [20000.0, 70000.0], not tried on the validation runs)"), "{line}");
-        assert!(!line.contains("mount_misalignment"), "{line}");
+        assert!(!line.contains(EffectKind::MountMisalignment), "{line}");
         // An ineligible rival, or one clearly weaker, is no confound.
         rival.eligible = false;
         assert!(confounded_line(&chosen, &[rival], &tried).is_none());
-        let far = candidate("range_bias", 0.01, 15_000.0, true);
+        let far = candidate(EffectKind::RangeBias, 0.01, 15_000.0, true);
         assert!(!alike(&chosen, &far));
         assert!(confounded_line(&chosen, &[far], &tried).is_none());
     }
@@ -508,17 +535,17 @@ mod tests {
     #[test]
     fn a_round_without_an_effect_names_what_failed_validation() {
         let cands = [
-            candidate("mount_misalignment", 0.17, 5707.0, false),
-            candidate("beam_divergence", 1.3, 700.0, true),
+            candidate(EffectKind::MountMisalignment, 0.17, 5707.0, false),
+            candidate(EffectKind::BeamDivergence, 1.3, 700.0, true),
         ];
-        let line = no_effect_line(5, &cands, &[trial("beam_divergence", false)]);
+        let line = no_effect_line(5, &cands, &[trial(EffectKind::BeamDivergence, false)]);
         assert!(
             line.starts_with("no missing effect found in round 5: beam_divergence (x = 1.30)"),
             "{line}"
         );
         assert!(line.contains("gain 700.0 nats [350.0, 1050.0]"), "{line}");
         assert!(line.contains("did not improve the validation runs beyond their noise (gain 340.0 nats [-85.8, 796.7])"), "{line}");
-        assert!(!line.contains("mount_misalignment"), "{line}");
+        assert!(!line.contains(EffectKind::MountMisalignment), "{line}");
 
         // Nothing tried: the best candidate and why it is not eligible.
         let line = no_effect_line(2, &cands[..1], &[]);
@@ -529,4 +556,9 @@ mod tests {
             "no missing effect found in round 3: no candidate left"
         );
     }
+}
+
+impl crate::output::Output for GapReport {
+    const KIND: crate::output::OutputKind = crate::output::OutputKind::Gap;
+    const SCHEMA: u32 = 1;
 }

@@ -319,7 +319,7 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
         .map(|r| RunInfo {
             name: r.name.clone(),
             role: r.role,
-            check: format!("{:?}", r.verdict).to_lowercase(),
+            check: r.verdict,
             sampled_firings: r.packets.len() * super::observe::SLOTS,
             left_out: r.left_out.clone(),
             damage: r.damage.clone(),
@@ -361,7 +361,10 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
         split,
         floors: super::candidates::FLOORS
             .iter()
-            .map(|(a, b)| ((*a).to_owned(), (*b).to_owned()))
+            .map(|&(effect, floor)| super::report::Floor {
+                effect,
+                floor: floor.to_owned(),
+            })
             .collect(),
         rounds: Vec::new(),
         finished: false,
@@ -485,7 +488,7 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             break;
         };
         model = next;
-        this.chosen = Some(c.effect.to_owned());
+        this.chosen = Some(c.effect);
         this.parameters = c.params.clone();
         if opts.full_metrics && report.split.is_none() {
             progress.phase(

@@ -20,7 +20,9 @@ pub use super::error::CompareError;
 use super::grid::{Dims, GridScores, GridSpec};
 use super::measure::{measure, Measured, Residuals};
 use super::pairing::{Pair, Pairs};
-pub use super::report::{Comparison, CurvePoint, LeftOut, ObjectSeen, ScanRow, Snapshot, Summary};
+pub use super::report::{
+    Comparison, ComparisonFrame, CurvePoint, LeftOut, ObjectSeen, ScanRow, Snapshot, Summary,
+};
 use super::roi::{Region, Roi};
 use super::tally::{mean, Tally};
 use super::windows::{grid_phase, refuse_clamping_cell, windows, CurveSums, PointPair};
@@ -399,7 +401,11 @@ fn compare_twins(
             .into_iter()
             .filter(|l| l.scans > 0)
             .collect(),
-        frame: if opts.sensor_frame { "sensor" } else { "scene" },
+        frame: if opts.sensor_frame {
+            ComparisonFrame::Sensor
+        } else {
+            ComparisonFrame::Scene
+        },
         scans: rows,
         calibration,
         snapshot,

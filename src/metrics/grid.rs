@@ -28,7 +28,7 @@ pub enum GridError {
 }
 
 /// Bird's-eye cells (east, north) or voxels (east, north, up).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Dims {
     /// 2D: cells of the ground plane, every height in one cell.
@@ -364,7 +364,7 @@ impl Occupancy {
 
 /// The cell-wise comparison of a real and a simulated occupancy. Ratios are `None` when their
 /// denominator is empty (no real cell: OCR is undefined, not 0 or 1).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GridScores {
     /// OCR^K = |both| / |real|.
     pub ocr: Option<f64>,

@@ -21,7 +21,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Point3;
 
 /// Chamfer and Hausdorff distances of two clouds, m.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PointScores {
     /// Chamfer distance, m.
     pub chamfer_m: f64,

@@ -7,7 +7,7 @@ use crate::reference::check::Fault;
 use crate::stats::rank::Correlation;
 
 /// An object's points in one scan.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ObjectSeen {
     /// Name.
     pub name: String,
@@ -25,7 +25,7 @@ pub struct ObjectSeen {
 
 /// A bird's-eye view of one scan pair for the report: measured and simulated points over the
 /// scene's objects, and the cells (at the comparison's cell size) occupied in only one of them.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Snapshot {
     /// Index of the scan in `scans`.
     pub scan: usize,
@@ -54,7 +54,7 @@ pub struct Snapshot {
 pub const SNAPSHOT_POINTS: usize = 5000;
 
 /// One scan pair.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct ScanRow {
     /// Seconds after the first paired scan.
     pub t_s: f64,
@@ -87,7 +87,7 @@ pub struct ScanRow {
 }
 
 /// One point of the calibration curve.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CurvePoint {
     /// Cell size, m.
     pub cell_m: f64,
@@ -98,7 +98,7 @@ pub struct CurvePoint {
 }
 
 /// The summary over all scans.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Summary {
     /// Paired scans.
     pub scans: usize,
@@ -131,7 +131,7 @@ pub struct Summary {
 }
 
 /// Scans `compare` left out because `check` marked the reference not usable where they lie.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LeftOut {
     /// The mark, as `check` reports it (name, stretch, the numbers behind it).
     #[serde(flatten)]
@@ -140,8 +140,28 @@ pub struct LeftOut {
     pub scans: usize,
 }
 
+/// The frame in which `compare` sets the clouds against each other.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ComparisonFrame {
+    /// The scene's: a cell is a place in the world, as the method of Rosenberger et al. 2019, §5 grids it.
+    Scene,
+    /// The sensor's: the reference's pose error drops out (`compare --sensor-frame`).
+    Sensor,
+}
+
+impl ComparisonFrame {
+    /// Its name, as in the JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            ComparisonFrame::Scene => "scene",
+            ComparisonFrame::Sensor => "sensor",
+        }
+    }
+}
+
 /// Everything `compare` found.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Comparison {
     /// Cell used, m.
     pub cell_m: f64,
@@ -165,8 +185,8 @@ pub struct Comparison {
     pub left_out: Vec<LeftOut>,
     /// Ground left out.
     pub ground_excluded: bool,
-    /// The frame the points were compared in: "scene" or "sensor".
-    pub frame: &'static str,
+    /// The frame the points were compared in.
+    pub frame: ComparisonFrame,
     /// Per scan.
     pub scans: Vec<ScanRow>,
     /// OCR over cell sizes.
@@ -175,4 +195,9 @@ pub struct Comparison {
     pub snapshot: Option<Snapshot>,
     /// Over the drive.
     pub summary: Summary,
+}
+
+impl crate::output::Output for Comparison {
+    const KIND: crate::output::OutputKind = crate::output::OutputKind::Compare;
+    const SCHEMA: u32 = 1;
 }

@@ -198,20 +198,76 @@ fn default_clutter_reflectivity() -> f64 {
 }
 
 impl Effect {
+    /// Which effect it is.
+    pub fn kind(&self) -> EffectKind {
+        match self {
+            Effect::RangeNoise { .. } => EffectKind::RangeNoise,
+            Effect::RangeBias { .. } => EffectKind::RangeBias,
+            Effect::RandomDropout { .. } => EffectKind::RandomDropout,
+            Effect::DetectionThreshold { .. } => EffectKind::DetectionThreshold,
+            Effect::BeamDivergence { .. } => EffectKind::BeamDivergence,
+            Effect::MotionDistortion { .. } => EffectKind::MotionDistortion,
+            Effect::TimeOffset { .. } => EffectKind::TimeOffset,
+            Effect::MountMisalignment { .. } => EffectKind::MountMisalignment,
+            Effect::Intensity { .. } => EffectKind::Intensity,
+            Effect::Weather { .. } => EffectKind::Weather,
+        }
+    }
+
     /// The effect's name as written in `model.toml`.
     pub fn name(&self) -> &'static str {
+        self.kind().name()
+    }
+}
+
+/// Which effect of the catalogue, without its parameters: what the gap workflow names, fits and
+/// reports (in JSON as in `model.toml`: `range_noise`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EffectKind {
+    /// `range_noise`.
+    RangeNoise,
+    /// `range_bias`.
+    RangeBias,
+    /// `random_dropout`.
+    RandomDropout,
+    /// `detection_threshold`.
+    DetectionThreshold,
+    /// `beam_divergence`.
+    BeamDivergence,
+    /// `motion_distortion`.
+    MotionDistortion,
+    /// `time_offset`.
+    TimeOffset,
+    /// `mount_misalignment`.
+    MountMisalignment,
+    /// `intensity`.
+    Intensity,
+    /// `weather`.
+    Weather,
+}
+
+impl EffectKind {
+    /// Its name as written in `model.toml`.
+    pub fn name(self) -> &'static str {
         match self {
-            Effect::RangeNoise { .. } => "range_noise",
-            Effect::RangeBias { .. } => "range_bias",
-            Effect::RandomDropout { .. } => "random_dropout",
-            Effect::DetectionThreshold { .. } => "detection_threshold",
-            Effect::BeamDivergence { .. } => "beam_divergence",
-            Effect::MotionDistortion { .. } => "motion_distortion",
-            Effect::TimeOffset { .. } => "time_offset",
-            Effect::MountMisalignment { .. } => "mount_misalignment",
-            Effect::Intensity { .. } => "intensity",
-            Effect::Weather { .. } => "weather",
+            EffectKind::RangeNoise => "range_noise",
+            EffectKind::RangeBias => "range_bias",
+            EffectKind::RandomDropout => "random_dropout",
+            EffectKind::DetectionThreshold => "detection_threshold",
+            EffectKind::BeamDivergence => "beam_divergence",
+            EffectKind::MotionDistortion => "motion_distortion",
+            EffectKind::TimeOffset => "time_offset",
+            EffectKind::MountMisalignment => "mount_misalignment",
+            EffectKind::Intensity => "intensity",
+            EffectKind::Weather => "weather",
         }
+    }
+}
+
+impl std::fmt::Display for EffectKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 

@@ -30,7 +30,7 @@ pub fn area_validation_metric(a: &[f64], b: &[f64]) -> Option<f64> {
 }
 
 /// The traffic light of one scenario sample and metric (Fig. 7 of Rosenberger et al. 2019).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Light {
     /// 1: the simulated interval lies inside the real one.

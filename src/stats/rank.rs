@@ -47,7 +47,7 @@ pub fn spearman(x: &[f64], y: &[f64]) -> Option<f64> {
 
 /// ρ with its percentile bootstrap 95 % interval (`rounds` resamples of the pairs with
 /// replacement, seeded: the same data give the same interval).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Correlation {
     /// Spearman's ρ.
     pub rho: f64,

@@ -10,7 +10,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// A simulated run and the real run it re-simulates.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Pairing {
     /// The simulation.
     pub sim: String,
@@ -24,7 +24,7 @@ pub struct Pairing {
 }
 
 /// Everything `validate` found.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Validation {
     /// Block 1: measurement validation: each simulation's real twin.
     pub measurement: Vec<Pairing>,
@@ -468,4 +468,9 @@ mod tests {
         let e = validate_features(&[run("empty", vec![])], &[s], &[]).unwrap_err();
         assert!(e.starts_with("empty: no lidar scans"), "{e}");
     }
+}
+
+impl crate::output::Output for Validation {
+    const KIND: crate::output::OutputKind = crate::output::OutputKind::Validate;
+    const SCHEMA: u32 = 1;
 }

@@ -22,7 +22,7 @@ pub struct Phase {
 }
 
 /// One metric in one scenario sample.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Cell {
     /// Scenario sample (phase name, or "whole run").
     pub sample: String,
@@ -77,7 +77,7 @@ pub fn cell(sample: &str, metric: &str, real: &[Option<f64>], sim: &[Option<f64>
 }
 
 /// The overall verdict.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Verdict {
     /// Every cell green.

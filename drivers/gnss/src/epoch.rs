@@ -20,8 +20,9 @@ use hilrig_stamp::UtcNanos;
 
 const DAY_NS: i64 = 86_400 * 1_000_000_000;
 
-/// RTK state of a fix.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+/// RTK state of a fix (in hilrig's JSON: `fixed`, `float`, `none`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum RtkState {
     /// Carrier-phase ambiguities fixed.
     Fixed,

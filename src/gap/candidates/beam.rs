@@ -1,6 +1,7 @@
 //! The candidates of the beam and the echo: beam divergence fitted on a grid (the
 //! likelihood is not smooth in it), and the intensity's incidence dependence.
 
+use crate::sim::model::EffectKind;
 use super::{
     clears, random_of, refitted_threshold, with_effect, Candidate, Fitting, Param,
     REFERENCE_REFLECTIVITY,
@@ -173,24 +174,24 @@ impl Fitting<'_> {
         let scored = grid.swap_remove(i).4;
         let mut params = vec![
             Param {
-                name: "horizontal_mrad",
+                name: "horizontal_mrad".into(),
                 value: h,
                 interval: h_interval,
             },
             Param {
-                name: "vertical_mrad",
+                name: "vertical_mrad".into(),
                 value: v,
                 interval: bootstrap::interval(&mut vs),
             },
             Param {
-                name: "sub_rays_per_axis",
+                name: "sub_rays_per_axis".into(),
                 value: f64::from(n),
                 interval: None,
             },
         ];
         params.extend(refitted_threshold(refit.as_ref()));
         let mut c = self.candidate(
-            "beam_divergence",
+            EffectKind::BeamDivergence,
             make(h, v, n),
             params,
             clears(h, h_interval, 0.5),
@@ -254,16 +255,16 @@ impl Fitting<'_> {
         let model = with_effect(self.current, effect.clone());
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
         Ok(self.candidate(
-            "intensity",
+            EffectKind::Intensity,
             effect,
             vec![
                 Param {
-                    name: "incidence_exponent",
+                    name: "incidence_exponent".into(),
                     value: k,
                     interval: None,
                 },
                 Param {
-                    name: "noise_sigma",
+                    name: "noise_sigma".into(),
                     value: noise,
                     interval: None,
                 },

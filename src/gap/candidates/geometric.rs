@@ -1,6 +1,7 @@
 //! The geometric candidates: a time offset and a mount misalignment fitted by Gauss-Newton
 //! on the re-cast ranges, and motion distortion switched on.
 
+use crate::sim::model::EffectKind;
 use super::{random_of, with_effect, Candidate, Fitting, Interval, Param};
 use crate::gap::bootstrap;
 use crate::gap::likelihood;
@@ -133,7 +134,7 @@ impl Fitting<'_> {
     /// errors need not average out: the largest of the runs' sigmas is taken, not a mean.
     pub(super) fn geometric(
         &self,
-        effect: &'static str,
+        effect: EffectKind,
         axes: &[Axis],
         make: &dyn Fn(&[f64]) -> Effect,
         floor: FloorTest<'_>,
@@ -159,7 +160,7 @@ impl Fitting<'_> {
             .zip(&theta)
             .zip(intervals)
             .map(|((a, v), i)| Param {
-                name: a.name,
+                name: a.name.into(),
                 value: *v,
                 interval: i,
             })
@@ -180,10 +181,10 @@ impl Fitting<'_> {
         let model = with_effect(self.current, effect.clone());
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
         Ok(Some(self.candidate(
-            "motion_distortion",
+            EffectKind::MotionDistortion,
             effect,
             vec![Param {
-                name: "enabled",
+                name: "enabled".into(),
                 value: 1.0,
                 interval: None,
             }],

@@ -26,6 +26,7 @@ mod detection;
 mod geometric;
 mod weather;
 
+use crate::sim::model::EffectKind;
 use detection::{power_at, sort_rows, sweep, sweep_ll};
 use geometric::Axis;
 
@@ -45,10 +46,10 @@ pub type Interval = (f64, f64);
 pub(super) type DetectionRow = (usize, f64, bool);
 
 /// A fitted parameter.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Param {
-    /// Name as in `model.toml`.
-    pub name: &'static str,
+    /// Name as in `model.toml` (borrowed where the fit names it, owned where read back).
+    pub name: std::borrow::Cow<'static, str>,
     /// Fitted value.
     pub value: f64,
     /// 95 % bootstrap interval.
@@ -56,10 +57,10 @@ pub struct Param {
 }
 
 /// One candidate of a round.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Candidate {
     /// The effect's name.
-    pub effect: &'static str,
+    pub effect: EffectKind,
     /// The effect as it would be added (`None` when it could not be fitted).
     #[serde(skip)]
     pub fitted: Option<Effect>,
@@ -85,7 +86,7 @@ pub struct Candidate {
 
 impl Candidate {
     /// A candidate that could not be fitted, with why.
-    fn unfitted(effect: &'static str, note: String) -> Candidate {
+    fn unfitted(effect: EffectKind, note: String) -> Candidate {
         Candidate {
             effect,
             fitted: None,
@@ -106,27 +107,27 @@ impl Candidate {
 /// effect is indistinguishable from RTK noise (1-2 cm), survey error and quantisation (2 mm),
 /// or too small to change any metric; the floors are a fifth to a half of the smallest values
 /// the catalogue's typical ranges hold.
-pub const FLOORS: [(&str, &str); 10] = [
-    ("range_bias", "|bias| ≥ 5 mm"),
-    ("range_noise", "σ ≥ 3 mm"),
-    ("random_dropout", "probability ≥ 0.2 %"),
+pub const FLOORS: [(EffectKind, &str); 10] = [
+    (EffectKind::RangeBias, "|bias| ≥ 5 mm"),
+    (EffectKind::RangeNoise, "σ ≥ 3 mm"),
+    (EffectKind::RandomDropout, "probability ≥ 0.2 %"),
     (
-        "detection_threshold",
+        EffectKind::DetectionThreshold,
         "removes ≥ 0.2 % of the predicted returns",
     ),
-    ("beam_divergence", "horizontal ≥ 0.5 mrad"),
-    ("motion_distortion", "none (a switch)"),
+    (EffectKind::BeamDivergence, "horizontal ≥ 0.5 mrad"),
+    (EffectKind::MotionDistortion, "none (a switch)"),
     (
-        "time_offset",
+        EffectKind::TimeOffset,
         "|offset| ≥ the larger of 1 ms and the uncertainty of the GNSS time offset `check` found",
     ),
     (
-        "mount_misalignment",
+        EffectKind::MountMisalignment,
         "largest angle ≥ 0.1° (the smoothed RTK heading is good to about that)",
     ),
-    ("intensity", "exponent ≥ 0.2 or noise ≥ 1 count"),
+    (EffectKind::Intensity, "exponent ≥ 0.2 or noise ≥ 1 count"),
     (
-        "weather",
+        EffectKind::Weather,
         "extinction ≥ 0.002 /m or clutter probability ≥ 0.2 %",
     ),
 ];
@@ -146,7 +147,7 @@ fn refitted_threshold(threshold: Option<&Effect>) -> Option<Param> {
         Some(Effect::DetectionThreshold {
             reference_range_m, ..
         }) => Some(Param {
-            name: "detection_threshold.reference_range_m (re-fitted)",
+            name: "detection_threshold.reference_range_m (re-fitted)".into(),
             value: *reference_range_m,
             interval: None,
         }),
@@ -252,7 +253,7 @@ impl Fitting<'_> {
 
     fn candidate(
         &self,
-        effect: &'static str,
+        effect: EffectKind,
         fitted: Effect,
         params: Vec<Param>,
         above_floor: bool,
@@ -315,10 +316,10 @@ impl Fitting<'_> {
         let model = with_effect(self.current, effect.clone());
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
         Ok(self.candidate(
-            "range_bias",
+            EffectKind::RangeBias,
             effect,
             vec![Param {
-                name: "bias_m",
+                name: "bias_m".into(),
                 value: b,
                 interval,
             }],
@@ -353,10 +354,10 @@ impl Fitting<'_> {
         let model = with_effect(self.current, effect.clone());
         let scored = self.score_all(self.obs, random_of(&model));
         self.candidate(
-            "range_noise",
+            EffectKind::RangeNoise,
             effect,
             vec![Param {
-                name: "sigma_m",
+                name: "sigma_m".into(),
                 value: sigma,
                 interval,
             }],
@@ -407,10 +408,10 @@ impl Fitting<'_> {
         let model = with_effect(self.current, effect.clone());
         let scored = self.score_all(self.obs, random_of(&model));
         self.candidate(
-            "random_dropout",
+            EffectKind::RandomDropout,
             effect,
             vec![Param {
-                name: "probability",
+                name: "probability".into(),
                 value: p,
                 interval,
             }],
@@ -437,7 +438,7 @@ impl Fitting<'_> {
         let reference_reflectivity = REFERENCE_REFLECTIVITY;
         let Some(p_min) = power_at(&rows, k) else {
             return Ok(Candidate::unfitted(
-                "detection_threshold",
+                EffectKind::DetectionThreshold,
                 "no threshold explains the missing returns better than none".into(),
             ));
         };
@@ -457,16 +458,16 @@ impl Fitting<'_> {
         let model = with_effect(self.current, effect.clone());
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
         Ok(self.candidate(
-            "detection_threshold",
+            EffectKind::DetectionThreshold,
             effect,
             vec![
                 Param {
-                    name: "reference_range_m",
+                    name: "reference_range_m".into(),
                     value: range_of(p_min),
                     interval: bootstrap::interval(&mut boots),
                 },
                 Param {
-                    name: "reference_reflectivity",
+                    name: "reference_reflectivity".into(),
                     value: reference_reflectivity,
                     interval: None,
                 },
@@ -488,36 +489,36 @@ impl Fitting<'_> {
 
     /// Every candidate the current model lacks, fitted and scored; `progress` is told the name
     /// of each as it starts.
-    pub fn all(&self, progress: &dyn Fn(&str)) -> Result<Vec<Candidate>, GapError> {
-        let has = |name: &str| self.current.effects.iter().any(|e| e.name() == name);
+    pub fn all(&self, progress: &dyn Fn(EffectKind)) -> Result<Vec<Candidate>, GapError> {
+        let has = |kind: EffectKind| self.current.effects.iter().any(|e| e.kind() == kind);
         let mut out = Vec::new();
-        if !has("range_bias") {
-            progress("range_bias");
+        if !has(EffectKind::RangeBias) {
+            progress(EffectKind::RangeBias);
             out.push(self.bias()?);
         }
-        if !has("range_noise") {
-            progress("range_noise");
+        if !has(EffectKind::RangeNoise) {
+            progress(EffectKind::RangeNoise);
             out.push(self.noise());
         }
-        if !has("random_dropout") {
-            progress("random_dropout");
+        if !has(EffectKind::RandomDropout) {
+            progress(EffectKind::RandomDropout);
             out.push(self.dropout());
         }
-        if !has("detection_threshold") {
-            progress("detection_threshold");
+        if !has(EffectKind::DetectionThreshold) {
+            progress(EffectKind::DetectionThreshold);
             out.push(self.threshold()?);
         }
-        progress("motion_distortion");
+        progress(EffectKind::MotionDistortion);
         if let Some(c) = self.motion()? {
             out.push(c);
         }
-        if !has("time_offset") {
-            progress("time_offset");
+        if !has(EffectKind::TimeOffset) {
+            progress(EffectKind::TimeOffset);
             // The trajectory's own timing is known only to the GNSS offset's uncertainty.
             let time_sigma = self.largest_over_runs(|r| r.time_sigma_ms);
             let time_floor = time_sigma.max(1.0);
             out.push(self.geometric(
-                "time_offset",
+                EffectKind::TimeOffset,
                 &[Axis {
                     name: "offset_ms",
                     step: 2.0,
@@ -528,8 +529,8 @@ impl Fitting<'_> {
                 &|t, i| clears(t[0], i[0], time_floor),
             )?);
         }
-        if !has("mount_misalignment") {
-            progress("mount_misalignment");
+        if !has(EffectKind::MountMisalignment) {
+            progress(EffectKind::MountMisalignment);
             // The trajectory's heading error turns the whole scan like a mount yaw.
             let heading_sigma = self.largest_over_runs(|r| r.heading_sigma_deg);
             let yaw_floor = heading_sigma.max(0.1);
@@ -540,7 +541,7 @@ impl Fitting<'_> {
                 reference_sigma,
             };
             out.push(self.geometric(
-                "mount_misalignment",
+                EffectKind::MountMisalignment,
                 &[
                     axis("roll_deg", 0.0),
                     axis("pitch_deg", 0.0),
@@ -558,16 +559,16 @@ impl Fitting<'_> {
                 },
             )?);
         }
-        if !has("beam_divergence") {
-            progress("beam_divergence");
+        if !has(EffectKind::BeamDivergence) {
+            progress(EffectKind::BeamDivergence);
             out.push(self.divergence()?);
         }
-        if !has("intensity") {
-            progress("intensity");
+        if !has(EffectKind::Intensity) {
+            progress(EffectKind::Intensity);
             out.push(self.intensity()?);
         }
-        if !has("weather") && has("detection_threshold") {
-            progress("weather");
+        if !has(EffectKind::Weather) && has(EffectKind::DetectionThreshold) {
+            progress(EffectKind::Weather);
             out.push(self.weather()?);
         }
         out.sort_by(|a, b| b.gain.total_cmp(&a.gain));

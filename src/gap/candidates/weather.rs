@@ -10,6 +10,7 @@
 //! share of clutter-like returns over the firings in which a clutter echo would be the
 //! strongest, its range the farthest such return.
 
+use crate::sim::model::EffectKind;
 use super::{
     power_at, random_of, refitted_threshold, sort_rows, sweep_ll, with_effect, Candidate,
     DetectionRow, Fitting, Param, REFERENCE_REFLECTIVITY,
@@ -126,24 +127,24 @@ impl Fitting<'_> {
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
         let mut params = vec![
             Param {
-                name: "extinction_per_m",
+                name: "extinction_per_m".into(),
                 value: best,
                 interval: None,
             },
             Param {
-                name: "clutter_probability",
+                name: "clutter_probability".into(),
                 value: probability,
                 interval: None,
             },
             Param {
-                name: "clutter_max_range_m",
+                name: "clutter_max_range_m".into(),
                 value: max_m,
                 interval: None,
             },
         ];
         params.extend(refitted_threshold(threshold.as_ref()));
         let mut c = self.candidate(
-            "weather",
+            EffectKind::Weather,
             effect,
             params,
             best >= 0.002 || probability >= 0.002,

@@ -710,7 +710,7 @@ mod tests {
         assert_eq!(names(&c.faults), [FaultName::Jump], "{:?}", c.faults);
         assert_eq!(c.sp.jumps, 1);
         let f = &c.faults[0];
-        assert_eq!(f.window, (gnss[120].t, gnss[121].t));
+        assert_eq!(f.window(), (gnss[120].t, gnss[121].t));
     }
 
     #[test]

@@ -51,13 +51,14 @@ impl FaultLog {
     fn located(&self, name: FaultName, from: UtcNanos, to: UtcNanos, detail: String) -> Fault {
         Fault {
             name,
-            topics: name.topics(),
+            topics: name.topics().iter().map(|t| (*t).to_owned()).collect(),
             from: iso(from),
             to: iso(to),
             from_s: secs_ms(self.start, from),
             to_s: secs_ms(self.start, to),
             detail,
-            window: (from, to),
+            from_ns: from,
+            to_ns: to,
         }
     }
 
@@ -163,7 +164,7 @@ pub(super) fn segments(
         .map(|f| (true, f))
         .chain(marks.iter().map(|m| (false, m)));
     for (is_fault, f) in tagged {
-        let (a, b) = f.window;
+        let (a, b) = f.window();
         if a >= end || b < start {
             continue;
         }
@@ -228,13 +229,14 @@ mod tests {
     fn fault(name: FaultName, a: i64, b: i64) -> Fault {
         Fault {
             name,
-            topics: &[],
+            topics: Vec::new(),
             from: String::new(),
             to: String::new(),
             from_s: 0.0,
             to_s: 0.0,
             detail: String::new(),
-            window: (UtcNanos(a), UtcNanos(b)),
+            from_ns: UtcNanos(a),
+            to_ns: UtcNanos(b),
         }
     }
 
@@ -253,7 +255,7 @@ mod tests {
             }
             let mut r: Vec<FaultName> = faults
                 .iter()
-                .filter(|f| f.window.0 < e && f.window.1 >= t)
+                .filter(|f| f.from_ns < e && f.to_ns >= t)
                 .map(|f| f.name)
                 .collect();
             r.sort_unstable();

@@ -191,7 +191,7 @@ pub(super) fn judge(
             .unwrap_or(gnss_period);
     let name = cfg.source.attitude_source().name();
     let mut report = HeadingReport {
-        source: name,
+        source: cfg.source,
         used: reports.obs.len(),
         not_measured: reports.not_measured.len(),
         untimed: reports.untimed,

@@ -6,7 +6,7 @@
 use serde::Serialize;
 
 /// The name of a fault or a mark.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FaultName {
     /// Epochs with an RTK float solution.

@@ -3,10 +3,10 @@
 
 use super::names::FaultName;
 use hilrig_stamp::UtcNanos;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The overall verdict.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Verdict {
     /// Accurate enough: re-simulate.
@@ -29,13 +29,13 @@ impl Verdict {
 }
 
 /// One problem, located in time.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Fault {
     /// What it is, or for a mark, why its stretch is not usable.
     pub name: FaultName,
     /// For a source the run lacks, the topics it was looked for on.
-    #[serde(skip_serializing_if = "<[_]>::is_empty")]
-    pub topics: &'static [&'static str],
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub topics: Vec<String>,
     /// Start (UTC).
     pub from: String,
     /// End (UTC).
@@ -46,13 +46,15 @@ pub struct Fault {
     pub to_s: f64,
     /// What was measured, against which limit.
     pub detail: String,
-    #[serde(skip)]
-    pub(super) window: (UtcNanos, UtcNanos),
+    /// Start, ns since the Unix epoch (what `compare` and `gap` cut the run at).
+    pub from_ns: UtcNanos,
+    /// End, ns since the Unix epoch.
+    pub to_ns: UtcNanos,
 }
 
 /// Something the check could not decide on this drive: a quantity whose uncertainty is too
 /// large to say whether it is within its limit. Not a fault: the verdict does not change.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Warning {
     /// What (`gnss_time_offset`, `lever_arm`, `can_speed_scale`).
     pub name: FaultName,
@@ -83,8 +85,33 @@ fn numbers_as_numbers<S: serde::Serializer>(
     outer.end()
 }
 
+/// Reads back what [`numbers_as_numbers`] wrote: numbers as their JSON text. (The values are
+/// the recording's metadata; a typed clock-sync record would replace both.)
+fn numbers_as_text<'de, D: serde::Deserializer<'de>>(
+    de: D,
+) -> Result<std::collections::BTreeMap<String, std::collections::BTreeMap<String, String>>, D::Error>
+{
+    let map: std::collections::BTreeMap<
+        String,
+        std::collections::BTreeMap<String, serde_json::Value>,
+    > = Deserialize::deserialize(de)?;
+    Ok(map
+        .into_iter()
+        .map(|(source, values)| {
+            let values = values
+                .into_iter()
+                .map(|(k, v)| match v {
+                    serde_json::Value::String(s) => (k, s),
+                    other => (k, other.to_string()),
+                })
+                .collect();
+            (source, values)
+        })
+        .collect())
+}
+
 /// Statistics of a series.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Stats {
     /// Samples.
     pub n: usize,
@@ -119,12 +146,12 @@ impl Stats {
 }
 
 /// The RTK state of one GNSS epoch.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RtkEpoch {
     /// Epoch time (UTC, ISO 8601 with milliseconds, as gpsd writes it).
     pub time: String,
-    /// `fixed`, `float` or `none`.
-    pub state: &'static str,
+    /// The state.
+    pub state: hilrig_gnss::RtkState,
     /// Seconds after the run's start.
     pub t_s: f64,
     /// Receiver 1-sigma horizontal error (larger of lat/lon), m, when the receiver gives it.
@@ -132,7 +159,7 @@ pub struct RtkEpoch {
 }
 
 /// Spatial measurements.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Spatial {
     /// GNSS epochs.
     pub epochs: usize,
@@ -192,7 +219,7 @@ pub struct Spatial {
 }
 
 /// One source's timing.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct SourceTiming {
     /// Source (`gnss`, `lidar`, or one CAN message that carries ego motion, `can 0x123`).
     pub source: String,
@@ -211,7 +238,7 @@ pub struct SourceTiming {
 }
 
 /// Temporal measurements.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Temporal {
     /// Per source.
     pub sources: Vec<SourceTiming>,
@@ -219,7 +246,10 @@ pub struct Temporal {
     pub pps_locked_share: Option<f64>,
     /// Clock-sync metadata of the recording, per source.
     /// (MCAP metadata holds strings; the JSON gives numbers as numbers.)
-    #[serde(serialize_with = "numbers_as_numbers")]
+    #[serde(
+        serialize_with = "numbers_as_numbers",
+        deserialize_with = "numbers_as_text"
+    )]
     pub clock_sync: std::collections::BTreeMap<String, std::collections::BTreeMap<String, String>>,
     /// Lidar minus GNSS clock offset (host latencies included), ms.
     pub lidar_to_gnss_offset_ms: Option<f64>,
@@ -230,7 +260,7 @@ pub struct Temporal {
 }
 
 /// The accuracy budget (1 sigma, metres).
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Accuracy {
     /// Ego position from RTK (receiver sigmas, inflated if the residuals say they are optimistic).
     pub trajectory_m: f64,
@@ -258,7 +288,7 @@ pub struct Accuracy {
 }
 
 /// A stretch of the run with one verdict.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Segment {
     /// Start, s after the run's start.
     pub from_s: f64,
@@ -272,7 +302,7 @@ pub struct Segment {
 }
 
 /// The whole report.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Report {
     /// Overall verdict.
     pub verdict: Verdict,
@@ -312,7 +342,7 @@ pub struct Report {
 impl Fault {
     /// Its start and end, UTC.
     pub fn window(&self) -> (UtcNanos, UtcNanos) {
-        self.window
+        (self.from_ns, self.to_ns)
     }
 }
 
@@ -502,10 +532,10 @@ impl Report {
 }
 
 /// What `check` says of the heading source (check.json `heading_source`).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct HeadingReport {
     /// The message used.
-    pub source: &'static str,
+    pub source: crate::rig::HeadingSource,
     /// Reports used.
     pub used: usize,
     /// Reports left out: in a mode other than measured.
@@ -545,7 +575,7 @@ fn heading_text(h: Option<&HeadingReport>) -> String {
     match (h.offset_deg, h.offset_sigma_deg, h.rms_normalized) {
         (Some(o), Some(so), Some(rms)) => format!(
             "heading source: {} ({} reports used, {} not measured, {} without a time, {} flagged invalid; {} GNSS messages malformed); offset against the track {o:+.3}° ± {so:.3}° beyond the rig's {}°{}; reports fit their {:.3}° at {rms:.2} of it (rms normalised), {} beyond 3 sigma",
-            h.source,
+            h.source.name(),
             h.used,
             h.not_measured,
             h.untimed,
@@ -563,7 +593,12 @@ fn heading_text(h: Option<&HeadingReport>) -> String {
         ),
         _ => format!(
             "heading source: {}: no measured report ({} not measured, {} without a time, {} flagged invalid; {} GNSS messages malformed)",
-            h.source, h.not_measured, h.untimed, h.invalid, h.malformed_gnss
+            h.source.name(), h.not_measured, h.untimed, h.invalid, h.malformed_gnss
         ),
     }
+}
+
+impl crate::output::Output for Report {
+    const KIND: crate::output::OutputKind = crate::output::OutputKind::Check;
+    const SCHEMA: u32 = 1;
 }

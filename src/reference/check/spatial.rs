@@ -98,7 +98,7 @@ pub(super) fn receiver(
         .iter()
         .map(|(t, f)| RtkEpoch {
             time: iso(*t),
-            state: f.rtk.name(),
+            state: f.rtk,
             t_s: (t.0 - start.0) as f64 * 1e-9,
             sigma_horizontal_m: f.sigma_lat_m.zip(f.sigma_lon_m).map(|(a, b)| a.max(b)),
         })

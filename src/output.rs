@@ -1,0 +1,301 @@
+//! The JSON files the commands write, as one contract that other programs (and `report`, and the
+//! demo) can script against.
+//!
+//! Every file is an envelope, `{"kind": "check", "schema": 1, ...}`, whose other keys are the
+//! fields of one typed struct: [`crate::bag::info::Info`] (`info --json`),
+//! [`crate::reference::check::Report`] (`check --json`), [`crate::metrics::report::Comparison`]
+//! (`compare --json`), [`crate::stats::repetitions::Validation`] (`validate --json`) and
+//! [`crate::gap::report::GapReport`] (`gap.json`). The same struct writes and reads a file, so a
+//! field renamed in a producer breaks the build of every reader in this crate instead of
+//! leaving `report` to show a blank. The kind says what a file is (before, `report` guessed it
+//! from which keys existed); the schema number says which version of the struct wrote it and
+//! goes up whenever a field is renamed, removed or changes meaning (adding a field does not need
+//! it: readers default what older files lack).
+//!
+//! Why serde and not a schema language: the types are the documentation users read (`cargo doc`),
+//! and serde writes and reads them in one spelling (snake_case enums) with nothing to keep in
+//! step by hand.
+
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// What a JSON file is: the command that wrote it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OutputKind {
+    /// `hilrig info --json`: a recording's channels, counts, metadata.
+    Recording,
+    /// `hilrig check --json`: the reference data's accuracy and verdict.
+    Check,
+    /// `hilrig compare --json`: a run against its re-simulation, per scan.
+    Compare,
+    /// `hilrig validate --json`: repetitions against re-simulations, traffic lights.
+    Validate,
+    /// `hilrig gap` (`gap.json`): the rounds of the gap workflow.
+    Gap,
+}
+
+impl OutputKind {
+    /// The spelling in the envelope.
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputKind::Recording => "recording",
+            OutputKind::Check => "check",
+            OutputKind::Compare => "compare",
+            OutputKind::Validate => "validate",
+            OutputKind::Gap => "gap",
+        }
+    }
+}
+
+/// A struct that is written as one kind of JSON file.
+pub trait Output: Serialize + DeserializeOwned {
+    /// Its kind.
+    const KIND: OutputKind;
+    /// The version of its fields that this build writes and reads.
+    const SCHEMA: u32;
+}
+
+/// Why a JSON file could not be written or read as the kind expected.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Not JSON, or not an object.
+    #[error("{path}: not a JSON object: {source}")]
+    NotJson {
+        /// The file.
+        path: PathBuf,
+        /// The parser's complaint.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// No `kind` and `schema`: not written by hilrig, or by a version before the envelope.
+    #[error(
+        "{path}: no \"kind\" and \"schema\" keys: not a file that hilrig's check, compare, \
+         validate, gap or info writes (or one written before hilrig 0.2; run the command again)"
+    )]
+    NoEnvelope {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A kind this build does not know.
+    #[error("{path}: kind \"{kind}\" is not one of recording, check, compare, validate, gap")]
+    UnknownKind {
+        /// The file.
+        path: PathBuf,
+        /// The kind it says.
+        kind: String,
+    },
+    /// Another kind than the one asked for.
+    #[error("{path}: is a {found} file, not a {wanted} file")]
+    WrongKind {
+        /// The file.
+        path: PathBuf,
+        /// What it is.
+        found: &'static str,
+        /// What was asked for.
+        wanted: &'static str,
+    },
+    /// A schema version this build cannot read.
+    #[error(
+        "{path}: {kind} schema {found}, but this hilrig reads schema {supported}: \
+         run `hilrig {kind}` of this version again"
+    )]
+    Schema {
+        /// The file.
+        path: PathBuf,
+        /// Its kind.
+        kind: &'static str,
+        /// The version it says.
+        found: u64,
+        /// The version this build reads.
+        supported: u32,
+    },
+    /// The envelope is right but a field is missing or of the wrong type.
+    #[error("{path}: not a valid {kind} file (schema {schema}): {source}")]
+    Body {
+        /// The file.
+        path: PathBuf,
+        /// Its kind.
+        kind: &'static str,
+        /// Its schema.
+        schema: u32,
+        /// Which field and why.
+        #[source]
+        source: serde_json::Error,
+    },
+}
+
+/// The envelope as written: the kind and schema first, then the struct's fields.
+#[derive(Serialize)]
+struct Envelope<'a, T> {
+    kind: OutputKind,
+    schema: u32,
+    #[serde(flatten)]
+    body: &'a T,
+}
+
+/// The envelope as read: only its two keys, the body is read after they are checked (so that a
+/// file of another version gets the message about its version, not about a field).
+#[derive(Deserialize)]
+struct Header {
+    kind: Option<String>,
+    schema: Option<u64>,
+}
+
+/// The JSON text of an output (pretty, as the commands write it).
+pub fn to_json<T: Output>(value: &T) -> serde_json::Result<String> {
+    serde_json::to_string_pretty(&Envelope {
+        kind: T::KIND,
+        schema: T::SCHEMA,
+        body: value,
+    })
+}
+
+/// Writes an output through a temporary file renamed into place, so that a reader never sees
+/// half a file.
+pub fn write<T: Output>(path: &Path, value: &T) -> Result<(), OutputError> {
+    let io = |source| OutputError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let text = to_json(value).map_err(|e| io(std::io::Error::other(e)))?;
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    std::fs::write(&tmp, text).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(io)
+}
+
+/// What a file says it is, checked against this build: its kind and that its schema is the one
+/// this build reads.
+pub fn kind_of(path: &Path, bytes: &[u8]) -> Result<OutputKind, OutputError> {
+    let header: Header =
+        serde_json::from_slice(bytes).map_err(|source| OutputError::NotJson {
+            path: path.to_owned(),
+            source,
+        })?;
+    let (Some(kind), Some(schema)) = (header.kind, header.schema) else {
+        return Err(OutputError::NoEnvelope {
+            path: path.to_owned(),
+        });
+    };
+    let found = serde_json::from_value::<OutputKind>(serde_json::Value::String(kind.clone()))
+        .map_err(|_| OutputError::UnknownKind {
+            path: path.to_owned(),
+            kind,
+        })?;
+    let supported = match found {
+        OutputKind::Recording => crate::bag::info::Info::SCHEMA,
+        OutputKind::Check => crate::reference::check::Report::SCHEMA,
+        OutputKind::Compare => crate::metrics::report::Comparison::SCHEMA,
+        OutputKind::Validate => crate::stats::repetitions::Validation::SCHEMA,
+        OutputKind::Gap => crate::gap::report::GapReport::SCHEMA,
+    };
+    if schema != u64::from(supported) {
+        return Err(OutputError::Schema {
+            path: path.to_owned(),
+            kind: found.name(),
+            found: schema,
+            supported,
+        });
+    }
+    Ok(found)
+}
+
+/// Reads an output of kind `T` from its bytes (`path` only names it in errors).
+pub fn from_slice<T: Output>(path: &Path, bytes: &[u8]) -> Result<T, OutputError> {
+    let found = kind_of(path, bytes)?;
+    if found != T::KIND {
+        return Err(OutputError::WrongKind {
+            path: path.to_owned(),
+            found: found.name(),
+            wanted: T::KIND.name(),
+        });
+    }
+    // The envelope's keys are not fields of `T`: serde passes over keys a struct lacks.
+    serde_json::from_slice(bytes).map_err(|source| OutputError::Body {
+        path: path.to_owned(),
+        kind: T::KIND.name(),
+        schema: T::SCHEMA,
+        source,
+    })
+}
+
+/// Reads an output of kind `T` from a file.
+pub fn read<T: Output>(path: &Path) -> Result<T, OutputError> {
+    let bytes = std::fs::read(path).map_err(|source| OutputError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    from_slice(path, &bytes)
+}
+
+/// Any output, by its kind: what `report` reads. It serializes as the file it was read from
+/// (envelope included).
+#[derive(Clone, Debug)]
+pub enum Document {
+    /// `info --json`.
+    Recording(Box<crate::bag::info::Info>),
+    /// `check --json`.
+    Check(Box<crate::reference::check::Report>),
+    /// `compare --json`.
+    Compare(Box<crate::metrics::report::Comparison>),
+    /// `validate --json`.
+    Validate(Box<crate::stats::repetitions::Validation>),
+    /// `gap.json`.
+    Gap(Box<crate::gap::report::GapReport>),
+}
+
+impl Document {
+    /// Reads a file of any kind from its bytes (`path` only names it in errors).
+    pub fn from_slice(path: &Path, bytes: &[u8]) -> Result<Document, OutputError> {
+        Ok(match kind_of(path, bytes)? {
+            OutputKind::Recording => Document::Recording(Box::new(from_slice(path, bytes)?)),
+            OutputKind::Check => Document::Check(Box::new(from_slice(path, bytes)?)),
+            OutputKind::Compare => Document::Compare(Box::new(from_slice(path, bytes)?)),
+            OutputKind::Validate => Document::Validate(Box::new(from_slice(path, bytes)?)),
+            OutputKind::Gap => Document::Gap(Box::new(from_slice(path, bytes)?)),
+        })
+    }
+
+    /// Its kind.
+    pub fn kind(&self) -> OutputKind {
+        match self {
+            Document::Recording(_) => OutputKind::Recording,
+            Document::Check(_) => OutputKind::Check,
+            Document::Compare(_) => OutputKind::Compare,
+            Document::Validate(_) => OutputKind::Validate,
+            Document::Gap(_) => OutputKind::Gap,
+        }
+    }
+
+}
+
+impl Serialize for Document {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        fn env<T: Output, S: serde::Serializer>(v: &T, s: S) -> Result<S::Ok, S::Error> {
+            Envelope {
+                kind: T::KIND,
+                schema: T::SCHEMA,
+                body: v,
+            }
+            .serialize(s)
+        }
+        match self {
+            Document::Recording(v) => env(v.as_ref(), s),
+            Document::Check(v) => env(v.as_ref(), s),
+            Document::Compare(v) => env(v.as_ref(), s),
+            Document::Validate(v) => env(v.as_ref(), s),
+            Document::Gap(v) => env(v.as_ref(), s),
+        }
+    }
+}
