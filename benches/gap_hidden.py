@@ -222,7 +222,7 @@ def main():
                 ll += f'{t["before"]["log_likelihood_per_1000"]:.1f} -> {t["after"]["log_likelihood_per_1000"]:.1f}; '
                 b, f = rd.get("metrics_before"), rd.get("metrics_after")
                 if b and f and b.get("ocr") is not None and f.get("ocr") is not None:
-                    avm = lambda m: dict(m["avm"]).get("returns_per_scan")
+                    avm = lambda m: {a["metric"]: a["avm"] for a in m["avm"]}.get("returns_per_scan")
                     ocr += (f'OCR {b["ocr"]:.3f} -> {f["ocr"]:.3f}, precision {b["precision"]:.3f} -> {f["precision"]:.3f}, '
                             f'AVM returns/scan {avm(b):.0f} -> {avm(f):.0f}; ')
         truth = "; ".join(f"{e} ({fmt_params(p)})" for e, p in hidden) or "nothing (reference noise only)"

@@ -2,7 +2,7 @@
 //! demo) can script against.
 //!
 //! Every file is an envelope, `{"kind": "check", "schema": 1, ...}`, whose other keys are the
-//! fields of one typed struct: [`crate::bag::info::Info`] (`info --json`),
+//! fields of one typed struct that implements [`Output`]: [`crate::bag::info::Info`] (`info --json`),
 //! [`crate::reference::check::Report`] (`check --json`), [`crate::metrics::report::Comparison`]
 //! (`compare --json`), [`crate::stats::repetitions::Validation`] (`validate --json`) and
 //! [`crate::gap::report::GapReport`] (`gap.json`). The same struct writes and reads a file, so a
@@ -137,11 +137,22 @@ pub enum OutputError {
 
 /// The envelope as written: the kind and schema first, then the struct's fields.
 #[derive(Serialize)]
-struct Envelope<'a, T> {
+pub struct Envelope<'a, T> {
     kind: OutputKind,
     schema: u32,
     #[serde(flatten)]
     body: &'a T,
+}
+
+impl<'a, T: Output> Envelope<'a, T> {
+    /// An output in its envelope.
+    pub fn of(body: &'a T) -> Self {
+        Envelope {
+            kind: T::KIND,
+            schema: T::SCHEMA,
+            body,
+        }
+    }
 }
 
 /// The envelope as read: only its two keys, the body is read after they are checked (so that a
@@ -154,11 +165,7 @@ struct Header {
 
 /// The JSON text of an output (pretty, as the commands write it).
 pub fn to_json<T: Output>(value: &T) -> serde_json::Result<String> {
-    serde_json::to_string_pretty(&Envelope {
-        kind: T::KIND,
-        schema: T::SCHEMA,
-        body: value,
-    })
+    serde_json::to_string_pretty(&Envelope::of(value))
 }
 
 /// Writes an output through a temporary file renamed into place, so that a reader never sees
@@ -175,14 +182,13 @@ pub fn write<T: Output>(path: &Path, value: &T) -> Result<(), OutputError> {
     std::fs::rename(&tmp, path).map_err(io)
 }
 
-/// What a file says it is, checked against this build: its kind and that its schema is the one
-/// this build reads.
-pub fn kind_of(path: &Path, bytes: &[u8]) -> Result<OutputKind, OutputError> {
-    let header: Header =
-        serde_json::from_slice(bytes).map_err(|source| OutputError::NotJson {
-            path: path.to_owned(),
-            source,
-        })?;
+/// What a file says it is: its kind and schema version, read before anything else so that a
+/// file of another version gets the message about its version, not about a field.
+pub fn header(path: &Path, bytes: &[u8]) -> Result<(OutputKind, u64), OutputError> {
+    let header: Header = serde_json::from_slice(bytes).map_err(|source| OutputError::NotJson {
+        path: path.to_owned(),
+        source,
+    })?;
     let (Some(kind), Some(schema)) = (header.kind, header.schema) else {
         return Err(OutputError::NoEnvelope {
             path: path.to_owned(),
@@ -193,32 +199,25 @@ pub fn kind_of(path: &Path, bytes: &[u8]) -> Result<OutputKind, OutputError> {
             path: path.to_owned(),
             kind,
         })?;
-    let supported = match found {
-        OutputKind::Recording => crate::bag::info::Info::SCHEMA,
-        OutputKind::Check => crate::reference::check::Report::SCHEMA,
-        OutputKind::Compare => crate::metrics::report::Comparison::SCHEMA,
-        OutputKind::Validate => crate::stats::repetitions::Validation::SCHEMA,
-        OutputKind::Gap => crate::gap::report::GapReport::SCHEMA,
-    };
-    if schema != u64::from(supported) {
-        return Err(OutputError::Schema {
-            path: path.to_owned(),
-            kind: found.name(),
-            found: schema,
-            supported,
-        });
-    }
-    Ok(found)
+    Ok((found, schema))
 }
 
 /// Reads an output of kind `T` from its bytes (`path` only names it in errors).
 pub fn from_slice<T: Output>(path: &Path, bytes: &[u8]) -> Result<T, OutputError> {
-    let found = kind_of(path, bytes)?;
+    let (found, schema) = header(path, bytes)?;
     if found != T::KIND {
         return Err(OutputError::WrongKind {
             path: path.to_owned(),
             found: found.name(),
             wanted: T::KIND.name(),
+        });
+    }
+    if schema != u64::from(T::SCHEMA) {
+        return Err(OutputError::Schema {
+            path: path.to_owned(),
+            kind: T::KIND.name(),
+            found: schema,
+            supported: T::SCHEMA,
         });
     }
     // The envelope's keys are not fields of `T`: serde passes over keys a struct lacks.
@@ -237,65 +236,4 @@ pub fn read<T: Output>(path: &Path) -> Result<T, OutputError> {
         source,
     })?;
     from_slice(path, &bytes)
-}
-
-/// Any output, by its kind: what `report` reads. It serializes as the file it was read from
-/// (envelope included).
-#[derive(Clone, Debug)]
-pub enum Document {
-    /// `info --json`.
-    Recording(Box<crate::bag::info::Info>),
-    /// `check --json`.
-    Check(Box<crate::reference::check::Report>),
-    /// `compare --json`.
-    Compare(Box<crate::metrics::report::Comparison>),
-    /// `validate --json`.
-    Validate(Box<crate::stats::repetitions::Validation>),
-    /// `gap.json`.
-    Gap(Box<crate::gap::report::GapReport>),
-}
-
-impl Document {
-    /// Reads a file of any kind from its bytes (`path` only names it in errors).
-    pub fn from_slice(path: &Path, bytes: &[u8]) -> Result<Document, OutputError> {
-        Ok(match kind_of(path, bytes)? {
-            OutputKind::Recording => Document::Recording(Box::new(from_slice(path, bytes)?)),
-            OutputKind::Check => Document::Check(Box::new(from_slice(path, bytes)?)),
-            OutputKind::Compare => Document::Compare(Box::new(from_slice(path, bytes)?)),
-            OutputKind::Validate => Document::Validate(Box::new(from_slice(path, bytes)?)),
-            OutputKind::Gap => Document::Gap(Box::new(from_slice(path, bytes)?)),
-        })
-    }
-
-    /// Its kind.
-    pub fn kind(&self) -> OutputKind {
-        match self {
-            Document::Recording(_) => OutputKind::Recording,
-            Document::Check(_) => OutputKind::Check,
-            Document::Compare(_) => OutputKind::Compare,
-            Document::Validate(_) => OutputKind::Validate,
-            Document::Gap(_) => OutputKind::Gap,
-        }
-    }
-
-}
-
-impl Serialize for Document {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        fn env<T: Output, S: serde::Serializer>(v: &T, s: S) -> Result<S::Ok, S::Error> {
-            Envelope {
-                kind: T::KIND,
-                schema: T::SCHEMA,
-                body: v,
-            }
-            .serialize(s)
-        }
-        match self {
-            Document::Recording(v) => env(v.as_ref(), s),
-            Document::Check(v) => env(v.as_ref(), s),
-            Document::Compare(v) => env(v.as_ref(), s),
-            Document::Validate(v) => env(v.as_ref(), s),
-            Document::Gap(v) => env(v.as_ref(), s),
-        }
-    }
 }

@@ -211,10 +211,130 @@ fn report_says_which_input_it_cannot_use() {
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("notes.json") && err.contains("not a JSON that check"),
+        err.contains("notes.json") && err.contains("not a file that hilrig's check"),
         "{err}"
     );
     assert!(!dir.path().join("r.html").exists(), "nothing written");
+}
+
+/// The report is built from the demo's real outputs through the types that wrote them (issue
+/// 30): every JSON the demo wrote reads back as its kind, what the page shows is what the
+/// structs hold, and a file of another schema version, or of no known kind, is refused with
+/// the file and the version named.
+#[test]
+fn the_report_reads_the_demo_s_outputs_through_their_types() {
+    use hilrig::output::{OutputError, OutputKind};
+    use hilrig::report::Document;
+    let d = demo_dir();
+    let inputs = hilrig::report::gather(&[d.to_path_buf()]).expect("the demo's outputs read");
+    // Every JSON file the demo wrote but report.json is an input, none passed over.
+    let mut files = Vec::new();
+    let mut stack = vec![d.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        for e in std::fs::read_dir(&dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|x| x == "json")
+                && p.file_name().is_some_and(|n| n != "report.json")
+            {
+                files.push(p);
+            }
+        }
+    }
+    assert_eq!(inputs.len(), files.len(), "{files:?}");
+    for kind in [
+        OutputKind::Recording,
+        OutputKind::Check,
+        OutputKind::Compare,
+        OutputKind::Validate,
+        OutputKind::Gap,
+    ] {
+        assert!(inputs.iter().any(|i| i.kind == kind), "no {kind:?} input");
+    }
+    let page = hilrig::report::render(&inputs).html;
+    for i in &inputs {
+        // Numbers the page shows, taken from the typed outputs.
+        match &i.value {
+            Document::Check(c) => assert!(
+                page.contains(&format!("<td>{:.2}</td>", c.accuracy.grid_cell_m)),
+                "{}: admissible cell {}",
+                i.name,
+                c.accuracy.grid_cell_m
+            ),
+            Document::Compare(c) => {
+                let ocr = c.summary.ocr_mean.expect("an OCR");
+                assert!(
+                    page.contains(&format!("<td>{ocr:.3}</td>")),
+                    "{}: OCR {ocr}",
+                    i.name
+                );
+            }
+            Document::Validate(v) => assert!(
+                page.contains(&format!("{}: {}", i.name, v.verdict.name())),
+                "{}",
+                i.name
+            ),
+            Document::Gap(g) => {
+                for r in g.rounds.iter().filter_map(|r| r.chosen) {
+                    assert!(page.contains(&format!("{r} added")), "{r}");
+                }
+            }
+            Document::Recording(r) => {
+                for c in &r.channels {
+                    assert!(
+                        page.contains(&format!("<td>{}</td>", c.topic)),
+                        "{}",
+                        c.topic
+                    );
+                }
+            }
+        }
+        // Written and read through the same type: the file again, byte for byte.
+        let again = match &i.value {
+            Document::Recording(v) => hilrig::output::to_json(v.as_ref()),
+            Document::Check(v) => hilrig::output::to_json(v.as_ref()),
+            Document::Compare(v) => hilrig::output::to_json(v.as_ref()),
+            Document::Validate(v) => hilrig::output::to_json(v.as_ref()),
+            Document::Gap(v) => hilrig::output::to_json(v.as_ref()),
+        }
+        .unwrap();
+        assert_eq!(
+            again,
+            std::fs::read_to_string(&i.path).unwrap(),
+            "{} does not round-trip",
+            i.name
+        );
+    }
+    // Another schema version: refused, the version named.
+    let dir = tempfile::tempdir().unwrap();
+    let check = std::fs::read_to_string(d.join("check/rep-01.json")).unwrap();
+    let newer = dir.path().join("check-v9.json");
+    std::fs::write(&newer, check.replacen("\"schema\": 1", "\"schema\": 9", 1)).unwrap();
+    let err = hilrig::report::gather(std::slice::from_ref(&newer)).unwrap_err();
+    let text = err.to_string();
+    assert!(
+        matches!(
+            err,
+            hilrig::report::ReportError::Output(OutputError::Schema { found: 9, .. })
+        ) && text.contains("check-v9.json")
+            && text.contains("schema 9"),
+        "{text}"
+    );
+    // A field of the wrong type: refused, the field named.
+    let broken = dir.path().join("check-broken.json");
+    std::fs::write(
+        &broken,
+        check.replacen("\"verdict\": \"pass\"", "\"verdict\": 3", 1),
+    )
+    .unwrap();
+    let text = hilrig::report::gather(std::slice::from_ref(&broken))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        text.contains("check-broken.json") && text.contains("not a valid check file"),
+        "{text}"
+    );
 }
 
 fn chromium() -> PathBuf {

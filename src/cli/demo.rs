@@ -8,10 +8,11 @@
 //! `hilrig report`, which builds the HTML report from the JSON the stages wrote.
 
 use anyhow::{bail, Context, Result};
-use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 use std::time::Instant;
+
+use hilrig::metrics::report::Comparison;
 
 #[derive(clap::Args)]
 pub struct DemoArgs {
@@ -145,15 +146,9 @@ fn shell_word(a: &str) -> String {
     }
 }
 
-fn read_json(p: &Path) -> Result<Value> {
-    let text =
-        std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("{} is not JSON", p.display()))
-}
-
-/// A number at `path` of a command's JSON, NaN when absent (printed as such).
-fn f(v: &Value, path: &[&str]) -> f64 {
-    hilrig::report::plots::num(v, path).unwrap_or(f64::NAN)
+/// A command's output, read through the type that wrote it.
+fn read_json<T: hilrig::output::Output>(p: &Path) -> Result<T> {
+    Ok(hilrig::output::read(p)?)
 }
 
 /// Prints a stage's line: name, key figure, verdict, time.
@@ -263,17 +258,17 @@ pub fn run(args: DemoArgs) -> Result<ExitCode> {
             })
             .collect(),
     )?;
-    let checks: Vec<Value> = reps
+    let checks: Vec<hilrig::reference::check::Report> = reps
         .iter()
         .map(|rep| read_json(&check_json(rep)))
         .collect::<Result<_>>()?;
     let cell = checks
         .iter()
-        .map(|c| f(c, &["accuracy", "grid_cell_m"]))
+        .map(|c| c.accuracy.grid_cell_m)
         .fold(0.0f64, f64::max);
     let ego = checks
         .iter()
-        .map(|c| f(c, &["accuracy", "ego_m"]))
+        .map(|c| c.accuracy.ego_m)
         .fold(0.0f64, f64::max);
     let passed = codes.iter().filter(|&&c| c == 0).count();
     line(
@@ -365,17 +360,18 @@ pub fn run(args: DemoArgs) -> Result<ExitCode> {
         });
     }
     r.run(steps)?;
-    let ci = read_json(&cmp("idealized"))?;
-    let c10 = read_json(&cmp("idealized-10cm"))?;
-    let ct = read_json(&cmp("truth"))?;
+    let ci: Comparison = read_json(&cmp("idealized"))?;
+    let c10: Comparison = read_json(&cmp("idealized-10cm"))?;
+    let ct: Comparison = read_json(&cmp("truth"))?;
+    let nan = |x: Option<f64>| x.unwrap_or(f64::NAN);
     line(
         "compare",
         &format!(
             "OCR^K {:.2} idealized, {:.2} truth at {:.2} m; Spearman(OCR, distance) {:+.2} at 10 cm",
-            f(&ci, &["summary", "ocr_mean"]),
-            f(&ct, &["summary", "ocr_mean"]),
-            f(&ci, &["cell_m"]),
-            f(&c10, &["summary", "ocr_vs_distance", "rho"])
+            nan(ci.summary.ocr_mean),
+            nan(ct.summary.ocr_mean),
+            ci.cell_m,
+            nan(c10.summary.ocr_vs_distance.map(|r| r.rho))
         ),
         "ok",
         t,
@@ -410,11 +406,11 @@ pub fn run(args: DemoArgs) -> Result<ExitCode> {
     r.run(steps)?;
     let mut figure = Vec::new();
     for (name, _) in &models {
-        let v = read_json(&val(name))?;
+        let v: hilrig::stats::repetitions::Validation = read_json(&val(name))?;
         let [g, y, red, b] = hilrig::report::plots::lights(&v);
         figure.push(format!(
             "{name}: {g} green {y} yellow {red} red {b} black, {}",
-            v["verdict"].as_str().unwrap_or("?")
+            v.verdict.name()
         ));
     }
     line("validate", &figure.join("; "), "done", t);
@@ -453,15 +449,12 @@ pub fn run(args: DemoArgs) -> Result<ExitCode> {
         args: a,
         accept: &[],
     }])?;
-    let gap = read_json(&gap_dir.join("gap.json"))?;
-    let added: Vec<String> = gap["rounds"]
-        .as_array()
-        .map(|a| {
-            a.iter()
-                .filter_map(|r| r["chosen"].as_str().map(str::to_owned))
-                .collect()
-        })
-        .unwrap_or_default();
+    let gap: hilrig::gap::report::GapReport = read_json(&gap_dir.join("gap.json"))?;
+    let added: Vec<&str> = gap
+        .rounds
+        .iter()
+        .filter_map(|r| r.chosen.map(|c| c.name()))
+        .collect();
     line(
         "gap",
         &format!(

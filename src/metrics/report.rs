@@ -38,8 +38,8 @@ pub struct Snapshot {
     pub real: Vec<[f32; 2]>,
     /// Simulated points, thinned alike.
     pub sim: Vec<[f32; 2]>,
-    /// The scene's objects: name and footprint (min and max corner, east, north).
-    pub objects: Vec<(String, [f64; 2], [f64; 2])>,
+    /// The scene's objects' footprints.
+    pub objects: Vec<Footprint>,
     /// Cell size, m.
     pub cell_m: f64,
     /// Cells (south-west corner) occupied by the measurement only.
@@ -48,6 +48,17 @@ pub struct Snapshot {
     pub only_sim_cells: Vec<[f64; 2]>,
     /// Cells both occupy.
     pub both_cells: usize,
+}
+
+/// An object's footprint from above.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Footprint {
+    /// The object's name in the scene.
+    pub name: String,
+    /// Its south-west corner (east, north), m.
+    pub min: [f64; 2],
+    /// Its north-east corner (east, north), m.
+    pub max: [f64; 2],
 }
 
 /// Points kept per cloud in a [`Snapshot`].

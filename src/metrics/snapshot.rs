@@ -2,7 +2,7 @@
 //! over the scene's objects, and the cells only one of them occupies.
 
 use super::grid::GridSpec;
-use super::report::{ScanRow, Snapshot, SNAPSHOT_POINTS};
+use super::report::{Footprint, ScanRow, Snapshot, SNAPSHOT_POINTS};
 use super::roi::Roi;
 use nalgebra::Point3;
 
@@ -42,7 +42,11 @@ pub(super) fn snapshot(
         objects: roi
             .boxes()
             .iter()
-            .map(|(n, b)| (n.clone(), [b.min.x, b.min.y], [b.max.x, b.max.y]))
+            .map(|(n, b)| Footprint {
+                name: n.clone(),
+                min: [b.min.x, b.min.y],
+                max: [b.max.x, b.max.y],
+            })
             .collect(),
         cell_m: bev.cell_m(),
         only_real_cells: cr.difference(&cs).map(corner).collect(),

@@ -1,28 +1,33 @@
 //! The gap workflow's plots: each round's candidates and the binned disagreement before and
 //! after the effect it added.
 
-use super::plots::{arr, e, legend, num, range_of, svg, GREY, PASS, REAL, SIM};
+use super::plots::{e, legend, range_of, svg, GREY, PASS, REAL, SIM};
+use crate::gap::bins::{Bin, Table};
+use crate::gap::report::Round;
 use plotters::prelude::*;
-use serde_json::Value;
 
 /// One gap round's candidates: each effect's likelihood gain (nats per 1000 firings) with its
 /// bootstrap interval; the chosen one in the measured colour.
-pub fn gap_candidates(round: &Value) -> Option<String> {
-    let cands = arr(round, "candidates");
+pub fn gap_candidates(round: &Round) -> Option<String> {
+    let cands = &round.candidates;
     if cands.is_empty() {
         return None;
     }
-    let chosen = round.get("chosen").and_then(Value::as_str).unwrap_or("");
-    let rows: Vec<(String, f64, f64, f64)> = cands
+    let rows: Vec<(String, f64, f64, f64, bool)> = cands
         .iter()
-        .filter_map(|c| {
-            let g = num(c, &["gain"])?;
-            let per = num(c, &["gain_per_1000_firings"]).unwrap_or(g);
+        .filter(|c| c.gain.is_finite())
+        .map(|c| {
+            let (g, per) = (c.gain, c.gain_per_1000_firings);
             let scale = if g.abs() > 0.0 { per / g } else { 0.0 };
-            let iv = c.get("gain_interval").and_then(Value::as_array);
-            let lo = iv.and_then(|a| a.first()?.as_f64()).unwrap_or(g) * scale;
-            let hi = iv.and_then(|a| a.get(1)?.as_f64()).unwrap_or(g) * scale;
-            Some((c.get("effect")?.as_str()?.to_owned(), per, lo, hi))
+            let (lo, hi) = c.gain_interval.unwrap_or((g, g));
+            let chosen = round.chosen == Some(c.effect);
+            (
+                c.effect.name().to_owned(),
+                per,
+                lo * scale,
+                hi * scale,
+                chosen,
+            )
         })
         .collect();
     let (lo, hi) = range_of(rows.iter().flat_map(|r| [r.1, r.2, r.3, 0.0]))?;
@@ -45,8 +50,8 @@ pub fn gap_candidates(round: &Value) -> Option<String> {
             .light_line_style(WHITE)
             .draw()
             .map_err(e)?;
-        for (i, (name, g, a, b)) in rows.iter().enumerate() {
-            let color = if name == chosen { REAL } else { GREY };
+        for (i, (_, g, a, b, chosen)) in rows.iter().enumerate() {
+            let color = if *chosen { REAL } else { GREY };
             c.draw_series(std::iter::once(Rectangle::new(
                 [
                     (0.0f64.min(*g), SegmentValue::Exact(i)),
@@ -71,22 +76,25 @@ pub fn gap_candidates(round: &Value) -> Option<String> {
 /// A feature's binned disagreement before and after a round: the share of firings with a
 /// return, measured against predicted by the model before and after, and the range residual's
 /// median and spread per bin.
-pub fn gap_bins(feature: &str, before: &Value, after: Option<&Value>) -> Option<String> {
-    let mid = |b: &Value| Some((num(b, &["from"])? + num(b, &["to"])?) / 2.0);
-    let series = |bins: &Value, key: &str| -> Vec<(f64, f64)> {
-        arr(bins, "bins")
+pub fn gap_bins(feature: &str, before: &Table, after: Option<&Table>) -> Option<String> {
+    let series = |table: &Table, value: &dyn Fn(&Bin) -> Option<f64>| -> Vec<(f64, f64)> {
+        table
+            .bins
             .iter()
-            .filter_map(|b| Some((mid(b)?, num(b, &[key])?)))
+            .filter_map(|b| Some(((b.from + b.to) / 2.0, value(b)?)))
             .filter(|p| p.0.is_finite() && p.1.is_finite())
             .collect()
     };
-    let measured = series(before, "measured_share");
+    let measured_share = |b: &Bin| Some(b.measured_share);
+    let predicted_share = |b: &Bin| Some(b.predicted_share);
+    let sigma = |b: &Bin| b.sigma_m;
+    let measured = series(before, &measured_share);
     if measured.is_empty() {
         return None;
     }
-    let pred_before = series(before, "predicted_share");
+    let pred_before = series(before, &predicted_share);
     let pred_after = after
-        .map(|a| series(a, "predicted_share"))
+        .map(|a| series(a, &predicted_share))
         .unwrap_or_default();
     // Unchanged by this round's effect (noise does not change whether a firing returns): one
     // line, not "after" drawn over "before".
@@ -98,9 +106,9 @@ pub fn gap_bins(feature: &str, before: &Value, after: Option<&Value>) -> Option<
     } else {
         pred_after
     };
-    let med: Vec<(f64, f64)> = series(before, "median_m");
-    let sig_b = series(before, "sigma_m");
-    let sig_a = after.map(|a| series(a, "sigma_m")).unwrap_or_default();
+    let med: Vec<(f64, f64)> = series(before, &|b| b.median_m);
+    let sig_b = series(before, &sigma);
+    let sig_a = after.map(|a| series(a, &sigma)).unwrap_or_default();
     // The measured residuals' spread changes only when the effect moves the model's ranges
     // (a bias, a misalignment); otherwise "after" would hide "before" under the same line.
     let sig_a = if same(&sig_a, &sig_b) {

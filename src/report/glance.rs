@@ -2,30 +2,31 @@
 //! section that holds the evidence. A reviewer reads the verdicts first and the tables that
 //! support them after; without this, the page opened on the recordings' topic list.
 
-use super::plots::{arr, fixed, lights, num, text};
-use super::Input;
-use serde_json::Value;
+use super::plots::{fixed, lights, Named};
+use crate::gap::report::GapReport;
+use crate::metrics::report::Comparison;
+use crate::reference::check::{Report, Verdict};
+use crate::stats::repetitions::Validation;
 
 /// The check line: runs passing, the worst ego accuracy, the admissible cells, faults named.
-fn checks_line(checks: &[&Input]) -> String {
+fn checks_line(checks: &[Named<Report>]) -> String {
     let pass = checks
         .iter()
-        .filter(|c| text(&c.value, "verdict") == "pass")
+        .filter(|(_, c)| c.verdict == Verdict::Pass)
         .count();
-    let values = |path: &[&str]| -> Vec<f64> {
+    let values = |f: &dyn Fn(&Report) -> f64| -> Vec<f64> {
         checks
             .iter()
-            .filter_map(|c| num(&c.value, path))
+            .map(|(_, c)| f(c))
             .filter(|x| x.is_finite())
             .collect()
     };
-    let ego = values(&["accuracy", "ego_m"]);
-    let cells = values(&["accuracy", "grid_cell_m"]);
+    let ego = values(&|c| c.accuracy.ego_m);
+    let cells = values(&|c| c.accuracy.grid_cell_m);
     let mut faults: Vec<&str> = checks
         .iter()
-        .flat_map(|c| arr(&c.value, "faults"))
-        .map(|f| text(f, "name"))
-        .filter(|f| !f.is_empty())
+        .flat_map(|(_, c)| &c.faults)
+        .map(|f| f.name.as_str())
         .collect();
     faults.sort_unstable();
     faults.dedup();
@@ -49,11 +50,11 @@ fn checks_line(checks: &[&Input]) -> String {
 }
 
 /// The gap line: the effects added in order, and why the workflow stopped.
-fn gap_line(name: &str, v: &Value) -> String {
-    let added: Vec<&str> = arr(v, "rounds")
+fn gap_line(name: &str, v: &GapReport) -> String {
+    let added: Vec<&str> = v
+        .rounds
         .iter()
-        .map(|r| text(r, "chosen"))
-        .filter(|c| !c.is_empty())
+        .filter_map(|r| r.chosen.map(|c| c.name()))
         .collect();
     let mut line = format!(
         "{name}: {}",
@@ -63,9 +64,10 @@ fn gap_line(name: &str, v: &Value) -> String {
             format!("effects added: {}", added.join(", "))
         }
     );
-    // The last line says why the rounds ended, unless the last round added something.
-    if let Some(last) = arr(v, "summary").last().and_then(Value::as_str) {
-        if !last.starts_with("found:") {
+    // Why the rounds ended, unless the last round added something (then the workflow was
+    // stopped by its round limit, and the summary's last line is that effect's finding).
+    if v.rounds.last().is_none_or(|r| r.chosen.is_none()) {
+        if let Some(last) = v.summary.last() {
             line.push_str(&format!("; {last}"));
         }
     }
@@ -75,10 +77,10 @@ fn gap_line(name: &str, v: &Value) -> String {
 /// The rows (step with its section link, outcome) of the inputs at hand; the caller escapes
 /// nothing: names and lines are escaped here with `esc`.
 pub(super) fn rows(
-    checks: &[&Input],
-    cmps: &[&Input],
-    vals: &[&Input],
-    gaps: &[&Input],
+    checks: &[Named<Report>],
+    cmps: &[Named<Comparison>],
+    vals: &[Named<Validation>],
+    gaps: &[Named<GapReport>],
     esc: &dyn Fn(&str) -> String,
 ) -> Vec<Vec<String>> {
     let step = |id: &str, title: &str| format!("<a href=\"#section-{id}\">{title}</a>");
@@ -90,101 +92,167 @@ pub(super) fn rows(
         ]);
     }
     // One row per kind of input present: its step and a line per input.
-    let mut section =
-        |id: &str, title: &str, inputs: &[&Input], line: &dyn Fn(&Input) -> String| {
-            if !inputs.is_empty() {
-                let lines: Vec<String> = inputs.iter().map(|i| esc(&line(i))).collect();
-                rows.push(vec![step(id, title), lines.join("<br>")]);
-            }
-        };
+    let mut section = |id: &str, title: &str, lines: Vec<String>| {
+        if !lines.is_empty() {
+            let lines: Vec<String> = lines.iter().map(|l| esc(l)).collect();
+            rows.push(vec![step(id, title), lines.join("<br>")]);
+        }
+    };
     section(
         "compare",
         "Measurement against re-simulation (§5)",
-        cmps,
-        &|c| {
-            format!(
-                "{}: OCR^K {} at a {} m cell",
-                c.name,
-                fixed(num(&c.value, &["summary", "ocr_mean"]), 3),
-                fixed(num(&c.value, &["cell_m"]), 2)
-            )
-        },
+        cmps.iter()
+            .map(|(name, c)| {
+                format!(
+                    "{name}: OCR^K {} at a {} m cell",
+                    fixed(c.summary.ocr_mean, 3),
+                    fixed(Some(c.cell_m), 2)
+                )
+            })
+            .collect(),
     );
     section(
         "validate",
         "Statistical validation (§8, Fig. 7)",
-        vals,
-        &|v| {
-            let [g, y, r, b] = lights(&v.value);
-            format!(
-                "{}: {} ({g} green, {y} yellow, {r} red, {b} black)",
-                v.name,
-                text(&v.value, "verdict")
-            )
-        },
+        vals.iter()
+            .map(|(name, v)| {
+                let [g, y, r, b] = lights(v);
+                format!(
+                    "{name}: {} ({g} green, {y} yellow, {r} red, {b} black)",
+                    v.verdict.name()
+                )
+            })
+            .collect(),
     );
-    section("gap", "The gap workflow", gaps, &|g| {
-        gap_line(&g.name, &g.value)
-    });
+    section(
+        "gap",
+        "The gap workflow",
+        gaps.iter().map(|(name, g)| gap_line(name, g)).collect(),
+    );
     rows
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::report::Kind;
-    use serde_json::json;
+    use crate::gap::report::Round;
+    use crate::metrics::report::ComparisonFrame;
+    use crate::reference::check::{Fault, FaultName};
+    use crate::sim::model::EffectKind;
+    use crate::stats::avm::Light;
+    use crate::stats::validate::Cell;
 
-    fn input(name: &str, kind: Kind, value: Value) -> Input {
-        Input {
-            path: name.into(),
-            name: name.into(),
-            kind,
-            value,
-            bytes: 0,
-            sha256: String::new(),
+    fn check(verdict: Verdict, faults: &[FaultName], ego_m: f64, grid_cell_m: f64) -> Report {
+        let mut r = crate::report::plots::tests::report(10.0, &[]);
+        r.verdict = verdict;
+        r.accuracy.ego_m = ego_m;
+        r.accuracy.grid_cell_m = grid_cell_m;
+        r.faults = faults
+            .iter()
+            .map(|&name| Fault {
+                name,
+                topics: Vec::new(),
+                from: String::new(),
+                to: String::new(),
+                from_s: 0.0,
+                to_s: 1.0,
+                detail: String::new(),
+                from_ns: hilrig_stamp::UtcNanos(0),
+                to_ns: hilrig_stamp::UtcNanos(0),
+            })
+            .collect();
+        r
+    }
+
+    fn round(chosen: Option<EffectKind>) -> Round {
+        Round {
+            round: 1,
+            disagreeing_bins: Vec::new(),
+            bins: Vec::new(),
+            candidates: Vec::new(),
+            trials: Vec::new(),
+            chosen,
+            parameters: Vec::new(),
+            metrics_before: None,
+            metrics_after: None,
         }
     }
 
     #[test]
     fn one_line_per_step_with_what_decides_it() {
         let checks = [
-            input(
-                "check/a.json",
-                Kind::Check,
-                json!({"verdict": "pass", "faults": [],
-                       "accuracy": {"ego_m": 0.031, "grid_cell_m": 1.05}}),
-            ),
-            input(
-                "check/b.json",
-                Kind::Check,
-                json!({"verdict": "fail", "faults": [{"name": "rtk_float"}, {"name": "jump"}],
-                       "accuracy": {"ego_m": 0.052, "grid_cell_m": 1.20}}),
+            check(Verdict::Pass, &[], 0.031, 1.05),
+            check(
+                Verdict::Fail,
+                &[FaultName::RtkFloat, FaultName::Jump],
+                0.052,
+                1.20,
             ),
         ];
-        let val = input(
-            "validate/m.json",
-            Kind::Validate,
-            json!({"verdict": "partly_valid", "cells": [{"light": "green"}, {"light": "yellow"},
-                   {"light": "yellow"}, {"light": "black"}]}),
-        );
-        let gap = input(
-            "gap/gap.json",
-            Kind::Gap,
-            json!({"rounds": [{"chosen": "range_noise"}, {"chosen": null}],
-                   "summary": ["found: range_noise ...", "no missing effect found in round 2: x"]}),
-        );
-        let cmp = input(
-            "compare/c.json",
-            Kind::Compare,
-            json!({"cell_m": 1.05, "summary": {"ocr_mean": 0.8734}}),
-        );
+        let cell = |light| Cell {
+            sample: "whole run".into(),
+            metric: "ocr".into(),
+            real: Vec::new(),
+            sim: Vec::new(),
+            real_interval: None,
+            sim_interval: None,
+            light,
+            why_black: None,
+            avm: None,
+        };
+        let val = Validation {
+            measurement: Vec::new(),
+            measurement_pass: true,
+            damage: Vec::new(),
+            scenario_problems: Vec::new(),
+            cells: vec![
+                cell(Light::Green),
+                cell(Light::Yellow),
+                cell(Light::Yellow),
+                cell(Light::Black),
+            ],
+            verdict: crate::stats::validate::Verdict::PartlyValid,
+        };
+        let gap = GapReport {
+            start_model: String::new(),
+            runs: Vec::new(),
+            split: None,
+            floors: Vec::new(),
+            rounds: vec![round(Some(EffectKind::RangeNoise)), round(None)],
+            finished: true,
+            summary: vec![
+                "found: range_noise ...".into(),
+                "no missing effect found in round 2: x".into(),
+            ],
+        };
+        let summary = crate::metrics::report::Summary {
+            ocr_mean: Some(0.8734),
+            ..Default::default()
+        };
+        let cmp = Comparison {
+            cell_m: 1.05,
+            admissible_cell_m: 1.05,
+            k: 3,
+            grid_phases: 1,
+            curve_every: 0,
+            point_metrics: false,
+            dims: crate::metrics::grid::Dims::Voxel,
+            region: String::new(),
+            damage: Vec::new(),
+            left_out: Vec::new(),
+            ground_excluded: false,
+            frame: ComparisonFrame::Scene,
+            scans: Vec::new(),
+            calibration: Vec::new(),
+            snapshot: None,
+            summary,
+        };
         let esc = |s: &str| s.replace('<', "&lt;");
         let rows = rows(
-            &checks.iter().collect::<Vec<_>>(),
-            &[&cmp],
-            &[&val],
-            &[&gap],
+            &[("check/a.json", &checks[0]), ("check/b.json", &checks[1])],
+            &[("compare/c.json", &cmp)],
+            &[("validate/m.json", &val)],
+            &[("gap/gap.json", &gap)],
             &esc,
         );
         assert_eq!(rows.len(), 4);

@@ -3,9 +3,15 @@
 //! reference data hold, what the simulation gets wrong and where, whether it is valid, and what
 //! the gap workflow found), each figure an inline SVG and each table plain HTML.
 
-use super::plots::{self, arr, fixed, heading_from, num, text, usable_percent};
-use super::{Input, Kind};
-use serde_json::Value;
+use super::plots::{self, fixed, heading_from, usable_percent, Named};
+use super::Document;
+use super::Input;
+use crate::bag::info::Info;
+use crate::gap::report::{GapReport, Round, RunMetrics};
+use crate::metrics::report::Comparison;
+use crate::reference::check::{Report, Verdict};
+use crate::stats::avm::Light;
+use crate::stats::repetitions::Validation;
 use std::fmt::Write;
 
 /// HTML-escapes text.
@@ -63,14 +69,18 @@ e.setAttribute('data-rendered',Math.round(k.width)+'x'+Math.round(k.height));});
 
 /// The whole page.
 pub fn page(inputs: &[Input]) -> String {
-    let of = |k: Kind| -> Vec<&Input> { inputs.iter().filter(|i| i.kind == k).collect() };
-    let (recs, checks, cmps, vals, gaps) = (
-        of(Kind::Recording),
-        of(Kind::Check),
-        of(Kind::Compare),
-        of(Kind::Validate),
-        of(Kind::Gap),
-    );
+    let (mut recs, mut checks, mut cmps, mut vals, mut gaps) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for i in inputs {
+        let name = i.name.as_str();
+        match &i.value {
+            Document::Recording(v) => recs.push((name, v.as_ref())),
+            Document::Check(v) => checks.push((name, v.as_ref())),
+            Document::Compare(v) => cmps.push((name, v.as_ref())),
+            Document::Validate(v) => vals.push((name, v.as_ref())),
+            Document::Gap(v) => gaps.push((name, v.as_ref())),
+        }
+    }
     let mut out = String::with_capacity(1 << 20);
     let _ = write!(
         out,
@@ -98,24 +108,21 @@ reference supports (§5), statistical validation over repetitions (§8, Fig. 7).
     out
 }
 
-fn recording(out: &mut String, recs: &[&Input], checks: &[&Input]) {
+fn recording(out: &mut String, recs: &[Named<Info>], checks: &[Named<Report>]) {
     out.push_str("<h2 id=\"section-recording\">What the recordings hold</h2>\n");
     let mut rows = Vec::new();
-    for r in recs {
-        let v = &r.value;
-        let span = v
-            .get("span")
-            .and_then(Value::as_array)
-            .and_then(|a| Some((a.first()?.as_f64()?, a.get(1)?.as_f64()?)))
-            .map(|(a, b)| (b - a) * 1e-9);
-        for c in arr(v, "channels") {
-            let count = num(c, &["count"]);
+    for (name, r) in recs {
+        let span = r
+            .span
+            .map(|s| s.last_ns.saturating_sub(s.first_ns) as f64 * 1e-9);
+        for c in &r.channels {
+            let count = c.count as f64;
             rows.push(vec![
-                esc(&r.name),
-                esc(text(c, "topic")),
-                esc(text(c, "message_type")),
-                fixed(count, 0),
-                fixed(count.zip(span).map(|(c, s)| c / s.max(1e-9)), 2),
+                esc(name),
+                esc(&c.topic),
+                esc(&c.message_type),
+                fixed(Some(count), 0),
+                fixed(span.map(|s| count / s.max(1e-9)), 2),
             ]);
         }
     }
@@ -127,16 +134,15 @@ fn recording(out: &mut String, recs: &[&Input], checks: &[&Input]) {
     );
     // Clock models and per-source rates, from the checks.
     let mut rows = Vec::new();
-    for c in checks {
-        let t = c.value.get("temporal").cloned().unwrap_or(Value::Null);
-        for src in arr(&t, "sources") {
+    for (name, c) in checks {
+        for src in &c.temporal.sources {
             rows.push(vec![
-                esc(&c.name),
-                esc(text(src, "source")),
-                fixed(num(src, &["rate_hz"]), 2),
-                fixed(num(src, &["jitter_ms"]), 2),
-                fixed(num(src, &["gaps"]), 0),
-                fixed(num(src, &["max_interval_ms"]), 1),
+                esc(name),
+                esc(&src.source),
+                fixed(Some(src.rate_hz), 2),
+                fixed(Some(src.jitter_ms), 2),
+                src.gaps.to_string(),
+                fixed(Some(src.max_interval_ms), 1),
             ]);
         }
     }
@@ -154,22 +160,17 @@ fn recording(out: &mut String, recs: &[&Input], checks: &[&Input]) {
         &rows,
     );
     let mut rows = Vec::new();
-    for c in checks {
-        if let Some(m) = c
-            .value
-            .pointer("/temporal/clock_sync")
-            .and_then(Value::as_object)
-        {
-            for (source, model) in m {
-                rows.push(vec![
-                    esc(&c.name),
-                    esc(source),
-                    fixed(num(model, &["drift_ppm"]), 3),
-                    fixed(num(model, &["offset_ns"]).map(|x| x * 1e-6), 3),
-                    fixed(num(model, &["residual_p95_ns"]).map(|x| x * 1e-3), 1),
-                    esc(model.get("pps").and_then(Value::as_str).unwrap_or("")),
-                ]);
-            }
+    for (name, c) in checks {
+        for (source, model) in &c.temporal.clock_sync {
+            let number = |k: &str| model.get(k).and_then(|v| v.parse::<f64>().ok());
+            rows.push(vec![
+                esc(name),
+                esc(source),
+                fixed(number("drift_ppm"), 3),
+                fixed(number("offset_ns").map(|x| x * 1e-6), 3),
+                fixed(number("residual_p95_ns").map(|x| x * 1e-3), 1),
+                esc(model.get("pps").map_or("", String::as_str)),
+            ]);
         }
     }
     table(
@@ -187,32 +188,37 @@ fn recording(out: &mut String, recs: &[&Input], checks: &[&Input]) {
     );
 }
 
-fn verdict(v: &str) -> String {
-    let class = if v == "pass" { "pass" } else { "fail" };
+/// A verdict, in the colour of passing or not.
+fn verdict(v: &str, pass: bool) -> String {
+    let class = if pass { "pass" } else { "fail" };
     format!("<span class=\"{class}\">{}</span>", esc(v))
 }
 
-fn check_section(out: &mut String, checks: &[&Input]) {
+fn check_verdict(v: Verdict) -> &'static str {
+    match v {
+        Verdict::Pass => "pass",
+        Verdict::Fail => "fail",
+        Verdict::Unusable => "unusable",
+    }
+}
+
+fn check_section(out: &mut String, checks: &[Named<Report>]) {
     out.push_str("<h2 id=\"section-check\">Reference data (Rosenberger et al. 2019, §6)</h2>\n<p class=\"note\">Each run's trajectory and timing are checked before anything is re-simulated; the grid cell of the metrics follows from the accuracy found (at least ten times the reference accuracy).</p>\n");
     let rows: Vec<Vec<String>> = checks
         .iter()
-        .map(|c| {
-            let v = &c.value;
+        .map(|(name, v)| {
             vec![
-                esc(&c.name),
-                verdict(text(v, "verdict")),
-                fixed(num(v, &["duration_s"]), 1),
+                esc(name),
+                verdict(check_verdict(v.verdict), v.verdict == Verdict::Pass),
+                fixed(Some(v.duration_s), 1),
                 fixed(usable_percent(v), 0),
-                fixed(
-                    num(v, &["spatial", "rtk_fixed_share"]).map(|x| x * 100.0),
-                    1,
-                ),
-                fixed(num(v, &["accuracy", "ego_m"]), 3),
-                fixed(num(v, &["accuracy", "heading_sigma_deg"]), 3),
+                fixed(Some(v.spatial.rtk_fixed_share * 100.0), 1),
+                fixed(Some(v.accuracy.ego_m), 3),
+                fixed(Some(v.accuracy.heading_sigma_deg), 3),
                 esc(&heading_from(v)),
-                fixed(num(v, &["accuracy", "reference_m"]), 3),
-                fixed(num(v, &["accuracy", "grid_cell_m"]), 2),
-                arr(v, "faults").len().to_string(),
+                fixed(Some(v.accuracy.reference_m), 3),
+                fixed(Some(v.accuracy.grid_cell_m), 2),
+                v.faults.len().to_string(),
             ]
         })
         .collect();
@@ -234,44 +240,39 @@ fn check_section(out: &mut String, checks: &[&Input]) {
         ],
         &rows,
     );
-    for (k, c) in checks.iter().enumerate() {
+    for (k, (name, c)) in checks.iter().enumerate() {
         figure(
             out,
             &format!("check-timeline-{k}"),
-            plots::check_timeline(&c.value),
-            &format!("Check timeline of {}: RTK state, horizontal sigma, verdict per segment, located faults.", esc(&c.name)),
+            plots::check_timeline(c),
+            &format!("Check timeline of {}: RTK state, horizontal sigma, verdict per segment, located faults.", esc(name)),
         );
     }
 }
 
-fn compare_section(out: &mut String, cmps: &[&Input]) {
+fn compare_section(out: &mut String, cmps: &[Named<Comparison>]) {
     out.push_str("<h2 id=\"section-compare\">Measurement against re-simulation (Rosenberger et al. 2019, §5)</h2>\n");
     let rows: Vec<Vec<String>> = cmps
         .iter()
-        .map(|c| {
-            let v = &c.value;
-            let left_out: f64 = arr(v, "left_out")
-                .iter()
-                .filter_map(|l| num(l, &["scans"]))
-                .sum();
+        .map(|(name, v)| {
+            let left_out: usize = v.left_out.iter().map(|l| l.scans).sum();
+            let s = &v.summary;
+            let rho = s.ocr_vs_distance.as_ref();
             vec![
-                esc(&c.name),
-                format!(
-                    "{} ({left_out:.0})",
-                    fixed(num(v, &["summary", "scans"]), 0)
-                ),
-                fixed(num(v, &["cell_m"]), 2),
-                fixed(num(v, &["summary", "ocr_mean"]), 3),
-                fixed(num(v, &["summary", "precision_mean"]), 3),
-                fixed(num(v, &["summary", "iou_mean"]), 3),
-                fixed(num(v, &["summary", "chamfer_mean_m"]), 3),
-                fixed(num(v, &["summary", "range_diff_rms_m"]), 3),
-                fixed(num(v, &["summary", "only_sim_share"]).map(|x| x * 100.0), 1),
+                esc(name),
+                format!("{} ({left_out})", s.scans),
+                fixed(Some(v.cell_m), 2),
+                fixed(s.ocr_mean, 3),
+                fixed(s.precision_mean, 3),
+                fixed(s.iou_mean, 3),
+                fixed(s.chamfer_mean_m, 3),
+                fixed(s.range_diff_rms_m, 3),
+                fixed(s.only_sim_share.map(|x| x * 100.0), 1),
                 format!(
                     "{} [{}, {}]",
-                    fixed(num(v, &["summary", "ocr_vs_distance", "rho"]), 2),
-                    fixed(num(v, &["summary", "ocr_vs_distance", "low"]), 2),
-                    fixed(num(v, &["summary", "ocr_vs_distance", "high"]), 2)
+                    fixed(rho.map(|r| r.rho), 2),
+                    fixed(rho.map(|r| r.low), 2),
+                    fixed(rho.map(|r| r.high), 2)
                 ),
             ]
         })
@@ -295,68 +296,67 @@ fn compare_section(out: &mut String, cmps: &[&Input]) {
     );
     // At the admissible cell if there is such a comparison (the cells that disagree there are
     // the ones the metrics count).
-    let at_admissible = |c: &&&Input| {
-        num(&c.value, &["cell_m"])
-            .zip(num(&c.value, &["admissible_cell_m"]))
-            .is_some_and(|(a, b)| (a - b).abs() < 1e-9)
-    };
-    let has_snapshot = |c: &&&Input| c.value.get("snapshot").is_some_and(|s| !s.is_null());
+    let at_admissible = |c: &Comparison| (c.cell_m - c.admissible_cell_m).abs() < 1e-9;
     let pick = cmps
         .iter()
-        .find(|c| has_snapshot(c) && at_admissible(c))
-        .or_else(|| cmps.iter().find(|c| has_snapshot(c)));
-    if let Some(c) = pick {
+        .find(|(_, c)| c.snapshot.is_some() && at_admissible(c))
+        .or_else(|| cmps.iter().find(|(_, c)| c.snapshot.is_some()));
+    if let Some((name, c)) = pick {
         figure(
             out,
             "birds-eye",
-            c.value.get("snapshot").and_then(plots::birds_eye),
-            &format!("One scan of {} from above, over the scene's objects; shaded cells are occupied by one cloud only.", esc(&c.name)),
+            c.snapshot.as_ref().and_then(plots::birds_eye),
+            &format!("One scan of {} from above, over the scene's objects; shaded cells are occupied by one cloud only.", esc(name)),
         );
     }
-    for (k, c) in cmps.iter().enumerate() {
+    for (k, (name, c)) in cmps.iter().enumerate() {
         figure(
             out,
             &format!("fig5-{k}"),
-            plots::fig5(&c.value),
+            plots::fig5(c),
             &format!(
                 "Rosenberger et al. 2019, Fig. 5, for {} at a {} m cell: OCR, objects in view, ego speed and mean distance to the objects along the drive.",
-                esc(&c.name),
-                fixed(num(&c.value, &["cell_m"]), 2)
+                esc(name),
+                fixed(Some(c.cell_m), 2)
             ),
         );
     }
-    let named: Vec<(&str, &Value)> = cmps.iter().map(|c| (c.name.as_str(), &c.value)).collect();
     figure(
         out,
         "calibration-curve",
-        plots::calibration_curve(&named),
+        plots::calibration_curve(cmps),
         "The calibration curve: OCR^K over cell sizes from 0.05 m to 2 m. Cells left of the red line are smaller than the reference data support.",
     );
 }
 
-fn light(l: &str) -> String {
-    format!("<span class=\"light {l}\">{l}</span>", l = esc(l))
+fn light(l: Light) -> String {
+    let l = match l {
+        Light::Green => "green",
+        Light::Yellow => "yellow",
+        Light::Red => "red",
+        Light::Black => "black",
+    };
+    format!("<span class=\"light {l}\">{l}</span>")
 }
 
-fn validate_section(out: &mut String, vals: &[&Input]) {
+fn validate_section(out: &mut String, vals: &[Named<Validation>]) {
     out.push_str("<h2 id=\"section-validate\">Statistical validation (Rosenberger et al. 2019, §8, Fig. 7)</h2>\n<p class=\"note\">Per scenario sample (phase) and metric, the interval over the real repetitions against the interval over the simulated ones: green inside, yellow overlapping, red disjoint, black not evaluable. AVM: the area validation metric (area between the two empirical CDFs), in the metric's unit.</p>\n");
-    for (k, v) in vals.iter().enumerate() {
-        let val = &v.value;
+    for (k, (name, val)) in vals.iter().enumerate() {
         let _ = write!(
             out,
             "<h3>{}: verdict {}</h3>\n<p class=\"note\">1. Measurement validation: {}. 2. Scenario validation: {}. 3. Model validation: the matrix below.</p>\n",
-            esc(&v.name),
-            verdict(text(val, "verdict")),
-            if val.get("measurement_pass").and_then(Value::as_bool).unwrap_or(false) {
+            esc(name),
+            verdict(
+                val.verdict.name(),
+                val.verdict == crate::stats::validate::Verdict::Valid
+            ),
+            if val.measurement_pass {
                 "every simulation has its real twin".to_string()
             } else {
                 "a simulation lacks its real twin".to_string()
             },
             {
-                let p: Vec<String> = arr(val, "scenario_problems")
-                    .iter()
-                    .filter_map(|p| p.as_str().map(esc))
-                    .collect();
+                let p: Vec<String> = val.scenario_problems.iter().map(|p| esc(p)).collect();
                 if p.is_empty() {
                     "no problem found".to_string()
                 } else {
@@ -364,15 +364,15 @@ fn validate_section(out: &mut String, vals: &[&Input]) {
                 }
             }
         );
-        let cells = arr(val, "cells");
+        let cells = &val.cells;
         let mut samples: Vec<&str> = Vec::new();
         let mut metrics: Vec<&str> = Vec::new();
         for c in cells {
-            if !samples.contains(&text(c, "sample")) {
-                samples.push(text(c, "sample"));
+            if !samples.contains(&c.sample.as_str()) {
+                samples.push(&c.sample);
             }
-            if !metrics.contains(&text(c, "metric")) {
-                metrics.push(text(c, "metric"));
+            if !metrics.contains(&c.metric.as_str()) {
+                metrics.push(&c.metric);
             }
         }
         let rows: Vec<Vec<String>> = samples
@@ -380,16 +380,14 @@ fn validate_section(out: &mut String, vals: &[&Input]) {
             .map(|sample| {
                 let mut row = vec![esc(sample)];
                 for m in &metrics {
-                    let cell = cells
-                        .iter()
-                        .find(|c| text(c, "sample") == *sample && text(c, "metric") == *m);
+                    let cell = cells.iter().find(|c| c.sample == *sample && c.metric == *m);
                     row.push(match cell {
                         Some(c) => format!(
                             "{} AVM {}{}",
-                            light(text(c, "light")),
-                            fixed(num(c, &["avm"]), 3),
-                            c.get("why_black")
-                                .and_then(Value::as_str)
+                            light(c.light),
+                            fixed(c.avm, 3),
+                            c.why_black
+                                .as_deref()
                                 .map(|w| format!("<br><span class=\"note\">{}</span>", esc(w)))
                                 .unwrap_or_default()
                         ),
@@ -405,22 +403,21 @@ fn validate_section(out: &mut String, vals: &[&Input]) {
     }
 }
 
-fn gap_section(out: &mut String, gaps: &[&Input]) {
+fn gap_section<'a>(out: &mut String, gaps: &[Named<'a, GapReport>]) {
     out.push_str("<h2 id=\"section-gap\">The gap workflow</h2>\n<p class=\"note\">Per round: every effect of the catalogue fitted to the parameterization runs and scored by the likelihood gain on the measured firings; the best one is kept only if the validation runs improve.</p>\n");
-    for (g, input) in gaps.iter().enumerate() {
-        let v = &input.value;
-        let _ = write!(out, "<h3>{}</h3>\n<ul>", esc(&input.name));
-        for line in arr(v, "summary") {
-            let _ = write!(out, "<li>{}</li>", esc(line.as_str().unwrap_or("")));
+    for (g, (name, v)) in gaps.iter().enumerate() {
+        let _ = write!(out, "<h3>{}</h3>\n<ul>", esc(name));
+        for line in &v.summary {
+            let _ = write!(out, "<li>{}</li>", esc(line));
         }
         out.push_str("</ul>\n");
-        let rounds = arr(v, "rounds");
+        let rounds = &v.rounds;
         for (k, r) in rounds.iter().enumerate() {
-            let round = num(r, &["round"]).unwrap_or(k as f64 + 1.0);
-            let chosen = text(r, "chosen");
+            let chosen = r.chosen.map_or("", |c| c.name());
             let _ = writeln!(
                 out,
-                "<h3>Round {round:.0}: {}</h3>",
+                "<h3>Round {}: {}</h3>",
+                r.round,
                 if chosen.is_empty() {
                     "nothing added".to_string()
                 } else {
@@ -435,18 +432,20 @@ fn gap_section(out: &mut String, gaps: &[&Input]) {
             );
             // The feature this round's effect settled most: the largest drop in disagreeing
             // bins to the next round (else the one disagreeing most now).
-            let disagreeing = |round: &Value, feature: &str| -> usize {
-                arr(round, "bins")
+            let disagreeing = |round: &Round, feature: &str| -> usize {
+                round
+                    .bins
                     .iter()
-                    .filter(|b| text(b, "feature") == feature)
-                    .flat_map(|b| arr(b, "bins"))
-                    .filter(|x| x.get("disagrees").and_then(Value::as_bool) == Some(true))
+                    .filter(|b| b.feature == feature)
+                    .flat_map(|b| &b.bins)
+                    .filter(|x| x.disagrees)
                     .count()
             };
             let next = rounds.get(k + 1);
-            let feature = arr(r, "bins")
+            let feature = r
+                .bins
                 .iter()
-                .map(|b| text(b, "feature"))
+                .map(|b| b.feature.as_ref())
                 .max_by_key(|f| {
                     let now = disagreeing(r, f);
                     let drop = next.map_or(0, |x| now.saturating_sub(disagreeing(x, f)));
@@ -454,36 +453,31 @@ fn gap_section(out: &mut String, gaps: &[&Input]) {
                 })
                 .unwrap_or_default()
                 .to_owned();
-            let of = |round: &Value| {
-                arr(round, "bins")
-                    .iter()
-                    .find(|b| text(b, "feature") == feature)
-                    .cloned()
-            };
+            let of = |round: &'a Round| round.bins.iter().find(|b| b.feature == feature.as_str());
             if let Some(before) = of(r) {
-                let after = rounds.get(k + 1).and_then(of);
+                let after = next.and_then(of);
                 figure(
                     out,
                     &format!("gap-{g}-round-{k}-bins"),
-                    super::gap_plots::gap_bins(&feature, &before, after.as_ref()),
+                    super::gap_plots::gap_bins(&feature, before, after),
                     &format!(
                         "Binned disagreement against {} before and after this round.",
                         esc(&feature)
                     ),
                 );
             }
-            let params: Vec<Vec<String>> = arr(r, "parameters")
+            let params: Vec<Vec<String>> = r
+                .parameters
                 .iter()
                 .map(|p| {
-                    let iv = p.get("interval").and_then(Value::as_array);
                     vec![
                         esc(chosen),
-                        esc(text(p, "name")),
-                        fixed(num(p, &["value"]), 5),
+                        esc(&p.name),
+                        fixed(Some(p.value), 5),
                         format!(
                             "[{}, {}]",
-                            fixed(iv.and_then(|a| a.first()?.as_f64()), 5),
-                            fixed(iv.and_then(|a| a.get(1)?.as_f64()), 5)
+                            fixed(p.interval.map(|i| i.0), 5),
+                            fixed(p.interval.map(|i| i.1), 5)
                         ),
                     ]
                 })
@@ -496,44 +490,43 @@ fn gap_section(out: &mut String, gaps: &[&Input]) {
                     &params,
                 );
             }
-            let (b, a) = (r.get("metrics_before"), r.get("metrics_after"));
-            if let (Some(b), Some(a)) = (b.filter(|x| !x.is_null()), a.filter(|x| !x.is_null())) {
-                let mut rows = Vec::new();
-                for m in ["ocr", "precision", "iou"] {
-                    rows.push(vec![
-                        m.to_uppercase(),
-                        fixed(num(b, &[m]), 3),
-                        fixed(num(a, &[m]), 3),
-                    ]);
-                }
-                let avm = |x: &Value, name: &str| {
-                    arr(x, "avm")
-                        .iter()
-                        .find(|p| p.get(0).and_then(Value::as_str) == Some(name))
-                        .and_then(|p| p.get(1)?.as_f64())
-                };
-                for p in arr(b, "avm") {
-                    let name = p.get(0).and_then(Value::as_str).unwrap_or("");
-                    rows.push(vec![
-                        format!("AVM {}", esc(name)),
-                        fixed(avm(b, name), 3),
-                        fixed(avm(a, name), 3),
-                    ]);
-                }
-                rows.push(vec![
-                    "verdict".into(),
-                    esc(text(b, "verdict")),
-                    esc(text(a, "verdict")),
-                ]);
-                table(
-                    out,
-                    &format!("gap-{g}-round-{k}-metrics"),
-                    &["metric on the validation runs", "before", "after"],
-                    &rows,
-                );
+            if let (Some(b), Some(a)) = (&r.metrics_before, &r.metrics_after) {
+                metrics_table(out, &format!("gap-{g}-round-{k}-metrics"), b, a);
             }
         }
     }
+}
+
+/// The validation runs' metrics before and after a round.
+fn metrics_table(out: &mut String, id: &str, b: &RunMetrics, a: &RunMetrics) {
+    let mut rows = Vec::new();
+    for (m, x, y) in [
+        ("OCR", b.ocr, a.ocr),
+        ("PRECISION", b.precision, a.precision),
+        ("IOU", b.iou, a.iou),
+    ] {
+        rows.push(vec![m.to_owned(), fixed(x, 3), fixed(y, 3)]);
+    }
+    let avm =
+        |x: &RunMetrics, name: &str| x.avm.iter().find(|p| p.metric == name).and_then(|p| p.avm);
+    for p in &b.avm {
+        rows.push(vec![
+            format!("AVM {}", esc(&p.metric)),
+            fixed(avm(b, &p.metric), 3),
+            fixed(avm(a, &p.metric), 3),
+        ]);
+    }
+    rows.push(vec![
+        "verdict".into(),
+        esc(b.verdict.name()),
+        esc(a.verdict.name()),
+    ]);
+    table(
+        out,
+        id,
+        &["metric on the validation runs", "before", "after"],
+        &rows,
+    );
 }
 
 fn inputs_section(out: &mut String, inputs: &[Input]) {
@@ -543,22 +536,21 @@ fn inputs_section(out: &mut String, inputs: &[Input]) {
         .map(|i| {
             vec![
                 esc(&i.name),
-                format!("{:?}", i.kind).to_lowercase(),
+                i.kind.name().to_owned(),
                 i.bytes.to_string(),
                 format!("<code>{}</code>", i.sha256),
             ]
         })
         .collect();
     // What produced the recordings, from their metadata.
-    for i in inputs.iter().filter(|i| i.kind == Kind::Recording) {
-        if let Some(m) = i
-            .value
-            .pointer("/metadata/hilrig")
-            .and_then(Value::as_object)
-        {
+    for i in inputs {
+        let Document::Recording(r) = &i.value else {
+            continue;
+        };
+        if let Some(m) = r.metadata.get("hilrig") {
             let kv: Vec<String> = m
                 .iter()
-                .map(|(k, v)| format!("{}={}", esc(k), esc(v.as_str().unwrap_or(""))))
+                .map(|(k, v)| format!("{}={}", esc(k), esc(v)))
                 .collect();
             rows.push(vec![
                 esc(&i.name),

@@ -8,52 +8,21 @@
 //! shows: the inputs themselves, each with its SHA-256, so that the report can be rebuilt and
 //! its sources identified.
 //!
-//! Inputs are recognised by content, not by name: a check report has `spatial` and `temporal`,
-//! a comparison `scans` and `calibration`, a validation `cells` and `measurement`, a gap study
-//! `rounds` and `start_model`, a recording's summary `channels` and `profile`.
+//! Inputs are read through the types that wrote them ([`crate::output`]): each file says its
+//! kind and schema, so a file of another version is refused with its version named, and a field
+//! renamed in a producer breaks this module's build rather than leaving a blank in the page.
 
+mod document;
 pub mod gap_plots;
 mod glance;
 mod html;
 pub mod plots;
 
-use serde_json::Value;
+pub use document::Document;
+
+use crate::output::{OutputError, OutputKind};
 use sha2::Digest;
 use std::path::{Path, PathBuf};
-
-/// What a JSON input is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Kind {
-    /// `hilrig info --json`.
-    Recording,
-    /// `hilrig check --json`.
-    Check,
-    /// `hilrig compare --json`.
-    Compare,
-    /// `hilrig validate --json`.
-    Validate,
-    /// `hilrig gap` (`gap.json`).
-    Gap,
-}
-
-/// Recognises an input by its keys.
-pub fn classify(v: &Value) -> Option<Kind> {
-    let has = |k: &str| v.get(k).is_some();
-    if has("spatial") && has("temporal") {
-        Some(Kind::Check)
-    } else if has("scans") && has("calibration") {
-        Some(Kind::Compare)
-    } else if has("cells") && has("measurement") {
-        Some(Kind::Validate)
-    } else if has("rounds") && has("start_model") {
-        Some(Kind::Gap)
-    } else if has("channels") && has("profile") {
-        Some(Kind::Recording)
-    } else {
-        None
-    }
-}
 
 /// One input file.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -63,25 +32,41 @@ pub struct Input {
     /// A short name for the report (the path below the directory given).
     pub name: String,
     /// What it is.
-    pub kind: Kind,
+    pub kind: OutputKind,
     /// Its bytes' SHA-256, hex.
     pub sha256: String,
     /// Size, bytes.
     pub bytes: u64,
-    /// The content.
-    pub value: Value,
+    /// The content, as written (envelope included).
+    pub value: Document,
 }
 
 /// Why a report cannot be built.
 #[derive(Debug, thiserror::Error)]
 pub enum ReportError {
-    /// An input could not be read or is not one of the JSON kinds.
-    #[error("{path}: {what}")]
-    Input {
+    /// A file or directory could not be read.
+    #[error("{path}: {source}")]
+    Io {
         /// The file or directory.
-        path: String,
-        /// What is wrong.
-        what: String,
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A path that does not exist.
+    #[error("{path}: no such file or directory")]
+    Missing {
+        /// The path given.
+        path: PathBuf,
+    },
+    /// An input that is not one of the outputs the report reads, or not of this version.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    /// Nothing to report on.
+    #[error("{paths}: no JSON of check, compare, validate, gap or info found")]
+    Empty {
+        /// The paths given, joined.
+        paths: String,
     },
 }
 
@@ -90,13 +75,12 @@ pub enum ReportError {
 pub fn gather(paths: &[PathBuf]) -> Result<Vec<Input>, ReportError> {
     let mut out = Vec::new();
     for p in paths {
-        let err = |what: String| ReportError::Input {
-            path: p.display().to_string(),
-            what,
-        };
         if p.is_dir() {
             let mut files = Vec::new();
-            walk(p, &mut files).map_err(|e| err(e.to_string()))?;
+            walk(p, &mut files).map_err(|source| ReportError::Io {
+                path: p.clone(),
+                source,
+            })?;
             files.sort();
             for f in files {
                 if let Some(i) = read(&f, p, false)? {
@@ -109,17 +93,16 @@ pub fn gather(paths: &[PathBuf]) -> Result<Vec<Input>, ReportError> {
                 out.push(i);
             }
         } else {
-            return Err(err("no such file or directory".into()));
+            return Err(ReportError::Missing { path: p.clone() });
         }
     }
     if out.is_empty() {
-        return Err(ReportError::Input {
-            path: paths
+        return Err(ReportError::Empty {
+            paths: paths
                 .iter()
                 .map(|p| p.display().to_string())
                 .collect::<Vec<_>>()
                 .join(", "),
-            what: "no JSON of check, compare, validate, gap or info found".into(),
         });
     }
     Ok(out)
@@ -139,25 +122,20 @@ fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Reads one input. In a directory searched (`named` false), JSON that is not an output of
+/// hilrig (no envelope: another tool's file) is passed over; a hilrig output of another schema
+/// or with a broken body is an error wherever it is.
 fn read(path: &Path, base: &Path, named: bool) -> Result<Option<Input>, ReportError> {
-    let err = |what: String| ReportError::Input {
-        path: path.display().to_string(),
-        what,
-    };
-    let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
-    let value: Value = match serde_json::from_slice(&bytes) {
+    let bytes = std::fs::read(path).map_err(|source| ReportError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    let value = match Document::from_slice(path, &bytes) {
         Ok(v) => v,
-        Err(e) if named => return Err(err(format!("not JSON: {e}"))),
-        Err(_) => return Ok(None),
-    };
-    let Some(kind) = classify(&value) else {
-        return if named {
-            Err(err(
-                "not a JSON that check, compare, validate, gap or info writes".into(),
-            ))
-        } else {
-            Ok(None)
-        };
+        Err(OutputError::NotJson { .. } | OutputError::NoEnvelope { .. }) if !named => {
+            return Ok(None)
+        }
+        Err(e) => return Err(e.into()),
     };
     let name = path
         .strip_prefix(base)
@@ -167,7 +145,7 @@ fn read(path: &Path, base: &Path, named: bool) -> Result<Option<Input>, ReportEr
     Ok(Some(Input {
         path: path.to_owned(),
         name,
-        kind,
+        kind: value.kind(),
         sha256: hex(&sha2::Sha256::digest(&bytes)),
         bytes: bytes.len() as u64,
         value,
@@ -183,16 +161,24 @@ pub struct Rendered {
     /// The HTML page.
     pub html: String,
     /// `report.json`.
-    pub json: Value,
+    pub json: String,
+}
+
+/// `report.json`: the version that built the report and its inputs, each with its content.
+#[derive(serde::Serialize)]
+struct ReportJson<'a> {
+    hilrig_version: &'static str,
+    inputs: &'a [Input],
 }
 
 /// Builds the report from the inputs.
 pub fn render(inputs: &[Input]) -> Rendered {
     let html = html::page(inputs);
-    let json = serde_json::json!({
-        "hilrig_version": env!("CARGO_PKG_VERSION"),
-        "inputs": inputs,
-    });
+    let json = serde_json::to_string_pretty(&ReportJson {
+        hilrig_version: env!("CARGO_PKG_VERSION"),
+        inputs,
+    })
+    .unwrap_or_default();
     Rendered { html, json }
 }
 
@@ -207,11 +193,6 @@ pub fn write(out: &Path, r: &Rendered) -> std::io::Result<PathBuf> {
         std::fs::rename(&tmp, p)
     };
     put(out, r.html.as_bytes())?;
-    put(
-        &json_path,
-        serde_json::to_string_pretty(&r.json)
-            .unwrap_or_default()
-            .as_bytes(),
-    )?;
+    put(&json_path, r.json.as_bytes())?;
     Ok(json_path)
 }

@@ -1,13 +1,19 @@
 //! The report's plots, drawn in Rust as SVG text with plotters: no browser script draws them,
 //! so the HTML holds the figures themselves and opens anywhere, offline.
 //!
-//! Each function takes the JSON a command wrote (read as [`serde_json::Value`], so that a
-//! report can be built from older or newer files with missing fields shown as gaps) and
-//! returns one `<svg>` element, or `None` when the input has nothing to draw.
+//! Each function takes the typed output a command wrote ([`crate::output`]) and returns one
+//! `<svg>` element, or `None` when the input has nothing to draw.
 
+use crate::metrics::report::{Comparison, ScanRow, Snapshot};
+use crate::reference::check::{Report, Verdict};
+use crate::stats::avm::Light;
+use crate::stats::repetitions::Validation;
+use hilrig_gnss::RtkState;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use serde_json::Value;
+
+/// An input's short name and its content.
+pub(super) type Named<'a, T> = (&'a str, &'a T);
 
 /// Measured data (a dark blue).
 pub const REAL: RGBColor = RGBColor(31, 86, 160);
@@ -18,20 +24,6 @@ pub(super) const PASS: RGBColor = RGBColor(60, 160, 80);
 pub(super) const FAIL: RGBColor = RGBColor(200, 50, 40);
 const FLOAT: RGBColor = RGBColor(235, 180, 40);
 
-/// A number at `path`, if it is one.
-pub fn num(v: &Value, path: &[&str]) -> Option<f64> {
-    let mut cur = v;
-    for k in path {
-        cur = cur.get(k)?;
-    }
-    cur.as_f64()
-}
-
-/// The string at `key`, or "".
-pub(super) fn text<'a>(v: &'a Value, key: &str) -> &'a str {
-    v.get(key).and_then(Value::as_str).unwrap_or("")
-}
-
 /// `x` with `d` decimals, or a dash where there is no finite number.
 pub(super) fn fixed(x: Option<f64>, d: usize) -> String {
     x.filter(|x| x.is_finite())
@@ -40,51 +32,45 @@ pub(super) fn fixed(x: Option<f64>, d: usize) -> String {
 
 /// The share of a checked run that its segments call usable, %: marked and failing stretches
 /// are left out of the metrics, so this is what the run contributes.
-pub(super) fn usable_percent(check: &Value) -> Option<f64> {
-    let usable: f64 = arr(check, "segments")
+pub(super) fn usable_percent(check: &Report) -> Option<f64> {
+    let usable: f64 = check
+        .segments
         .iter()
-        .filter(|g| text(g, "verdict") == "pass")
-        .filter_map(|g| Some(num(g, &["to_s"])? - num(g, &["from_s"])?))
+        .filter(|g| g.verdict == Verdict::Pass)
+        .map(|g| g.to_s - g.from_s)
         .sum();
-    num(check, &["duration_s"])
+    Some(check.duration_s)
         .filter(|&d| d > 0.0)
         .map(|d| 100.0 * usable / d)
 }
 
 /// Where a checked run's heading came from: the track (RTK and CAN), or the rig's heading
 /// source with the offset `check` found for it.
-pub(super) fn heading_from(check: &Value) -> String {
-    match check.get("heading_source").filter(|h| !h.is_null()) {
+pub(super) fn heading_from(check: &Report) -> String {
+    match &check.heading_source {
         None => "track (RTK, CAN)".into(),
         Some(h) => format!(
             "{}: {} reports, offset {}° ± {}°",
-            text(h, "source"),
-            fixed(num(h, &["used"]), 0),
-            fixed(num(h, &["offset_deg"]), 3),
-            fixed(num(h, &["offset_sigma_deg"]), 3)
+            h.source.name(),
+            h.used,
+            fixed(h.offset_deg, 3),
+            fixed(h.offset_sigma_deg, 3)
         ),
     }
 }
 
-/// Counts of green, yellow, red and black cells in a `validate` JSON.
-pub fn lights(v: &Value) -> [usize; 4] {
+/// Counts of green, yellow, red and black cells of a validation.
+pub fn lights(v: &Validation) -> [usize; 4] {
     let mut n = [0; 4];
-    for c in arr(v, "cells") {
-        match text(c, "light") {
-            "green" => n[0] += 1,
-            "yellow" => n[1] += 1,
-            "red" => n[2] += 1,
-            "black" => n[3] += 1,
-            _ => {}
-        }
+    for c in &v.cells {
+        n[match c.light {
+            Light::Green => 0,
+            Light::Yellow => 1,
+            Light::Red => 2,
+            Light::Black => 3,
+        }] += 1;
     }
     n
-}
-
-pub(super) fn arr<'a>(v: &'a Value, key: &str) -> &'a [Value] {
-    v.get(key)
-        .and_then(Value::as_array)
-        .map_or(&[], Vec::as_slice)
 }
 
 pub(super) fn range_of(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
@@ -139,18 +125,22 @@ pub(super) fn e<E: std::fmt::Debug>(x: E) -> String {
 
 /// The check's timeline: the RTK state and horizontal sigma per GNSS epoch, the verdict of
 /// each one-second segment, and the located faults.
-pub fn check_timeline(check: &Value) -> Option<String> {
-    let epochs = arr(check.get("spatial")?, "rtk_epochs");
-    let duration = num(check, &["duration_s"])?.max(1e-3);
+pub fn check_timeline(check: &Report) -> Option<String> {
+    let epochs = &check.spatial.rtk_epochs;
+    if epochs.is_empty() && check.segments.is_empty() {
+        return None;
+    }
+    let duration = Some(check.duration_s).filter(|d| d.is_finite())?.max(1e-3);
     let sigmas: Vec<(f64, f64)> = epochs
         .iter()
-        .filter_map(|e| Some((num(e, &["t_s"])?, num(e, &["sigma_horizontal_m"])?)))
+        .filter_map(|e| Some((e.t_s, e.sigma_horizontal_m?)))
         .collect();
+    let trajectory = Some(check.accuracy.trajectory_m).filter(|x| x.is_finite());
     let top = sigmas
         .iter()
         .map(|s| s.1)
         .fold(0.0f64, f64::max)
-        .max(num(check, &["accuracy", "trajectory_m"]).unwrap_or(0.01))
+        .max(trajectory.unwrap_or(0.01))
         * 1.3;
     svg(1000, 330, |root| {
         let (upper, lower) = root.split_vertically(200);
@@ -172,14 +162,14 @@ pub fn check_timeline(check: &Value) -> Option<String> {
             .map_err(e)?;
         // RTK state as a band along the bottom of the sigma panel.
         let band = top * 0.06;
-        c.draw_series(epochs.iter().filter_map(|ep| {
-            let t = num(ep, &["t_s"])?;
-            let color = match ep.get("state")?.as_str()? {
-                "fixed" => PASS,
-                "float" => FLOAT,
-                _ => FAIL,
+        c.draw_series(epochs.iter().map(|ep| {
+            let t = ep.t_s;
+            let color = match ep.state {
+                RtkState::Fixed => PASS,
+                RtkState::Float => FLOAT,
+                RtkState::None => FAIL,
             };
-            Some(Rectangle::new([(t, 0.0), (t + 0.1, band)], color.filled()))
+            Rectangle::new([(t, 0.0), (t + 0.1, band)], color.filled())
         }))
         .map_err(e)?
         .label("RTK fixed / float / none (band)")
@@ -209,35 +199,31 @@ pub fn check_timeline(check: &Value) -> Option<String> {
             .light_line_style(WHITE)
             .draw()
             .map_err(e)?;
-        s.draw_series(arr(check, "segments").iter().filter_map(|seg| {
-            let (a, b) = (num(seg, &["from_s"])?, num(seg, &["to_s"])?);
-            let color = match seg.get("verdict")?.as_str()? {
-                "pass" => PASS,
-                "fail" => FAIL,
-                _ => GREY,
+        s.draw_series(check.segments.iter().map(|seg| {
+            let color = match seg.verdict {
+                Verdict::Pass => PASS,
+                Verdict::Fail => FAIL,
+                Verdict::Unusable => GREY,
             };
-            Some(Rectangle::new([(a, 1.15), (b, 1.85)], color.filled()))
+            Rectangle::new([(seg.from_s, 1.15), (seg.to_s, 1.85)], color.filled())
         }))
         .map_err(e)?;
-        for f in arr(check, "faults") {
-            let (Some(a), Some(b)) = (num(f, &["from_s"]), num(f, &["to_s"])) else {
-                continue;
-            };
+        for f in &check.faults {
+            let (a, b) = (f.from_s, f.to_s);
             let b = b.max(a + duration * 0.004);
             s.draw_series(std::iter::once(Rectangle::new(
                 [(a, 0.15), (b, 0.85)],
                 FAIL.mix(0.8).filled(),
             )))
             .map_err(e)?;
-            let name = f.get("name").and_then(Value::as_str).unwrap_or("fault");
             s.draw_series(std::iter::once(Text::new(
-                name.to_owned(),
+                f.name.as_str().to_owned(),
                 (a, 0.95),
                 ("sans-serif", 12),
             )))
             .map_err(e)?;
         }
-        if arr(check, "faults").is_empty() {
+        if check.faults.is_empty() {
             s.draw_series(std::iter::once(Text::new(
                 "no faults".to_owned(),
                 (duration * 0.01, 0.6),
@@ -249,37 +235,24 @@ pub fn check_timeline(check: &Value) -> Option<String> {
     })
 }
 
-/// An object's name and footprint (two corners, east and north).
-type Footprint = (String, (f64, f64), (f64, f64));
-
 /// A named curve and the admissible cell it was computed against.
 type Curve<'a> = (&'a str, Vec<(f64, f64)>, f64);
 
 /// Bird's-eye view of one scan: measured and simulated points over the scene's objects, and
 /// the cells occupied by only one of them at the comparison's cell size.
-pub fn birds_eye(snapshot: &Value) -> Option<String> {
-    let pts = |k: &str| -> Vec<(f64, f64)> {
-        arr(snapshot, k)
-            .iter()
-            .filter_map(|p| Some((p.get(0)?.as_f64()?, p.get(1)?.as_f64()?)))
+pub fn birds_eye(snapshot: &Snapshot) -> Option<String> {
+    let thin = |p: &[[f32; 2]]| -> Vec<(f64, f64)> {
+        p.iter()
+            .map(|q| (f64::from(q[0]), f64::from(q[1])))
             .collect()
     };
-    let (real, sim) = (pts("real"), pts("sim"));
-    let (only_r, only_s) = (pts("only_real_cells"), pts("only_sim_cells"));
-    let cell = num(snapshot, &["cell_m"])?;
-    let objects: Vec<Footprint> = arr(snapshot, "objects")
-        .iter()
-        .filter_map(|o| {
-            let n = o.get(0)?.as_str()?.to_owned();
-            let a = o.get(1)?;
-            let b = o.get(2)?;
-            Some((
-                n,
-                (a.get(0)?.as_f64()?, a.get(1)?.as_f64()?),
-                (b.get(0)?.as_f64()?, b.get(1)?.as_f64()?),
-            ))
-        })
-        .collect();
+    let cells = |p: &[[f64; 2]]| -> Vec<(f64, f64)> { p.iter().map(|q| (q[0], q[1])).collect() };
+    let (real, sim) = (thin(&snapshot.real), thin(&snapshot.sim));
+    let (only_r, only_s) = (
+        cells(&snapshot.only_real_cells),
+        cells(&snapshot.only_sim_cells),
+    );
+    let cell = snapshot.cell_m;
     let all = real.iter().chain(&sim).chain(&only_r).chain(&only_s);
     let (x0, x1) = range_of(all.clone().map(|p| p.0))?;
     let (y0, y1) = range_of(all.map(|p| p.1))?;
@@ -298,7 +271,7 @@ pub fn birds_eye(snapshot: &Value) -> Option<String> {
             .caption(
                 format!(
                     "scan at {:.1} s from above: cells of {cell:.2} m occupied by only one cloud",
-                    num(snapshot, &["t_s"]).unwrap_or(0.0)
+                    snapshot.t_s
                 ),
                 ("sans-serif", 15),
             )
@@ -324,14 +297,15 @@ pub fn birds_eye(snapshot: &Value) -> Option<String> {
         .map_err(e)?
         .label("cell: simulated only")
         .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], SIM.mix(0.3).filled()));
-        for (name, a, b) in &objects {
+        for o in &snapshot.objects {
+            let (a, b) = ((o.min[0], o.min[1]), (o.max[0], o.max[1]));
             c.draw_series(std::iter::once(Rectangle::new(
-                [*a, *b],
+                [a, b],
                 BLACK.stroke_width(1),
             )))
             .map_err(e)?;
             c.draw_series(std::iter::once(Text::new(
-                name.clone(),
+                o.name.clone(),
                 (a.0, b.1 + scale * 4.0),
                 ("sans-serif", 11),
             )))
@@ -345,20 +319,15 @@ pub fn birds_eye(snapshot: &Value) -> Option<String> {
             .map_err(e)?
             .label("simulated points")
             .legend(|(x, y)| Circle::new((x + 5, y), 3, SIM.filled()));
-        if let Some(s) = snapshot.get("sensor").and_then(Value::as_array) {
-            if let (Some(x), Some(y)) = (
-                s.first().and_then(Value::as_f64),
-                s.get(1).and_then(Value::as_f64),
-            ) {
-                c.draw_series(std::iter::once(TriangleMarker::new(
-                    (x, y),
-                    7,
-                    BLACK.filled(),
-                )))
-                .map_err(e)?
-                .label("sensor")
-                .legend(|(x, y)| TriangleMarker::new((x + 5, y), 5, BLACK.filled()));
-            }
+        if let Some([x, y]) = snapshot.sensor {
+            c.draw_series(std::iter::once(TriangleMarker::new(
+                (x, y),
+                7,
+                BLACK.filled(),
+            )))
+            .map_err(e)?
+            .label("sensor")
+            .legend(|(x, y)| TriangleMarker::new((x + 5, y), 5, BLACK.filled()));
         }
         legend(&mut c, SeriesLabelPosition::UpperRight)?;
         Ok(())
@@ -370,26 +339,31 @@ type Panel = (&'static str, Vec<(f64, f64)>);
 
 /// Rosenberger et al. 2019, Fig. 5: OCR, objects in view, ego speed and mean distance to the
 /// objects along the drive, one panel each over a common time axis.
-pub fn fig5(compare: &Value) -> Option<String> {
-    let scans = arr(compare, "scans");
-    let series = |f: &dyn Fn(&Value) -> Option<f64>| -> Vec<(f64, f64)> {
+pub fn fig5(compare: &Comparison) -> Option<String> {
+    let scans = &compare.scans;
+    let series = |f: &dyn Fn(&ScanRow) -> Option<f64>| -> Vec<(f64, f64)> {
         scans
             .iter()
-            .filter_map(|s| Some((num(s, &["t_s"])?, f(s)?)))
+            .filter_map(|s| Some((s.t_s, f(s)?)))
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
             .collect()
     };
     let panels: [Panel; 4] = [
-        ("OCR^K", series(&|s| num(s, &["grid", "ocr"]))),
-        ("objects in view", series(&|s| num(s, &["objects_in_view"]))),
-        ("ego speed, m/s", series(&|s| num(s, &["ego_speed_mps"]))),
+        ("OCR^K", series(&|s| s.grid.as_ref()?.ocr)),
+        (
+            "objects in view",
+            series(&|s| Some(s.objects_in_view as f64)),
+        ),
+        ("ego speed, m/s", series(&|s| Some(s.ego_speed_mps))),
         (
             "mean distance to objects, m",
-            series(&|s| num(s, &["mean_distance_m"])),
+            series(&|s| s.mean_distance_m),
         ),
     ];
     let t1 = scans
         .iter()
-        .filter_map(|s| num(s, &["t_s"]))
+        .map(|s| s.t_s)
+        .filter(|t| t.is_finite())
         .fold(0.0, f64::max);
     if t1 <= 0.0 {
         return None;
@@ -424,15 +398,16 @@ pub fn fig5(compare: &Value) -> Option<String> {
 }
 
 /// OCR against the cell size (the calibration curve), the admissible cell marked.
-pub fn calibration_curve(compares: &[(&str, &Value)]) -> Option<String> {
+pub fn calibration_curve(compares: &[(&str, &Comparison)]) -> Option<String> {
     let curves: Vec<Curve> = compares
         .iter()
         .filter_map(|(name, c)| {
-            let pts: Vec<(f64, f64)> = arr(c, "calibration")
+            let pts: Vec<(f64, f64)> = c
+                .calibration
                 .iter()
-                .filter_map(|p| Some((num(p, &["cell_m"])?, num(p, &["ocr_mean"])?)))
+                .filter_map(|p| Some((p.cell_m, p.ocr_mean?)))
                 .collect();
-            (!pts.is_empty()).then(|| (*name, pts, num(c, &["admissible_cell_m"]).unwrap_or(0.0)))
+            (!pts.is_empty()).then_some((*name, pts, c.admissible_cell_m))
         })
         .collect();
     let x1 = curves
@@ -486,59 +461,115 @@ pub fn calibration_curve(compares: &[(&str, &Value)]) -> Option<String> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use crate::reference::check::{Fault, FaultName, RtkEpoch, Segment};
+    use hilrig_stamp::UtcNanos;
+
+    /// A check report as `check` builds it, with the segments, epochs and faults given.
+    pub(crate) fn report(duration_s: f64, segments: &[(f64, f64, Verdict)]) -> Report {
+        Report {
+            verdict: Verdict::Pass,
+            unusable: None,
+            start: String::new(),
+            duration_s,
+            spatial: Default::default(),
+            temporal: Default::default(),
+            accuracy: Default::default(),
+            faults: Vec::new(),
+            marks: Vec::new(),
+            warnings: Vec::new(),
+            segments: segments
+                .iter()
+                .map(|&(from_s, to_s, verdict)| Segment {
+                    from_s,
+                    to_s,
+                    verdict,
+                    reasons: Vec::new(),
+                })
+                .collect(),
+            damage: None,
+            heading_source: None,
+        }
+    }
 
     /// Usable is the passing segments' share of the run: 2 s marked and 1 s failing of 10 s
     /// leave 70 %; a run without duration has none.
     #[test]
     fn the_usable_share_counts_passing_segments_only() {
-        let check = serde_json::json!({"duration_s": 10.0, "segments": [
-            {"from_s": 0.0, "to_s": 2.0, "verdict": "unusable"},
-            {"from_s": 2.0, "to_s": 6.0, "verdict": "pass"},
-            {"from_s": 6.0, "to_s": 7.0, "verdict": "fail"},
-            {"from_s": 7.0, "to_s": 10.0, "verdict": "pass"}]});
-        assert!((usable_percent(&check).unwrap() - 70.0).abs() < 1e-9);
-        assert_eq!(
-            usable_percent(&serde_json::json!({"verdict": "unusable"})),
-            None
+        let check = report(
+            10.0,
+            &[
+                (0.0, 2.0, Verdict::Unusable),
+                (2.0, 6.0, Verdict::Pass),
+                (6.0, 7.0, Verdict::Fail),
+                (7.0, 10.0, Verdict::Pass),
+            ],
         );
+        assert!((usable_percent(&check).unwrap() - 70.0).abs() < 1e-9);
+        assert_eq!(usable_percent(&report(0.0, &[])), None);
     }
 
     /// A run without a heading source took its heading from the track; one with names the
     /// message, the reports used and the offset found.
     #[test]
     fn the_heading_column_names_its_source() {
-        use serde_json::json;
+        let mut check = report(10.0, &[]);
+        assert_eq!(heading_from(&check), "track (RTK, CAN)");
+        check.heading_source = Some(crate::reference::check::report::HeadingReport {
+            source: crate::rig::HeadingSource::Ths,
+            used: 412,
+            not_measured: 0,
+            untimed: 0,
+            invalid: 0,
+            malformed_gnss: 0,
+            sigma_deg: 0.05,
+            yaw_offset_rig_deg: 0.0,
+            yaw_offset_sigma_rig_deg: None,
+            offset_deg: Some(1.2034),
+            offset_sigma_deg: Some(0.0051),
+            rms_normalized: None,
+            beyond_3_sigma: 0,
+        });
         assert_eq!(
-            heading_from(&json!({"heading_source": null})),
-            "track (RTK, CAN)"
+            heading_from(&check),
+            "THS: 412 reports, offset 1.203° ± 0.005°"
         );
-        assert_eq!(heading_from(&json!({})), "track (RTK, CAN)");
-        let h = json!({"heading_source": {"source": "THS", "used": 412,
-            "offset_deg": 1.2034, "offset_sigma_deg": 0.0051}});
-        assert_eq!(heading_from(&h), "THS: 412 reports, offset 1.203° ± 0.005°");
     }
 
     #[test]
     fn a_plot_is_an_svg_with_its_labels_as_text() {
-        let check = serde_json::json!({
-            "duration_s": 10.0,
-            "spatial": {"rtk_epochs": [
-                {"t_s": 0.0, "state": "fixed", "sigma_horizontal_m": 0.01},
-                {"t_s": 5.0, "state": "float", "sigma_horizontal_m": 0.2},
-                {"t_s": 9.9, "state": "fixed", "sigma_horizontal_m": 0.01}
-            ]},
-            "accuracy": {"trajectory_m": 0.01},
-            "segments": [{"from_s": 0.0, "to_s": 4.0, "verdict": "pass"},
-                         {"from_s": 4.0, "to_s": 6.0, "verdict": "fail"}],
-            "faults": [{"name": "rtk_float", "from_s": 4.9, "to_s": 5.1}]
-        });
+        let mut check = report(
+            10.0,
+            &[(0.0, 4.0, Verdict::Pass), (4.0, 6.0, Verdict::Fail)],
+        );
+        let epoch = |t_s, state, sigma| RtkEpoch {
+            time: String::new(),
+            state,
+            t_s,
+            sigma_horizontal_m: Some(sigma),
+        };
+        check.spatial.rtk_epochs = vec![
+            epoch(0.0, RtkState::Fixed, 0.01),
+            epoch(5.0, RtkState::Float, 0.2),
+            epoch(9.9, RtkState::Fixed, 0.01),
+        ];
+        check.accuracy.trajectory_m = 0.01;
+        check.faults = vec![Fault {
+            name: FaultName::RtkFloat,
+            topics: Vec::new(),
+            from: String::new(),
+            to: String::new(),
+            from_s: 4.9,
+            to_s: 5.1,
+            detail: String::new(),
+            from_ns: UtcNanos(0),
+            to_ns: UtcNanos(0),
+        }];
         let s = check_timeline(&check).expect("drawn");
         assert!(s.starts_with("<svg"), "{}", &s[..40]);
         assert!(s.contains("rtk_float") && s.contains("sigma, m"));
         // Nothing to draw: no figure, not an empty one.
-        assert!(check_timeline(&serde_json::json!({})).is_none());
-        assert!(fig5(&serde_json::json!({"scans": []})).is_none());
+        assert!(check_timeline(&report(10.0, &[])).is_none());
     }
 }

@@ -247,6 +247,11 @@ pub fn validate_features(
     })
 }
 
+impl crate::output::Output for Validation {
+    const KIND: crate::output::OutputKind = crate::output::OutputKind::Validate;
+    const SCHEMA: u32 = 1;
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -468,9 +473,4 @@ mod tests {
         let e = validate_features(&[run("empty", vec![])], &[s], &[]).unwrap_err();
         assert!(e.starts_with("empty: no lidar scans"), "{e}");
     }
-}
-
-impl crate::output::Output for Validation {
-    const KIND: crate::output::OutputKind = crate::output::OutputKind::Validate;
-    const SCHEMA: u32 = 1;
 }

@@ -90,6 +90,18 @@ pub enum Verdict {
     NotEvaluable,
 }
 
+impl Verdict {
+    /// Its name, as in the JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Verdict::Valid => "valid",
+            Verdict::PartlyValid => "partly_valid",
+            Verdict::Invalid => "invalid",
+            Verdict::NotEvaluable => "not_evaluable",
+        }
+    }
+}
+
 /// The verdict of the lights, given that the measurement and scenario blocks passed.
 pub fn verdict(cells: &[Cell], blocks_pass: bool) -> Verdict {
     let evaluable: Vec<Light> = cells

@@ -166,8 +166,8 @@ pub fn validation_improved_in(report: &serde_json::Value, round: usize, improves
             .as_array()
             .unwrap()
             .iter()
-            .find(|p| p[0] == name)
-            .and_then(|p| p[1].as_f64())
+            .find(|p| p["metric"] == name)
+            .and_then(|p| p["avm"].as_f64())
             .unwrap_or_else(|| panic!("no AVM of {name} in {m}"))
     };
     for what in improves {
@@ -195,7 +195,7 @@ pub fn validation_improved_in(report: &serde_json::Value, round: usize, improves
             .as_array()
             .unwrap()
             .iter()
-            .map(|p| (p[0].as_str().unwrap().to_owned(), rank(&p[1])))
+            .map(|p| (p["metric"].as_str().unwrap().to_owned(), rank(&p["light"])))
             .collect()
     };
     for ((name, b), (_, a)) in lights(before).into_iter().zip(lights(after)) {

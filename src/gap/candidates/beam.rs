@@ -1,7 +1,6 @@
 //! The candidates of the beam and the echo: beam divergence fitted on a grid (the
 //! likelihood is not smooth in it), and the intensity's incidence dependence.
 
-use crate::sim::model::EffectKind;
 use super::{
     clears, random_of, refitted_threshold, with_effect, Candidate, Fitting, Param,
     REFERENCE_REFLECTIVITY,
@@ -11,6 +10,7 @@ use crate::gap::likelihood::{self, Scored};
 use crate::gap::observe::NONE;
 use crate::gap::GapError;
 use crate::sim::model::Effect;
+use crate::sim::model::EffectKind;
 
 /// Rows needed before the noise is estimated from the untruncated ones alone.
 const UNTRUNCATED_ROWS: usize = 100;

@@ -1,12 +1,12 @@
 //! The geometric candidates: a time offset and a mount misalignment fitted by Gauss-Newton
 //! on the re-cast ranges, and motion distortion switched on.
 
-use crate::sim::model::EffectKind;
 use super::{random_of, with_effect, Candidate, Fitting, Interval, Param};
 use crate::gap::bootstrap;
 use crate::gap::likelihood;
 use crate::gap::GapError;
 use crate::sim::model::Effect;
+use crate::sim::model::EffectKind;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 

@@ -10,7 +10,6 @@
 //! share of clutter-like returns over the firings in which a clutter echo would be the
 //! strongest, its range the farthest such return.
 
-use crate::sim::model::EffectKind;
 use super::{
     power_at, random_of, refitted_threshold, sort_rows, sweep_ll, with_effect, Candidate,
     DetectionRow, Fitting, Param, REFERENCE_REFLECTIVITY,
@@ -18,6 +17,7 @@ use super::{
 use crate::gap::likelihood::Clutter;
 use crate::gap::GapError;
 use crate::sim::model::Effect;
+use crate::sim::model::EffectKind;
 
 /// Extinction coefficients tried, per metre (fog of 80 m visibility: 0.05; heavy rain of
 /// 25 mm/h: about 0.007).

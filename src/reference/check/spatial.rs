@@ -195,7 +195,7 @@ mod tests {
         assert!(detail(FaultName::RtkNone).contains("quality 1"));
         assert!(detail(FaultName::RtkFixedShare).starts_with("88.0 % of epochs RTK-fixed"));
         assert!(detail(FaultName::SigmaSpike).contains("worst horizontal 0.050 m"));
-        assert_eq!(sp.rtk_epochs[25].state, "float");
+        assert_eq!(sp.rtk_epochs[25].state, hilrig_gnss::RtkState::Float);
         assert!((sp.rtk_epochs[25].t_s - 2.5).abs() < 1e-9);
     }
 
