@@ -13,6 +13,7 @@
 //! - [`reference`]: the ego trajectory from RTK GNSS and CAN, and `check`;
 //! - [`scene`]: the digital twin (objects, actors, the WGS84/ENU frame, poses and trajectories);
 //! - [`sim`]: the lidar model and its effects, `synth` and `resim`;
+//! - [`estimate`]: estimators shared by the steps (median, robust sigma, rank correlation);
 //! - [`metrics`]: a run against its re-simulation, scan by scan (`hilrig compare`);
 //! - [`gap`]: the gap workflow: the missing effect found, fitted and validated (`hilrig gap`);
 //! - [`stats`]: over repetitions: area validation metric, traffic lights, rank correlation;
@@ -26,6 +27,7 @@
 pub mod bag;
 pub mod config;
 pub mod decode;
+pub mod estimate;
 pub mod gap;
 pub mod metrics;
 pub mod output;

@@ -27,10 +27,10 @@ use super::roi::{Region, Roi};
 use super::tally::{mean, Tally};
 use super::windows::{grid_phase, refuse_clamping_cell, windows, CurveSums, PointPair};
 use crate::bag::scans::{Scan, ScanStream};
+use crate::estimate::rank::spearman_with_interval;
 use crate::rig::Rig;
 use crate::scene::pose::{mounting_isometry, Trajectory};
 use crate::scene::Scene;
-use crate::stats::rank::spearman_with_interval;
 
 use hilrig_velodyne::Decoder;
 use rayon::prelude::*;

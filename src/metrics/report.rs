@@ -3,8 +3,8 @@
 
 use super::grid::{Dims, GridScores};
 use super::points::PointScores;
+use crate::estimate::rank::Correlation;
 use crate::reference::check::Fault;
-use crate::stats::rank::Correlation;
 
 /// An object's points in one scan.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
