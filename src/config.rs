@@ -6,18 +6,28 @@
 //! every run; an infinite range turns a limit off without a word. One walk over the parsed
 //! document, before the typed parse, refuses them all and names the key.
 
-/// The dotted path and value of the first number in `text` that is not finite, as an error
-/// message; `Ok` when there is none or the text is not TOML (the typed parse then says where).
-pub fn check_finite(text: &str) -> Result<(), String> {
+/// A number of a TOML file that is not finite.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{key} = {value}: every number must be finite")]
+pub struct NonFinite {
+    /// Its dotted key path.
+    pub key: String,
+    /// The value (NaN or an infinity).
+    pub value: f64,
+}
+
+/// The first number in `text` that is not finite; `Ok` when there is none or the text is not
+/// TOML (the typed parse then says where).
+pub fn check_finite(text: &str) -> Result<(), NonFinite> {
     let Ok(doc) = text.parse::<toml::Table>() else {
         return Ok(());
     };
     let mut path = Vec::new();
     match first_non_finite(&toml::Value::Table(doc), &mut path) {
-        Some(v) => Err(format!(
-            "{} = {v}: every number must be finite",
-            path.join(".")
-        )),
+        Some(value) => Err(NonFinite {
+            key: path.join("."),
+            value,
+        }),
         None => Ok(()),
     }
 }
@@ -59,11 +69,17 @@ mod tests {
     #[test]
     fn names_the_key_of_the_first_non_finite_number() {
         assert_eq!(check_finite("a = 1.0\n[b]\nc = [1, 2.5]\n"), Ok(()));
-        let e = check_finite("[thresholds]\nmax_jump_sigma = nan\n").unwrap_err();
+        let e = check_finite("[thresholds]\nmax_jump_sigma = nan\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("thresholds.max_jump_sigma = NaN"), "{e}");
-        let e = check_finite("[[effect]]\nx = 1.0\n[[effect]]\nx = -inf\n").unwrap_err();
+        let e = check_finite("[[effect]]\nx = 1.0\n[[effect]]\nx = -inf\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("effect[2].x = -inf"), "{e}");
-        let e = check_finite("p = [[1.0, 2.0], [3.0, inf]]\n").unwrap_err();
+        let e = check_finite("p = [[1.0, 2.0], [3.0, inf]]\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("p[2][2] = inf"), "{e}");
         // Not TOML: left to the typed parse, which says where.
         assert_eq!(check_finite("= broken"), Ok(()));

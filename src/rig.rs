@@ -129,15 +129,22 @@ pub struct HeadingConfig {
 impl HeadingConfig {
     /// Refuses accuracies that are not positive: a zero sigma would make the smoother take
     /// every report, or the mounting, as exact.
-    fn check(&self) -> Result<(), String> {
+    /// (`name` says where the rig came from in the error.)
+    fn check(&self, name: &str) -> Result<(), RigError> {
+        let bad = |message: String| {
+            Err(RigError::Parse {
+                path: name.to_owned(),
+                message,
+            })
+        };
         if self.sigma_deg <= 0.0 {
-            return Err(format!(
+            return bad(format!(
                 "gnss.heading.sigma_deg = {}: the source's accuracy must be positive",
                 self.sigma_deg
             ));
         }
         match self.yaw_offset_sigma_deg {
-            Some(s) if s <= 0.0 => Err(format!(
+            Some(s) if s <= 0.0 => bad(format!(
                 "gnss.heading.yaw_offset_sigma_deg = {s}: how well the mounting is known must be positive (leave it out to estimate the offset from the drive)"
             )),
             _ => Ok(()),
@@ -412,6 +419,28 @@ pub enum RigError {
     },
 }
 
+/// Why a rig's lidar cannot be decoded or simulated.
+#[derive(Debug, thiserror::Error)]
+pub enum LidarSensorError {
+    /// No `[lidar]` table.
+    #[error("the rig has no [lidar]")]
+    NoLidar,
+    /// A model the decoder does not know (the decoder's message names the known ones).
+    #[error("{0}")]
+    UnknownModel(String),
+    /// The calibration file does not read.
+    #[error(transparent)]
+    Calibration(#[from] hilrig_velodyne::CalibrationError),
+    /// A model whose geometry differs per unit, without its file.
+    #[error("the {model} needs its unit's own calibration ({reason}): set [lidar] calibration = \"FILE\" (a ros-drivers YAML or VeloView XML file) in the rig")]
+    NeedsCalibration {
+        /// The model.
+        model: hilrig_velodyne::Model,
+        /// Why it needs one.
+        reason: &'static str,
+    },
+}
+
 impl Rig {
     /// The lidar's model and calibration (the rig's calibration file, else the model's built-in
     /// geometry), with its settings: what every step that decodes or simulates its packets
@@ -424,18 +453,20 @@ impl Rig {
             hilrig_velodyne::Model,
             hilrig_velodyne::Calibration,
         ),
-        String,
+        LidarSensorError,
     > {
-        let lidar = self.lidar.as_ref().ok_or("the rig has no [lidar]")?;
-        let model: hilrig_velodyne::Model = lidar.model.parse()?;
+        let lidar = self.lidar.as_ref().ok_or(LidarSensorError::NoLidar)?;
+        let model: hilrig_velodyne::Model = lidar
+            .model
+            .parse()
+            .map_err(LidarSensorError::UnknownModel)?;
         let calibration = match &lidar.calibration {
-            Some(p) => hilrig_velodyne::Calibration::from_file(&self.resolve(p), model)
-                .map_err(|e| e.to_string())?,
+            Some(p) => hilrig_velodyne::Calibration::from_file(&self.resolve(p), model)?,
             None if model.needs_calibration_file() => {
-                return Err(format!(
-                    "the {model} needs its unit's own calibration ({}): set [lidar] calibration = \"FILE\" (a ros-drivers YAML or VeloView XML file) in the rig",
-                    model.calibration_file_reason().unwrap_or_default()
-                ))
+                return Err(LidarSensorError::NeedsCalibration {
+                    model,
+                    reason: model.calibration_file_reason().unwrap_or_default(),
+                })
             }
             None => hilrig_velodyne::Calibration::builtin(model),
         };
@@ -444,9 +475,9 @@ impl Rig {
 
     /// Parses a rig file's text (`name` says where it came from in errors).
     pub fn from_toml(text: &str, name: &str) -> Result<Rig, RigError> {
-        crate::config::check_finite(text).map_err(|message| RigError::Parse {
+        crate::config::check_finite(text).map_err(|e| RigError::Parse {
             path: name.to_owned(),
-            message,
+            message: e.to_string(),
         })?;
         let rig: Rig = toml::from_str(text).map_err(|e| RigError::Parse {
             path: name.to_owned(),
@@ -460,10 +491,7 @@ impl Rig {
     /// where the rig came from in the error.
     fn check_heading(&self, name: &str) -> Result<(), RigError> {
         match self.gnss.as_ref().and_then(|g| g.heading.as_ref()) {
-            Some(h) => h.check().map_err(|message| RigError::Parse {
-                path: name.to_owned(),
-                message,
-            }),
+            Some(h) => h.check(name),
             None => Ok(()),
         }
     }

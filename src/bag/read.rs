@@ -56,14 +56,93 @@ fn attachment(body: &[u8]) -> Option<(&str, &[u8])> {
     Some((name, data))
 }
 
+/// Why reading stopped before the end of the data section (everything before was handed over).
+#[derive(Debug, thiserror::Error)]
+pub enum ReadError {
+    /// The file could not be read.
+    #[error("reading: {0}")]
+    Io(#[source] std::io::Error),
+    /// A record the mcap crate's parser refused.
+    #[error("{0}")]
+    Mcap(#[from] mcap::McapError),
+    /// A schema, channel or metadata record whose length fields run past its end.
+    #[error("a {record} record of {bytes} bytes whose fields claim more bytes than it has")]
+    FieldsOverrun {
+        /// `schema`, `channel` or `metadata`.
+        record: &'static str,
+        /// Its body's length.
+        bytes: usize,
+    },
+    /// A chunk whose compression name runs past its end.
+    #[error(
+        "a chunk record of {bytes} bytes whose compression name claims more bytes than it has"
+    )]
+    ChunkNameOverrun {
+        /// Its body's length.
+        bytes: usize,
+    },
+    /// A chunk that claims to expand beyond any plausible compression ratio.
+    #[error("a chunk of {bytes} bytes claims {claimed} bytes uncompressed")]
+    ChunkExpansion {
+        /// Its compressed length.
+        bytes: usize,
+        /// The uncompressed length it claims.
+        claimed: u64,
+    },
+    /// A chunk whose records do not decompress.
+    #[error("{compression}: {source}")]
+    Decompress {
+        /// `zstd` or `lz4`.
+        compression: &'static str,
+        /// The decompressor's complaint.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A compression this reader does not know.
+    #[error("a chunk compressed with unknown {0:?}")]
+    UnknownCompression(String),
+    /// A chunk that holds another size than it claims.
+    #[error("a chunk claims {claimed} bytes uncompressed but holds {held}")]
+    ChunkSize {
+        /// The size it claims.
+        claimed: usize,
+        /// The size it holds.
+        held: usize,
+    },
+    /// A message on a channel no record defined.
+    #[error("a message on channel {0} that was never defined")]
+    UndefinedChannel(u16),
+    /// A message of one of the contract's topics that does not decode as its type.
+    #[error("{topic}: a message does not decode as its type")]
+    Undecodable {
+        /// Its topic.
+        topic: String,
+    },
+    /// The visitor stopped the reading (its consumer went away): not damage.
+    #[error("the reading was stopped")]
+    Stopped,
+    /// Every record was read, but the summary or footer is cut off.
+    #[error("the file ends without MCAP's closing magic: its summary or footer is cut off (every message was read; `hilrig recover` rewrites the file whole)")]
+    NoClosingMagic,
+    /// Where a record was at fault: the byte of the file it starts at.
+    #[error("{source} (in the record at byte {at})")]
+    At {
+        /// The record's first byte in the file.
+        at: usize,
+        /// What is wrong with it.
+        #[source]
+        source: Box<ReadError>,
+    },
+}
+
 /// The callback of [`read`].
-pub type Visitor<'a> = dyn FnMut(Event<'_>) -> Result<(), String> + 'a;
+pub type Visitor<'a> = dyn FnMut(Event<'_>) -> Result<(), ReadError> + 'a;
 
 /// Walks the data section of an MCAP held in memory and hands every message, metadata record
 /// and attachment to `each`, in file order. `Err` says what stopped the reading (damage, or an
 /// error `each` returned) and, where a record was at fault, at which byte of the file that
 /// record starts; everything before it has been handed over.
-pub fn read(bytes: &[u8], each: &mut Visitor<'_>) -> Result<(), String> {
+pub fn read(bytes: &[u8], each: &mut Visitor<'_>) -> Result<(), ReadError> {
     let options = mcap::sans_io::LinearReaderOptions::default()
         .with_skip_end_magic(true)
         .with_emit_chunks(true)
@@ -74,13 +153,18 @@ pub fn read(bytes: &[u8], each: &mut Visitor<'_>) -> Result<(), String> {
     records(bytes, options, &mut |op, body| {
         let here = at;
         at += 9 + body.len();
-        data_record(op, body, &mut channels, each)
-            .map_err(|e| format!("{e} (in the record at byte {here})"))
+        data_record(op, body, &mut channels, each).map_err(|e| match e {
+            ReadError::Stopped => e,
+            e => ReadError::At {
+                at: here,
+                source: Box::new(e),
+            },
+        })
     })?;
     // Every record of the data section was read; a file cut after it (in its summary or
     // footer) still lost its index, and a reader that trusts the index finds nothing.
     if !bytes.ends_with(mcap::MAGIC) {
-        return Err("the file ends without MCAP's closing magic: its summary or footer is cut off (every message was read; `hilrig recover` rewrites the file whole)".into());
+        return Err(ReadError::NoClosingMagic);
     }
     Ok(())
 }
@@ -91,7 +175,7 @@ pub fn read_stream(
     mut src: impl std::io::Read,
     len: u64,
     each: &mut Visitor<'_>,
-) -> Result<(), String> {
+) -> Result<(), ReadError> {
     let options = mcap::sans_io::LinearReaderOptions::default()
         .with_skip_end_magic(true)
         .with_emit_chunks(true)
@@ -99,14 +183,14 @@ pub fn read_stream(
     let mut channels = mcap::read::ChannelAccumulator::<'static>::default();
     // The last bytes read, for the closing magic.
     let mut tail: Vec<u8> = Vec::with_capacity(16);
-    let mut fill = |buf: &mut [u8]| -> Result<usize, String> {
+    let mut fill = |buf: &mut [u8]| -> Result<usize, ReadError> {
         let mut got = 0;
         while got < buf.len() {
             match src.read(&mut buf[got..]) {
                 Ok(0) => break,
                 Ok(n) => got += n,
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                Err(e) => return Err(format!("reading: {e}")),
+                Err(e) => return Err(ReadError::Io(e)),
             }
         }
         tail.extend_from_slice(&buf[..got]);
@@ -122,13 +206,13 @@ pub fn read_stream(
     let mut rest = [0u8; 1 << 16];
     while fill(&mut rest)? > 0 {}
     if tail != mcap::MAGIC {
-        return Err("the file ends without MCAP's closing magic: its summary or footer is cut off (every message was read; `hilrig recover` rewrites the file whole)".into());
+        return Err(ReadError::NoClosingMagic);
     }
     Ok(())
 }
 
 /// What [`records`] hands each record to: opcode and body in, whether to go on out.
-type RecordVisitor<'a> = dyn FnMut(u8, &[u8]) -> Result<bool, String> + 'a;
+type RecordVisitor<'a> = dyn FnMut(u8, &[u8]) -> Result<bool, ReadError> + 'a;
 
 /// Feeds every record of `bytes` (opcode, body) to `each` until it says stop. The records are
 /// handed over raw so that only the ones replay needs are parsed: the mcap crate's parser panics
@@ -138,8 +222,8 @@ fn records(
     mut bytes: &[u8],
     options: mcap::sans_io::LinearReaderOptions,
     each: &mut RecordVisitor<'_>,
-) -> Result<(), String> {
-    let mut fill = |buf: &mut [u8]| -> Result<usize, String> {
+) -> Result<(), ReadError> {
+    let mut fill = |buf: &mut [u8]| -> Result<usize, ReadError> {
         let n = buf.len().min(bytes.len());
         buf[..n].copy_from_slice(&bytes[..n]);
         bytes = &bytes[n..];
@@ -150,14 +234,14 @@ fn records(
 
 /// [`records`] from a source that fills a buffer and says how much it filled (0 at the end).
 fn records_from(
-    fill: &mut dyn FnMut(&mut [u8]) -> Result<usize, String>,
+    fill: &mut dyn FnMut(&mut [u8]) -> Result<usize, ReadError>,
     options: mcap::sans_io::LinearReaderOptions,
     each: &mut RecordVisitor<'_>,
-) -> Result<(), String> {
+) -> Result<(), ReadError> {
     use mcap::sans_io::LinearReadEvent;
     let mut reader = mcap::sans_io::LinearReader::new_with_options(options);
     while let Some(event) = reader.next_event() {
-        match event.map_err(|e| e.to_string())? {
+        match event? {
             LinearReadEvent::ReadRequest(need) => {
                 let n = fill(reader.insert(need))?;
                 reader.notify_read(n);
@@ -240,45 +324,40 @@ fn data_record(
     body: &[u8],
     channels: &mut mcap::read::ChannelAccumulator<'static>,
     out: &mut Visitor<'_>,
-) -> Result<bool, String> {
+) -> Result<bool, ReadError> {
     use mcap::records::op;
     match op {
         op::SCHEMA | op::CHANNEL | op::MESSAGE | op::METADATA => {
             if fields_fit(op, body).is_none() {
-                return Err(format!(
-                    "a {} record of {} bytes whose fields claim more bytes than it has",
-                    match op {
+                return Err(ReadError::FieldsOverrun {
+                    record: match op {
                         op::SCHEMA => "schema",
                         op::CHANNEL => "channel",
                         _ => "metadata",
                     },
-                    body.len()
-                ));
+                    bytes: body.len(),
+                });
             }
-            let record = mcap::parse_record(op, body).map_err(|e| e.to_string())?;
+            let record = mcap::parse_record(op, body)?;
             record_into(record, channels, out)?;
         }
         op::CHUNK => {
             if fields_fit(op, body).is_none() {
-                return Err(format!(
-                    "a chunk record of {} bytes whose compression name claims more bytes than it has",
-                    body.len()
-                ));
+                return Err(ReadError::ChunkNameOverrun { bytes: body.len() });
             }
-            let mcap::records::Record::Chunk { header, data } =
-                mcap::parse_record(op, body).map_err(|e| e.to_string())?
+            // A chunk's opcode parses as a chunk (anything else is the parser's error).
+            let mcap::records::Record::Chunk { header, data } = mcap::parse_record(op, body)?
             else {
-                return Err("a chunk record that is no chunk".into());
+                return Ok(true);
             };
             let limit = (data.len() as u64)
                 .saturating_mul(MAX_CHUNK_EXPANSION)
                 .saturating_add(1 << 20);
             if header.uncompressed_size > limit {
-                return Err(format!(
-                    "a chunk of {} bytes claims {} bytes uncompressed",
-                    data.len(),
-                    header.uncompressed_size
-                ));
+                return Err(ReadError::ChunkExpansion {
+                    bytes: data.len(),
+                    claimed: header.uncompressed_size,
+                });
             }
             let inner = decompress(&header, &data)?;
             let options = mcap::sans_io::LinearReaderOptions::default()
@@ -304,28 +383,34 @@ fn data_record(
 
 /// A chunk's records, uncompressed, checked against the size its header claims (which has been
 /// checked for plausibility already, so it bounds the allocation).
-fn decompress(header: &mcap::records::ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
+fn decompress(header: &mcap::records::ChunkHeader, data: &[u8]) -> Result<Vec<u8>, ReadError> {
     use std::io::Read;
     let claimed = header.uncompressed_size as usize;
+    let failed = |compression| {
+        move |source| ReadError::Decompress {
+            compression,
+            source,
+        }
+    };
     let body = match header.compression.as_str() {
         "" => data.to_vec(),
-        "zstd" => zstd::bulk::decompress(data, claimed).map_err(|e| format!("zstd: {e}"))?,
+        "zstd" => zstd::bulk::decompress(data, claimed).map_err(failed("zstd"))?,
         "lz4" => {
             let mut out = Vec::with_capacity(claimed);
             lz4::Decoder::new(data)
-                .map_err(|e| format!("lz4: {e}"))?
+                .map_err(failed("lz4"))?
                 .take(claimed as u64 + 1)
                 .read_to_end(&mut out)
-                .map_err(|e| format!("lz4: {e}"))?;
+                .map_err(failed("lz4"))?;
             out
         }
-        other => return Err(format!("a chunk compressed with unknown {other:?}")),
+        other => return Err(ReadError::UnknownCompression(other.to_owned())),
     };
     if body.len() != claimed {
-        return Err(format!(
-            "a chunk claims {claimed} bytes uncompressed but holds {}",
-            body.len()
-        ));
+        return Err(ReadError::ChunkSize {
+            claimed,
+            held: body.len(),
+        });
     }
     Ok(body)
 }
@@ -336,19 +421,16 @@ fn record_into(
     record: mcap::records::Record<'_>,
     channels: &mut mcap::read::ChannelAccumulator<'static>,
     out: &mut Visitor<'_>,
-) -> Result<(), String> {
+) -> Result<(), ReadError> {
     match record {
-        mcap::records::Record::Schema { header, data } => channels
-            .add_schema(header, std::borrow::Cow::Owned(data.into_owned()))
-            .map_err(|e| e.to_string()),
-        mcap::records::Record::Channel(c) => channels.add_channel(c).map_err(|e| e.to_string()),
+        mcap::records::Record::Schema { header, data } => {
+            Ok(channels.add_schema(header, std::borrow::Cow::Owned(data.into_owned()))?)
+        }
+        mcap::records::Record::Channel(c) => Ok(channels.add_channel(c)?),
         mcap::records::Record::Message { header, data } => {
-            let channel = channels.get(header.channel_id).ok_or_else(|| {
-                format!(
-                    "a message on channel {} that was never defined",
-                    header.channel_id
-                )
-            })?;
+            let channel = channels
+                .get(header.channel_id)
+                .ok_or(ReadError::UndefinedChannel(header.channel_id))?;
             out(Event::Message(Message {
                 channel: &channel,
                 log_time: header.log_time,
@@ -379,7 +461,7 @@ mod tests {
         ];
         let mut bytes = mcap::MAGIC.to_vec();
         bytes.extend_from_slice(&damaged[1..]);
-        let err = read(&bytes, &mut |_| Ok(())).unwrap_err();
+        let err = read(&bytes, &mut |_| Ok(())).unwrap_err().to_string();
         assert!(
             err.contains("schema record") && err.contains("claim more bytes than it has"),
             "{err}"
@@ -429,7 +511,7 @@ mod tests {
                 }
                 Ok(())
             });
-            (n, r)
+            (n, r.map_err(|e| e.to_string()))
         };
         assert_eq!(count(&bytes), (5, Ok(())));
         let (n, r) = count(&bytes[..bytes.len() - 3]);
@@ -454,7 +536,7 @@ mod tests {
         let chunk = summary.chunk_indexes[0].chunk_start_offset as usize;
         // opcode, record length, start and end time, then the uncompressed size.
         bytes[chunk + 1 + 8 + 16] += 1;
-        let err = read(&bytes, &mut |_| Ok(())).unwrap_err();
+        let err = read(&bytes, &mut |_| Ok(())).unwrap_err().to_string();
         assert!(err.contains("bytes uncompressed but holds"), "{err}");
         assert!(
             err.ends_with(&format!("(in the record at byte {chunk})")),

@@ -6,7 +6,7 @@
 //! of them at a time, never the file.
 
 use super::cdr::CdrReader;
-use super::read::{read, read_stream, Event, Message};
+use super::read::{read, read_stream, Event, Message, ReadError};
 use super::topics;
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::DATA_PACKET_SIZE;
@@ -37,11 +37,13 @@ impl Scan {
 
 /// A `/velodyne_packets` message as a [`Scan`]; `None` for other topics, an error naming the
 /// topic for a scan that does not decode.
-fn scan_of(m: &Message<'_>) -> Result<Option<Scan>, String> {
+fn scan_of(m: &Message<'_>) -> Result<Option<Scan>, ReadError> {
     if m.channel.topic != topics::VELODYNE_PACKETS {
         return Ok(None);
     }
-    let bad = || format!("{}: a scan does not decode", m.channel.topic);
+    let bad = || ReadError::Undecodable {
+        topic: m.channel.topic.clone(),
+    };
     let mut c = CdrReader::new(m.data).ok_or_else(bad)?;
     let stamp = c.header().ok_or_else(bad)?;
     let n = c.u32().ok_or_else(bad)?;
@@ -72,7 +74,8 @@ pub fn read_scans(bytes: &[u8]) -> (Vec<Scan>, Option<String>) {
         }
         Ok(())
     })
-    .err();
+    .err()
+    .map(|e| e.to_string());
     (scans, damage)
 }
 
@@ -108,9 +111,6 @@ pub struct ScanStream {
     reader: Option<std::thread::JoinHandle<Option<String>>>,
 }
 
-/// What the reading thread says when the consumer has gone: not damage.
-const CONSUMER_GONE: &str = "\u{0}consumer gone";
-
 impl ScanStream {
     /// Starts reading the scans of the MCAP file at `path`.
     pub fn open(path: &Path) -> Result<ScanStream, ScanStreamError> {
@@ -134,12 +134,15 @@ impl ScanStream {
                 let result = read_stream(src, len, &mut |e| {
                     if let Event::Message(m) = e {
                         if let Some(scan) = scan_of(&m)? {
-                            tx.send(scan).map_err(|_| CONSUMER_GONE.to_owned())?;
+                            tx.send(scan).map_err(|_| ReadError::Stopped)?;
                         }
                     }
                     Ok(())
                 });
-                result.err().filter(|e| e != CONSUMER_GONE)
+                match result {
+                    Ok(()) | Err(ReadError::Stopped) => None,
+                    Err(e) => Some(e.to_string()),
+                }
             })
             .map_err(io)?;
         Ok(ScanStream {

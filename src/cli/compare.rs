@@ -3,7 +3,7 @@
 //! Exit 0 when compared, 2 when the inputs cannot be compared (nothing written then).
 
 use anyhow::{Context, Result};
-use hilrig::metrics::compare::{compare, CompareError, Comparison, Options};
+use hilrig::metrics::compare::{compare, Comparison, Options};
 use hilrig::metrics::grid::Dims;
 use hilrig::metrics::roi::Region;
 use std::fmt::Write as _;
@@ -228,7 +228,7 @@ pub fn run(args: CompareArgs) -> Result<ExitCode> {
         &progress,
     ) {
         Ok(c) => c,
-        Err(e @ (CompareError::Input(_) | CompareError::CellTooSmall { .. })) => {
+        Err(e) => {
             bar.finish_and_clear();
             eprintln!("error: {e}");
             return Ok(ExitCode::from(2));

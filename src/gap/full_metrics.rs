@@ -41,7 +41,10 @@ pub(super) fn run_metrics(
     let (mut ocr, mut precision, mut iou) = (Vec::new(), Vec::new(), Vec::new());
     for (i, r) in val.iter().enumerate() {
         let sim_path = dir.join(format!("{tag}-validation-{:02}.mcap", i + 1));
-        let (_, sensor, calibration) = r.rig.lidar_sensor().map_err(GapError::Input)?;
+        let (_, sensor, calibration) = r.rig.lidar_sensor().map_err(|source| GapError::Lidar {
+            run: r.name.clone(),
+            source,
+        })?;
         let decoder = hilrig_velodyne::Decoder::with_calibration(sensor, calibration);
         let mut resim = Resimulator::new(
             &r.path,
@@ -110,7 +113,7 @@ pub(super) fn run_metrics(
         });
     }
     let v = crate::stats::repetitions::validate_features(measured, &sim_features, &[])
-        .map_err(GapError::Input)?;
+        .map_err(|e| GapError::Input(e.to_string()))?;
     let mean = |v: &[f64]| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
     Ok(RunMetrics {
         ocr: mean(&ocr),

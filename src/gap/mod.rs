@@ -41,4 +41,13 @@ pub enum GapError {
     /// Writing the results failed.
     #[error("writing the results: {0}")]
     Output(String),
+    /// A run's rig names a lidar that cannot be decoded or simulated.
+    #[error("{run}: {source}")]
+    Lidar {
+        /// The run.
+        run: String,
+        /// Why.
+        #[source]
+        source: crate::rig::LidarSensorError,
+    },
 }

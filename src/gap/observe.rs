@@ -192,7 +192,8 @@ pub fn load_run(
     force: bool,
 ) -> Result<RunData, GapError> {
     let input = GapError::Input;
-    let (run, rig) = crate::reference::run::load_with_rig(path, rig).map_err(input)?;
+    let (run, rig) =
+        crate::reference::run::load_with_rig(path, rig).map_err(|e| input(e.to_string()))?;
     let (report, smoothed) = check_with_trajectory(&run, &rig, Some(&scene));
     if report.verdict != Verdict::Pass && !force {
         return Err(GapError::Refused {
@@ -213,7 +214,10 @@ pub fn load_run(
     let trajectory = smoothed
         .and_then(|t| t.sampled(10_000_000))
         .ok_or_else(|| input(format!("{}: no RTK+CAN trajectory", path.display())))?;
-    let (_, model, _) = rig.lidar_sensor().map_err(input)?;
+    let (_, model, _) = rig.lidar_sensor().map_err(|source| GapError::Lidar {
+        run: path.display().to_string(),
+        source,
+    })?;
     let pps_locked = run.lidar_pps_locked();
     let (from, to) = part.unwrap_or((0, run.scans.len()));
     let (from, to) = (from.min(run.scans.len()), to.min(run.scans.len()));
@@ -351,7 +355,11 @@ pub fn deterministic(model: &ModelFile) -> ModelFile {
 }
 
 fn simulator<'a>(run: &'a RunData, model: &ModelFile) -> Result<LidarSim<'a>, GapError> {
-    let (lidar, sensor, calibration) = run.rig.lidar_sensor().map_err(GapError::Input)?;
+    let (lidar, sensor, calibration) =
+        run.rig.lidar_sensor().map_err(|source| GapError::Lidar {
+            run: run.name.clone(),
+            source,
+        })?;
     LidarSim::new(&run.scene, sensor, calibration, &lidar.mounting, model)
         .map_err(|e| GapError::Input(e.to_string()))
 }

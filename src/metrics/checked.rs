@@ -36,8 +36,7 @@ impl Checked {
         scene: Option<&Scene>,
         trajectory: Option<Trajectory>,
     ) -> Result<Checked, CompareError> {
-        let (run, rig) =
-            crate::reference::run::load_with_rig(run_path, rig).map_err(CompareError::Input)?;
+        let (run, rig) = crate::reference::run::load_with_rig(run_path, rig)?;
         let (report, smoothed) = check_with_trajectory(&run, &rig, scene);
         Checked::from_check(run_path, run, rig, report, smoothed, trajectory)
     }

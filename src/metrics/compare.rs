@@ -276,14 +276,14 @@ fn compare_twins(
     };
     let real_span = Some((first_scan.stamp, last_scan.stamp));
     refuse_clamping_cell(cell, &reference.trajectory, opts.sensor_frame).map_err(input)?;
-    let (lidar, model, calibration) = reference.rig.lidar_sensor().map_err(input)?;
+    let (lidar, model, calibration) = reference.rig.lidar_sensor()?;
     let decoder = Decoder::with_calibration(model, calibration);
     if opts.sensor_frame && (opts.region != Region::All || opts.exclude_ground) {
         return Err(input(
             "the sensor frame has no scene: --roi and ground exclusion need the scene frame (use --roi all --keep-ground)".into(),
         ));
     }
-    let roi = Roi::new(opts.region.clone(), scene, opts.exclude_ground, 0.2).map_err(input)?;
+    let roi = Roi::new(opts.region.clone(), scene, opts.exclude_ground, 0.2)?;
     let frame = Frame {
         decoder: &decoder,
         mount: mounting_isometry(&lidar.mounting),

@@ -112,29 +112,27 @@ impl Roi {
         scene: Option<&Scene>,
         exclude_ground: bool,
         margin: f64,
-    ) -> Result<Roi, String> {
+    ) -> Result<Roi, RoiError> {
         let boxes = scene.map(object_bounds).unwrap_or_default();
         match &region {
             Region::All => {}
-            Region::Objects if scene.is_none() => {
-                return Err("--roi objects needs the scene (--scene)".into())
-            }
+            Region::Objects if scene.is_none() => return Err(RoiError::ObjectsNeedScene),
             Region::Object(name) if !boxes.iter().any(|(n, _)| n == name) => {
-                return Err(format!(
-                    "--roi object:{name}: the scene has no object of that name (it has {})",
-                    boxes
+                return Err(RoiError::NoSuchObject {
+                    name: name.clone(),
+                    known: boxes
                         .iter()
                         .map(|(n, _)| n.as_str())
                         .collect::<Vec<_>>()
-                        .join(", ")
-                ))
+                        .join(", "),
+                })
             }
             _ => {}
         }
         let ground_below = match (exclude_ground, scene.and_then(|s| s.file.ground)) {
             (false, _) => None,
             (true, Some(g)) => Some(g.z + GROUND_MARGIN_M),
-            (true, None) => return Err("ground exclusion needs a scene with a ground".into()),
+            (true, None) => return Err(RoiError::GroundNeedsScene),
         };
         Ok(Roi {
             region,
@@ -271,8 +269,8 @@ impl std::fmt::Display for Region {
 }
 
 impl std::str::FromStr for Region {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Region, String> {
+    type Err = RoiError;
+    fn from_str(s: &str) -> Result<Region, RoiError> {
         match s {
             "all" | "range" => Ok(Region::All),
             "objects" => Ok(Region::Objects),
@@ -280,9 +278,31 @@ impl std::str::FromStr for Region {
                 .strip_prefix("object:")
                 .filter(|n| !n.is_empty())
                 .map(|n| Region::Object(n.to_owned()))
-                .ok_or_else(|| format!("region '{s}': one of all, objects, object:NAME")),
+                .ok_or_else(|| RoiError::NotARegion(s.to_owned())),
         }
     }
+}
+
+/// Why a region cannot be compared in.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RoiError {
+    /// Not one of the regions.
+    #[error("region '{0}': one of all, objects, object:NAME")]
+    NotARegion(String),
+    /// The objects' region without a scene.
+    #[error("--roi objects needs the scene (--scene)")]
+    ObjectsNeedScene,
+    /// An object the scene does not have.
+    #[error("--roi object:{name}: the scene has no object of that name (it has {known})")]
+    NoSuchObject {
+        /// The name asked for.
+        name: String,
+        /// The scene's objects, joined.
+        known: String,
+    },
+    /// Ground exclusion without a ground.
+    #[error("ground exclusion needs a scene with a ground")]
+    GroundNeedsScene,
 }
 
 #[cfg(test)]

@@ -260,7 +260,7 @@ impl<R: Reason> Rejects<R> {
 
     /// Reads what [`Rejects::write_metadata`] wrote; `None` when the metadata has no reject
     /// counts (a recording by an older hilrig), an error naming the entry that does not read.
-    pub fn from_metadata(meta: &BTreeMap<String, String>) -> Result<Option<Self>, String> {
+    pub fn from_metadata(meta: &BTreeMap<String, String>) -> Result<Option<Self>, MetadataError> {
         let total_key = R::TOTAL;
         let Some(total) = meta.get(total_key) else {
             return Ok(None);
@@ -275,28 +275,64 @@ impl<R: Reason> Rejects<R> {
                 Some(key) => (key, true),
                 None => (rest, false),
             };
-            let reason = R::from_key(key)
-                .ok_or_else(|| format!("metadata {k}: no reject reason is called {key}"))?;
+            let reason = R::from_key(key).ok_or_else(|| MetadataError::UnknownReason {
+                key: k.clone(),
+                reason: key.to_owned(),
+            })?;
             if first {
                 out.first.insert(reason, v.clone());
             } else {
-                let n = v
-                    .parse()
-                    .map_err(|_| format!("metadata {k}: {v:?} is not a count"))?;
+                let n = v.parse().map_err(|_| MetadataError::NotACount {
+                    key: k.clone(),
+                    value: v.clone(),
+                })?;
                 out.counts.insert(reason, n);
             }
         }
-        let total: u64 = total
-            .parse()
-            .map_err(|_| format!("metadata {total_key}: {total:?} is not a count"))?;
+        let total: u64 = total.parse().map_err(|_| MetadataError::NotACount {
+            key: total_key.to_owned(),
+            value: total.clone(),
+        })?;
         if total != out.total() {
-            return Err(format!(
-                "metadata {total_key} is {total} but the reasons add up to {}",
-                out.total()
-            ));
+            return Err(MetadataError::Total {
+                key: total_key.to_owned(),
+                total,
+                sum: out.total(),
+            });
         }
         Ok(Some(out))
     }
+}
+
+/// Why the reject counts of a recording's metadata do not read.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum MetadataError {
+    /// An entry naming no reject reason.
+    #[error("metadata {key}: no reject reason is called {reason}")]
+    UnknownReason {
+        /// The metadata key.
+        key: String,
+        /// The reason it names.
+        reason: String,
+    },
+    /// A count that is not a number.
+    #[error("metadata {key}: {value:?} is not a count")]
+    NotACount {
+        /// The metadata key.
+        key: String,
+        /// Its value.
+        value: String,
+    },
+    /// A total that the reasons do not add up to.
+    #[error("metadata {key} is {total} but the reasons add up to {sum}")]
+    Total {
+        /// The metadata key.
+        key: String,
+        /// The total written.
+        total: u64,
+        /// The sum of the reasons.
+        sum: u64,
+    },
 }
 
 #[cfg(test)]

@@ -96,6 +96,18 @@ pub enum RunError {
     /// Not an MCAP.
     #[error("{0}: not an MCAP recording (a run is what `hilrig record` writes)")]
     NotMcap(String),
+    /// The rig file the recorder attached does not read.
+    #[error("{path}: the attached rig.toml: {source}")]
+    AttachedRig {
+        /// The recording.
+        path: String,
+        /// Why.
+        #[source]
+        source: crate::rig::RigError,
+    },
+    /// No rig given and none attached.
+    #[error("{0}: no rig.toml attached to the recording: give the rig file (--rig)")]
+    NoRig(String),
 }
 
 /// The run of a recording and its rig: `rig` when given, else the rig file the recorder
@@ -104,20 +116,19 @@ pub enum RunError {
 pub fn load_with_rig(
     path: &Path,
     rig: Option<&crate::rig::Rig>,
-) -> Result<(Run, crate::rig::Rig), String> {
-    let run = Run::read(path).map_err(|e| e.to_string())?;
+) -> Result<(Run, crate::rig::Rig), RunError> {
+    let run = Run::read(path)?;
     let rig = match (rig, &run.rig_toml) {
         (Some(r), _) => r.clone(),
         (None, Some(text)) => {
-            crate::rig::Rig::from_toml(text, "rig.toml attached to the recording")
-                .map_err(|e| e.to_string())?
+            crate::rig::Rig::from_toml(text, "rig.toml attached to the recording").map_err(
+                |source| RunError::AttachedRig {
+                    path: path.display().to_string(),
+                    source,
+                },
+            )?
         }
-        (None, None) => {
-            return Err(format!(
-                "{}: no rig.toml attached to the recording: give the rig file (--rig)",
-                path.display()
-            ))
-        }
+        (None, None) => return Err(RunError::NoRig(path.display().to_string())),
     };
     Ok((run, rig))
 }
@@ -243,7 +254,7 @@ impl Collector {
         }
     }
 
-    fn finish(mut self, result: Result<(), String>) -> Run {
+    fn finish(mut self, result: Result<(), crate::bag::read::ReadError>) -> Run {
         let mut run = self.run;
         self.nmea.finish(&mut self.fixes);
         self.ubx.finish(&mut self.fixes);
@@ -257,7 +268,7 @@ impl Collector {
         }
         let last = run.fixes.last().map_or(UtcNanos(0), |f| f.0);
         run.fixes.extend(self.fixes.drain(..).map(|f| (last, f)));
-        run.damage = result.err();
+        run.damage = result.err().map(|e| e.to_string());
         run.fixes.sort_by_key(|(h, f)| f.time.unwrap_or(*h));
         run.motion.sort_by_key(|m| m.t);
         run.packets.sort_by_key(|p| p.host);

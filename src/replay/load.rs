@@ -4,6 +4,7 @@
 //! ([`MergeByTime`]), and the `--start`/`--end` window on it.
 
 use crate::bag::cdr::CdrReader;
+use crate::bag::read::ReadError;
 use hilrig_capture::demux::{Demux, Packet};
 use hilrig_capture::{CanFrame, CaptureReader};
 use hilrig_stamp::UtcNanos;
@@ -31,17 +32,53 @@ pub struct ReplayItem {
     pub payload: Payload,
 }
 
-/// Why a file cannot be replayed.
+/// Why a file cannot be replayed, or could be only part way.
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
-    /// Reading failed.
-    #[error("{path}: {what}")]
-    Input {
+    /// The file could not be read.
+    #[error("{path}: {source}")]
+    Io {
         /// The file.
         path: String,
-        /// What went wrong.
-        what: String,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
     },
+    /// Neither a capture nor a recording.
+    #[error("{path}: {source}")]
+    NotCapture {
+        /// The file.
+        path: String,
+        /// What the capture reader found.
+        #[source]
+        source: hilrig_capture::CaptureError,
+    },
+    /// Damage that ended the reading early: everything before it was read.
+    #[error("{path}: {source}")]
+    Damaged {
+        /// The file.
+        path: String,
+        /// Where and what.
+        #[source]
+        source: Damage,
+    },
+}
+
+/// What ended a schedule early (everything before it is in the schedule).
+#[derive(Debug, thiserror::Error)]
+pub enum Damage {
+    /// A recording damaged part way.
+    #[error("the recording is damaged after {items} items: {source}")]
+    Recording {
+        /// Items read before the damage.
+        items: usize,
+        /// The damage.
+        #[source]
+        source: ReadError,
+    },
+    /// A capture damaged part way.
+    #[error("{0}")]
+    Capture(#[source] hilrig_capture::CaptureError),
 }
 
 /// Reads a capture (pcap/pcapng) or an MCAP recording into a time-ordered schedule.
@@ -56,13 +93,14 @@ pub fn load(
     data_port: u16,
     position_port: u16,
 ) -> Result<(Vec<ReplayItem>, Option<ReplayError>), ReplayError> {
-    let err = |what: String| ReplayError::Input {
-        path: path.display().to_string(),
-        what,
-    };
-    let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
-    let (items, damage) = schedule(bytes, data_port, position_port).map_err(err)?;
-    Ok((items, damage.map(err)))
+    let p = || path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|source| ReplayError::Io { path: p(), source })?;
+    let (items, damage) = schedule(bytes, data_port, position_port)
+        .map_err(|source| ReplayError::NotCapture { path: p(), source })?;
+    Ok((
+        items,
+        damage.map(|source| ReplayError::Damaged { path: p(), source }),
+    ))
 }
 
 /// How far (in file time) an MCAP item may come after items later than it: a VelodyneScan's
@@ -94,16 +132,16 @@ pub fn stream(
     position_port: u16,
     each: &mut dyn FnMut(ReplayItem) -> bool,
 ) -> Result<Streamed, ReplayError> {
-    let err = |what: String| ReplayError::Input {
+    let io = |source| ReplayError::Io {
         path: path.display().to_string(),
-        what,
+        source,
     };
-    let file = std::fs::File::open(path).map_err(|e| err(e.to_string()))?;
-    let len = file.metadata().map_err(|e| err(e.to_string()))?.len();
+    let file = std::fs::File::open(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len();
     let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
     let magic = {
         use std::io::BufRead;
-        let head = reader.fill_buf().map_err(|e| err(e.to_string()))?;
+        let head = reader.fill_buf().map_err(io)?;
         head.starts_with(mcap::MAGIC)
     };
     let mut out = Streamed::default();
@@ -111,7 +149,13 @@ pub fn stream(
         stream_mcap(reader, len, &mut out, each);
         return Ok(out);
     }
-    let mut d = Demux::new(CaptureReader::new(reader).map_err(|e| err(e.to_string()))?);
+    let mut d =
+        Demux::new(
+            CaptureReader::new(reader).map_err(|source| ReplayError::NotCapture {
+                path: path.display().to_string(),
+                source,
+            })?,
+        );
     while let Some(item) = d.next_item() {
         let item = match item {
             Ok(i) => i,
@@ -198,7 +242,7 @@ fn stream_mcap(
                 out.items += 1;
                 if !each(item) {
                     stopped = true;
-                    return Err(String::new());
+                    return Err(ReadError::Stopped);
                 }
                 continue;
             }
@@ -216,7 +260,7 @@ fn stream_mcap(
             out.items += 1;
             if !each(item) {
                 stopped = true;
-                return Err(String::new());
+                return Err(ReadError::Stopped);
             }
         }
         Ok(())
@@ -245,17 +289,16 @@ pub fn schedule(
     bytes: Vec<u8>,
     data_port: u16,
     position_port: u16,
-) -> Result<(Vec<ReplayItem>, Option<String>), String> {
+) -> Result<(Vec<ReplayItem>, Option<Damage>), hilrig_capture::CaptureError> {
     if bytes.starts_with(mcap::MAGIC) {
-        return load_mcap(&bytes);
+        return Ok(load_mcap(&bytes));
     }
-    let mut d =
-        Demux::new(CaptureReader::new(std::io::Cursor::new(bytes)).map_err(|e| e.to_string())?);
+    let mut d = Demux::new(CaptureReader::new(std::io::Cursor::new(bytes))?);
     let mut out = Vec::new();
     while let Some(item) = d.next_item() {
         let item = match item {
             Ok(i) => i,
-            Err(e) => return Ok((out, Some(e.to_string()))),
+            Err(e) => return Ok((out, Some(Damage::Capture(e)))),
         };
         let Some(payload) = capture_payload(item.packet, data_port, position_port) else {
             continue;
@@ -270,27 +313,32 @@ pub fn schedule(
 
 /// The schedule of an MCAP recording; a recording cut off or damaged part way (`.active` after a
 /// crash) gives the messages before the damage and says where it stopped.
-fn load_mcap(bytes: &[u8]) -> Result<(Vec<ReplayItem>, Option<String>), String> {
+fn load_mcap(bytes: &[u8]) -> (Vec<ReplayItem>, Option<Damage>) {
     let mut out = Vec::new();
     let damage = crate::bag::read::read(bytes, &mut |event| match event {
         crate::bag::read::Event::Message(m) => message_into(&m, &mut out),
         _ => Ok(()),
     })
     .err()
-    .map(|e| format!("the recording is damaged after {} items: {e}", out.len()));
+    .map(|source| Damage::Recording {
+        items: out.len(),
+        source,
+    });
     out.sort_by_key(|i| i.time);
-    Ok((out, damage))
+    (out, damage)
 }
 
 /// Schedules one message of the recorder's topics; others are passed over.
 fn message_into(
     m: &crate::bag::read::Message<'_>,
     out: &mut Vec<ReplayItem>,
-) -> Result<(), String> {
+) -> Result<(), ReadError> {
     let t = UtcNanos(m.log_time as i64);
     let data = m.data;
     let channel = m.channel;
-    let bad = || format!("{}: a message does not decode as its type", channel.topic);
+    let bad = || ReadError::Undecodable {
+        topic: channel.topic.clone(),
+    };
     match channel.topic.as_str() {
         crate::bag::topics::VELODYNE_PACKETS => {
             let mut c = CdrReader::new(data).ok_or_else(bad)?;
@@ -474,7 +522,7 @@ mod tests {
             assert_eq!(data[0] % 2, 1);
             let file = [mcap::MAGIC, &data[1..]].concat();
             let (_, damage) = schedule(file, 2368, 8308).unwrap();
-            let damage = damage.expect("damage reported");
+            let damage = damage.expect("damage reported").to_string();
             assert!(
                 damage.starts_with("the recording is damaged after"),
                 "{name}: {damage}"
@@ -494,7 +542,7 @@ mod tests {
         let file = recording_with_chunk(&inner, inner.len() as u64);
         let (items, damage) = schedule(file, 2368, 8308).unwrap();
         assert!(items.is_empty());
-        let damage = damage.expect("damage reported");
+        let damage = damage.expect("damage reported").to_string();
         assert!(
             damage.starts_with("the recording is damaged after 0 items"),
             "{damage}"
@@ -505,7 +553,8 @@ mod tests {
         let damage = schedule(file, 2368, 8308)
             .unwrap()
             .1
-            .expect("damage reported");
+            .expect("damage reported")
+            .to_string();
         assert!(
             damage.contains("claims 6148914691236517205 bytes uncompressed"),
             "{damage}"
@@ -516,7 +565,8 @@ mod tests {
         let damage = schedule(file, 2368, 8308)
             .unwrap()
             .1
-            .expect("damage reported");
+            .expect("damage reported")
+            .to_string();
         assert!(damage.contains("but holds 25"), "{damage}");
     }
 

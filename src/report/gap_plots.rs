@@ -1,7 +1,7 @@
 //! The gap workflow's plots: each round's candidates and the binned disagreement before and
 //! after the effect it added.
 
-use super::plots::{e, legend, range_of, svg, GREY, PASS, REAL, SIM};
+use super::plots::{legend, range_of, svg, GREY, PASS, REAL, SIM};
 use crate::gap::bins::{Bin, Table};
 use crate::gap::report::Round;
 use plotters::prelude::*;
@@ -37,8 +37,7 @@ pub fn gap_candidates(round: &Round) -> Option<String> {
             .margin(8)
             .x_label_area_size(30)
             .y_label_area_size(170)
-            .build_cartesian_2d(lo..hi, (0..n).into_segmented())
-            .map_err(e)?;
+            .build_cartesian_2d(lo..hi, (0..n).into_segmented())?;
         let names: Vec<String> = rows.iter().map(|r| r.0.clone()).collect();
         c.configure_mesh()
             .x_desc("likelihood gain, nats per 1000 firings (bootstrap 95 % interval)")
@@ -48,8 +47,7 @@ pub fn gap_candidates(round: &Round) -> Option<String> {
                 _ => String::new(),
             })
             .light_line_style(WHITE)
-            .draw()
-            .map_err(e)?;
+            .draw()?;
         for (i, (_, g, a, b, chosen)) in rows.iter().enumerate() {
             let color = if *chosen { REAL } else { GREY };
             c.draw_series(std::iter::once(Rectangle::new(
@@ -58,16 +56,14 @@ pub fn gap_candidates(round: &Round) -> Option<String> {
                     (0.0f64.max(*g), SegmentValue::Exact(i + 1)),
                 ],
                 color.filled(),
-            )))
-            .map_err(e)?;
+            )))?;
             c.draw_series(std::iter::once(PathElement::new(
                 vec![
                     (*a, SegmentValue::CenterOf(i)),
                     (*b, SegmentValue::CenterOf(i)),
                 ],
                 BLACK.stroke_width(2),
-            )))
-            .map_err(e)?;
+            )))?;
         }
         Ok(())
     })
@@ -127,25 +123,21 @@ pub fn gap_bins(feature: &str, before: &Table, after: Option<&Table>) -> Option<
                 format!("returns per firing against {feature}"),
                 ("sans-serif", 14),
             )
-            .build_cartesian_2d(x0..x1, 0.0..1.05)
-            .map_err(e)?;
+            .build_cartesian_2d(x0..x1, 0.0..1.05)?;
         c.configure_mesh()
             .x_desc(feature)
             .light_line_style(WHITE)
-            .draw()
-            .map_err(e)?;
+            .draw()?;
         c.draw_series(LineSeries::new(
             measured.iter().copied(),
             REAL.stroke_width(2),
-        ))
-        .map_err(e)?
+        ))?
         .label("measured")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], REAL.stroke_width(2)));
         c.draw_series(LineSeries::new(
             pred_before.iter().copied(),
             SIM.stroke_width(2),
-        ))
-        .map_err(e)?
+        ))?
         .label(if pred_after.is_empty() {
             "model (unchanged)"
         } else {
@@ -156,8 +148,7 @@ pub fn gap_bins(feature: &str, before: &Table, after: Option<&Table>) -> Option<
             c.draw_series(LineSeries::new(
                 pred_after.iter().copied(),
                 PASS.stroke_width(2),
-            ))
-            .map_err(e)?
+            ))?
             .label("model after")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], PASS.stroke_width(2)));
         }
@@ -179,20 +170,16 @@ pub fn gap_bins(feature: &str, before: &Table, after: Option<&Table>) -> Option<
                 format!("range residual against {feature}"),
                 ("sans-serif", 14),
             )
-            .build_cartesian_2d(x0..x1, y0..y1)
-            .map_err(e)?;
+            .build_cartesian_2d(x0..x1, y0..y1)?;
         r.configure_mesh()
             .x_desc(feature)
             .y_desc("m")
             .light_line_style(WHITE)
-            .draw()
-            .map_err(e)?;
-        r.draw_series(LineSeries::new(med.iter().copied(), BLACK.stroke_width(1)))
-            .map_err(e)?
+            .draw()?;
+        r.draw_series(LineSeries::new(med.iter().copied(), BLACK.stroke_width(1)))?
             .label("median (measured - model)")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], BLACK.stroke_width(1)));
-        r.draw_series(LineSeries::new(sig_b.iter().copied(), SIM.stroke_width(2)))
-            .map_err(e)?
+        r.draw_series(LineSeries::new(sig_b.iter().copied(), SIM.stroke_width(2)))?
             .label(if sig_a.is_empty() {
                 "spread"
             } else {
@@ -200,8 +187,7 @@ pub fn gap_bins(feature: &str, before: &Table, after: Option<&Table>) -> Option<
             })
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], SIM.stroke_width(2)));
         if !sig_a.is_empty() {
-            r.draw_series(LineSeries::new(sig_a.iter().copied(), PASS.stroke_width(2)))
-                .map_err(e)?
+            r.draw_series(LineSeries::new(sig_a.iter().copied(), PASS.stroke_width(2)))?
                 .label("spread after")
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], PASS.stroke_width(2)));
         }

@@ -87,16 +87,15 @@ pub(super) fn range_of(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> 
 }
 
 /// Draws a chart's legend at `pos` in the report's one style.
-pub(super) fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
-    c: &mut ChartContext<'a, DB, CT>,
+pub(super) fn legend<'a, CT: CoordTranslate>(
+    c: &mut ChartContext<'a, SVGBackend<'a>, CT>,
     pos: SeriesLabelPosition,
-) -> Result<(), String> {
+) -> Result<(), PlotError> {
     c.configure_series_labels()
         .position(pos)
         .border_style(GREY)
         .background_style(WHITE.mix(0.9))
         .draw()
-        .map_err(e)
 }
 
 /// Draws into an SVG string of `w` x `h` pixels; `None` when drawing fails (it only fails on
@@ -104,7 +103,7 @@ pub(super) fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
 pub(super) fn svg(
     w: u32,
     h: u32,
-    draw: impl FnOnce(&DrawingArea<SVGBackend, Shift>) -> Result<(), String>,
+    draw: impl FnOnce(&DrawingArea<SVGBackend, Shift>) -> Result<(), PlotError>,
 ) -> Option<String> {
     let mut out = String::new();
     {
@@ -119,9 +118,8 @@ pub(super) fn svg(
     Some(out)
 }
 
-pub(super) fn e<E: std::fmt::Debug>(x: E) -> String {
-    format!("{x:?}")
-}
+/// Why a plot could not be drawn (plotters' error for an SVG drawn into a string).
+pub(super) type PlotError = plotters::drawing::DrawingAreaErrorKind<std::io::Error>;
 
 /// The check's timeline: the RTK state and horizontal sigma per GNSS epoch, the verdict of
 /// each one-second segment, and the located faults.
@@ -152,14 +150,12 @@ pub fn check_timeline(check: &Report) -> Option<String> {
                 "GNSS horizontal sigma (1σ) and RTK state per epoch",
                 ("sans-serif", 15),
             )
-            .build_cartesian_2d(0.0..duration, 0.0..top)
-            .map_err(e)?;
+            .build_cartesian_2d(0.0..duration, 0.0..top)?;
         c.configure_mesh()
             .y_desc("sigma, m")
             .x_labels(12)
             .light_line_style(WHITE)
-            .draw()
-            .map_err(e)?;
+            .draw()?;
         // RTK state as a band along the bottom of the sigma panel.
         let band = top * 0.06;
         c.draw_series(epochs.iter().map(|ep| {
@@ -170,15 +166,13 @@ pub fn check_timeline(check: &Report) -> Option<String> {
                 RtkState::None => FAIL,
             };
             Rectangle::new([(t, 0.0), (t + 0.1, band)], color.filled())
-        }))
-        .map_err(e)?
+        }))?
         .label("RTK fixed / float / none (band)")
         .legend(|(x, y)| Rectangle::new([(x, y - 4), (x + 12, y + 4)], PASS.filled()));
         c.draw_series(LineSeries::new(
             sigmas.iter().copied(),
             REAL.stroke_width(2),
-        ))
-        .map_err(e)?
+        ))?
         .label("horizontal sigma")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], REAL.stroke_width(2)));
         legend(&mut c, SeriesLabelPosition::MiddleRight)?;
@@ -191,14 +185,12 @@ pub fn check_timeline(check: &Report) -> Option<String> {
                 "verdict per segment (top row) and located faults",
                 ("sans-serif", 15),
             )
-            .build_cartesian_2d(0.0..duration, 0.0..2.0)
-            .map_err(e)?;
+            .build_cartesian_2d(0.0..duration, 0.0..2.0)?;
         s.configure_mesh()
             .x_desc("seconds after the run's start")
             .y_labels(0)
             .light_line_style(WHITE)
-            .draw()
-            .map_err(e)?;
+            .draw()?;
         s.draw_series(check.segments.iter().map(|seg| {
             let color = match seg.verdict {
                 Verdict::Pass => PASS,
@@ -206,30 +198,26 @@ pub fn check_timeline(check: &Report) -> Option<String> {
                 Verdict::Unusable => GREY,
             };
             Rectangle::new([(seg.from_s, 1.15), (seg.to_s, 1.85)], color.filled())
-        }))
-        .map_err(e)?;
+        }))?;
         for f in &check.faults {
             let (a, b) = (f.from_s, f.to_s);
             let b = b.max(a + duration * 0.004);
             s.draw_series(std::iter::once(Rectangle::new(
                 [(a, 0.15), (b, 0.85)],
                 FAIL.mix(0.8).filled(),
-            )))
-            .map_err(e)?;
+            )))?;
             s.draw_series(std::iter::once(Text::new(
                 f.name.as_str().to_owned(),
                 (a, 0.95),
                 ("sans-serif", 12),
-            )))
-            .map_err(e)?;
+            )))?;
         }
         if check.faults.is_empty() {
             s.draw_series(std::iter::once(Text::new(
                 "no faults".to_owned(),
                 (duration * 0.01, 0.6),
                 ("sans-serif", 12),
-            )))
-            .map_err(e)?;
+            )))?;
         }
         Ok(())
     })
@@ -275,26 +263,22 @@ pub fn birds_eye(snapshot: &Snapshot) -> Option<String> {
                 ),
                 ("sans-serif", 15),
             )
-            .build_cartesian_2d(x0..x1, y0..y1)
-            .map_err(e)?;
+            .build_cartesian_2d(x0..x1, y0..y1)?;
         c.configure_mesh()
             .x_desc("east, m")
             .y_desc("north, m")
             .light_line_style(WHITE)
-            .draw()
-            .map_err(e)?;
+            .draw()?;
         c.draw_series(only_r.iter().map(|&(x, y)| {
             Rectangle::new([(x, y), (x + cell, y + cell)], REAL.mix(0.25).filled())
-        }))
-        .map_err(e)?
+        }))?
         .label("cell: measured only")
         .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], REAL.mix(0.25).filled()));
         c.draw_series(
             only_s.iter().map(|&(x, y)| {
                 Rectangle::new([(x, y), (x + cell, y + cell)], SIM.mix(0.3).filled())
             }),
-        )
-        .map_err(e)?
+        )?
         .label("cell: simulated only")
         .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], SIM.mix(0.3).filled()));
         for o in &snapshot.objects {
@@ -302,21 +286,17 @@ pub fn birds_eye(snapshot: &Snapshot) -> Option<String> {
             c.draw_series(std::iter::once(Rectangle::new(
                 [a, b],
                 BLACK.stroke_width(1),
-            )))
-            .map_err(e)?;
+            )))?;
             c.draw_series(std::iter::once(Text::new(
                 o.name.clone(),
                 (a.0, b.1 + scale * 4.0),
                 ("sans-serif", 11),
-            )))
-            .map_err(e)?;
+            )))?;
         }
-        c.draw_series(real.iter().map(|&p| Circle::new(p, 1, REAL.filled())))
-            .map_err(e)?
+        c.draw_series(real.iter().map(|&p| Circle::new(p, 1, REAL.filled())))?
             .label("measured points")
             .legend(|(x, y)| Circle::new((x + 5, y), 3, REAL.filled()));
-        c.draw_series(sim.iter().map(|&p| Circle::new(p, 1, SIM.filled())))
-            .map_err(e)?
+        c.draw_series(sim.iter().map(|&p| Circle::new(p, 1, SIM.filled())))?
             .label("simulated points")
             .legend(|(x, y)| Circle::new((x + 5, y), 3, SIM.filled()));
         if let Some([x, y]) = snapshot.sensor {
@@ -324,8 +304,7 @@ pub fn birds_eye(snapshot: &Snapshot) -> Option<String> {
                 (x, y),
                 7,
                 BLACK.filled(),
-            )))
-            .map_err(e)?
+            )))?
             .label("sensor")
             .legend(|(x, y)| TriangleMarker::new((x + 5, y), 5, BLACK.filled()));
         }
@@ -381,17 +360,15 @@ pub fn fig5(compare: &Comparison) -> Option<String> {
                 .margin(6)
                 .x_label_area_size(if k == 3 { 28 } else { 14 })
                 .y_label_area_size(60)
-                .build_cartesian_2d(0.0..t1, lo..hi)
-                .map_err(e)?;
+                .build_cartesian_2d(0.0..t1, lo..hi)?;
             let mut mesh = c.configure_mesh();
             mesh.y_desc(*label).y_labels(4).light_line_style(WHITE);
             if k == 3 {
                 mesh.x_desc("seconds after the first scan");
             }
-            mesh.draw().map_err(e)?;
+            mesh.draw()?;
             let color = if k == 0 { REAL } else { BLACK };
-            c.draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
-                .map_err(e)?;
+            c.draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))?;
         }
         Ok(())
     })
@@ -428,31 +405,26 @@ pub fn calibration_curve(compares: &[(&str, &Comparison)]) -> Option<String> {
                 "mean OCR^K over the scans against the cell size",
                 ("sans-serif", 15),
             )
-            .build_cartesian_2d(0.0..x1, 0.0..1.0)
-            .map_err(e)?;
+            .build_cartesian_2d(0.0..x1, 0.0..1.0)?;
         c.configure_mesh()
             .x_desc("cell size, m")
             .y_desc("OCR^K")
             .light_line_style(WHITE)
-            .draw()
-            .map_err(e)?;
+            .draw()?;
         for (k, (name, pts, _)) in curves.iter().enumerate() {
             let color = colors[k % colors.len()];
-            c.draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
-                .map_err(e)?
+            c.draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))?
                 .label(*name)
                 .legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2))
                 });
-            c.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
-                .map_err(e)?;
+            c.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
         }
         let adm = curves[0].2;
         c.draw_series(std::iter::once(PathElement::new(
             vec![(adm, 0.0), (adm, 1.0)],
             FAIL.stroke_width(2),
-        )))
-        .map_err(e)?
+        )))?
         .label(format!("admissible cell {adm:.2} m (smaller: refused)"))
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], FAIL.stroke_width(2)));
         legend(&mut c, SeriesLabelPosition::LowerRight)?;

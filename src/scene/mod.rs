@@ -128,9 +128,9 @@ impl Scene {
             path: path.to_owned(),
             source,
         })?;
-        crate::config::check_finite(&text).map_err(|message| SceneError::Toml {
+        crate::config::check_finite(&text).map_err(|e| SceneError::Toml {
             path: path.to_owned(),
-            message,
+            message: e.to_string(),
         })?;
         let file: SceneFile = toml::from_str(&text).map_err(|e| SceneError::Toml {
             path: path.to_owned(),

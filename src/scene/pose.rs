@@ -53,6 +53,26 @@ pub enum TrajectoryError {
     /// A value is NaN or infinite.
     #[error("trajectory sample {0} has a value that is not finite")]
     NotFinite(usize),
+    /// A CSV row without the five fields.
+    #[error("line {line}: expected 5 fields (t, x, y, z, yaw_deg), got {fields}")]
+    CsvFields {
+        /// 1-based line.
+        line: usize,
+        /// Fields found.
+        fields: usize,
+    },
+    /// A CSV field that is not a number (the time: not seconds).
+    #[error("line {line}: field {field} ('{text}') is not {what}")]
+    CsvNumber {
+        /// 1-based line.
+        line: usize,
+        /// 1-based field.
+        field: usize,
+        /// The field's text.
+        text: String,
+        /// `seconds` or `a number`.
+        what: &'static str,
+    },
 }
 
 /// A time-ordered list of poses.
@@ -159,7 +179,7 @@ impl Trajectory {
 
     /// Reads `t, x, y, z, yaw_deg` CSV rows (t in seconds since the Unix epoch; a header line and
     /// `#` comments are skipped) as used for actors in scene files.
-    pub fn from_csv(text: &str) -> Result<Trajectory, String> {
+    pub fn from_csv(text: &str) -> Result<Trajectory, TrajectoryError> {
         let mut samples = Vec::new();
         for (n, line) in text.lines().enumerate() {
             let line = line.trim();
@@ -171,19 +191,21 @@ impl Trajectory {
                 continue;
             }
             if fields.len() != 5 {
-                return Err(format!(
-                    "line {}: expected 5 fields (t, x, y, z, yaw_deg), got {}",
-                    n + 1,
-                    fields.len()
-                ));
+                return Err(TrajectoryError::CsvFields {
+                    line: n + 1,
+                    fields: fields.len(),
+                });
             }
-            let t = parse_seconds(fields[0])
-                .ok_or_else(|| format!("line {}: time '{}' is not seconds", n + 1, fields[0]))?;
+            let not = |field: usize, what| TrajectoryError::CsvNumber {
+                line: n + 1,
+                field: field + 1,
+                text: fields[field].to_owned(),
+                what,
+            };
+            let t = parse_seconds(fields[0]).ok_or_else(|| not(0, "seconds"))?;
             let mut v = [0.0f64; 5];
             for (k, f) in fields.iter().enumerate().skip(1) {
-                v[k] = f.parse().map_err(|_| {
-                    format!("line {}: field {} ('{f}') is not a number", n + 1, k + 1)
-                })?;
+                v[k] = f.parse().map_err(|_| not(k, "a number"))?;
             }
             samples.push(PoseSample {
                 t,
@@ -193,7 +215,7 @@ impl Trajectory {
                 roll: 0.0,
             });
         }
-        Trajectory::new(samples).map_err(|e| e.to_string())
+        Trajectory::new(samples)
     }
 
     /// Writes the CSV that [`Trajectory::from_csv`] reads.
@@ -285,7 +307,9 @@ mod tests {
         let back = Trajectory::from_csv(&tr.to_csv()).unwrap();
         assert_eq!(back.samples().len(), 3);
         assert!((back.samples()[1].yaw - -3.0).abs() < 1e-6);
-        let e = Trajectory::from_csv("t,x,y,z,yaw_deg\n0,1,2,3\n").unwrap_err();
+        let e = Trajectory::from_csv("t,x,y,z,yaw_deg\n0,1,2,3\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2"), "{e}");
         assert!(Trajectory::from_csv("1,1,1,1,1\n0,1,1,1,1\n").is_err());
     }

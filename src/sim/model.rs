@@ -335,9 +335,9 @@ impl ModelFile {
             path: path.display().to_string(),
             source,
         })?;
-        crate::config::check_finite(&text).map_err(|message| ModelError::Toml {
+        crate::config::check_finite(&text).map_err(|e| ModelError::Toml {
             path: path.display().to_string(),
-            message,
+            message: e.to_string(),
         })?;
         let m: ModelFile = toml::from_str(&text).map_err(|e| ModelError::Toml {
             path: path.display().to_string(),
@@ -371,7 +371,7 @@ impl ModelFile {
                 if let Some(v) = v {
                     Rule::NonNegative
                         .check(key, v)
-                        .map_err(|w| bad("[limits]", w))?;
+                        .map_err(|w| bad("[limits]", w.to_string()))?;
                 }
             }
             if let (Some(a), Some(b)) = (l.min_range_m, l.max_range_m) {
@@ -389,7 +389,8 @@ impl ModelFile {
                 return Err(bad(e.name(), "appears more than once".into()));
             }
             for (key, v, rule) in e.parameters() {
-                rule.check(key, v).map_err(|w| bad(e.name(), w))?;
+                rule.check(key, v)
+                    .map_err(|w| bad(e.name(), w.to_string()))?;
             }
             if let Effect::BeamDivergence {
                 sub_rays_per_axis, ..
@@ -433,9 +434,18 @@ enum Rule {
     AtMost(f64),
 }
 
+/// A parameter outside the range its rule allows.
+#[derive(Debug, thiserror::Error)]
+#[error("{key} = {value}: must be {range}")]
+struct OutOfRange {
+    key: String,
+    value: f64,
+    range: String,
+}
+
 impl Rule {
     /// `Ok` when `v` obeys the rule, else what is wrong, naming `key`.
-    fn check(self, key: &str, v: f64) -> Result<(), String> {
+    fn check(self, key: &str, v: f64) -> Result<(), OutOfRange> {
         let (ok, range) = match self {
             Rule::Finite => (true, "a finite number".to_string()),
             Rule::NonNegative => (v >= 0.0, "a finite number, at least 0".into()),
@@ -449,7 +459,11 @@ impl Rule {
         if ok && v.is_finite() {
             Ok(())
         } else {
-            Err(format!("{key} = {v}: must be {range}"))
+            Err(OutOfRange {
+                key: key.to_owned(),
+                value: v,
+                range,
+            })
         }
     }
 }

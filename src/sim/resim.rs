@@ -39,6 +39,12 @@ pub enum ResimError {
     /// Writing failed.
     #[error("writing the simulation: {0}")]
     Output(String),
+    /// The run cannot be read, or has no rig.
+    #[error(transparent)]
+    Run(#[from] crate::reference::run::RunError),
+    /// The rig's lidar cannot be simulated.
+    #[error(transparent)]
+    Lidar(#[from] crate::rig::LidarSensorError),
 }
 
 /// Whether a re-simulation writes `/sim/points`, the simulated clouds for viewing. They are
@@ -87,8 +93,7 @@ pub struct Recording {
 impl Recording {
     /// Reads the recording at `path` with `rig` (default: the rig file attached to it).
     pub fn read(path: &Path, rig: Option<&Rig>) -> Result<Recording, ResimError> {
-        let (run, rig) =
-            crate::reference::run::load_with_rig(path, rig).map_err(ResimError::Input)?;
+        let (run, rig) = crate::reference::run::load_with_rig(path, rig)?;
         Ok(Recording {
             path: path.to_owned(),
             run,
@@ -179,7 +184,7 @@ pub fn resim_recording(
             )
         }
     };
-    let (lidar, sensor, calibration) = rig.lidar_sensor().map_err(input)?;
+    let (lidar, sensor, calibration) = rig.lidar_sensor()?;
     let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, model)
         .map_err(|e| input(e.to_string()))?;
     let pps_locked = run.lidar_pps_locked();
@@ -431,7 +436,7 @@ impl<'a> Resimulator<'a> {
         first_log: UtcNanos,
     ) -> Result<Resimulator<'a>, ResimError> {
         let input = |e: String| ResimError::Input(e);
-        let (lidar, sensor, calibration) = rig.lidar_sensor().map_err(input)?;
+        let (lidar, sensor, calibration) = rig.lidar_sensor()?;
         let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, model)
             .map_err(|e| input(e.to_string()))?;
         let meta = sim_metadata(

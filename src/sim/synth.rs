@@ -155,7 +155,8 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
     // The truth is the file: everything below uses the trajectory as `truth.csv` holds it, so
     // that re-simulating from that file casts bit-identical rays.
     let truth_csv = driven.ego.to_csv();
-    driven.ego = crate::scene::pose::Trajectory::from_csv(&truth_csv).map_err(input)?;
+    driven.ego =
+        crate::scene::pose::Trajectory::from_csv(&truth_csv).map_err(|e| input(e.to_string()))?;
 
     let scene = write_scenes(job, rep, dir, &driven, &truth_csv)?;
 

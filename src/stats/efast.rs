@@ -116,7 +116,7 @@ pub fn parse_params(text: &str, path: &str) -> Result<Vec<Parameter>, EfastError
         path: path.to_owned(),
         message,
     };
-    crate::config::check_finite(text).map_err(err)?;
+    crate::config::check_finite(text).map_err(|e| err(e.to_string()))?;
     let file: ParamFile = toml::from_str(text).map_err(|e| err(e.to_string()))?;
     if file.parameters.is_empty() {
         return Err(err("no [[parameter]]".into()));

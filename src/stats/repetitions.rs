@@ -9,6 +9,41 @@ use hilrig_velodyne::Decoder;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+/// Why repetitions cannot be validated.
+#[derive(Debug, thiserror::Error)]
+pub enum ValidateError {
+    /// No real or no simulated run.
+    #[error("give at least one --real and one --sim")]
+    NoRuns,
+    /// The first real run (whose rig decodes them all) cannot be read, or has no rig.
+    #[error(transparent)]
+    Run(#[from] crate::reference::run::RunError),
+    /// The rig's lidar cannot be decoded.
+    #[error(transparent)]
+    Lidar(#[from] crate::rig::LidarSensorError),
+    /// A run cannot be opened.
+    #[error(transparent)]
+    Open(#[from] crate::bag::scans::ScanStreamError),
+    /// A run without a scan.
+    #[error("{run}: no lidar scans (/velodyne_packets){damage}")]
+    NoScans {
+        /// The run.
+        run: String,
+        /// What stopped its reading, if anything (in parentheses).
+        damage: String,
+    },
+    /// A phase that ends before it starts.
+    #[error("phase '{name}': from_s {from_s} is not before to_s {to_s}")]
+    Phase {
+        /// Its name.
+        name: String,
+        /// Its start, s.
+        from_s: f64,
+        /// Its end, s.
+        to_s: f64,
+    },
+}
+
 /// A simulated run and the real run it re-simulates.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Pairing {
@@ -56,8 +91,8 @@ type Loaded = RunFeatures;
 /// Scans whose features are computed together (both cores busy, a few scans in memory).
 const BATCH_SCANS: usize = 16;
 
-fn load(path: &Path, decoder: &Decoder) -> Result<Loaded, String> {
-    let mut stream = ScanStream::open(path).map_err(|e| e.to_string())?;
+fn load(path: &Path, decoder: &Decoder) -> Result<Loaded, ValidateError> {
+    let mut stream = ScanStream::open(path)?;
     let mut scans = Vec::new();
     loop {
         let batch: Vec<Scan> = stream.by_ref().take(BATCH_SCANS).collect();
@@ -68,11 +103,10 @@ fn load(path: &Path, decoder: &Decoder) -> Result<Loaded, String> {
     }
     let damage = stream.finish();
     if scans.is_empty() {
-        return Err(format!(
-            "{}: no lidar scans (/velodyne_packets){}",
-            path.display(),
-            damage.map_or(String::new(), |d| format!(" ({d})"))
-        ));
+        return Err(ValidateError::NoScans {
+            run: path.display().to_string(),
+            damage: damage.map_or(String::new(), |d| format!(" ({d})")),
+        });
     }
     Ok(Loaded {
         damage: damage.map(|d| format!("{}: read up to damage ({d})", path.display())),
@@ -109,9 +143,9 @@ pub fn validate(
     sims: &[PathBuf],
     rig: Option<&Rig>,
     phases: &[Phase],
-) -> Result<Validation, String> {
+) -> Result<Validation, ValidateError> {
     if reals.is_empty() || sims.is_empty() {
-        return Err("give at least one --real and one --sim".into());
+        return Err(ValidateError::NoRuns);
     }
     let rig = match rig {
         Some(r) => r.clone(),
@@ -136,16 +170,20 @@ pub fn validate_features(
     real: &[RunFeatures],
     sim: &[RunFeatures],
     phases: &[Phase],
-) -> Result<Validation, String> {
+) -> Result<Validation, ValidateError> {
     if let Some(r) = real.iter().chain(sim).find(|r| r.scans.is_empty()) {
-        return Err(format!("{}: no lidar scans (/velodyne_packets)", r.name));
+        return Err(ValidateError::NoScans {
+            run: r.name.clone(),
+            damage: String::new(),
+        });
     }
     for p in phases {
         if !(p.from_s.is_finite() && p.to_s.is_finite() && p.from_s < p.to_s) {
-            return Err(format!(
-                "phase '{}': from_s {} is not before to_s {}",
-                p.name, p.from_s, p.to_s
-            ));
+            return Err(ValidateError::Phase {
+                name: p.name.clone(),
+                from_s: p.from_s,
+                to_s: p.to_s,
+            });
         }
     }
 
@@ -467,10 +505,13 @@ mod tests {
                 to_s,
             };
             let e = validate_features(std::slice::from_ref(&r), std::slice::from_ref(&s), &[p])
-                .unwrap_err();
+                .unwrap_err()
+                .to_string();
             assert!(e.contains("phase 'x'"), "{e}");
         }
-        let e = validate_features(&[run("empty", vec![])], &[s], &[]).unwrap_err();
+        let e = validate_features(&[run("empty", vec![])], &[s], &[])
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("empty: no lidar scans"), "{e}");
     }
 }
