@@ -121,8 +121,29 @@ pub(crate) fn params(path: &Path) -> Result<Result<Vec<Parameter>, EfastError>> 
     Ok(parse_params(&text, &path.display().to_string()))
 }
 
+/// A CSV row that is not what the command expects.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum CsvError {
+    /// Another number of values than the columns.
+    #[error("{path} line {line}: {got} values, expected {want}")]
+    Columns {
+        path: String,
+        line: usize,
+        got: usize,
+        want: usize,
+    },
+    /// A value that is not a number.
+    #[error("{path} line {line}: {source}")]
+    Number {
+        path: String,
+        line: usize,
+        #[source]
+        source: std::num::ParseFloatError,
+    },
+}
+
 /// Numbers of a CSV (`columns` per row; a first line that does not parse is a header).
-pub(crate) fn numbers(path: &Path, columns: usize) -> Result<Result<Vec<Vec<f64>>, String>> {
+pub(crate) fn numbers(path: &Path, columns: usize) -> Result<Result<Vec<Vec<f64>>, CsvError>> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut rows = Vec::new();
@@ -135,15 +156,21 @@ pub(crate) fn numbers(path: &Path, columns: usize) -> Result<Result<Vec<Vec<f64>
         match parsed {
             Ok(v) if v.len() == columns => rows.push(v),
             Ok(v) => {
-                return Ok(Err(format!(
-                    "{} line {}: {} values, expected {columns}",
-                    path.display(),
-                    i + 1,
-                    v.len()
-                )))
+                return Ok(Err(CsvError::Columns {
+                    path: path.display().to_string(),
+                    line: i + 1,
+                    got: v.len(),
+                    want: columns,
+                }))
             }
             Err(_) if i == 0 => {}
-            Err(e) => return Ok(Err(format!("{} line {}: {e}", path.display(), i + 1))),
+            Err(source) => {
+                return Ok(Err(CsvError::Number {
+                    path: path.display().to_string(),
+                    line: i + 1,
+                    source,
+                }))
+            }
         }
     }
     Ok(Ok(rows))

@@ -41,7 +41,7 @@ pub fn run(args: SynthArgs) -> Result<ExitCode> {
         toml::from_str(&scene_text).with_context(|| format!("{}", args.scene.display()))?;
     // Load once to check the whole scene (meshes, trajectories) before any work.
     hilrig::scene::Scene::load(&args.scene)?;
-    let drive = hilrig::sim::drive::DriveFile::load(&args.drive).map_err(anyhow::Error::msg)?;
+    let drive = hilrig::sim::drive::DriveFile::load(&args.drive)?;
     let truth = hilrig::sim::ModelFile::load(&args.truth)?;
     let base = |p: &std::path::Path| p.parent().unwrap_or(std::path::Path::new(".")).to_owned();
     let (scene_base, drive_base) = (base(&args.scene), base(&args.drive));

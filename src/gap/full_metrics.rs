@@ -58,17 +58,15 @@ pub(super) fn run_metrics(
         )
         .map_err(|e| GapError::Input(format!("re-simulating {}: {e}", r.name)))?;
         let (mut real_scans, mut sim_scans) = (Vec::new(), Vec::new());
-        let checked = r
-            .checked
-            .clone()
-            .map_err(|e| GapError::Input(format!("comparing {}: {e}", r.name)))?;
+        let checked = r.checked.clone().map_err(|source| GapError::Compare {
+            run: r.name.clone(),
+            source,
+        })?;
         let c = compare_simulated(
             &r.path,
             checked,
             &mut |t: ToSimulate<'_>| {
-                let sims = resim
-                    .cast(t.trajectory, t.pps_locked, t.scans)
-                    .map_err(|e| e.to_string())?;
+                let sims = resim.cast(t.trajectory, t.pps_locked, t.scans)?;
                 if !known {
                     real_scans.extend(scan_features(t.scans, &decoder));
                 }

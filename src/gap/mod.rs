@@ -41,6 +41,15 @@ pub enum GapError {
     /// Writing the results failed.
     #[error("writing the results: {0}")]
     Output(String),
+    /// A run cannot be compared with its re-simulation.
+    #[error("comparing {run}: {source}")]
+    Compare {
+        /// The run.
+        run: String,
+        /// Why.
+        #[source]
+        source: std::sync::Arc<crate::metrics::compare::CompareError>,
+    },
     /// A run's rig names a lidar that cannot be decoded or simulated.
     #[error("{run}: {source}")]
     Lidar {

@@ -92,7 +92,7 @@ pub struct RunData {
     pub damage: Vec<String>,
     /// The run as its full comparisons take it, from this one check (or why they cannot take
     /// it): a validation run is compared after every round, and checked only here.
-    pub checked: Result<Checked, String>,
+    pub checked: Result<Checked, std::sync::Arc<crate::metrics::compare::CompareError>>,
 }
 
 /// What one firing measured and what a model predicts for it (`NONE` where there is no return).
@@ -300,7 +300,7 @@ pub fn load_run(
         tracing::warn!("{}: {d}", path.display());
     }
     let checked = Checked::from_check(path, run, rig.clone(), report.clone(), smoothed_copy, None)
-        .map_err(|e| e.to_string());
+        .map_err(std::sync::Arc::new);
     let file = path.file_name().map_or_else(
         || path.display().to_string(),
         |f| f.to_string_lossy().into(),

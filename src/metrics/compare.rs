@@ -16,7 +16,7 @@
 
 pub use super::checked::Checked;
 use super::cloud::Frame;
-pub use super::error::CompareError;
+pub use super::error::{CompareError, SimulateError};
 use super::grid::{Dims, GridScores, GridSpec};
 use super::measure::{measure, Measured, Residuals};
 use super::pairing::{Pair, Pairs};
@@ -120,7 +120,7 @@ pub struct ToSimulate<'a> {
 
 /// A simulation made as the comparison goes: the simulated twin of every scan it is handed,
 /// in order, or why it cannot make them.
-pub type Simulate<'a> = dyn FnMut(ToSimulate<'_>) -> Result<Vec<Scan>, String> + 'a;
+pub type Simulate<'a> = dyn FnMut(ToSimulate<'_>) -> Result<Vec<Scan>, SimulateError> + 'a;
 
 /// Where the simulated twins come from.
 enum Twins<'s, 'f> {
@@ -197,7 +197,7 @@ struct Simulating<'a, 's, 'f> {
     left_out: &'a mut [LeftOut],
     ready: std::collections::VecDeque<Pair>,
     paired: usize,
-    error: Option<String>,
+    error: Option<SimulateError>,
 }
 
 impl Iterator for Simulating<'_, '_, '_> {
@@ -219,11 +219,9 @@ impl Iterator for Simulating<'_, '_, '_> {
             }) {
                 Ok(s) if s.len() == batch.len() => s,
                 Ok(s) => {
-                    self.error = Some(format!(
-                        "the simulation gave {} scans for {}",
-                        s.len(),
-                        batch.len()
-                    ));
+                    self.error = Some(
+                        format!("the simulation gave {} scans for {}", s.len(), batch.len()).into(),
+                    );
                     return None;
                 }
                 Err(e) => {
@@ -275,7 +273,7 @@ fn compare_twins(
         )));
     };
     let real_span = Some((first_scan.stamp, last_scan.stamp));
-    refuse_clamping_cell(cell, &reference.trajectory, opts.sensor_frame).map_err(input)?;
+    refuse_clamping_cell(cell, &reference.trajectory, opts.sensor_frame)?;
     let (lidar, model, calibration) = reference.rig.lidar_sensor()?;
     let decoder = Decoder::with_calibration(model, calibration);
     if opts.sensor_frame && (opts.region != Region::All || opts.exclude_ground) {
@@ -334,8 +332,11 @@ fn compare_twins(
                 &mut curve,
                 &|n| progress(n, total),
             );
-            if let Some(e) = pairs.error {
-                return Err(input(format!("simulating {}: {e}", run_path.display())));
+            if let Some(source) = pairs.error {
+                return Err(CompareError::Simulation {
+                    run: run_path.display().to_string(),
+                    source,
+                });
             }
             if tally.rows.is_empty() {
                 return Err(input(format!(

@@ -153,7 +153,7 @@ pub(super) fn refuse_clamping_cell(
     cell: f64,
     trajectory: &Trajectory,
     sensor_frame: bool,
-) -> Result<(), String> {
+) -> Result<(), super::error::CompareError> {
     let farthest = if sensor_frame {
         0.0
     } else {
@@ -166,9 +166,11 @@ pub(super) fn refuse_clamping_cell(
     let reach = farthest + SENSOR_REACH_M;
     let smallest = super::grid::smallest_cell_m(reach);
     if cell < smallest {
-        return Err(format!(
-            "--cell {cell:e}: the grid's cell indices would be clamped (at most 2^20 cells either side of the origin; points here reach {reach:.0} m from it): the smallest cell for this drive is {smallest:.2e} m"
-        ));
+        return Err(super::error::CompareError::CellClamped {
+            cell,
+            reach,
+            smallest,
+        });
     }
     Ok(())
 }
@@ -293,7 +295,9 @@ mod tests {
         let trajectory = Trajectory::new(vec![at(0, 100.0, 20.0), at(1, 40.0, -250.0)]).unwrap();
         let smallest = smallest_cell_m(250.0 + SENSOR_REACH_M);
         assert!(refuse_clamping_cell(smallest, &trajectory, false).is_ok());
-        let below = refuse_clamping_cell(smallest * 0.999, &trajectory, false).unwrap_err();
+        let below = refuse_clamping_cell(smallest * 0.999, &trajectory, false)
+            .unwrap_err()
+            .to_string();
         assert!(
             below.contains(&format!("{smallest:.2e}")) && below.contains("550 m"),
             "{below}"

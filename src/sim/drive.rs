@@ -510,6 +510,41 @@ pub enum DriveError {
         /// The drive's waypoints (to name the stretch each excess lies in).
         waypoints: Vec<[f64; 2]>,
     },
+    /// The drive file cannot be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The drive file is not a drive (TOML, its keys).
+    #[error("{path}: {source}")]
+    Toml {
+        /// The file.
+        path: String,
+        /// The parser's complaint, with the line.
+        #[source]
+        source: toml::de::Error,
+    },
+    /// A number of the drive file that is not finite.
+    #[error("{path}: {source}")]
+    NonFinite {
+        /// The file.
+        path: String,
+        /// The key.
+        #[source]
+        source: crate::config::NonFinite,
+    },
+    /// A start time that does not read.
+    #[error("{path}: start_utc '{text}' is not YYYY-MM-DDTHH:MM:SSZ")]
+    StartUtc {
+        /// The file.
+        path: String,
+        /// What it says.
+        text: String,
+    },
 }
 
 /// The limits exceeded and where: the stretch of the path (the two waypoints around it,
@@ -778,16 +813,19 @@ fn as_driven(
 
 impl DriveFile {
     /// Reads a drive file.
-    pub fn load(path: &std::path::Path) -> Result<DriveFile, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        crate::config::check_finite(&text).map_err(|e| format!("{}: {e}", path.display()))?;
-        let d: DriveFile = toml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    pub fn load(path: &std::path::Path) -> Result<DriveFile, DriveError> {
+        let p = || path.display().to_string();
+        let text =
+            std::fs::read_to_string(path).map_err(|source| DriveError::Io { path: p(), source })?;
+        crate::config::check_finite(&text)
+            .map_err(|source| DriveError::NonFinite { path: p(), source })?;
+        let d: DriveFile =
+            toml::from_str(&text).map_err(|source| DriveError::Toml { path: p(), source })?;
         if parse_utc(&d.start_utc).is_none() {
-            return Err(format!(
-                "{}: start_utc '{}' is not YYYY-MM-DDTHH:MM:SSZ",
-                path.display(),
-                d.start_utc
-            ));
+            return Err(DriveError::StartUtc {
+                path: p(),
+                text: d.start_utc,
+            });
         }
         Ok(d)
     }
@@ -795,14 +833,18 @@ impl DriveFile {
     /// Every number of the path, the walkers, the yield and the variation is finite: TOML reads
     /// `nan` and `inf`, and one of them in a waypoint would make a path of NaN, which no check
     /// downstream can locate. The error names the field (and the waypoint, counted from 0).
-    fn finite(&self) -> Result<(), String> {
+    fn finite(&self) -> Result<(), DriveError> {
+        let bad = |what: String| DriveError::Invalid {
+            name: self.name.clone(),
+            what,
+        };
         let p = &self.path;
         for (i, w) in p.waypoints.iter().enumerate() {
             if !w.iter().all(|x| x.is_finite()) {
-                return Err(format!(
+                return Err(bad(format!(
                     "waypoint {i} (counted from 0) is [{}, {}]: a waypoint is two finite numbers, metres in the scene's local frame",
                     w[0], w[1]
-                ));
+                )));
             }
         }
         let mut fields: Vec<(String, f64)> = vec![
@@ -841,7 +883,7 @@ impl DriveFile {
             ]);
         }
         match fields.iter().find(|(_, x)| !x.is_finite()) {
-            Some((name, x)) => Err(format!("{name} = {x}: must be a finite number")),
+            Some((name, x)) => Err(bad(format!("{name} = {x}: must be a finite number"))),
             None => Ok(()),
         }
     }
@@ -883,7 +925,7 @@ impl DriveFile {
         if p.waypoints.len() < 2 {
             return Err(bad("the path needs at least two waypoints".into()));
         }
-        self.finite().map_err(bad)?;
+        self.finite()?;
         if !(p.cruise_speed_mps > 0.0 && p.acceleration_mps2 > 0.0 && p.deceleration_mps2 > 0.0) {
             return Err(bad("speeds and accelerations must be positive".into()));
         }

@@ -38,7 +38,7 @@ pub enum ResimError {
     Input(String),
     /// Writing failed.
     #[error("writing the simulation: {0}")]
-    Output(String),
+    Output(#[from] super::sim_file::WriteError),
     /// The run cannot be read, or has no rig.
     #[error(transparent)]
     Run(#[from] crate::reference::run::RunError),
@@ -209,8 +209,7 @@ pub fn resim_recording(
             ViewingClouds::LeaveOut => format!("left out (no {SIM_POINTS}; --no-clouds)"),
         },
     );
-    let writer =
-        Writer::start(out, meta, model.to_toml(), first_log).map_err(ResimError::Output)?;
+    let writer = Writer::start(out, meta, model.to_toml(), first_log)?;
     let decoder = Decoder::with_calibration(sensor, calibration);
     let cast = Caster {
         clouds: clouds == ViewingClouds::Write,
@@ -232,7 +231,7 @@ pub fn resim_recording(
         for (scan, m) in batch.iter().zip(messages) {
             summary.scans += 1;
             summary.packets += scan.packets.len() as u64;
-            writer.send(m).map_err(ResimError::Output)?;
+            writer.send(m)?;
         }
         done += batch.len() as u64;
         progress(done, total);
@@ -248,7 +247,7 @@ pub fn resim_recording(
         }
     }
     flush(&mut batch, &mut summary)?;
-    writer.finish().map_err(ResimError::Output)?;
+    writer.finish()?;
     Ok(summary)
 }
 
@@ -453,8 +452,7 @@ impl<'a> Resimulator<'a> {
             frame_id: lidar.frame_id.clone(),
             seed,
             state: CastState::default(),
-            writer: Writer::start(out, meta, model.to_toml(), first_log)
-                .map_err(ResimError::Output)?,
+            writer: Writer::start(out, meta, model.to_toml(), first_log)?,
             stats: SimStats::default(),
         })
     }
@@ -478,7 +476,7 @@ impl<'a> Resimulator<'a> {
         };
         let simulated = caster.simulate(scans, &mut self.state, &mut self.stats);
         for m in caster.messages(scans, &simulated) {
-            self.writer.send(m).map_err(ResimError::Output)?;
+            self.writer.send(m)?;
         }
         let mut packets = simulated.into_iter();
         Ok(scans
@@ -499,7 +497,7 @@ impl<'a> Resimulator<'a> {
 
     /// Closes the simulation's file; the firings cast.
     pub fn finish(self) -> Result<SimStats, ResimError> {
-        self.writer.finish().map_err(ResimError::Output)?;
+        self.writer.finish()?;
         Ok(self.stats)
     }
 }

@@ -22,7 +22,24 @@ pub(super) struct ScanMessages {
 /// the next scans are cast).
 pub(super) struct Writer {
     tx: Option<std::sync::mpsc::SyncSender<ScanMessages>>,
-    thread: Option<std::thread::JoinHandle<Result<(), String>>>,
+    thread: Option<std::thread::JoinHandle<Result<(), WriteError>>>,
+}
+
+/// Why the simulation's file could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// The MCAP writer failed (its error names the file).
+    #[error(transparent)]
+    Bag(#[from] crate::bag::BagError),
+    /// The writer's thread could not be started.
+    #[error("starting the writer: {0}")]
+    Spawn(#[source] std::io::Error),
+    /// The writer stopped on an error, which `finish` returns.
+    #[error("writing stopped (see the error that follows)")]
+    Stopped,
+    /// The writer's thread panicked.
+    #[error("the writer thread failed")]
+    Panicked,
 }
 
 /// Scans the writer may lag behind the casting.
@@ -35,20 +52,19 @@ impl Writer {
         meta: BTreeMap<String, String>,
         model_toml: String,
         first_log: UtcNanos,
-    ) -> Result<Writer, String> {
-        let mut bag = BagWriter::create(out, &BagOptions::default()).map_err(|e| e.to_string())?;
-        bag.metadata("sim", meta).map_err(|e| e.to_string())?;
+    ) -> Result<Writer, WriteError> {
+        let mut bag = BagWriter::create(out, &BagOptions::default())?;
+        bag.metadata("sim", meta)?;
         bag.attach(
             "model.toml",
             "application/toml",
             model_toml.as_bytes(),
             first_log,
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         let (tx, rx) = std::sync::mpsc::sync_channel::<ScanMessages>(WRITE_AHEAD_SCANS);
         let thread = std::thread::Builder::new()
             .name("resim writer".into())
-            .spawn(move || -> Result<(), String> {
+            .spawn(move || -> Result<(), WriteError> {
                 for m in rx {
                     bag.write(
                         topics::VELODYNE_PACKETS,
@@ -56,8 +72,7 @@ impl Writer {
                         m.log,
                         m.publish,
                         &m.packets_cdr,
-                    )
-                    .map_err(|e| e.to_string())?;
+                    )?;
                     if let Some(cloud) = &m.cloud_cdr {
                         bag.write(
                             SIM_POINTS,
@@ -65,13 +80,13 @@ impl Writer {
                             m.log,
                             m.publish,
                             cloud,
-                        )
-                        .map_err(|e| e.to_string())?;
+                        )?;
                     }
                 }
-                bag.finish().map(|_| ()).map_err(|e| e.to_string())
+                bag.finish()?;
+                Ok(())
             })
-            .map_err(|e| e.to_string())?;
+            .map_err(WriteError::Spawn)?;
         Ok(Writer {
             tx: Some(tx),
             thread: Some(thread),
@@ -79,23 +94,18 @@ impl Writer {
     }
 
     /// Hands one scan's messages to the writer; an error when writing failed.
-    pub(super) fn send(&self, m: ScanMessages) -> Result<(), String> {
-        let Some(tx) = &self.tx else {
-            return Err("the writer has stopped".into());
-        };
-        if tx.send(m).is_err() {
-            // The writer stopped on an error: its reason comes with `finish`.
-            return Err("writing stopped (see the error that follows)".into());
-        }
-        Ok(())
+    pub(super) fn send(&self, m: ScanMessages) -> Result<(), WriteError> {
+        // A writer that stopped on an error: its reason comes with `finish`.
+        let tx = self.tx.as_ref().ok_or(WriteError::Stopped)?;
+        tx.send(m).map_err(|_| WriteError::Stopped)
     }
 
     /// Waits for the last messages and closes the file.
-    pub(super) fn finish(mut self) -> Result<(), String> {
+    pub(super) fn finish(mut self) -> Result<(), WriteError> {
         self.tx = None;
         match self.thread.take().map(std::thread::JoinHandle::join) {
             Some(Ok(r)) => r,
-            Some(Err(_)) => Err("the writer thread failed".into()),
+            Some(Err(_)) => Err(WriteError::Panicked),
             None => Ok(()),
         }
     }

@@ -18,8 +18,36 @@ use rand_distr::{Distribution, Normal};
 /// Bytes with the host time (ns) at which the logger receives them.
 pub(super) type Timed = (i64, Vec<u8>);
 
-/// What both streams follow: the true drive and the faults to inject. Errors are the words of
-/// an input problem (a DBC without the mapped message, say), for the caller to wrap.
+/// Why a sensor's stream cannot be synthesized.
+#[derive(Debug, thiserror::Error)]
+pub enum StreamError {
+    /// A noise that is not a distribution (a negative or non-finite sigma).
+    #[error("{0}")]
+    Noise(#[from] rand_distr::NormalError),
+    /// A heading stream without a rate, or with a negative noise.
+    #[error("[heading] rate_hz = {rate_hz} and sigma_deg = {sigma_deg}: the rate must be positive and the noise not negative")]
+    Heading {
+        /// Its rate, Hz.
+        rate_hz: f64,
+        /// Its noise, deg.
+        sigma_deg: f64,
+    },
+    /// A heading source synth does not write.
+    #[error("synth writes the heading as THS, HDT, PASHR or PSTI,036; the rig's source is {0:?}")]
+    HeadingSource(&'static str),
+    /// The rig's CAN mapping has no speed.
+    #[error("the rig's [can.ego] has no speed")]
+    NoCanSpeed,
+    /// The DBC lacks a message the mapping names.
+    #[error("DBC has no message '{0}'")]
+    NoDbcMessage(String),
+    /// A DBC message longer than a CAN frame.
+    #[error("message {0} does not fit a CAN frame")]
+    FrameTooLong(String),
+}
+
+/// What both streams follow: the true drive and the faults to inject. Errors say what input is
+/// wrong ([`StreamError`]), for the caller to wrap.
 pub(super) struct Streams<'a> {
     /// The true drive.
     pub driven: &'a Driven,
@@ -46,7 +74,7 @@ impl Streams<'_> {
         gs: &GnssStream,
         gnss_cfg: &GnssConfig,
         grng: &mut ChaCha8Rng,
-    ) -> Result<(Vec<Timed>, u64), String> {
+    ) -> Result<(Vec<Timed>, u64), StreamError> {
         let (driven, faults, errors) = (self.driven, self.faults, self.errors);
         let (start, end) = self.span;
         let mut events = Vec::new();
@@ -57,7 +85,7 @@ impl Streams<'_> {
         let phi = (-dt / gs.correlation_s.max(1e-3)).exp();
         let drive_h = (1.0 - phi * phi).sqrt() * gs.sigma_horizontal_m;
         let drive_v = (1.0 - phi * phi).sqrt() * gs.sigma_vertical_m;
-        let unit = Normal::new(0.0, 1.0).map_err(|e| e.to_string())?;
+        let unit = Normal::new(0.0, 1.0)?;
         let mut noise = Vector3::new(
             unit.sample(grng) * gs.sigma_horizontal_m,
             unit.sample(grng) * gs.sigma_horizontal_m,
@@ -198,7 +226,7 @@ impl Streams<'_> {
         gs: &GnssStream,
         cfg: &crate::rig::HeadingConfig,
         rng: &mut ChaCha8Rng,
-    ) -> Result<(Vec<Timed>, u64), String> {
+    ) -> Result<(Vec<Timed>, u64), StreamError> {
         use crate::rig::HeadingSource as H;
         let in_epoch = matches!(cfg.source, H::Ths | H::Hdt);
         let (rate_hz, latency_ms) = if in_epoch {
@@ -207,12 +235,12 @@ impl Streams<'_> {
             (hs.rate_hz, hs.latency_ms)
         };
         if !(hs.rate_hz > 0.0 && hs.sigma_deg >= 0.0) {
-            return Err(format!(
-                "[heading] rate_hz = {} and sigma_deg = {}: the rate must be positive and the noise not negative",
-                hs.rate_hz, hs.sigma_deg
-            ));
+            return Err(StreamError::Heading {
+                rate_hz: hs.rate_hz,
+                sigma_deg: hs.sigma_deg,
+            });
         }
-        let noise = Normal::new(0.0, hs.sigma_deg).map_err(|e| e.to_string())?;
+        let noise = Normal::new(0.0, hs.sigma_deg)?;
         let (start, end) = self.span;
         let step_ns = (1e9 / rate_hz).round() as i64;
         let mut t = UtcNanos(start.0 + (step_ns - start.0.rem_euclid(step_ns)) % step_ns);
@@ -248,12 +276,7 @@ impl Streams<'_> {
                     "PSTI,036,{hms_s},{date},{h:.3},0.00,0.00,{}",
                     if estimated { 'E' } else { 'R' }
                 ),
-                other => {
-                    return Err(format!(
-                        "synth writes the heading as THS, HDT, PASHR or PSTI,036; the rig's source is {:?}",
-                        other.attitude_source().name()
-                    ))
-                }
+                other => return Err(StreamError::HeadingSource(other.name())),
             };
             sentences += 1;
             events.push((
@@ -273,19 +296,16 @@ impl Streams<'_> {
         can_cfg: &CanConfig,
         dbc: &Database,
         crng: &mut ChaCha8Rng,
-    ) -> Result<Vec<Timed>, String> {
+    ) -> Result<Vec<Timed>, StreamError> {
         let (driven, faults, errors) = (self.driven, self.faults, self.errors);
         let (start, end) = self.span;
         let mut events = Vec::new();
         // CAN: ego motion from the rig's DBC mapping.
         let ego_map = &can_cfg.ego;
-        let speed_map = ego_map
-            .speed
-            .as_ref()
-            .ok_or_else(|| "the rig's [can.ego] has no speed".to_owned())?;
+        let speed_map = ego_map.speed.as_ref().ok_or(StreamError::NoCanSpeed)?;
         let msg = dbc
             .message_by_name(&speed_map.message)
-            .ok_or_else(|| format!("DBC has no message '{}'", speed_map.message))?;
+            .ok_or_else(|| StreamError::NoDbcMessage(speed_map.message.clone()))?;
         let index = |name: &str| msg.signals.iter().position(|s| s.name == name);
         let step_ns = (1e9 / cs.rate_hz).round() as i64;
         let mut t = UtcNanos(start.0 + step_ns / 2);
@@ -343,7 +363,7 @@ impl Streams<'_> {
             counter += 1;
             let data = msg.encode(&values);
             let frame = CanFrame::new(msg.id, msg.extended, &data)
-                .ok_or_else(|| format!("message {} does not fit a CAN frame", msg.name))?;
+                .ok_or_else(|| StreamError::FrameTooLong(msg.name.clone()))?;
             if !faults
                 .can_gap
                 .iter()

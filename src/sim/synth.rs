@@ -42,6 +42,9 @@ pub enum SynthError {
     /// An input is wrong.
     #[error("{0}")]
     Input(String),
+    /// A sensor's stream cannot be made.
+    #[error(transparent)]
+    Stream(#[from] super::streams::StreamError),
     /// Writing failed.
     #[error("writing {path}: {source}")]
     Io {
@@ -303,31 +306,26 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         span: (start, end),
         origin: &job.scene_file.origin,
     };
-    let (gnss, sentences) = streams
-        .gnss(&job.drive.gnss, gnss_cfg, &mut stream_rng(job.seed, rep, 4))
-        .map_err(input)?;
+    let (gnss, sentences) =
+        streams.gnss(&job.drive.gnss, gnss_cfg, &mut stream_rng(job.seed, rep, 4))?;
     summary.sentences += sentences;
     events.extend(gnss.into_iter().map(|(t, b)| (t, SER, b)));
     if let Some(h) = gnss_cfg.heading.as_ref() {
-        let (heading, n) = streams
-            .heading(
-                &job.drive.heading,
-                &job.drive.gnss,
-                h,
-                &mut stream_rng(job.seed, rep, 6),
-            )
-            .map_err(input)?;
+        let (heading, n) = streams.heading(
+            &job.drive.heading,
+            &job.drive.gnss,
+            h,
+            &mut stream_rng(job.seed, rep, 6),
+        )?;
         summary.sentences += n;
         events.extend(heading.into_iter().map(|(t, b)| (t, SER, b)));
     }
-    let can = streams
-        .can(
-            &job.drive.can,
-            can_cfg,
-            &dbc,
-            &mut stream_rng(job.seed, rep, 5),
-        )
-        .map_err(input)?;
+    let can = streams.can(
+        &job.drive.can,
+        can_cfg,
+        &dbc,
+        &mut stream_rng(job.seed, rep, 5),
+    )?;
     summary.can_frames += can.len() as u64;
     events.extend(can.into_iter().map(|(t, b)| (t, CAN, b)));
 

@@ -53,16 +53,91 @@ pub enum ScenarioError {
     /// The scenario file or a file it names is wrong.
     #[error("{0}")]
     Input(String),
+    /// A knob that does not reach a number.
+    #[error("knob '{knob}': {source}")]
+    Knob {
+        /// The knob, as the scenario file writes it.
+        knob: String,
+        /// Where it stops.
+        #[source]
+        source: KnobError,
+    },
     /// One parameter set failed.
-    #[error("parameter set {row} ({values}): {message}")]
+    #[error("parameter set {row} ({values}): {source}")]
     Sample {
         /// Row of the sample file, 1-based.
         row: usize,
         /// The set's values, `name=value`.
         values: String,
-        /// What went wrong.
-        message: String,
+        /// The step that failed and why.
+        #[source]
+        source: Box<StepError>,
     },
+}
+
+/// Where a knob's path (`model.effect[range_noise].sigma_m`) stops short of a number.
+#[derive(Debug, thiserror::Error)]
+pub enum KnobError {
+    /// A `[` without its `]`.
+    #[error("'[' without ']'")]
+    Unclosed,
+    /// The path does not start with one of the four files.
+    #[error("a knob starts with scene, drive, reality or model")]
+    NoFile,
+    /// Only the file.
+    #[error("no key after the file")]
+    NoKey,
+    /// A key where there is no table.
+    #[error("'{0}' is not inside a table")]
+    NotInTable(String),
+    /// A key the table lacks.
+    #[error("no key '{0}'")]
+    Missing(String),
+    /// An index where there is no array.
+    #[error("[{0}]: not an array")]
+    NotAnArray(usize),
+    /// An index beyond the array.
+    #[error("index {index} of an array of {len}")]
+    OutOfRange {
+        /// The index.
+        index: usize,
+        /// The array's length.
+        len: usize,
+    },
+    /// A name where there is no array of tables.
+    #[error("[{0}]: not an array of tables")]
+    NotTables(String),
+    /// A name no table of the array has.
+    #[error("no table named '{0}'")]
+    NoTableNamed(String),
+    /// The path ends at something else than a number.
+    #[error("holds {0}, not a number")]
+    NotANumber(&'static str),
+}
+
+/// The step of evaluating one parameter set that failed.
+#[derive(Debug, thiserror::Error)]
+pub enum StepError {
+    /// A file after the knobs set their numbers: no longer of its type.
+    #[error("{path} (after the knobs): {what}")]
+    Document {
+        /// The file the knobs changed.
+        path: PathBuf,
+        /// What its parser or check says.
+        what: String,
+    },
+    /// A step of the pipeline (synth, record, resim, compare) or a file it reads.
+    #[error("{step}: {source}")]
+    Step {
+        /// The step, or the file.
+        step: String,
+        /// Its error.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// The drive did not give the metric.
+    #[error("the drive gives no {0} (compare could not compute it: too few points?)")]
+    NoMetric(String),
 }
 
 /// The scenario file.
@@ -143,7 +218,7 @@ struct Knob {
     text: String,
 }
 
-fn parse_path(set: &str) -> Result<(Doc, Vec<Step>), String> {
+fn parse_path(set: &str) -> Result<(Doc, Vec<Step>), KnobError> {
     let mut rest = set.trim();
     let mut steps = Vec::new();
     while !rest.is_empty() {
@@ -157,9 +232,7 @@ fn parse_path(set: &str) -> Result<(Doc, Vec<Step>), String> {
         }
         rest = &rest[end..];
         if let Some(r) = rest.strip_prefix('[') {
-            let close = r
-                .find(']')
-                .ok_or_else(|| format!("'{set}': '[' without ']'"))?;
+            let close = r.find(']').ok_or(KnobError::Unclosed)?;
             steps.push(Step::Named(r[..close].to_owned()));
             rest = &r[close + 1..];
         }
@@ -170,14 +243,10 @@ fn parse_path(set: &str) -> Result<(Doc, Vec<Step>), String> {
         Some(Step::Key(k)) if k == "drive" => Doc::Drive,
         Some(Step::Key(k)) if k == "reality" => Doc::Reality,
         Some(Step::Key(k)) if k == "model" => Doc::Model,
-        _ => {
-            return Err(format!(
-                "'{set}': a knob starts with scene, drive, reality or model"
-            ))
-        }
+        _ => return Err(KnobError::NoFile),
     };
     if steps.len() < 2 {
-        return Err(format!("'{set}': no key after the file"));
+        return Err(KnobError::NoKey);
     }
     Ok((doc, steps.split_off(1)))
 }
@@ -185,7 +254,7 @@ fn parse_path(set: &str) -> Result<(Doc, Vec<Step>), String> {
 /// Sets the number at `path` in `doc` to `value`. Every step but the last must exist (a
 /// misspelt key is an error, not a new key); the last key may be new, and the file's own
 /// checks (unknown keys are rejected) judge it. An integer stays an integer.
-fn set_number(doc: &mut toml::Value, path: &[Step], value: f64) -> Result<(), String> {
+fn set_number(doc: &mut toml::Value, path: &[Step], value: f64) -> Result<(), KnobError> {
     let mut at = doc;
     for (i, step) in path.iter().enumerate() {
         let last = i + 1 == path.len();
@@ -193,37 +262,37 @@ fn set_number(doc: &mut toml::Value, path: &[Step], value: f64) -> Result<(), St
             Step::Key(k) => {
                 let table = at
                     .as_table_mut()
-                    .ok_or_else(|| format!("'{k}' is not inside a table"))?;
+                    .ok_or_else(|| KnobError::NotInTable(k.clone()))?;
                 if last && !table.contains_key(k) {
                     table.insert(k.clone(), toml::Value::Float(value));
                     return Ok(());
                 }
-                table.get_mut(k).ok_or_else(|| format!("no key '{k}'"))?
+                table
+                    .get_mut(k)
+                    .ok_or_else(|| KnobError::Missing(k.clone()))?
             }
             Step::Index(n) => {
-                let array = at
-                    .as_array_mut()
-                    .ok_or_else(|| format!("[{n}]: not an array"))?;
+                let array = at.as_array_mut().ok_or(KnobError::NotAnArray(*n))?;
                 let len = array.len();
                 array
                     .get_mut(*n)
-                    .ok_or_else(|| format!("index {n} of an array of {len}"))?
+                    .ok_or(KnobError::OutOfRange { index: *n, len })?
             }
             Step::Named(name) => {
                 let array = at
                     .as_array_mut()
-                    .ok_or_else(|| format!("[{name}]: not an array of tables"))?;
+                    .ok_or_else(|| KnobError::NotTables(name.clone()))?;
                 array
                     .iter_mut()
                     .find(|t| t.get("name").and_then(toml::Value::as_str) == Some(name))
-                    .ok_or_else(|| format!("no table named '{name}'"))?
+                    .ok_or_else(|| KnobError::NoTableNamed(name.clone()))?
             }
         };
     }
     match at {
         toml::Value::Integer(_) => *at = toml::Value::Integer(value.round() as i64),
         toml::Value::Float(_) => *at = toml::Value::Float(value),
-        other => return Err(format!("holds {}, not a number", other.type_str())),
+        other => return Err(KnobError::NotANumber(other.type_str())),
     }
     Ok(())
 }
@@ -237,11 +306,12 @@ pub struct Scenario {
     names: Vec<String>,
 }
 
-fn read_doc(path: &Path) -> Result<toml::Value, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    crate::config::check_finite(&text).map_err(|e| format!("{}: {e}", path.display()))?;
-    toml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+fn read_doc(path: &Path) -> Result<toml::Value, ScenarioError> {
+    let input =
+        |e: &dyn std::fmt::Display| ScenarioError::Input(format!("{}: {e}", path.display()));
+    let text = std::fs::read_to_string(path).map_err(|e| input(&e))?;
+    crate::config::check_finite(&text).map_err(|e| input(&e))?;
+    toml::from_str(&text).map_err(|e| input(&e))
 }
 
 /// The numeric fields of `compare`'s summary, by name.
@@ -285,7 +355,7 @@ impl Scenario {
         let paths = [&file.scene, &file.drive, &file.reality, &file.model].map(|p| base.join(p));
         let mut docs = Vec::new();
         for p in &paths {
-            docs.push(read_doc(p).map_err(input)?);
+            docs.push(read_doc(p)?);
         }
         let mut knobs = Vec::new();
         for k in &file.knob {
@@ -298,7 +368,10 @@ impl Scenario {
                         k.parameter
                     ))
                 })?;
-            let (doc, steps) = parse_path(&k.set).map_err(&at)?;
+            let (doc, steps) = parse_path(&k.set).map_err(|source| ScenarioError::Knob {
+                knob: k.set.clone(),
+                source,
+            })?;
             knobs.push(Knob {
                 doc,
                 path: steps,
@@ -333,23 +406,35 @@ impl Scenario {
     /// Checks that the knobs reach their numbers and the changed files still load, with
     /// `values` (e.g. the first parameter set), before any drive is made.
     pub fn check(&self, values: &[f64]) -> Result<(), ScenarioError> {
+        self.set_knobs(values)?;
         self.documents(values)
             .map(|_| ())
-            .map_err(ScenarioError::Input)
+            .map_err(|e| ScenarioError::Input(e.to_string()))
     }
 
-    fn documents(&self, values: &[f64]) -> Result<Docs, String> {
+    /// The four documents with the knobs set to `values`.
+    fn set_knobs(&self, values: &[f64]) -> Result<[toml::Value; 4], ScenarioError> {
         let mut docs = self.docs.clone();
         for k in &self.knobs {
             let v = values[k.column];
-            set_number(&mut docs[k.doc as usize], &k.path, v)
-                .map_err(|e| format!("knob '{}': {e}", k.text))?;
+            set_number(&mut docs[k.doc as usize], &k.path, v).map_err(|source| {
+                ScenarioError::Knob {
+                    knob: k.text.clone(),
+                    source,
+                }
+            })?;
         }
-        let named = |d: Doc, e: String| {
-            format!(
-                "{} (after the knobs): {e}",
-                self.paths[d as usize].display()
-            )
+        Ok(docs)
+    }
+
+    fn documents(&self, values: &[f64]) -> Result<Docs, StepError> {
+        let docs = self.set_knobs(values).map_err(|e| StepError::Step {
+            step: "knobs".into(),
+            source: Box::new(e),
+        })?;
+        let named = |d: Doc, what: String| StepError::Document {
+            path: self.paths[d as usize].clone(),
+            what,
         };
         let [scene, drive, reality, model] = docs;
         let scene: SceneFile = scene
@@ -367,7 +452,7 @@ impl Scenario {
                 ),
             ));
         }
-        let model_file = |v: toml::Value, d: Doc| -> Result<ModelFile, String> {
+        let model_file = |v: toml::Value, d: Doc| -> Result<ModelFile, StepError> {
             let m: ModelFile = v
                 .try_into()
                 .map_err(|e: toml::de::Error| named(d, e.to_string()))?;
@@ -391,7 +476,7 @@ impl Scenario {
         seed: u64,
         work: &Path,
     ) -> Result<f64, ScenarioError> {
-        let fail = |message: String| ScenarioError::Sample {
+        let fail = |source: StepError| ScenarioError::Sample {
             row,
             values: self
                 .names
@@ -400,16 +485,15 @@ impl Scenario {
                 .map(|(n, v)| format!("{n}={v:.4}"))
                 .collect::<Vec<_>>()
                 .join(", "),
-            message,
+            source: Box::new(source),
         };
-        std::fs::create_dir_all(work)
-            .map_err(|e| fail(format!("cannot create {}: {e}", work.display())))?;
+        std::fs::create_dir_all(work).map_err(|e| fail(step(work.display(), e)))?;
         let out = self.run_pipeline(values, seed, work).map_err(fail);
         let _ = std::fs::remove_dir_all(work);
         out
     }
 
-    fn run_pipeline(&self, values: &[f64], seed: u64, work: &Path) -> Result<f64, String> {
+    fn run_pipeline(&self, values: &[f64], seed: u64, work: &Path) -> Result<f64, StepError> {
         let docs = self.documents(values)?;
         let dir = |d: Doc| {
             self.paths[d as usize]
@@ -428,22 +512,21 @@ impl Scenario {
             compress: false,
             errors: self.file.errors,
         };
-        let rep = synth_rep(&job, 1, work).map_err(|e| format!("synth: {e}"))?;
+        let rep = synth_rep(&job, 1, work).map_err(|e| step("synth", e))?;
         let rig_path = drive_base.join(&docs.drive.rig);
-        let rig = Rig::load(&rig_path).map_err(|e| e.to_string())?;
-        let rig_text = std::fs::read_to_string(&rig_path)
-            .map_err(|e| format!("{}: {e}", rig_path.display()))?;
+        let rig = Rig::load(&rig_path).map_err(|e| step("rig", e))?;
+        let rig_text =
+            std::fs::read_to_string(&rig_path).map_err(|e| step(rig_path.display(), e))?;
         let run = work.join("run.mcap");
         record_from(&rig, &rig_text, &[work.join(&rep.capture)], &run)
-            .map_err(|e| format!("record: {e}"))?;
+            .map_err(|e| step("record", e))?;
         let scene_path = &self.paths[Doc::Scene as usize];
         let scene = Scene::from_file(docs.scene.clone(), &scene_base, scene_path)
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| step("scene", e))?;
         let truth_path = work.join("truth.csv");
-        let truth_text = std::fs::read_to_string(&truth_path)
-            .map_err(|e| format!("{}: {e}", truth_path.display()))?;
-        let truth = Trajectory::from_csv(&truth_text)
-            .map_err(|e| format!("{}: {e}", truth_path.display()))?;
+        let truth_text =
+            std::fs::read_to_string(&truth_path).map_err(|e| step(truth_path.display(), e))?;
+        let truth = Trajectory::from_csv(&truth_text).map_err(|e| step(truth_path.display(), e))?;
         let sim = work.join("sim.mcap");
         let quiet = |_: u64, _: u64| {};
         resim(
@@ -460,9 +543,9 @@ impl Scenario {
             &sim,
             &quiet,
         )
-        .map_err(|e| format!("resim: {e}"))?;
+        .map_err(|e| step("resim", e))?;
         let region = match &self.file.roi {
-            Some(r) => r.parse::<Region>().map_err(|e| format!("roi: {e}"))?,
+            Some(r) => r.parse::<Region>().map_err(|e| step("roi", e))?,
             None => Region::All,
         };
         let opts = Options {
@@ -486,17 +569,23 @@ impl Scenario {
             point_metrics: true,
         };
         let c = compare(&run, &sim, Some(&rig), Some(&scene), opts, &quiet)
-            .map_err(|e| format!("compare: {e}"))?;
+            .map_err(|e| step("compare", e))?;
         metrics_of(&c.summary)
             .get(&self.file.metric)
             .and_then(serde_json::Value::as_f64)
             .filter(|v| v.is_finite())
-            .ok_or_else(|| {
-                format!(
-                    "the drive gives no {} (compare could not compute it: too few points?)",
-                    self.file.metric
-                )
-            })
+            .ok_or_else(|| StepError::NoMetric(self.file.metric.clone()))
+    }
+}
+
+/// A failed step of the pipeline, named.
+fn step(
+    name: impl std::fmt::Display,
+    e: impl std::error::Error + Send + Sync + 'static,
+) -> StepError {
+    StepError::Step {
+        step: name.to_string(),
+        source: Box::new(e),
     }
 }
 
@@ -553,15 +642,19 @@ mod tests {
         assert_eq!(doc["n"].as_integer(), Some(5));
         assert!(set(&mut doc, "pth.speed", 1.0)
             .unwrap_err()
+            .to_string()
             .contains("no key 'pth'"));
         assert!(set(&mut doc, "effect[rain].x", 1.0)
             .unwrap_err()
+            .to_string()
             .contains("no table named 'rain'"));
         assert!(set(&mut doc, "path.w.5.0", 1.0)
             .unwrap_err()
+            .to_string()
             .contains("index 5"));
         assert!(set(&mut doc, "effect[weather].name", 1.0)
             .unwrap_err()
+            .to_string()
             .contains("not a number"));
     }
 }
