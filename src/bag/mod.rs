@@ -3,6 +3,7 @@
 //! least every second so that a cut-off file loses at most the last second).
 
 pub mod cdr;
+pub mod clock_sync;
 pub mod info;
 pub mod msgs;
 pub mod read;

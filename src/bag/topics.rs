@@ -21,16 +21,3 @@ pub const EGO_TWIST: &str = "/ego/twist";
 pub const TF_STATIC: &str = "/tf_static";
 /// Decoded lidar points per rotation, for viewing.
 pub const POINTS: &str = "/points";
-
-/// The metadata record of the lidar's clock synchronisation.
-pub const CLOCK_SYNC_LIDAR: &str = "clock_sync/lidar";
-
-/// The key, in [`CLOCK_SYNC_LIDAR`], of the lidar's PPS state.
-pub const PPS_KEY: &str = "pps";
-
-/// How a PPS state is written into the metadata, and read back: the one spelling both sides
-/// use (a reader that compared with its own literal would take every run for unlocked, and
-/// place its points by the host's receive time, if the writer's spelling ever changed).
-pub fn pps_text(status: hilrig_velodyne::PpsStatus) -> String {
-    format!("{status:?}")
-}

@@ -203,23 +203,14 @@ impl ClockEstimator {
 }
 
 /// The `clock_sync/<source>` metadata record of a model (what `check` reads).
-pub fn metadata(
-    m: &ClockModel,
-    r: &Residuals,
-    pairs: u64,
-) -> std::collections::BTreeMap<String, String> {
-    [
-        ("reference_sensor_ns", m.reference.0.to_string()),
-        ("offset_ns", format!("{:.0}", m.offset_ns)),
-        ("drift_ppm", format!("{:.3}", m.drift * 1e6)),
-        ("residual_p50_ns", format!("{:.0}", r.p50_ns)),
-        ("residual_p95_ns", format!("{:.0}", r.p95_ns)),
-        ("residual_max_ns", format!("{:.0}", r.max_ns)),
-        ("pairs", pairs.to_string()),
-    ]
-    .into_iter()
-    .map(|(k, v)| (k.to_owned(), v))
-    .collect()
+pub fn metadata(m: &ClockModel, r: &Residuals, pairs: u64) -> crate::bag::clock_sync::ClockSync {
+    crate::bag::clock_sync::ClockSync::of_model(
+        m.reference.0,
+        m.offset_ns,
+        m.drift,
+        [r.p50_ns, r.p95_ns, r.max_ns],
+        pairs,
+    )
 }
 
 #[cfg(test)]

@@ -861,20 +861,16 @@ pub fn record_from(
     );
     out.bag.metadata("hilrig", meta)?;
     for (name, m, r, pairs) in &summary.clocks {
-        let mut meta = crate::record::clock::metadata(m, r, *pairs);
+        let mut sync = crate::record::clock::metadata(m, r, *pairs);
         if name == "lidar" {
-            if let Some(s) = pass1_hour_source {
-                meta.insert("hour_source".to_owned(), format!("{s:?}"));
-            }
-            if let Some(b) = pass1_pps {
-                let reports = model != Some(Model::Hdl32e);
-                meta.insert(
-                    crate::bag::topics::PPS_KEY.to_owned(),
-                    crate::bag::topics::pps_text(hilrig_velodyne::PpsStatus::from_byte(b, reports)),
-                );
-            }
+            sync.hour_source = pass1_hour_source.map(|s| format!("{s:?}"));
+            let reports = model != Some(Model::Hdl32e);
+            sync.pps = pass1_pps.map(|b| hilrig_velodyne::PpsStatus::from_byte(b, reports));
         }
-        out.bag.metadata(&format!("clock_sync/{name}"), meta)?;
+        out.bag.metadata(
+            &crate::bag::clock_sync::record_name(name),
+            sync.to_metadata(),
+        )?;
     }
     // Pass 1 has seen the position packets: resolve hours with their RMC from the first packet.
     let pass1_hours = src_hours.clone();

@@ -352,19 +352,19 @@ pub async fn record_live(
     let clocks = clocks.lock().map(|c| c.clone()).unwrap_or_default();
     for (name, est) in &clocks {
         if let Some(m) = est.model() {
-            let mut meta = crate::record::clock::metadata(&m, &est.residuals(), est.pairs());
+            let mut sync = crate::record::clock::metadata(&m, &est.residuals(), est.pairs());
             if *name == "lidar" {
-                if let Some(b) = pps.lock().ok().and_then(|g| *g) {
-                    let reports = lidar_model != Some(Model::Hdl32e);
-                    meta.insert(
-                        crate::bag::topics::PPS_KEY.to_owned(),
-                        crate::bag::topics::pps_text(hilrig_velodyne::PpsStatus::from_byte(
-                            b, reports,
-                        )),
-                    );
-                }
+                let reports = lidar_model != Some(Model::Hdl32e);
+                sync.pps = pps
+                    .lock()
+                    .ok()
+                    .and_then(|g| *g)
+                    .map(|b| hilrig_velodyne::PpsStatus::from_byte(b, reports));
             }
-            bag.metadata(&format!("clock_sync/{name}"), meta)?;
+            bag.metadata(
+                &crate::bag::clock_sync::record_name(name),
+                sync.to_metadata(),
+            )?;
         }
     }
     let mut summary = LiveSummary::default();

@@ -3,6 +3,7 @@
 //! timing, position-packet PPS states, clock-synchronisation metadata and the rig file.
 
 use crate::bag::cdr::CdrReader;
+use crate::bag::clock_sync::ClockSync;
 use crate::bag::read::{read, read_stream, Event};
 use crate::bag::topics;
 use hilrig_gnss::{Fix, GnssStream};
@@ -278,13 +279,14 @@ impl Collector {
 
 impl Run {
     /// Whether the lidar's packet stamps are GNSS time: the recorder found its PPS locked and
-    /// wrote so into the lidar's clock-sync metadata (in the spelling of
-    /// [`topics::pps_text`]). Without that record the packets' stamps are the host's.
+    /// wrote so into the lidar's clock-sync record ([`ClockSync`]). Without that record the
+    /// packets' stamps are the host's.
     pub fn lidar_pps_locked(&self) -> bool {
+        let name = crate::bag::clock_sync::record_name("lidar");
         self.metadata
-            .get(topics::CLOCK_SYNC_LIDAR)
-            .and_then(|m| m.get(topics::PPS_KEY))
-            .is_some_and(|p| *p == topics::pps_text(PpsStatus::Locked))
+            .get(&name)
+            .and_then(|m| ClockSync::from_metadata(&name, m).ok())
+            .is_some_and(|c| c.pps_locked())
     }
 
     /// Reads a recording, as a stream: memory grows with its GNSS, CAN and packet-timing

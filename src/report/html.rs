@@ -162,14 +162,13 @@ fn recording(out: &mut String, recs: &[Named<Info>], checks: &[Named<Report>]) {
     let mut rows = Vec::new();
     for (name, c) in checks {
         for (source, model) in &c.temporal.clock_sync {
-            let number = |k: &str| model.get(k).and_then(|v| v.parse::<f64>().ok());
             rows.push(vec![
                 esc(name),
                 esc(source),
-                fixed(number("drift_ppm"), 3),
-                fixed(number("offset_ns").map(|x| x * 1e-6), 3),
-                fixed(number("residual_p95_ns").map(|x| x * 1e-3), 1),
-                esc(model.get("pps").map_or("", String::as_str)),
+                fixed(Some(model.drift_ppm), 3),
+                fixed(Some(model.offset_ns as f64 * 1e-6), 3),
+                fixed(Some(model.residual_p95_ns as f64 * 1e-3), 1),
+                esc(&model.pps.map_or(String::new(), |p| format!("{p:?}"))),
             ]);
         }
     }

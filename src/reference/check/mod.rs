@@ -32,7 +32,6 @@ mod budget;
 mod consistency;
 mod faults;
 mod heading;
-mod metadata_json;
 mod names;
 pub mod report;
 mod sources;

@@ -198,11 +198,7 @@ pub struct Temporal {
     pub pps_locked_share: Option<f64>,
     /// Clock-sync metadata of the recording, per source.
     /// (MCAP metadata holds strings; the JSON gives numbers as numbers.)
-    #[serde(
-        serialize_with = "super::metadata_json::numbers_as_numbers",
-        deserialize_with = "super::metadata_json::numbers_as_text"
-    )]
-    pub clock_sync: std::collections::BTreeMap<String, std::collections::BTreeMap<String, String>>,
+    pub clock_sync: std::collections::BTreeMap<String, crate::bag::clock_sync::ClockSync>,
     /// Lidar minus GNSS clock offset (host latencies included), ms.
     pub lidar_to_gnss_offset_ms: Option<f64>,
     /// How far the ego moves between GNSS epochs (speed × interval), m.
@@ -404,14 +400,13 @@ impl Report {
             );
         }
         for (src, m) in &tm.clock_sync {
-            let get = |k: &str| m.get(k).and_then(|v| v.parse::<f64>().ok());
             let _ = writeln!(
                 s,
-                "clock {src}: offset {} ms, drift {} ppm, residual p95 {} µs (transport jitter){}",
-                get("offset_ns").map_or("n/a".into(), |v| format!("{:.3}", v * 1e-6)),
-                get("drift_ppm").map_or("n/a".into(), |v| format!("{v:.2}")),
-                get("residual_p95_ns").map_or("n/a".into(), |v| format!("{:.0}", v * 1e-3)),
-                m.get("pps").map_or(String::new(), |p| format!(", PPS {p}"))
+                "clock {src}: offset {:.3} ms, drift {:.2} ppm, residual p95 {:.0} µs (transport jitter){}",
+                m.offset_ns as f64 * 1e-6,
+                m.drift_ppm,
+                m.residual_p95_ns as f64 * 1e-3,
+                m.pps.map_or(String::new(), |p| format!(", PPS {p:?}"))
             );
         }
         if let Some(p) = tm.pps_locked_share {

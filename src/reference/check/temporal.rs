@@ -5,6 +5,7 @@
 use super::faults::{secs, FaultLog};
 use super::names::FaultName;
 use super::report::{SourceTiming, Stats, Temporal};
+use crate::bag::clock_sync::ClockSync;
 use crate::reference::run::Run;
 use crate::reference::trajectory::EgoTrajectory;
 use crate::rig::Thresholds;
@@ -66,18 +67,16 @@ pub(super) fn measure(
             th.gap_periods,
         ));
     }
-    tm.clock_sync = run
-        .metadata
-        .iter()
-        .filter(|(k, _)| k.starts_with("clock_sync/"))
-        .map(|(k, v)| (k.trim_start_matches("clock_sync/").to_owned(), v.clone()))
-        .collect();
-    let meta =
-        |src: &str, key: &str| -> Option<f64> { tm.clock_sync.get(src)?.get(key)?.parse().ok() };
-    if let (Some(l), Some(g)) = (meta("lidar", "offset_ns"), meta("gnss", "offset_ns")) {
-        tm.lidar_to_gnss_offset_ms = Some((l - g) * 1e-6);
+    let (clocks, unreadable) = ClockSync::of_recording(&run.metadata);
+    for e in unreadable {
+        tracing::warn!("{e}: its clock model is left out");
     }
-    let lidar_time_error_s = pps(run, th, &meta, &mut tm.pps_locked_share, log);
+    tm.clock_sync = clocks;
+    if let (Some(l), Some(g)) = (tm.clock_sync.get("lidar"), tm.clock_sync.get("gnss")) {
+        tm.lidar_to_gnss_offset_ms = Some((l.offset_ns - g.offset_ns) as f64 * 1e-6);
+    }
+    let lidar_clock = tm.clock_sync.get("lidar").cloned();
+    let lidar_time_error_s = pps(run, th, lidar_clock.as_ref(), &mut tm.pps_locked_share, log);
     let mut between = Vec::new();
     let mut interp = Vec::new();
     for w in epochs.windows(2) {
@@ -119,7 +118,7 @@ fn ego_messages(run: &Run) -> Vec<(u32, Vec<UtcNanos>)> {
 fn pps(
     run: &Run,
     th: &Thresholds,
-    meta: &dyn Fn(&str, &str) -> Option<f64>,
+    lidar_clock: Option<&ClockSync>,
     locked_share: &mut Option<f64>,
     log: &mut FaultLog,
 ) -> f64 {
@@ -136,7 +135,7 @@ fn pps(
         .map(|p| p.0)
         .collect();
     if th.require_pps && !unlocked.is_empty() {
-        let drift = meta("lidar", "drift_ppm");
+        let drift = lidar_clock.map(|c| c.drift_ppm);
         let dur = secs(unlocked[0], unlocked[unlocked.len() - 1]);
         log.fault(
             FaultName::LidarNotPpsLocked,
@@ -160,7 +159,7 @@ fn pps(
             ),
         );
         // Without PPS the lidar's time is the host clock model's: its residual spread.
-        lidar_time_error_s = meta("lidar", "residual_p95_ns").unwrap_or(0.0) * 1e-9;
+        lidar_time_error_s = lidar_clock.map_or(0.0, |c| c.residual_p95_ns as f64 * 1e-9);
         if lidar_time_error_s * 1e6 > th.max_clock_residual_p95_us {
             log.fault(
                 FaultName::LidarClockResidual,
@@ -302,14 +301,11 @@ mod tests {
             .collect();
         let epochs: Vec<(UtcNanos, &Fix)> = fixes.iter().map(|f| (f.time.unwrap(), f)).collect();
         let mut run = test_drive::run(motion);
-        run.metadata.insert(
-            "clock_sync/lidar".into(),
-            [("offset_ns".to_owned(), "5000000".to_owned())].into(),
-        );
-        run.metadata.insert(
-            "clock_sync/gnss".into(),
-            [("offset_ns".to_owned(), "2000000".to_owned())].into(),
-        );
+        let clock = |offset_ns: f64| ClockSync::of_model(0, offset_ns, 0.0, [0.0; 3], 100);
+        run.metadata
+            .insert("clock_sync/lidar".into(), clock(5e6).to_metadata());
+        run.metadata
+            .insert("clock_sync/gnss".into(), clock(2e6).to_metadata());
         let mut log = FaultLog::new(UtcNanos(T0));
         let (tm, lidar_error) = measure(&run, &epochs, &traj, &Thresholds::default(), &mut log);
         let chord = 2.0 * r * (w * period / 2.0).sin();
@@ -376,14 +372,11 @@ mod tests {
         {
             run.pps.push((UtcNanos(T0 + k as i64 * 1_000_000_000), s));
         }
-        let meta = |src: &str, key: &str| match (src, key) {
-            ("lidar", "drift_ppm") => Some(-60.0),
-            ("lidar", "residual_p95_ns") => Some(1_500_000.0),
-            _ => None,
-        };
+        let clock = ClockSync::of_model(0, 0.0, -60e-6, [0.0, 1_500_000.0, 2e6], 100);
+        let meta = Some(&clock);
         let mut share = None;
         let mut log = FaultLog::new(UtcNanos(T0));
-        let error = pps(&run, &Thresholds::default(), &meta, &mut share, &mut log);
+        let error = pps(&run, &Thresholds::default(), meta, &mut share, &mut log);
         assert_eq!(share, Some(0.75));
         // The clock model's residual p95 is the lidar's time error: 1.5 ms, over the 1 ms limit.
         assert!((error - 1.5e-3).abs() < 1e-12, "{error}");
@@ -404,7 +397,7 @@ mod tests {
             ..Thresholds::default()
         };
         let mut log = FaultLog::new(UtcNanos(T0));
-        assert_eq!(pps(&run, &th, &meta, &mut share, &mut log), 0.0);
+        assert_eq!(pps(&run, &th, meta, &mut share, &mut log), 0.0);
         assert!(log.faults.is_empty());
     }
 }
