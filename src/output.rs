@@ -9,8 +9,8 @@
 //! field renamed in a producer breaks the build of every reader in this crate instead of
 //! leaving `report` to show a blank. The kind says what a file is (before, `report` guessed it
 //! from which keys existed); the schema number says which version of the struct wrote it and
-//! goes up whenever a field is renamed, removed or changes meaning (adding a field does not need
-//! it: readers default what older files lack).
+//! goes up whenever its fields change (a field renamed, removed, added or changed in meaning),
+//! except for a field that is optional and defaults when absent (`#[serde(default)]`).
 //!
 //! Why serde and not a schema language: the types are the documentation users read (`cargo doc`),
 //! and serde writes and reads them in one spelling (snake_case enums) with nothing to keep in
@@ -37,6 +37,17 @@ pub enum OutputKind {
 }
 
 impl OutputKind {
+    /// The command that writes it.
+    pub fn command(self) -> &'static str {
+        match self {
+            OutputKind::Recording => "info --json",
+            OutputKind::Check => "check",
+            OutputKind::Compare => "compare",
+            OutputKind::Validate => "validate",
+            OutputKind::Gap => "gap",
+        }
+    }
+
     /// The spelling in the envelope.
     pub fn name(self) -> &'static str {
         match self {
@@ -108,13 +119,15 @@ pub enum OutputError {
     /// A schema version this build cannot read.
     #[error(
         "{path}: {kind} schema {found}, but this hilrig reads schema {supported}: \
-         run `hilrig {kind}` of this version again"
+         run `hilrig {command}` of this version again"
     )]
     Schema {
         /// The file.
         path: PathBuf,
         /// Its kind.
         kind: &'static str,
+        /// The command that writes it.
+        command: &'static str,
         /// The version it says.
         found: u64,
         /// The version this build reads.
@@ -202,6 +215,33 @@ pub fn header(path: &Path, bytes: &[u8]) -> Result<(OutputKind, u64), OutputErro
     Ok((found, schema))
 }
 
+/// Whether JSON without the envelope is an output of a hilrig from before it: it has the keys
+/// by which `report` used to recognise each kind (so that a folder of such files is refused with
+/// the reason, not passed over as another tool's JSON).
+pub fn is_pre_envelope_output(bytes: &[u8]) -> bool {
+    use serde::de::IgnoredAny;
+    #[derive(Deserialize)]
+    struct Keys {
+        spatial: Option<IgnoredAny>,
+        temporal: Option<IgnoredAny>,
+        scans: Option<IgnoredAny>,
+        calibration: Option<IgnoredAny>,
+        cells: Option<IgnoredAny>,
+        measurement: Option<IgnoredAny>,
+        rounds: Option<IgnoredAny>,
+        start_model: Option<IgnoredAny>,
+        channels: Option<IgnoredAny>,
+        profile: Option<IgnoredAny>,
+    }
+    serde_json::from_slice::<Keys>(bytes).is_ok_and(|k| {
+        (k.spatial.is_some() && k.temporal.is_some())
+            || (k.scans.is_some() && k.calibration.is_some())
+            || (k.cells.is_some() && k.measurement.is_some())
+            || (k.rounds.is_some() && k.start_model.is_some())
+            || (k.channels.is_some() && k.profile.is_some())
+    })
+}
+
 /// Reads an output of kind `T` from its bytes (`path` only names it in errors).
 pub fn from_slice<T: Output>(path: &Path, bytes: &[u8]) -> Result<T, OutputError> {
     let (found, schema) = header(path, bytes)?;
@@ -216,6 +256,7 @@ pub fn from_slice<T: Output>(path: &Path, bytes: &[u8]) -> Result<T, OutputError
         return Err(OutputError::Schema {
             path: path.to_owned(),
             kind: T::KIND.name(),
+            command: T::KIND.command(),
             found: schema,
             supported: T::SCHEMA,
         });
@@ -236,4 +277,43 @@ pub fn read<T: Output>(path: &Path) -> Result<T, OutputError> {
         source,
     })?;
     from_slice(path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A file of another schema names the command that writes its kind (`info --json` for a
+    /// recording's summary, which has no command of the kind's name); JSON with the keys of an
+    /// output from before the envelope is told from another tool's JSON.
+    #[test]
+    fn another_version_is_named_with_the_command_to_run_again() {
+        let path = Path::new("rec.info.json");
+        let e = from_slice::<crate::bag::info::Info>(
+            path,
+            br#"{"kind": "recording", "schema": 7, "file": "x"}"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("rec.info.json")
+                && e.contains("recording schema 7")
+                && e.contains("`hilrig info --json`"),
+            "{e}"
+        );
+        let e = from_slice::<crate::bag::info::Info>(path, br#"{"kind": "check", "schema": 1}"#)
+            .unwrap_err();
+        assert!(
+            matches!(e, OutputError::WrongKind { found: "check", .. }),
+            "{e}"
+        );
+        assert!(is_pre_envelope_output(
+            br#"{"verdict": "pass", "spatial": {}, "temporal": {}}"#
+        ));
+        assert!(is_pre_envelope_output(
+            br#"{"rounds": [], "start_model": "m.toml"}"#
+        ));
+        assert!(!is_pre_envelope_output(br#"{"spatial": {}}"#));
+        assert!(!is_pre_envelope_output(br#"[1, 2]"#));
+    }
 }

@@ -321,6 +321,23 @@ fn the_report_reads_the_demo_s_outputs_through_their_types() {
             && text.contains("schema 9"),
         "{text}"
     );
+    // An output of a hilrig from before the envelope, found in a folder: refused, not passed
+    // over (another tool's JSON beside it is passed over).
+    let folder = dir.path().join("old");
+    std::fs::create_dir(&folder).unwrap();
+    let mut old: serde_json::Value = serde_json::from_str(&check).unwrap();
+    old.as_object_mut().unwrap().remove("kind");
+    old.as_object_mut().unwrap().remove("schema");
+    std::fs::write(folder.join("notes.json"), "{\"hello\": 1}").unwrap();
+    std::fs::write(folder.join("check.json"), old.to_string()).unwrap();
+    let err = hilrig::report::gather(std::slice::from_ref(&folder)).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            hilrig::report::ReportError::Output(OutputError::NoEnvelope { .. })
+        ) && err.to_string().contains("check.json"),
+        "{err}"
+    );
     // A field of the wrong type: refused, the field named.
     let broken = dir.path().join("check-broken.json");
     std::fs::write(

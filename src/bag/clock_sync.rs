@@ -22,8 +22,10 @@ pub fn record_name(source: &str) -> String {
 pub const PREFIX: &str = "clock_sync/";
 
 /// One source's clock synchronisation.
+///
+/// Keys it does not know are passed over when read (a newer recorder may add some); a key it
+/// needs and does not find is an error.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ClockSync {
     /// The sensor time the model is referenced to, ns.
     pub reference_sensor_ns: i64,
@@ -104,12 +106,14 @@ impl ClockSync {
         let fields: serde_json::Map<String, serde_json::Value> = values
             .iter()
             .map(|(k, v)| {
-                // Text fields are text even where they look like numbers.
+                // Text fields are text even where they look like numbers; a whole number is
+                // read as one even where it was written as a float ("-0", "12.000").
                 let text = matches!(k.as_str(), "hour_source" | "pps");
-                let value = match v.parse::<serde_json::Number>() {
-                    Ok(n) if !text => serde_json::Value::Number(n),
-                    _ => serde_json::Value::String(v.clone()),
-                };
+                let number = if text { None } else { number(v) };
+                let value = number.map_or_else(
+                    || serde_json::Value::String(v.clone()),
+                    serde_json::Value::Number,
+                );
                 (k.clone(), value)
             })
             .collect();
@@ -117,6 +121,20 @@ impl ClockSync {
             record: record.to_owned(),
             source,
         })
+    }
+
+    /// The PPS state alone of a record, read whatever else the record holds (the one key that
+    /// decides whether the lidar's stamps are GNSS time: a record that does not read otherwise
+    /// must not turn a locked lidar into a free-running one).
+    pub fn pps_of(values: &BTreeMap<String, String>) -> Option<PpsStatus> {
+        #[derive(Deserialize)]
+        struct Pps {
+            #[serde(default, with = "pps_text")]
+            pps: Option<PpsStatus>,
+        }
+        let v = values.get("pps")?;
+        let one = serde_json::json!({ "pps": v });
+        serde_json::from_value::<Pps>(one).ok()?.pps
     }
 
     /// Every clock-sync record of a recording's metadata, by source; the records that do not
@@ -143,6 +161,22 @@ impl ClockSync {
     pub fn pps_locked(&self) -> bool {
         self.pps == Some(PpsStatus::Locked)
     }
+}
+
+/// A number's text as a JSON number: whole numbers as integers (so that they fit the integer
+/// fields however they were written), others as floats; `None` for text that is no number.
+fn number(text: &str) -> Option<serde_json::Number> {
+    if let Ok(i) = text.parse::<i64>() {
+        return Some(i.into());
+    }
+    if let Ok(u) = text.parse::<u64>() {
+        return Some(u.into());
+    }
+    let x = text.parse::<f64>().ok().filter(|x| x.is_finite())?;
+    if x.fract() == 0.0 && x.abs() < 9.0e15 {
+        return Some((x as i64).into());
+    }
+    serde_json::Number::from_f64(x)
 }
 
 /// A PPS state as its name (`Locked`, `Unknown(7)`), as the records have always held it.
@@ -215,13 +249,26 @@ mod tests {
             assert_eq!(ClockSync::from_metadata("clock_sync/lidar", &m).unwrap(), c);
         }
         assert!(c.to_metadata().len() == 9);
+        // A misspelt key: the one it should have been is missing, and named.
         let mut m = c.to_metadata();
-        m.insert("drift_pmm".into(), "1".into());
+        let drift = m.remove("drift_ppm").unwrap();
+        m.insert("drift_pmm".into(), drift);
         let e = ClockSync::from_metadata("clock_sync/lidar", &m).unwrap_err();
-        assert!(e.to_string().contains("clock_sync/lidar") && e.to_string().contains("drift_pmm"));
+        assert!(e.to_string().contains("clock_sync/lidar") && e.to_string().contains("drift_ppm"));
+        // The PPS state reads alone whatever else is wrong: a locked lidar stays locked.
+        assert_eq!(ClockSync::pps_of(&m), Some(PpsStatus::Unknown(7)));
         let mut m = c.to_metadata();
         m.insert("pps".into(), "Lokced".into());
         assert!(ClockSync::from_metadata("clock_sync/lidar", &m).is_err());
+        assert_eq!(ClockSync::pps_of(&m), None);
+        // What older recorders wrote: "-0" and "12.000" for whole numbers, a key this type
+        // does not know; all read.
+        let mut m = c.to_metadata();
+        m.insert("offset_ns".into(), "-0".into());
+        m.insert("pairs".into(), "12.000".into());
+        m.insert("residual_p99_ns".into(), "3000".into());
+        let old = ClockSync::from_metadata("clock_sync/lidar", &m).unwrap();
+        assert_eq!((old.offset_ns, old.pairs), (0, 12));
         // A GNSS clock has no PPS key and no hour source.
         c.pps = None;
         c.hour_source = None;

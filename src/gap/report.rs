@@ -152,6 +152,10 @@ pub struct GapReport {
     /// Where the reference was not usable (a line per stretch left out), then one line per
     /// effect found, or the evidence that none was.
     pub summary: Vec<String>,
+    /// Why the rounds ended, when they have: the evidence that no effect is missing, or the
+    /// round limit (also the summary's line of it).
+    #[serde(default)]
+    pub ended: Option<String>,
 }
 
 fn write_atomic(path: &Path, text: &str) -> Result<(), GapError> {

@@ -369,6 +369,7 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
         rounds: Vec::new(),
         finished: false,
         summary: Vec::new(),
+        ended: None,
     };
     // What the workflow did not look at, first: a stretch whose reference is not usable would
     // have shown its trajectory error as a lidar effect.
@@ -481,9 +482,9 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             }
         }
         let Some((c, next, _)) = accepted else {
-            report
-                .summary
-                .push(no_effect_line(round, &candidates, &this.trials));
+            let line = no_effect_line(round, &candidates, &this.trials);
+            report.ended = Some(line.clone());
+            report.summary.push(line);
             report.rounds.push(this);
             break;
         };
@@ -519,9 +520,11 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
         report.rounds.push(this);
         save(&opts.out, &model, &report)?;
         if round == opts.max_rounds {
-            report.summary.push(format!(
+            let line = format!(
                 "stopped after {round} rounds (--max-rounds): candidates may be left; run again from model.fitted.toml"
-            ));
+            );
+            report.ended = Some(line.clone());
+            report.summary.push(line);
         }
     }
     report.finished = true;

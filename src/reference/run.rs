@@ -279,14 +279,14 @@ impl Collector {
 
 impl Run {
     /// Whether the lidar's packet stamps are GNSS time: the recorder found its PPS locked and
-    /// wrote so into the lidar's clock-sync record ([`ClockSync`]). Without that record the
-    /// packets' stamps are the host's.
+    /// wrote so into the lidar's clock-sync record ([`ClockSync`]; its PPS state is read alone,
+    /// so that another key of the record that does not read cannot unlock it). Without that
+    /// record the packets' stamps are the host's.
     pub fn lidar_pps_locked(&self) -> bool {
-        let name = crate::bag::clock_sync::record_name("lidar");
         self.metadata
-            .get(&name)
-            .and_then(|m| ClockSync::from_metadata(&name, m).ok())
-            .is_some_and(|c| c.pps_locked())
+            .get(&crate::bag::clock_sync::record_name("lidar"))
+            .and_then(ClockSync::pps_of)
+            == Some(hilrig_velodyne::PpsStatus::Locked)
     }
 
     /// Reads a recording, as a stream: memory grows with its GNSS, CAN and packet-timing

@@ -64,12 +64,9 @@ fn gap_line(name: &str, v: &GapReport) -> String {
             format!("effects added: {}", added.join(", "))
         }
     );
-    // Why the rounds ended, unless the last round added something (then the workflow was
-    // stopped by its round limit, and the summary's last line is that effect's finding).
-    if v.rounds.last().is_none_or(|r| r.chosen.is_none()) {
-        if let Some(last) = v.summary.last() {
-            line.push_str(&format!("; {last}"));
-        }
+    // Why the rounds ended: no effect missing, or the round limit.
+    if let Some(ended) = &v.ended {
+        line.push_str(&format!("; {ended}"));
     }
     line
 }
@@ -224,6 +221,7 @@ mod tests {
                 "found: range_noise ...".into(),
                 "no missing effect found in round 2: x".into(),
             ],
+            ended: Some("no missing effect found in round 2: x".into()),
         };
         let summary = crate::metrics::report::Summary {
             ocr_mean: Some(0.8734),
@@ -269,6 +267,17 @@ mod tests {
         assert_eq!(
             rows[3][1],
             "gap/gap.json: effects added: range_noise; no missing effect found in round 2: x"
+        );
+        // Stopped by the round limit after a round that added an effect: said so.
+        let limited = GapReport {
+            rounds: vec![round(Some(EffectKind::RangeNoise))],
+            ended: Some("stopped after 1 rounds (--max-rounds)".into()),
+            ..gap.clone()
+        };
+        let rows = super::rows(&[], &[], &[], &[("gap.json", &limited)], &esc);
+        assert_eq!(
+            rows[0][1],
+            "gap.json: effects added: range_noise; stopped after 1 rounds (--max-rounds)"
         );
         // Nothing of a kind, no line for it.
         assert!(rows_of_nothing().is_empty());

@@ -123,8 +123,9 @@ fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
 }
 
 /// Reads one input. In a directory searched (`named` false), JSON that is not an output of
-/// hilrig (no envelope: another tool's file) is passed over; a hilrig output of another schema
-/// or with a broken body is an error wherever it is.
+/// hilrig (no envelope, and not the keys of one from before the envelope: another tool's file)
+/// is passed over; a hilrig output of another schema, from before the envelope, or with a
+/// broken body is an error wherever it is.
 fn read(path: &Path, base: &Path, named: bool) -> Result<Option<Input>, ReportError> {
     let bytes = std::fs::read(path).map_err(|source| ReportError::Io {
         path: path.to_owned(),
@@ -132,7 +133,10 @@ fn read(path: &Path, base: &Path, named: bool) -> Result<Option<Input>, ReportEr
     })?;
     let value = match Document::from_slice(path, &bytes) {
         Ok(v) => v,
-        Err(OutputError::NotJson { .. } | OutputError::NoEnvelope { .. }) if !named => {
+        Err(OutputError::NotJson { .. }) if !named => return Ok(None),
+        Err(OutputError::NoEnvelope { .. })
+            if !named && !crate::output::is_pre_envelope_output(&bytes) =>
+        {
             return Ok(None)
         }
         Err(e) => return Err(e.into()),

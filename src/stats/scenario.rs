@@ -56,7 +56,7 @@ pub enum ScenarioError {
     /// A knob that does not reach a number.
     #[error("knob '{knob}': {source}")]
     Knob {
-        /// The knob, as the scenario file writes it.
+        /// The knob, as the scenario file writes it (with the file where it is read).
         knob: String,
         /// Where it stops.
         #[source]
@@ -369,7 +369,7 @@ impl Scenario {
                     ))
                 })?;
             let (doc, steps) = parse_path(&k.set).map_err(|source| ScenarioError::Knob {
-                knob: k.set.clone(),
+                knob: format!("{}: {}", path.display(), k.set),
                 source,
             })?;
             knobs.push(Knob {
