@@ -51,13 +51,11 @@ impl Checked {
         smoothed: Option<EgoTrajectory>,
         trajectory: Option<Trajectory>,
     ) -> Result<Checked, CompareError> {
-        let input = CompareError::Input;
         if report.verdict == Verdict::Unusable {
-            return Err(input(format!(
-                "{}: the reference data cannot be judged ({}): see `hilrig check`",
-                run_path.display(),
-                report.unusable.unwrap_or_default()
-            )));
+            return Err(CompareError::Unusable {
+                run: run_path.to_owned(),
+                why: report.unusable.unwrap_or_default(),
+            });
         }
         let admissible = report.accuracy.grid_cell_m;
         // The marks judge the smoothed trajectory: on a trajectory file they do not apply.
@@ -70,7 +68,9 @@ impl Checked {
             Some(t) => t,
             None => smoothed
                 .and_then(|t| t.sampled(10_000_000))
-                .ok_or_else(|| input(format!("{}: no RTK+CAN trajectory", run_path.display())))?,
+                .ok_or_else(|| CompareError::NoTrajectory {
+                    run: run_path.to_owned(),
+                })?,
         };
         Ok(Checked {
             run,

@@ -86,16 +86,19 @@ pub use super::windows::CURVE_CELLS_M;
 /// The grid of the options (the cell defaults to the admissible one), once the options are
 /// known to be sound and the cell not below the admissible one (unless allowed).
 fn grid_spec(opts: &Options, admissible: f64) -> Result<GridSpec, CompareError> {
-    let input = CompareError::Input;
     let cell = opts.cell_m.unwrap_or(admissible);
-    let spec = GridSpec::new(cell, opts.dims).map_err(|e| input(e.to_string()))?;
+    let spec = GridSpec::new(cell, opts.dims)?;
     if opts.k == 0 {
-        return Err(input("-K 0: a grid needs at least one scan".into()));
+        return Err(CompareError::Option {
+            option: "-K 0".into(),
+            why: "a grid needs at least one scan",
+        });
     }
     if opts.grid_phases == 0 {
-        return Err(input(
-            "--grid-phases 0: the metrics need at least one grid".into(),
-        ));
+        return Err(CompareError::Option {
+            option: "--grid-phases 0".into(),
+            why: "the metrics need at least one grid",
+        });
     }
     if cell < admissible - 1e-9 && !opts.allow_small_cell {
         return Err(CompareError::CellTooSmall { cell, admissible });
@@ -145,7 +148,7 @@ pub fn compare(
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Comparison, CompareError> {
     // The simulation is opened first: a missing one fails before the run is checked.
-    let sim = ScanStream::open(sim_path).map_err(|e| CompareError::Input(e.to_string()))?;
+    let sim = ScanStream::open(sim_path)?;
     let started = std::time::Instant::now();
     let checked = Checked::new(run_path, rig, scene, opts.trajectory.clone())?;
     tracing::debug!(
@@ -253,7 +256,6 @@ fn compare_twins(
     opts: Options,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<Comparison, CompareError> {
-    let input = CompareError::Input;
     let started = std::time::Instant::now();
     let phase = |what: &str| {
         tracing::debug!(
@@ -267,19 +269,19 @@ fn compare_twins(
     let (Some(first_scan), Some(last_scan)) =
         (reference.run.scans.first(), reference.run.scans.last())
     else {
-        return Err(input(format!(
-            "no lidar scans (/velodyne_packets) in {}",
-            run_path.display()
-        )));
+        return Err(CompareError::NoScans {
+            run: run_path.to_owned(),
+        });
     };
     let real_span = Some((first_scan.stamp, last_scan.stamp));
     refuse_clamping_cell(cell, &reference.trajectory, opts.sensor_frame)?;
     let (lidar, model, calibration) = reference.rig.lidar_sensor()?;
     let decoder = Decoder::with_calibration(model, calibration);
     if opts.sensor_frame && (opts.region != Region::All || opts.exclude_ground) {
-        return Err(input(
-            "the sensor frame has no scene: --roi and ground exclusion need the scene frame (use --roi all --keep-ground)".into(),
-        ));
+        return Err(CompareError::Option {
+            option: "--sensor-frame".into(),
+            why: "the sensor frame has no scene: --roi and ground exclusion need the scene frame (use --roi all --keep-ground)",
+        });
     }
     let roi = Roi::new(opts.region.clone(), scene, opts.exclude_ground, 0.2)?;
     let frame = Frame {
@@ -291,7 +293,7 @@ fn compare_twins(
         sensor_frame: opts.sensor_frame,
     };
     let total = reference.run.scans.len() as u64;
-    let mut real_stream = ScanStream::open(run_path).map_err(|e| input(e.to_string()))?;
+    let mut real_stream = ScanStream::open(run_path)?;
     let mut curve = CurveSums::new(cell, admissible, opts.dims);
     let (tally, paired, sim_path, sim_damage) = match twins {
         Twins::File(sim_path, mut sim_stream) => {
@@ -309,7 +311,7 @@ fn compare_twins(
                 &|n| progress(n, total),
             );
             if let Some(e) = pairs.finish_error(tally.rows.len(), (run_path, real_span), sim_path) {
-                return Err(input(e));
+                return Err(e);
             }
             let paired = pairs.paired;
             (tally, paired, Some(sim_path), sim_stream.finish())
@@ -339,10 +341,10 @@ fn compare_twins(
                 });
             }
             if tally.rows.is_empty() {
-                return Err(input(format!(
-                    "{}: every scan lies where `check` marks the reference not usable: nothing is left to compare; see `hilrig check`",
-                    run_path.display()
-                )));
+                return Err(CompareError::NothingUsable {
+                    run: run_path.to_owned(),
+                    marks: String::new(),
+                });
             }
             (tally, pairs.paired, None, None)
         }
@@ -362,11 +364,10 @@ fn compare_twins(
     })
     .collect();
     if !tally.any_real_point {
-        return Err(input(format!(
-            "{}: no measured point lies in the region {} on the trajectory (out of the sensor's view, or hidden: choose a region the drive sees)",
-            run_path.display(),
-            opts.region
-        )));
+        return Err(CompareError::NoPointInRegion {
+            run: run_path.to_owned(),
+            region: opts.region.to_string(),
+        });
     }
     phase("scans measured");
     let rows = tally.rows;

@@ -9,6 +9,7 @@
 //! twin: a simulated stamp still ahead in the run means the measured scan has none; any other
 //! (behind, or not in the run at all) means the simulated one has none.
 
+use super::error::CompareError;
 use super::report::LeftOut;
 use crate::bag::scans::Scan;
 use crate::reference::run::ScanIndex;
@@ -72,7 +73,7 @@ impl<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Pairs<'a, R, S> {
         kept: usize,
         (run_path, real_span): (&Path, Option<(UtcNanos, UtcNanos)>),
         sim_path: &Path,
-    ) -> Option<String> {
+    ) -> Option<CompareError> {
         if self.paired == 0 {
             // The rest of the simulation, for its span.
             while self.next_sim().is_some() {}
@@ -85,24 +86,23 @@ impl<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Pairs<'a, R, S> {
                     )
                 })
             };
-            return Some(format!(
-                "{} and {} share no scan (scan stamps {} and {}): the simulation is not a re-simulation of this run",
-                run_path.display(),
-                sim_path.display(),
-                span(real_span),
-                span(self.sim_span)
-            ));
+            return Some(CompareError::NotTwins {
+                run: run_path.to_owned(),
+                sim: sim_path.to_owned(),
+                run_span: span(real_span),
+                sim_span: span(self.sim_span),
+            });
         }
         if kept == 0 {
-            return Some(format!(
-                "{}: every paired scan lies where `check` marks the reference not usable ({}): nothing is left to compare; see `hilrig check`",
-                run_path.display(),
-                self.left_out
+            return Some(CompareError::NothingUsable {
+                run: run_path.to_owned(),
+                marks: self
+                    .left_out
                     .iter()
                     .map(|l| format!("{} {:.1}-{:.1} s", l.mark.name, l.mark.from_s, l.mark.to_s))
                     .collect::<Vec<_>>()
-                    .join(", ")
-            ));
+                    .join(", "),
+            });
         }
         None
     }

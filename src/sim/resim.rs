@@ -23,7 +23,7 @@ use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::{DataPacket, Decoder, DATA_PACKET_SIZE};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 pub use super::sim_file::SIM_POINTS;
 
@@ -33,9 +33,28 @@ pub enum ResimError {
     /// The run failed `check` (and `--force` was not given).
     #[error("the run's reference data fail the check ({}): re-simulating it would measure the reference errors, not the model; see `hilrig check`, or give --force to re-simulate it anyway", .0.faults.iter().map(|f| f.name).collect::<Vec<_>>().join(", "))]
     Refused(Box<Report>),
-    /// The input cannot be used.
-    #[error("{0}")]
-    Input(String),
+    /// The run holds no lidar scan to re-simulate.
+    #[error("{}: no /velodyne_packets to re-simulate{}", .run.display(), .damage.as_ref().map_or(String::new(), |d| format!(" ({d})")))]
+    NoScans {
+        /// The run.
+        run: PathBuf,
+        /// What stopped the reading early, if anything.
+        damage: Option<String>,
+    },
+    /// The run's check gives no trajectory to cast along.
+    #[error("{}: {why}", .run.display())]
+    NoTrajectory {
+        /// The run.
+        run: PathBuf,
+        /// Why not: no RTK+CAN trajectory, or one too short to sample.
+        why: &'static str,
+    },
+    /// The model cannot simulate the rig's lidar.
+    #[error(transparent)]
+    Model(#[from] super::model::ModelError),
+    /// The run's scans cannot be read.
+    #[error(transparent)]
+    Scans(#[from] crate::bag::scans::ScanStreamError),
     /// Writing failed.
     #[error("writing the simulation: {0}")]
     Output(#[from] super::sim_file::WriteError),
@@ -150,7 +169,6 @@ pub fn resim_recording(
     out: &Path,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<ResimSummary, ResimError> {
-    let input = |e: String| ResimError::Input(e);
     let Recording { path, run, rig } = recording;
     let run_path = path.as_path();
     let rig = &rig;
@@ -163,13 +181,10 @@ pub fn resim_recording(
         return Err(ResimError::Refused(Box::new(report)));
     }
     if run.scans.is_empty() {
-        return Err(input(format!(
-            "{}: no /velodyne_packets to re-simulate{}",
-            run_path.display(),
-            run.damage
-                .as_ref()
-                .map_or(String::new(), |d| format!(" ({d})"))
-        )));
+        return Err(ResimError::NoScans {
+            run: run_path.to_owned(),
+            damage: run.damage.clone(),
+        });
     }
     let (trajectory, source) = match poses {
         PoseSource::File(t, name) => (t, format!("file {name}")),
@@ -177,7 +192,10 @@ pub fn resim_recording(
             let t = smoothed
                 .ok_or("no RTK+CAN trajectory")
                 .and_then(|t| t.sampled(10_000_000).ok_or("a trajectory too short"))
-                .map_err(|e| input(format!("{}: {e}", run_path.display())))?;
+                .map_err(|why| ResimError::NoTrajectory {
+                    run: run_path.to_owned(),
+                    why,
+                })?;
             (
                 t,
                 "the run's RTK+CAN trajectory (EKF/RTS, 10 ms samples)".into(),
@@ -185,12 +203,11 @@ pub fn resim_recording(
         }
     };
     let (lidar, sensor, calibration) = rig.lidar_sensor()?;
-    let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, model)
-        .map_err(|e| input(e.to_string()))?;
+    let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, model)?;
     let pps_locked = run.lidar_pps_locked();
     let total = run.scans.len() as u64;
     let first_log = run.scans[0].stamp;
-    let scans = ScanStream::open(run_path).map_err(|e| input(e.to_string()))?;
+    let scans = ScanStream::open(run_path)?;
 
     let mut meta = sim_metadata(model, scene, scene_path, run_path, source, seed);
     meta.insert(
@@ -434,10 +451,8 @@ impl<'a> Resimulator<'a> {
         out: &Path,
         first_log: UtcNanos,
     ) -> Result<Resimulator<'a>, ResimError> {
-        let input = |e: String| ResimError::Input(e);
         let (lidar, sensor, calibration) = rig.lidar_sensor()?;
-        let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, model)
-            .map_err(|e| input(e.to_string()))?;
+        let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, model)?;
         let meta = sim_metadata(
             model,
             scene,

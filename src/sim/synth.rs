@@ -39,9 +39,59 @@ use std::path::{Path, PathBuf};
 /// Why synthesis failed.
 #[derive(Debug, thiserror::Error)]
 pub enum SynthError {
-    /// An input is wrong.
-    #[error("{0}")]
-    Input(String),
+    /// The drive's rig file cannot be read.
+    #[error(transparent)]
+    Rig(#[from] crate::rig::RigError),
+    /// The rig lacks a sensor synth makes data for.
+    #[error("{}: synth needs a {what}", .rig.display())]
+    RigLacks {
+        /// The rig file.
+        rig: PathBuf,
+        /// What is missing (`[gnss]`).
+        what: &'static str,
+    },
+    /// The rig's lidar cannot be synthesized.
+    #[error("{}: synth needs a lidar: {source}", .rig.display())]
+    Lidar {
+        /// The rig file.
+        rig: PathBuf,
+        /// Why.
+        #[source]
+        source: crate::rig::LidarSensorError,
+    },
+    /// The rig's DBC cannot be read.
+    #[error(transparent)]
+    Dbc(#[from] hilrig_can::DbcError),
+    /// The drive file's lidar return mode is not one a Velodyne has.
+    #[error("lidar return_mode '{0}': expected strongest, last or dual")]
+    ReturnMode(String),
+    /// The drive cannot be driven (or its file is wrong).
+    #[error(transparent)]
+    Drive(#[from] super::drive::DriveError),
+    /// The driven trajectory does not read back from its CSV.
+    #[error("the true trajectory: {0}")]
+    Trajectory(#[from] crate::scene::pose::TrajectoryError),
+    /// A drive's walker that the scene has no actor of.
+    #[error("drive walker '{0}' is not an actor of the scene")]
+    Walker(String),
+    /// The true scene cannot be built.
+    #[error(transparent)]
+    Scene(#[from] crate::scene::SceneError),
+    /// The surveyed scene cannot be written as TOML.
+    #[error("the surveyed scene: {0}")]
+    SceneToml(#[from] toml::ser::Error),
+    /// The truth model cannot simulate the rig's lidar.
+    #[error(transparent)]
+    Model(#[from] super::model::ModelError),
+    /// A noise's sigma is not a number.
+    #[error("{what}: {source}")]
+    Noise {
+        /// Which noise (`lidar jitter_us`).
+        what: &'static str,
+        /// Why.
+        #[source]
+        source: rand_distr::NormalError,
+    },
     /// A sensor's stream cannot be made.
     #[error(transparent)]
     Stream(#[from] super::streams::StreamError),
@@ -130,7 +180,6 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), SynthError> {
     reason = "the lidar stream (spin schedule, parallel casting, loss, position packets) in order; rig parts, scenes, GNSS/CAN streams and the capture are functions of their own"
 )]
 pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, SynthError> {
-    let input = |e: String| SynthError::Input(e);
     let RigParts {
         rig,
         model,
@@ -138,19 +187,17 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         dbc,
         mode,
     } = rig_parts(job)?;
-    let lidar = rig
-        .lidar
-        .as_ref()
-        .ok_or_else(|| input("no [lidar]".into()))?;
-    let gnss_cfg = rig.gnss.as_ref().ok_or_else(|| input("no [gnss]".into()))?;
-    let can_cfg = rig.can.as_ref().ok_or_else(|| input("no [can]".into()))?;
+    let lacks = |what| SynthError::RigLacks {
+        rig: job.drive_base.join(&job.drive.rig),
+        what,
+    };
+    let lidar = rig.lidar.as_ref().ok_or_else(|| lacks("[lidar]"))?;
+    let gnss_cfg = rig.gnss.as_ref().ok_or_else(|| lacks("[gnss]"))?;
+    let can_cfg = rig.can.as_ref().ok_or_else(|| lacks("[can]"))?;
     // Nothing is written for a drive no car can drive.
-    job.drive.drivable().map_err(|e| input(e.to_string()))?;
+    job.drive.drivable()?;
     let errors = job.errors;
-    let mut driven: Driven = job
-        .drive
-        .drive(&mut stream_rng(job.seed, rep, 1), errors)
-        .map_err(|e| input(e.to_string()))?;
+    let mut driven: Driven = job.drive.drive(&mut stream_rng(job.seed, rep, 1), errors)?;
     std::fs::create_dir_all(dir).map_err(|source| SynthError::Io {
         path: dir.to_owned(),
         source,
@@ -158,16 +205,14 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
     // The truth is the file: everything below uses the trajectory as `truth.csv` holds it, so
     // that re-simulating from that file casts bit-identical rays.
     let truth_csv = driven.ego.to_csv();
-    driven.ego =
-        crate::scene::pose::Trajectory::from_csv(&truth_csv).map_err(|e| input(e.to_string()))?;
+    driven.ego = crate::scene::pose::Trajectory::from_csv(&truth_csv)?;
 
     let scene = write_scenes(job, rep, dir, &driven, &truth_csv)?;
 
     // The synthesized drive stands in for the real sensor, whose beam meets even what is
     // thinner than the firings' spacing: its footprints are cast in full, not adaptively (the
     // committed drives were made so).
-    let sim = LidarSim::new(&scene, model, calibration, &lidar.mounting, job.truth)
-        .map_err(|e| input(e.to_string()))?
+    let sim = LidarSim::new(&scene, model, calibration, &lidar.mounting, job.truth)?
         .with_footprint_cast(FootprintCast::Full);
     let (start, end) = driven.span;
     let mut events: Vec<(i64, u32, Vec<u8>)> = Vec::new();
@@ -223,7 +268,10 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         })
         .collect();
     let jitter =
-        Normal::new(0.0, ls.jitter_us.max(0.0) * 1000.0).map_err(|e| input(e.to_string()))?;
+        Normal::new(0.0, ls.jitter_us.max(0.0) * 1000.0).map_err(|source| SynthError::Noise {
+            what: "lidar jitter_us",
+            source,
+        })?;
     let mut summary = RepSummary {
         rep,
         duration_s: (end.0 - start.0) as f64 * 1e-9,
@@ -343,7 +391,6 @@ fn write_scenes(
     driven: &Driven,
     truth_csv: &str,
 ) -> Result<Scene, SynthError> {
-    let input = |e: String| SynthError::Input(e);
     let errors = job.errors;
     // The true scene with this repetition's walkers.
     let mut truth_file = job.scene_file.clone();
@@ -367,9 +414,7 @@ fn write_scenes(
             }
         }
         if !found {
-            return Err(input(format!(
-                "drive walker '{name}' is not an actor of the scene"
-            )));
+            return Err(SynthError::Walker(name.clone()));
         }
     }
     // Actors of the scene without a walk keep their trajectory files (resolved absolutely:
@@ -380,8 +425,7 @@ fn write_scenes(
             a.trajectory = std::path::absolute(&joined).unwrap_or(joined);
         }
     }
-    let scene = Scene::from_file(truth_file, job.scene_base, Path::new("scene"))
-        .map_err(|e| input(e.to_string()))?;
+    let scene = Scene::from_file(truth_file, job.scene_base, Path::new("scene"))?;
 
     // The surveyed scene: each static object displaced by the survey error.
     let mut survey_rng = stream_rng(job.seed, rep, 2);
@@ -390,7 +434,10 @@ fn write_scenes(
     } else {
         0.0
     };
-    let survey_noise = Normal::new(0.0, sigma.max(0.0)).map_err(|e| input(e.to_string()))?;
+    let survey_noise = Normal::new(0.0, sigma.max(0.0)).map_err(|source| SynthError::Noise {
+        what: "survey sigma_m",
+        source,
+    })?;
     for o in &mut surveyed.objects {
         o.pose.x += survey_noise.sample(&mut survey_rng);
         o.pose.y += survey_noise.sample(&mut survey_rng);
@@ -404,7 +451,7 @@ fn write_scenes(
     surveyed
         .actors
         .retain(|a: &ActorFile| driven.walkers.iter().any(|(n, _)| n == &a.name));
-    let text = toml::to_string(&surveyed).map_err(|e| input(e.to_string()))?;
+    let text = toml::to_string(&surveyed)?;
     write_file(
         &dir.join("scene.toml"),
         format!(
@@ -478,29 +525,24 @@ struct RigParts {
 /// The drive's rig with a lidar, a GNSS receiver and CAN, the lidar's calibration, the DBC and
 /// the return mode, or the input problem that prevents synthesis.
 fn rig_parts(job: &SynthJob) -> Result<RigParts, SynthError> {
-    let input = |e: String| SynthError::Input(e);
     let rig_path = job.drive_base.join(&job.drive.rig);
-    let rig = Rig::load(&rig_path).map_err(|e| input(e.to_string()))?;
-    let (_, model, calibration) = rig
-        .lidar_sensor()
-        .map_err(|e| input(format!("{}: synth needs a lidar: {e}", rig_path.display())))?;
-    rig.gnss
-        .as_ref()
-        .ok_or_else(|| input(format!("{}: synth needs a [gnss]", rig_path.display())))?;
-    let can_cfg = rig
-        .can
-        .as_ref()
-        .ok_or_else(|| input(format!("{}: synth needs a [can]", rig_path.display())))?;
-    let dbc = Database::from_file(&rig.resolve(&can_cfg.dbc)).map_err(|e| input(e.to_string()))?;
+    let rig = Rig::load(&rig_path)?;
+    let (_, model, calibration) = rig.lidar_sensor().map_err(|source| SynthError::Lidar {
+        rig: rig_path.clone(),
+        source,
+    })?;
+    let lacks = |what| SynthError::RigLacks {
+        rig: rig_path.clone(),
+        what,
+    };
+    rig.gnss.as_ref().ok_or_else(|| lacks("[gnss]"))?;
+    let can_cfg = rig.can.as_ref().ok_or_else(|| lacks("[can]"))?;
+    let dbc = Database::from_file(&rig.resolve(&can_cfg.dbc))?;
     let mode = match job.drive.lidar.return_mode.as_str() {
         "strongest" => ReturnMode::Strongest,
         "last" => ReturnMode::Last,
         "dual" => ReturnMode::Dual,
-        other => {
-            return Err(input(format!(
-                "lidar return_mode '{other}': expected strongest, last or dual"
-            )))
-        }
+        other => return Err(SynthError::ReturnMode(other.to_owned())),
     };
     Ok(RigParts {
         rig,

@@ -50,9 +50,64 @@ use std::path::{Path, PathBuf};
 /// Why a scenario cannot be run.
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
-    /// The scenario file or a file it names is wrong.
-    #[error("{0}")]
-    Input(String),
+    /// The scenario file or a document it names cannot be read.
+    #[error("cannot read {}: {source}", .path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A number of the file is NaN or infinite.
+    #[error("{}: {source}", .path.display())]
+    NonFinite {
+        /// The file.
+        path: PathBuf,
+        /// The key and value.
+        #[source]
+        source: crate::config::NonFinite,
+    },
+    /// The file is not TOML, or not a scenario.
+    #[error("{}: {source}", .path.display())]
+    Toml {
+        /// The file.
+        path: PathBuf,
+        /// Where and why.
+        #[source]
+        source: toml::de::Error,
+    },
+    /// The metric is not one of `compare`'s summary fields.
+    #[error("{}: metric '{metric}' is not one of compare's: {}", .path.display(), .known.join(", "))]
+    Metric {
+        /// The scenario file.
+        path: PathBuf,
+        /// The metric named.
+        metric: String,
+        /// The ones there are.
+        known: Vec<String>,
+    },
+    /// A knob for a parameter the parameter file does not have.
+    #[error("{}: knob for '{parameter}', which the parameter file does not have", .path.display())]
+    UnknownParameter {
+        /// The scenario file.
+        path: PathBuf,
+        /// The knob's parameter.
+        parameter: String,
+    },
+    /// A parameter without exactly one knob.
+    #[error("{}: {} for parameter '{parameter}'", .path.display(), if *.knobs == 0 { "no knob".to_owned() } else { format!("{} knobs", .knobs) })]
+    Knobs {
+        /// The scenario file.
+        path: PathBuf,
+        /// The parameter.
+        parameter: String,
+        /// How many knobs it has.
+        knobs: usize,
+    },
+    /// The documents do not load with the first parameter set.
+    #[error(transparent)]
+    Documents(Box<StepError>),
     /// A knob that does not reach a number.
     #[error("knob '{knob}': {source}")]
     Knob {
@@ -306,12 +361,20 @@ pub struct Scenario {
     names: Vec<String>,
 }
 
-fn read_doc(path: &Path) -> Result<toml::Value, ScenarioError> {
-    let input =
-        |e: &dyn std::fmt::Display| ScenarioError::Input(format!("{}: {e}", path.display()));
-    let text = std::fs::read_to_string(path).map_err(|e| input(&e))?;
-    crate::config::check_finite(&text).map_err(|e| input(&e))?;
-    toml::from_str(&text).map_err(|e| input(&e))
+/// A TOML file of the scenario's (the scenario itself, or a document it names), read whole.
+fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, ScenarioError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    crate::config::check_finite(&text).map_err(|source| ScenarioError::NonFinite {
+        path: path.to_owned(),
+        source,
+    })?;
+    toml::from_str(&text).map_err(|source| ScenarioError::Toml {
+        path: path.to_owned(),
+        source,
+    })
 }
 
 /// The numeric fields of `compare`'s summary, by name.
@@ -335,38 +398,32 @@ impl Scenario {
     /// Reads the scenario at `path` for the parameters `params`: every parameter needs exactly
     /// one knob, every knob a parameter, and the metric must be one of [`metric_names`].
     pub fn load(path: &Path, params: &[Parameter]) -> Result<Scenario, ScenarioError> {
-        let input = ScenarioError::Input;
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| input(format!("cannot read {}: {e}", path.display())))?;
-        crate::config::check_finite(&text)
-            .map_err(|e| input(format!("{}: {e}", path.display())))?;
-        let file: ScenarioFile =
-            toml::from_str(&text).map_err(|e| input(format!("{}: {e}", path.display())))?;
-        let at = |m: String| input(format!("{}: {m}", path.display()));
+        let file: ScenarioFile = read_toml(path)?;
         let names = metric_names();
         if !names.contains(&file.metric) {
-            return Err(at(format!(
-                "metric '{}' is not one of compare's: {}",
-                file.metric,
-                names.join(", ")
-            )));
+            return Err(ScenarioError::Metric {
+                path: path.to_owned(),
+                metric: file.metric.clone(),
+                known: names,
+            });
         }
         let base = path.parent().unwrap_or(Path::new("."));
         let paths = [&file.scene, &file.drive, &file.reality, &file.model].map(|p| base.join(p));
-        let mut docs = Vec::new();
-        for p in &paths {
-            docs.push(read_doc(p)?);
-        }
+        let [scene, drive, reality, model] = &paths;
+        let docs = [
+            read_toml(scene)?,
+            read_toml(drive)?,
+            read_toml(reality)?,
+            read_toml(model)?,
+        ];
         let mut knobs = Vec::new();
         for k in &file.knob {
             let column = params
                 .iter()
                 .position(|p| p.name == k.parameter)
-                .ok_or_else(|| {
-                    at(format!(
-                        "knob for '{}', which the parameter file does not have",
-                        k.parameter
-                    ))
+                .ok_or_else(|| ScenarioError::UnknownParameter {
+                    path: path.to_owned(),
+                    parameter: k.parameter.clone(),
                 })?;
             let (doc, steps) = parse_path(&k.set).map_err(|source| ScenarioError::Knob {
                 knob: format!("{}: {}", path.display(), k.set),
@@ -380,15 +437,15 @@ impl Scenario {
             });
         }
         for p in params {
-            match file.knob.iter().filter(|k| k.parameter == p.name).count() {
-                1 => {}
-                0 => return Err(at(format!("no knob for parameter '{}'", p.name))),
-                n => return Err(at(format!("{n} knobs for parameter '{}'", p.name))),
+            let knobs = file.knob.iter().filter(|k| k.parameter == p.name).count();
+            if knobs != 1 {
+                return Err(ScenarioError::Knobs {
+                    path: path.to_owned(),
+                    parameter: p.name.clone(),
+                    knobs,
+                });
             }
         }
-        let docs: [toml::Value; 4] = docs
-            .try_into()
-            .map_err(|_| input("four documents expected".into()))?;
         Ok(Scenario {
             file,
             docs,
@@ -409,7 +466,7 @@ impl Scenario {
         self.set_knobs(values)?;
         self.documents(values)
             .map(|_| ())
-            .map_err(|e| ScenarioError::Input(e.to_string()))
+            .map_err(|e| ScenarioError::Documents(Box::new(e)))
     }
 
     /// The four documents with the knobs set to `values`.
