@@ -5,7 +5,6 @@
 use anyhow::Result;
 use hilrig::gap::study::Study;
 use hilrig::gap::workflow::{run, Options, Progress};
-use hilrig::gap::GapError;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Mutex;
@@ -161,7 +160,7 @@ pub fn run_cli(args: GapArgs) -> Result<ExitCode> {
             );
             Ok(ExitCode::SUCCESS)
         }
-        Err(e @ (GapError::Input(_) | GapError::Refused { .. })) => fail(&e),
+        Err(e) if e.is_input() => fail(&e),
         Err(e) => Err(e.into()),
     }
 }

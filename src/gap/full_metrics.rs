@@ -30,8 +30,10 @@ pub(super) fn run_metrics(
     tag: &str,
     measured: &mut Vec<RunFeatures>,
 ) -> Result<RunMetrics, GapError> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| GapError::Output(format!("{}: {e}", dir.display())))?;
+    std::fs::create_dir_all(dir).map_err(|source| GapError::Output {
+        path: dir.to_owned(),
+        source,
+    })?;
     let quiet = |_: u64, _: u64| {};
     let known = measured.len() == val.len();
     if !known {
@@ -56,7 +58,10 @@ pub(super) fn run_metrics(
             &sim_path,
             r.trajectory.span().0,
         )
-        .map_err(|e| GapError::Input(format!("re-simulating {}: {e}", r.name)))?;
+        .map_err(|source| GapError::Resim {
+            run: r.name.clone(),
+            source,
+        })?;
         let (mut real_scans, mut sim_scans) = (Vec::new(), Vec::new());
         let checked = r.checked.clone().map_err(|source| GapError::Compare {
             run: r.name.clone(),
@@ -90,10 +95,14 @@ pub(super) fn run_metrics(
             },
             &quiet,
         )
-        .map_err(|e| GapError::Input(format!("comparing {}: {e}", r.name)))?;
-        resim
-            .finish()
-            .map_err(|e| GapError::Output(format!("{}: {e}", sim_path.display())))?;
+        .map_err(|source| GapError::Compare {
+            run: r.name.clone(),
+            source: std::sync::Arc::new(source),
+        })?;
+        resim.finish().map_err(|source| GapError::Resim {
+            run: r.name.clone(),
+            source,
+        })?;
         ocr.extend(c.summary.ocr_mean);
         precision.extend(c.summary.precision_mean);
         iou.extend(c.summary.iou_mean);
@@ -110,8 +119,7 @@ pub(super) fn run_metrics(
             scans: sim_scans,
         });
     }
-    let v = crate::stats::repetitions::validate_features(measured, &sim_features, &[])
-        .map_err(|e| GapError::Input(e.to_string()))?;
+    let v = crate::stats::repetitions::validate_features(measured, &sim_features, &[])?;
     let mean = |v: &[f64]| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
     Ok(RunMetrics {
         ocr: mean(&ocr),

@@ -191,9 +191,7 @@ pub fn load_run(
     firings: usize,
     force: bool,
 ) -> Result<RunData, GapError> {
-    let input = GapError::Input;
-    let (run, rig) =
-        crate::reference::run::load_with_rig(path, rig).map_err(|e| input(e.to_string()))?;
+    let (run, rig) = crate::reference::run::load_with_rig(path, rig)?;
     let (report, smoothed) = check_with_trajectory(&run, &rig, Some(&scene));
     if report.verdict != Verdict::Pass && !force {
         return Err(GapError::Refused {
@@ -213,7 +211,9 @@ pub fn load_run(
     let smoothed_copy = smoothed.clone();
     let trajectory = smoothed
         .and_then(|t| t.sampled(10_000_000))
-        .ok_or_else(|| input(format!("{}: no RTK+CAN trajectory", path.display())))?;
+        .ok_or_else(|| GapError::NoTrajectory {
+            run: path.to_owned(),
+        })?;
     let (_, model, _) = rig.lidar_sensor().map_err(|source| GapError::Lidar {
         run: path.display().to_string(),
         source,
@@ -223,10 +223,9 @@ pub fn load_run(
     let (from, to) = (from.min(run.scans.len()), to.min(run.scans.len()));
     let index = &run.scans[from..to];
     if index.is_empty() {
-        return Err(input(format!(
-            "{}: no /velodyne_packets to re-simulate",
-            path.display()
-        )));
+        return Err(GapError::NoScans {
+            run: path.to_owned(),
+        });
     }
     // The marks within this part of the run (host times; a mark is at least 100 ms long, and
     // the sensor's clock is within a millisecond of them).
@@ -245,7 +244,7 @@ pub fn load_run(
     let mut undecodable = 0usize;
     let mut usable_scans = 0usize;
     // The scans are streamed: only the sample is kept.
-    let mut stream = ScanStream::open(path).map_err(|e| input(e.to_string()))?;
+    let mut stream = ScanStream::open(path)?;
     for (k, scan) in stream.by_ref().skip(from).take(to - from).enumerate() {
         let mut rotation_start = None;
         let mut scan_usable = false;
@@ -331,7 +330,7 @@ pub fn load_run(
 
 /// The scans of a recording (for splitting a single run in time).
 pub fn count_scans(path: &Path) -> Result<usize, GapError> {
-    let stream = ScanStream::open(path).map_err(|e| GapError::Input(e.to_string()))?;
+    let stream = ScanStream::open(path)?;
     Ok(stream.count())
 }
 
@@ -360,8 +359,12 @@ fn simulator<'a>(run: &'a RunData, model: &ModelFile) -> Result<LidarSim<'a>, Ga
             run: run.name.clone(),
             source,
         })?;
-    LidarSim::new(&run.scene, sensor, calibration, &lidar.mounting, model)
-        .map_err(|e| GapError::Input(e.to_string()))
+    LidarSim::new(&run.scene, sensor, calibration, &lidar.mounting, model).map_err(|source| {
+        GapError::Model {
+            run: run.name.clone(),
+            source,
+        }
+    })
 }
 
 /// Casts every sampled firing of `run` with `model`'s deterministic part and pairs it with

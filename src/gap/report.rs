@@ -162,13 +162,16 @@ fn write_atomic(path: &Path, text: &str) -> Result<(), GapError> {
     let tmp = path.with_extension("tmp");
     std::fs::write(&tmp, text)
         .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|e| GapError::Output(format!("{}: {e}", path.display())))
+        .map_err(|source| GapError::Output {
+            path: path.to_owned(),
+            source,
+        })
 }
 
 /// Writes the fitted model and `gap.json` into `out`.
 pub(super) fn save(out: &Path, model: &ModelFile, report: &GapReport) -> Result<(), GapError> {
     write_atomic(&out.join("model.fitted.toml"), &model.to_toml())?;
-    crate::output::write(&out.join("gap.json"), report).map_err(|e| GapError::Output(e.to_string()))
+    Ok(crate::output::write(&out.join("gap.json"), report)?)
 }
 
 /// The per-firing statistics of observations under a model.

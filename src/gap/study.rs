@@ -29,22 +29,41 @@ pub enum Role {
     Validate,
 }
 
-#[derive(Deserialize)]
+/// A run as the study file lists it.
+#[derive(Clone, Debug, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
-struct RunEntry {
-    recording: PathBuf,
-    scene: Option<PathBuf>,
-    role: Role,
+pub struct RunEntry {
+    /// The recording (MCAP).
+    pub recording: PathBuf,
+    /// Its scene, when it is not the study's default.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scene: Option<PathBuf>,
+    /// What it is used for.
+    pub role: Role,
 }
 
-#[derive(Deserialize)]
+/// The study file, as written: what [`Study::load`] reads and a program (the demo) writes.
+#[derive(Clone, Debug, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
-struct StudyFile {
-    model: PathBuf,
-    scene: Option<PathBuf>,
-    rig: Option<PathBuf>,
+pub struct StudyFile {
+    /// The start model.
+    pub model: PathBuf,
+    /// The scene of runs that do not name their own.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scene: Option<PathBuf>,
+    /// A rig file overriding the ones attached to the recordings.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rig: Option<PathBuf>,
+    /// The runs.
     #[serde(rename = "run", default)]
-    runs: Vec<RunEntry>,
+    pub runs: Vec<RunEntry>,
+}
+
+impl StudyFile {
+    /// The file's text (TOML), to be read back by [`Study::load`].
+    pub fn to_toml(&self) -> Result<String, toml::ser::Error> {
+        toml::to_string(self)
+    }
 }
 
 /// One run of a study, paths resolved.
@@ -72,18 +91,64 @@ pub struct Study {
 }
 
 fn load_model(path: &Path) -> Result<ModelFile, GapError> {
-    ModelFile::load(path).map_err(|e| GapError::Input(format!("start model: {e}")))
+    ModelFile::load(path).map_err(GapError::StartModel)
+}
+
+/// Why a study's runs do not make a study.
+#[derive(Debug, thiserror::Error)]
+pub enum StudyProblem {
+    /// No run at all.
+    #[error("the study lists no run")]
+    NoRun,
+    /// A recording listed twice.
+    #[error("{} is listed twice: parameterization and validation runs must be different data (Rosenberger et al. 2019, §4)", .0.display())]
+    Twice(PathBuf),
+    /// Several runs, none of one role.
+    #[error("no run has role \"{}\": give at least one run to fit and one to validate (or a single run, which is split in time)", if *.0 == Role::Fit { "fit" } else { "validate" })]
+    NoRunOfRole(Role),
+    /// A run without a scene, in a study without a default one.
+    #[error("{}: run {index} ({}) names no scene and the study has no default `scene`", .study.display(), .recording.display())]
+    NoScene {
+        /// The study file.
+        study: PathBuf,
+        /// The run's place in it, from 1.
+        index: usize,
+        /// The run.
+        recording: PathBuf,
+    },
+    /// Runs of different sites.
+    #[error("runs of different scenes: {} is in scene '{first_scene}' ({}), {} in scene '{other_scene}' ({}); a study's runs are repetitions of one scenario", .first.display(), .first_scene_path.display(), .other.display(), .other_scene_path.display())]
+    DifferentScenes {
+        /// The first run.
+        first: PathBuf,
+        /// Its scene's name.
+        first_scene: String,
+        /// Its scene file.
+        first_scene_path: PathBuf,
+        /// A run of another scene.
+        other: PathBuf,
+        /// That scene's name.
+        other_scene: String,
+        /// That scene file.
+        other_scene_path: PathBuf,
+    },
 }
 
 impl Study {
     /// Reads a study file.
     pub fn load(path: &Path) -> Result<Study, GapError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| GapError::Input(format!("cannot read {}: {e}", path.display())))?;
-        crate::config::check_finite(&text)
-            .map_err(|e| GapError::Input(format!("{}: {e}", path.display())))?;
-        let file: StudyFile = toml::from_str(&text)
-            .map_err(|e| GapError::Input(format!("{}: {e}", path.display())))?;
+        let text = std::fs::read_to_string(path).map_err(|source| GapError::StudyIo {
+            path: path.to_owned(),
+            source,
+        })?;
+        crate::config::check_finite(&text).map_err(|source| GapError::StudyNumber {
+            path: path.to_owned(),
+            source,
+        })?;
+        let file: StudyFile = toml::from_str(&text).map_err(|source| GapError::StudyToml {
+            path: path.to_owned(),
+            source,
+        })?;
         let base = path.parent().unwrap_or(Path::new("."));
         let at = |p: &Path| base.join(p);
         let runs = file
@@ -92,12 +157,11 @@ impl Study {
             .enumerate()
             .map(|(i, r)| {
                 let scene = r.scene.as_ref().or(file.scene.as_ref()).ok_or_else(|| {
-                    GapError::Input(format!(
-                        "{}: run {} ({}) names no scene and the study has no default `scene`",
-                        path.display(),
-                        i + 1,
-                        r.recording.display()
-                    ))
+                    StudyProblem::NoScene {
+                        study: path.to_owned(),
+                        index: i + 1,
+                        recording: r.recording.clone(),
+                    }
                 })?;
                 Ok(StudyRun {
                     recording: at(&r.recording),
@@ -147,27 +211,20 @@ impl Study {
     /// A study needs runs, no recording twice, and (with more than one run) at least one run
     /// of each role; all scenes must be of one site.
     fn check(&self) -> Result<(), GapError> {
-        let input = GapError::Input;
         if self.runs.is_empty() {
-            return Err(input("the study lists no run".into()));
+            return Err(StudyProblem::NoRun.into());
         }
         let mut seen = std::collections::HashSet::new();
         for r in &self.runs {
             let key = std::fs::canonicalize(&r.recording).unwrap_or_else(|_| r.recording.clone());
             if !seen.insert(key) {
-                return Err(input(format!(
-                    "{} is listed twice: parameterization and validation runs must be different data (Rosenberger et al. 2019, §4)",
-                    r.recording.display()
-                )));
+                return Err(StudyProblem::Twice(r.recording.clone()).into());
             }
         }
         if self.runs.len() > 1 {
             for role in [Role::Fit, Role::Validate] {
                 if !self.runs.iter().any(|r| r.role == role) {
-                    return Err(input(format!(
-                        "no run has role \"{}\": give at least one run to fit and one to validate (or a single run, which is split in time)",
-                        if role == Role::Fit { "fit" } else { "validate" }
-                    )));
+                    return Err(StudyProblem::NoRunOfRole(role).into());
                 }
             }
         }
@@ -181,23 +238,24 @@ impl Study {
             .runs
             .iter()
             .map(|r| {
-                Scene::load(&r.scene_path).map_err(|e| {
-                    GapError::Input(format!("scene of {}: {e}", r.recording.display()))
+                Scene::load(&r.scene_path).map_err(|source| GapError::Scene {
+                    recording: r.recording.clone(),
+                    source,
                 })
             })
             .collect::<Result<Vec<_>, GapError>>()?;
         if let Some(first) = scenes.first() {
             for (s, r) in scenes.iter().zip(&self.runs).skip(1) {
                 if s.file.name != first.file.name {
-                    return Err(GapError::Input(format!(
-                        "runs of different scenes: {} is in scene '{}' ({}), {} in scene '{}' ({}); a study's runs are repetitions of one scenario",
-                        self.runs[0].recording.display(),
-                        first.file.name,
-                        self.runs[0].scene_path.display(),
-                        r.recording.display(),
-                        s.file.name,
-                        r.scene_path.display()
-                    )));
+                    return Err(StudyProblem::DifferentScenes {
+                        first: self.runs[0].recording.clone(),
+                        first_scene: first.file.name.clone(),
+                        first_scene_path: self.runs[0].scene_path.clone(),
+                        other: r.recording.clone(),
+                        other_scene: s.file.name.clone(),
+                        other_scene_path: r.scene_path.clone(),
+                    }
+                    .into());
                 }
             }
         }

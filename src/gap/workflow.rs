@@ -6,17 +6,16 @@
 //! rewritten (to a temporary file, then renamed), so an interrupted study leaves the last
 //! completed round's results in the output directory.
 
-use super::bins::tables;
-use super::bootstrap::{self, Blocks};
-use super::candidates::{random_of, with_effect, Candidate, Fitting};
-use super::casts::Casts;
+use super::bins::{tables, Table};
+use super::bootstrap;
+use super::candidates::{with_effect, Candidate, Fitting};
 use super::full_metrics::run_metrics;
-use super::likelihood::{self, Scales, Scored};
 use super::observe::{count_scans, evaluate, features, load_run, Feature, Obs, RunData};
 use super::report::{
     alike, confounded_line, describe, firing_stats, no_effect_line, save, summary_line, GapReport,
     Round, RunInfo, Trial,
 };
+use super::runset::RunSet;
 use super::study::{Role, Study};
 use super::GapError;
 use crate::sim::model::ModelFile;
@@ -42,80 +41,6 @@ pub struct Options {
 pub trait Progress: Sync {
     /// A phase starts (loading, a round's casting, a candidate, validation).
     fn phase(&self, round: usize, what: &str);
-}
-
-/// A model's observations, scores and the residual scales used, per run.
-struct Evaluation {
-    obs: Vec<Vec<Obs>>,
-    scored: Vec<Scored>,
-    scales: Vec<Scales>,
-}
-
-struct Set {
-    runs: Vec<RunData>,
-    feats: Vec<Vec<Feature>>,
-    blocks: Blocks,
-    resamples: Vec<Vec<u32>>,
-    /// Casts kept from round to round.
-    casts: Casts,
-}
-
-impl Set {
-    fn new(runs: Vec<RunData>, feats: Vec<Vec<Feature>>, seed: u64) -> Set {
-        let blocks = Blocks::new(&runs.iter().map(|r| r.scans).collect::<Vec<_>>());
-        let resamples = blocks.resamples(seed);
-        Set {
-            runs,
-            feats,
-            blocks,
-            resamples,
-            casts: Casts::default(),
-        }
-    }
-
-    /// Observations and scores of `model`, with the residual scales `scales` (per run), or
-    /// the ones of these observations when `None`; the scales are returned too.
-    fn evaluate(
-        &self,
-        model: &ModelFile,
-        scales: Option<&[Scales]>,
-    ) -> Result<Evaluation, GapError> {
-        let random = random_of(model);
-        let obs = self.casts.of(&self.runs, model)?;
-        let scales: Vec<Scales> = match scales {
-            Some(s) => s.to_vec(),
-            None => obs
-                .iter()
-                .zip(&self.feats)
-                .map(|(o, f)| likelihood::scales(o, f))
-                .collect(),
-        };
-        let scored = obs
-            .iter()
-            .zip(&self.runs)
-            .zip(&self.feats)
-            .zip(&scales)
-            .map(|(((o, r), f), s)| likelihood::score(o, f, random, s, r.range_quantum_m, r.scans))
-            .collect();
-        Ok(Evaluation {
-            obs,
-            scored,
-            scales,
-        })
-    }
-
-    fn gain(&self, new: &[Scored], old: &[Scored]) -> (f64, Option<(f64, f64)>) {
-        let mut per_block = vec![0.0; self.blocks.len()];
-        for (r, (a, b)) in new.iter().zip(old).enumerate() {
-            for (s, (x, y)) in a.per_scan.iter().zip(&b.per_scan).enumerate() {
-                per_block[self.blocks.of(r, s as u32)] += x - y;
-            }
-        }
-        (
-            per_block.iter().sum(),
-            bootstrap::sum_interval(&per_block, &self.resamples),
-        )
-    }
 }
 
 /// A measured return this close to the start model's agrees with the scene: far more than the
@@ -190,7 +115,7 @@ impl Agreement {
 
 /// Why the parameterization or the validation runs (each given as (name, usable scans)) are
 /// too short to judge an effect by, if they are: each set needs [`bootstrap::MIN_SCANS`].
-fn too_few_scans(fit: &[(String, usize)], val: &[(String, usize)]) -> Option<String> {
+fn too_few_scans(fit: &[(String, usize)], val: &[(String, usize)]) -> Option<GapError> {
     let short: Vec<String> = [("parameterization", fit), ("validation", val)]
         .iter()
         .filter_map(|(what, runs)| {
@@ -207,14 +132,7 @@ fn too_few_scans(fit: &[(String, usize)], val: &[(String, usize)]) -> Option<Str
             })
         })
         .collect();
-    (!short.is_empty()).then(|| {
-        format!(
-            "too few scans to judge an effect by: {}; each needs at least {} (two bootstrap blocks of {} scans: with one, an effect's gain has no interval); record longer runs or add runs (scans `check` left out do not count)",
-            short.join(" and "),
-            bootstrap::MIN_SCANS,
-            bootstrap::BLOCK_SCANS
-        )
-    })
+    (!short.is_empty()).then_some(GapError::TooFewScans { short })
 }
 
 /// Runs the workflow on `study`; returns the report (also written to `opts.out`).
@@ -224,8 +142,10 @@ fn too_few_scans(fit: &[(String, usize)], val: &[(String, usize)]) -> Option<Str
 /// removed again: bad input leaves nothing behind.
 pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapReport, GapError> {
     let made = !opts.out.exists();
-    std::fs::create_dir_all(&opts.out)
-        .map_err(|e| GapError::Output(format!("{}: {e}", opts.out.display())))?;
+    std::fs::create_dir_all(&opts.out).map_err(|source| GapError::Output {
+        path: opts.out.clone(),
+        source,
+    })?;
     let result = run_in(study, opts, progress);
     if result.is_err() && made {
         // Only an empty folder goes: rounds already saved stay.
@@ -234,19 +154,25 @@ pub fn run(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<Gap
     result
 }
 
-#[allow(
-    clippy::too_many_lines,
-    reason = "the rounds in order: load, evaluate, candidates, trials, metrics, save; each step is a call"
-)]
-fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapReport, GapError> {
+/// The study's runs loaded, checked, sampled and split by role.
+struct Loaded {
+    fit: RunSet,
+    val: RunSet,
+    infos: Vec<RunInfo>,
+    /// How a single run was split in time, if it was.
+    split: Option<String>,
+}
+
+/// Loads the study's runs (checked and sampled side by side: a check is one thread's work);
+/// the first run that cannot be used, in the study's order, is the one reported. A single run
+/// is split in time: its first half fits, its second half validates.
+fn load(study: &Study, opts: &Options) -> Result<Loaded, GapError> {
     let rig = match &study.rig {
-        Some(p) => Some(crate::rig::Rig::load(p).map_err(|e| GapError::Input(e.to_string()))?),
+        Some(p) => Some(crate::rig::Rig::load(p)?),
         None => None,
     };
     let mut scenes: Vec<Option<crate::scene::Scene>> =
         study.scenes()?.into_iter().map(Some).collect();
-    progress.phase(0, "loading and checking the runs");
-    // One run: first half fits, second half validates.
     // (study run, role, scans) of each part.
     type Part = (usize, Role, Option<(usize, usize)>);
     let mut parts: Vec<Part> = Vec::new();
@@ -275,13 +201,13 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
         let r = &study.runs[i];
         let scene = match scenes[i].take() {
             Some(s) => s,
-            None => crate::scene::Scene::load(&r.scene_path)
-                .map_err(|e| GapError::Input(e.to_string()))?,
+            None => crate::scene::Scene::load(&r.scene_path).map_err(|source| GapError::Scene {
+                recording: r.recording.clone(),
+                source,
+            })?,
         };
         with_scenes.push((r, role, part, scene));
     }
-    // The runs are checked and sampled side by side (a check is one thread's work); the first
-    // run that cannot be used, in the study's order, is the one reported.
     let per_run = opts.firings / parts.len().max(1);
     let loaded: Vec<Result<RunData, GapError>> = with_scenes
         .into_par_iter()
@@ -306,8 +232,8 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             .map(|r| (r.name.clone(), r.usable_scans))
             .collect()
     };
-    if let Some(why) = too_few_scans(&usable(&fit_runs), &usable(&val_runs)) {
-        return Err(GapError::Input(why));
+    if let Some(e) = too_few_scans(&usable(&fit_runs), &usable(&val_runs)) {
+        return Err(e);
     }
     let feats = |runs: &[RunData]| -> Result<Vec<Vec<Feature>>, GapError> {
         runs.iter().map(|r| features(r, &study.model)).collect()
@@ -325,45 +251,52 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             damage: r.damage.clone(),
         })
         .collect();
-    let fit = Set::new(fit_runs, fit_feats, 0x6a70);
-    let val = Set::new(val_runs, val_feats, 0x7661);
-    // A run that does not match its scene is not a lidar effect.
-    for (r, f) in fit
-        .runs
-        .iter()
-        .zip(&fit.feats)
-        .chain(val.runs.iter().zip(&val.feats))
-    {
-        let obs = evaluate(r, &study.model)?;
-        let agreement = Agreement::of(&obs, f);
-        tracing::debug!("{}: returns near the start model's: {agreement:?}", r.name);
-        if agreement.all.1 == 0 {
-            return Err(GapError::Input(format!(
-                "{}: no measured point on any firing the start model casts in scene {}: a lidar that measured nothing (covered, or a threshold no target reaches) shows no effect to fit",
-                r.name,
-                r.scene_path.display()
-            )));
-        }
-        if let Some(why) = agreement.mismatch() {
-            return Err(GapError::Input(format!(
-                "{}: {why} in scene {}: the run and the scene do not belong together (a different site, objects moved, or a trajectory far off)",
-                r.name,
-                r.scene_path.display()
-            )));
+    Ok(Loaded {
+        fit: RunSet::new(fit_runs, fit_feats, 0x6a70),
+        val: RunSet::new(val_runs, val_feats, 0x7661),
+        infos,
+        split,
+    })
+}
+
+/// Refuses a run that does not match its scene: that is not a lidar effect.
+fn refuse_strangers(sets: [&RunSet; 2], start: &ModelFile) -> Result<(), GapError> {
+    for set in sets {
+        for (r, f) in set.runs.iter().zip(&set.feats) {
+            let obs = evaluate(r, start)?;
+            let agreement = Agreement::of(&obs, f);
+            tracing::debug!("{}: returns near the start model's: {agreement:?}", r.name);
+            if agreement.all.1 == 0 {
+                return Err(GapError::NothingMeasured {
+                    run: r.name.clone(),
+                    scene: r.scene_path.clone(),
+                });
+            }
+            if let Some(why) = agreement.mismatch() {
+                return Err(GapError::NotItsScene {
+                    run: r.name.clone(),
+                    scene: r.scene_path.clone(),
+                    why,
+                });
+            }
         }
     }
+    Ok(())
+}
 
-    let mut model = study.model.clone();
-    model.name = format!("{} (gap-fitted)", study.model.name);
+/// The report before the first round: the runs, the resolution floors, and what the workflow
+/// did not look at (a stretch whose reference is not usable would have shown its trajectory
+/// error as a lidar effect).
+fn first_report(study: &Study, infos: Vec<RunInfo>, split: Option<String>) -> GapReport {
     let mut report = GapReport {
         start_model: study.model_path.display().to_string(),
         runs: infos,
         split,
         floors: super::candidates::FLOORS
             .iter()
-            .map(|&(effect, floor)| super::report::Floor {
-                effect,
-                floor: floor.to_owned(),
+            .map(|(effect, floor)| super::report::Floor {
+                effect: *effect,
+                floor: floor.clone(),
             })
             .collect(),
         rounds: Vec::new(),
@@ -371,8 +304,6 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
         summary: Vec::new(),
         ended: None,
     };
-    // What the workflow did not look at, first: a stretch whose reference is not usable would
-    // have shown its trajectory error as a lidar effect.
     for r in &report.runs {
         for m in &r.left_out {
             report.summary.push(format!(
@@ -381,10 +312,107 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             ));
         }
     }
+    report
+}
+
+/// An effect a round added: the candidate and the model with it.
+struct Accepted {
+    candidate: Candidate,
+    model: ModelFile,
+    gain: f64,
+}
+
+/// The candidates of a round tried on the validation runs (`this.trials` gets each trial):
+/// the first eligible candidate that improves the validation runs is added; but when others
+/// explain the parameterization runs as well as it does (confounded, see `alike`), their
+/// ranking is no evidence, and of those the one that improves the validation runs most is
+/// added.
+fn try_candidates(
+    val: &RunSet,
+    model: &ModelFile,
+    candidates: &[Candidate],
+    this: &mut Round,
+) -> Result<Option<Accepted>, GapError> {
+    let now = val.evaluate(model, None)?;
+    let before = firing_stats(&now.obs, &val.feats, &now.scored);
+    let mut accepted: Option<Accepted> = None;
+    for c in candidates.iter().filter(|c| c.eligible) {
+        if accepted.as_ref().is_some_and(|a| !alike(&a.candidate, c)) {
+            continue;
+        }
+        let Some(effect) = c.fitted.clone() else {
+            continue;
+        };
+        let next = c.refitted.iter().fold(with_effect(model, effect), |m, e| {
+            with_effect(&m, e.clone())
+        });
+        let trial = val.evaluate(&next, Some(&now.scales))?;
+        let gain = val.gain(&trial.scored, &now.scored);
+        let kept = gain.interval.is_some_and(|(lo, _)| lo > 0.0);
+        this.trials.push(Trial {
+            effect: c.effect,
+            gain: gain.total,
+            gain_interval: gain.interval,
+            before: before.clone(),
+            after: firing_stats(&trial.obs, &val.feats, &trial.scored),
+            kept,
+        });
+        if kept && accepted.as_ref().is_none_or(|a| gain.total > a.gain) {
+            accepted = Some(Accepted {
+                candidate: c.clone(),
+                model: next,
+                gain: gain.total,
+            });
+        }
+    }
+    Ok(accepted)
+}
+
+/// One round's parameterization side: the current model re-simulated on the fitting runs,
+/// the disagreement binned, and every candidate fitted and scored.
+fn fit_candidates(
+    fit: &RunSet,
+    model: &ModelFile,
+    round: usize,
+    progress: &dyn Progress,
+) -> Result<(Vec<Table>, Vec<Candidate>), GapError> {
+    progress.phase(round, "re-simulating the parameterization runs");
+    let now = fit.evaluate(model, None)?;
+    let pairs: Vec<(&[Obs], &[Feature])> = now
+        .obs
+        .iter()
+        .zip(&fit.feats)
+        .map(|(o, f)| (o.as_slice(), f.as_slice()))
+        .collect();
+    let bins = tables(&pairs);
+    let fitting = Fitting {
+        set: fit,
+        current: model,
+        obs: &now.obs,
+        scored: &now.scored,
+        scales: &now.scales,
+    };
+    let candidates = fitting.all(&|name| progress.phase(round, &format!("candidate {name}")))?;
+    Ok((bins, candidates))
+}
+
+fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapReport, GapError> {
+    progress.phase(0, "loading and checking the runs");
+    let Loaded {
+        fit,
+        val,
+        infos,
+        split,
+    } = load(study, opts)?;
+    refuse_strangers([&fit, &val], &study.model)?;
+    let mut model = study.model.clone();
+    model.name = format!("{} (gap-fitted)", study.model.name);
+    let mut report = first_report(study, infos, split);
     save(&opts.out, &model, &report)?;
     let metrics_dir = opts.out.join("sim");
+    let full_metrics = opts.full_metrics && report.split.is_none();
     let mut measured = Vec::new();
-    let mut metrics_now = if opts.full_metrics && report.split.is_none() {
+    let mut metrics_now = if full_metrics {
         progress.phase(0, "re-simulating the validation runs with the start model");
         Some(run_metrics(
             &val.runs,
@@ -404,31 +432,7 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             fit.casts.len(),
             val.casts.len()
         );
-        progress.phase(round, "re-simulating the parameterization runs");
-        let Evaluation {
-            obs,
-            scored,
-            scales,
-        } = fit.evaluate(&model, None)?;
-        let pairs: Vec<(&[Obs], &[Feature])> = obs
-            .iter()
-            .zip(&fit.feats)
-            .map(|(o, f)| (o.as_slice(), f.as_slice()))
-            .collect();
-        let bins = tables(&pairs);
-        let fitting = Fitting {
-            runs: &fit.runs,
-            feats: &fit.feats,
-            current: &model,
-            obs: &obs,
-            scored: &scored,
-            scales: &scales,
-            blocks: &fit.blocks,
-            resamples: &fit.resamples,
-            casts: &fit.casts,
-        };
-        let candidates =
-            fitting.all(&|name| progress.phase(round, &format!("candidate {name}")))?;
+        let (bins, candidates) = fit_candidates(&fit, &model, round, progress)?;
         let mut this = Round {
             round,
             disagreeing_bins: describe(&bins),
@@ -441,47 +445,12 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             metrics_after: None,
         };
         progress.phase(round, "validating");
-        let Evaluation {
-            obs: val_obs,
-            scored: val_scored,
-            scales: val_scales,
-        } = val.evaluate(&model, None)?;
-        let before = firing_stats(&val_obs, &val.feats, &val_scored);
-        // The first eligible candidate that improves the validation runs is added; but when
-        // others explain the parameterization runs as well as it does (confounded, see
-        // `alike`), their ranking is no evidence, and of those the one that improves the
-        // validation runs most is added.
-        let mut accepted: Option<(Candidate, ModelFile, f64)> = None;
-        for c in candidates.iter().filter(|c| c.eligible) {
-            if accepted.as_ref().is_some_and(|(a, _, _)| !alike(a, c)) {
-                continue;
-            }
-            let Some(effect) = c.fitted.clone() else {
-                continue;
-            };
-            let next = c.refitted.iter().fold(with_effect(&model, effect), |m, e| {
-                with_effect(&m, e.clone())
-            });
-            let Evaluation {
-                obs: o2,
-                scored: s2,
-                ..
-            } = val.evaluate(&next, Some(&val_scales))?;
-            let (gain, interval) = val.gain(&s2, &val_scored);
-            let kept = interval.is_some_and(|(lo, _)| lo > 0.0);
-            this.trials.push(Trial {
-                effect: c.effect,
-                gain,
-                gain_interval: interval,
-                before: before.clone(),
-                after: firing_stats(&o2, &val.feats, &s2),
-                kept,
-            });
-            if kept && accepted.as_ref().is_none_or(|(_, _, g)| gain > *g) {
-                accepted = Some((c.clone(), next, gain));
-            }
-        }
-        let Some((c, next, _)) = accepted else {
+        let Some(Accepted {
+            candidate: c,
+            model: next,
+            ..
+        }) = try_candidates(&val, &model, &candidates, &mut this)?
+        else {
             let line = no_effect_line(round, &candidates, &this.trials);
             report.ended = Some(line.clone());
             report.summary.push(line);
@@ -491,7 +460,7 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
         model = next;
         this.chosen = Some(c.effect);
         this.parameters = c.params.clone();
-        if opts.full_metrics && report.split.is_none() {
+        if full_metrics {
             progress.phase(
                 round,
                 "re-simulating the validation runs with the new model",
@@ -603,17 +572,17 @@ mod tests {
             &runs(&[("a.mcap", 3), ("b.mcap", 2)]),
             &runs(&[("c.mcap", 1)]),
         )
-        .expect("refused");
+        .expect("refused")
+        .to_string();
         assert!(
             why.contains("the parameterization runs hold 5 usable scans (a.mcap: 3, b.mcap: 2) and the validation runs hold 1 usable scans (c.mcap: 1); each needs at least 40"),
             "{why}"
         );
         // Enough together: 20 + 20 fit, 40 validate.
-        assert_eq!(
-            too_few_scans(&runs(&[("a", 20), ("b", 20)]), &runs(&[("c", 40)])),
-            None
-        );
-        let why = too_few_scans(&runs(&[("a", 20), ("b", 20)]), &runs(&[("c", 39)])).unwrap();
+        assert!(too_few_scans(&runs(&[("a", 20), ("b", 20)]), &runs(&[("c", 40)])).is_none());
+        let why = too_few_scans(&runs(&[("a", 20), ("b", 20)]), &runs(&[("c", 39)]))
+            .unwrap()
+            .to_string();
         assert!(
             why.contains("the validation runs hold 39") && !why.contains("parameterization"),
             "{why}"

@@ -194,7 +194,7 @@ impl Fitting<'_> {
             EffectKind::BeamDivergence,
             make(h, v, n),
             params,
-            clears(h, h_interval, 0.5),
+            clears(h, h_interval, super::floor::DIVERGENCE_MRAD),
             &scored,
         );
         c.refitted.extend(refit);
@@ -204,7 +204,7 @@ impl Fitting<'_> {
     pub(super) fn intensity(&self) -> Result<Candidate, GapError> {
         // Diffuse returns away from edges: measured byte against 100 ρ cos^k θ.
         let mut rows: Vec<(f64, f64, f64)> = Vec::new();
-        for (o, f) in self.obs.iter().zip(self.feats) {
+        for (o, f) in self.obs.iter().zip(&self.set.feats) {
             for (o, f) in o.iter().zip(f) {
                 if o.measured.is_finite()
                     && !f.is_edge()
@@ -269,7 +269,7 @@ impl Fitting<'_> {
                     interval: None,
                 },
             ],
-            k >= 0.2 || noise >= 1.0,
+            k >= super::floor::INTENSITY_EXPONENT || noise >= super::floor::INTENSITY_NOISE,
             &scored,
         ))
     }
@@ -280,16 +280,17 @@ impl Fitting<'_> {
         let per_block: Vec<Vec<f64>> = scores
             .iter()
             .map(|g| {
-                let mut b = vec![0.0; self.blocks.len()];
+                let mut b = vec![0.0; self.set.blocks.len()];
                 for (r, s) in g.iter().enumerate() {
                     for (k, v) in s.per_scan.iter().enumerate() {
-                        b[self.blocks.of(r, k as u32)] += v;
+                        b[self.set.blocks.of(r, k as u32)] += v;
                     }
                 }
                 b
             })
             .collect();
-        self.resamples
+        self.set
+            .resamples
             .iter()
             .take(200)
             .map(|c| {

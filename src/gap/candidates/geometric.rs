@@ -10,6 +10,10 @@ use crate::sim::model::EffectKind;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
+/// Firings on smooth surfaces a geometric fit needs: its normal equations have up to four
+/// unknowns, and the bootstrap resamples blocks of them.
+const MIN_SMOOTH_FIRINGS: usize = 100;
+
 /// A row of a linearised fit: bootstrap block, Jacobian row (intercept first), residual.
 type Row = (usize, Vec<f64>, f64);
 
@@ -52,8 +56,8 @@ impl Fitting<'_> {
                 stepped.push(self.cast(&with_effect(self.current, make(&t)))?);
             }
             let mut rows: Vec<Row> = Vec::new();
-            for r in 0..self.runs.len() {
-                for (i, (o, f)) in base[r].iter().zip(&self.feats[r]).enumerate() {
+            for r in 0..self.set.runs.len() {
+                for (i, (o, f)) in base[r].iter().zip(&self.set.feats[r]).enumerate() {
                     if f.is_edge() || !o.measured.is_finite() || !o.predicted.is_finite() {
                         continue;
                     }
@@ -70,21 +74,22 @@ impl Fitting<'_> {
                     }
                     if ok {
                         rows.push((
-                            self.blocks.of(r, f.scan),
+                            self.set.blocks.of(r, f.scan),
                             row,
                             f64::from(o.measured - o.predicted),
                         ));
                     }
                 }
             }
-            if rows.len() < 100 {
-                return Err(GapError::Input(
-                    "too few firings on smooth surfaces to fit a geometric effect".into(),
-                ));
+            if rows.len() < MIN_SMOOTH_FIRINGS {
+                return Err(GapError::TooFewSmoothFirings {
+                    firings: rows.len(),
+                    needed: MIN_SMOOTH_FIRINGS,
+                });
             }
             let e: Vec<f64> = rows.iter().map(|r| r.2).collect();
             let s = likelihood::robust_sigma(&e).unwrap_or(0.01).max(1e-3);
-            let all = vec![1u32; self.blocks.len()];
+            let all = vec![1u32; self.set.blocks.len()];
             let Some(delta) = irls(&rows, s, &all) else {
                 break;
             };
@@ -106,11 +111,11 @@ impl Fitting<'_> {
         };
         // The linearisation point of the last rows is `at` minus the last step; the bootstrap
         // re-solves that step on resampled blocks.
-        let all = vec![1u32; self.blocks.len()];
+        let all = vec![1u32; self.set.blocks.len()];
         let step = irls(&rows, s, &all).unwrap_or_else(|| vec![0.0; n + 1]);
         let mut intervals = Vec::with_capacity(n);
         // Each resample is solved by itself (on every core; in order, so the same intervals).
-        let boots: Vec<Vec<f64>> = self.resamples[..self.resamples.len().min(100)]
+        let boots: Vec<Vec<f64>> = self.set.resamples[..self.set.resamples.len().min(100)]
             .par_iter()
             .filter_map(|c| irls(&rows, s, c))
             .collect();

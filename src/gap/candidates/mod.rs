@@ -30,11 +30,11 @@ use crate::sim::model::EffectKind;
 use detection::{power_at, sort_rows, sweep, sweep_ll};
 use geometric::Axis;
 
-use super::bootstrap::{self, Blocks};
+use super::bootstrap;
 use super::likelihood::{self, Random, Scored};
-use super::observe::{Feature, Obs, RunData};
+use super::observe::{Obs, RunData};
+use super::runset::{Gain, RunSet};
 use super::GapError;
-use crate::gap::casts::Casts;
 use crate::sim::model::{Effect, ModelFile};
 use rayon::prelude::*;
 
@@ -103,34 +103,110 @@ impl Candidate {
 }
 
 /// Resolution floors: the smallest value of each effect the workflow adds; the fitted value's
-/// bootstrap interval must clear it (see `clears`). Below them, the
-/// effect is indistinguishable from RTK noise (1-2 cm), survey error and quantisation (2 mm),
-/// or too small to change any metric; the floors are a fifth to a half of the smallest values
-/// the catalogue's typical ranges hold.
-pub const FLOORS: [(EffectKind, &str); 10] = [
-    (EffectKind::RangeBias, "|bias| ≥ 5 mm"),
-    (EffectKind::RangeNoise, "σ ≥ 3 mm"),
-    (EffectKind::RandomDropout, "probability ≥ 0.2 %"),
-    (
-        EffectKind::DetectionThreshold,
-        "removes ≥ 0.2 % of the predicted returns",
-    ),
-    (EffectKind::BeamDivergence, "horizontal ≥ 0.5 mrad"),
-    (EffectKind::MotionDistortion, "none (a switch)"),
-    (
-        EffectKind::TimeOffset,
-        "|offset| ≥ the larger of 1 ms and the uncertainty of the GNSS time offset `check` found",
-    ),
-    (
-        EffectKind::MountMisalignment,
-        "largest angle ≥ 0.1° (the smoothed RTK heading is good to about that)",
-    ),
-    (EffectKind::Intensity, "exponent ≥ 0.2 or noise ≥ 1 count"),
-    (
-        EffectKind::Weather,
-        "extinction ≥ 0.002 /m or clutter probability ≥ 0.2 %",
-    ),
-];
+/// bootstrap interval must clear it (see `clears`). Below them, the effect is
+/// indistinguishable from RTK noise (1-2 cm), survey error and quantisation (2 mm), or too
+/// small to change any metric; the floors are a fifth to a half of the smallest values the
+/// catalogue's typical ranges hold. Each number is said once, here: the candidates test
+/// against these constants and [`FLOORS`] words them for the report.
+pub mod floor {
+    /// `range_bias`: |bias|, m.
+    pub const RANGE_BIAS_M: f64 = 0.005;
+    /// `range_noise`: sigma, m.
+    pub const RANGE_NOISE_M: f64 = 0.003;
+    /// `random_dropout`: probability.
+    pub const DROPOUT: f64 = 0.002;
+    /// `detection_threshold`: the share of the predicted returns it removes.
+    pub const THRESHOLD_REMOVES: f64 = 0.002;
+    /// `beam_divergence`: horizontal full angle, mrad.
+    pub const DIVERGENCE_MRAD: f64 = 0.5;
+    /// `time_offset`: |offset|, ms (or the GNSS time offset's uncertainty, if larger).
+    pub const TIME_OFFSET_MS: f64 = 1.0;
+    /// `mount_misalignment`: the largest angle, degrees (the yaw's: or the smoothed heading's
+    /// uncertainty, if larger).
+    pub const MOUNT_DEG: f64 = 0.1;
+    /// `intensity`: the incidence exponent.
+    pub const INTENSITY_EXPONENT: f64 = 0.2;
+    /// `intensity`: the noise, counts.
+    pub const INTENSITY_NOISE: f64 = 1.0;
+    /// `weather`: extinction, 1/m.
+    pub const EXTINCTION_PER_M: f64 = 0.002;
+    /// `weather`: the near-clutter probability.
+    pub const CLUTTER: f64 = 0.002;
+}
+
+/// A floor's number as the report writes it: its shortest exact decimal.
+fn floor_number(x: f64) -> String {
+    format!("{}", (x * 1e9).round() / 1e9)
+}
+
+/// A floor as percent.
+fn floor_percent(x: f64) -> String {
+    floor_number(x * 100.0)
+}
+
+/// The resolution floor of each effect of the catalogue, in words (the report's and
+/// `gap.json`'s), made from the constants of [`floor`].
+pub static FLOORS: std::sync::LazyLock<[(EffectKind, String); 10]> = std::sync::LazyLock::new(
+    || {
+        use floor::*;
+        [
+            (
+                EffectKind::RangeBias,
+                format!("|bias| ≥ {} mm", floor_number(RANGE_BIAS_M * 1e3)),
+            ),
+            (
+                EffectKind::RangeNoise,
+                format!("σ ≥ {} mm", floor_number(RANGE_NOISE_M * 1e3)),
+            ),
+            (
+                EffectKind::RandomDropout,
+                format!("probability ≥ {} %", floor_percent(DROPOUT)),
+            ),
+            (
+                EffectKind::DetectionThreshold,
+                format!(
+                    "removes ≥ {} % of the predicted returns",
+                    floor_percent(THRESHOLD_REMOVES)
+                ),
+            ),
+            (
+                EffectKind::BeamDivergence,
+                format!("horizontal ≥ {} mrad", floor_number(DIVERGENCE_MRAD)),
+            ),
+            (EffectKind::MotionDistortion, "none (a switch)".to_owned()),
+            (
+                EffectKind::TimeOffset,
+                format!(
+                    "|offset| ≥ the larger of {} ms and the uncertainty of the GNSS time offset `check` found",
+                    floor_number(TIME_OFFSET_MS)
+                ),
+            ),
+            (
+                EffectKind::MountMisalignment,
+                format!(
+                    "largest angle ≥ {}° (the smoothed RTK heading is good to about that)",
+                    floor_number(MOUNT_DEG)
+                ),
+            ),
+            (
+                EffectKind::Intensity,
+                format!(
+                    "exponent ≥ {} or noise ≥ {} count",
+                    floor_number(INTENSITY_EXPONENT),
+                    floor_number(INTENSITY_NOISE)
+                ),
+            ),
+            (
+                EffectKind::Weather,
+                format!(
+                    "extinction ≥ {} /m or clutter probability ≥ {} %",
+                    floor_number(EXTINCTION_PER_M),
+                    floor_percent(CLUTTER)
+                ),
+            ),
+        ]
+    },
+);
 
 /// Whether a fitted value clears its floor with 95 % confidence: its whole bootstrap interval
 /// (the value itself when there is none) lies at or beyond `floor` on one side of zero.
@@ -159,12 +235,11 @@ fn refitted_threshold(threshold: Option<&Effect>) -> Option<Param> {
 /// sheets' "range at 10 % reflectivity").
 pub const REFERENCE_REFLECTIVITY: f64 = 0.10;
 
-/// The parameterization runs with their features and the current model's evaluation.
+/// The parameterization runs and the current model's evaluation of them, which every
+/// candidate is fitted on and scored against.
 pub struct Fitting<'a> {
-    /// Runs.
-    pub runs: &'a [RunData],
-    /// Their features.
-    pub feats: &'a [Vec<Feature>],
+    /// The parameterization runs.
+    pub set: &'a RunSet,
     /// The current model.
     pub current: &'a ModelFile,
     /// Its observations per run.
@@ -173,12 +248,6 @@ pub struct Fitting<'a> {
     pub scored: &'a [Scored],
     /// The residual scales per run, held for the round.
     pub scales: &'a [likelihood::Scales],
-    /// Bootstrap blocks.
-    pub blocks: &'a Blocks,
-    /// Resamples of the blocks.
-    pub resamples: &'a [Vec<u32>],
-    /// Casts of these runs kept from round to round.
-    pub casts: &'a Casts,
 }
 
 /// `model` with `effect` added (replacing one of the same name).
@@ -221,34 +290,11 @@ pub fn random_of(model: &ModelFile) -> Random {
 
 impl Fitting<'_> {
     fn score_all(&self, obs: &[Vec<Obs>], random: Random) -> Vec<Scored> {
-        obs.iter()
-            .zip(self.runs)
-            .zip(self.feats)
-            .zip(self.scales)
-            .map(|(((o, r), f), s)| likelihood::score(o, f, random, s, r.range_quantum_m, r.scans))
-            .collect()
+        self.set.score(obs, random, self.scales)
     }
 
     fn cast(&self, model: &ModelFile) -> Result<Vec<Vec<Obs>>, GapError> {
-        self.casts.of(self.runs, model)
-    }
-
-    /// Gain per block of `scored` over the current model, its total and interval.
-    fn gain(&self, scored: &[Scored]) -> (f64, Option<(f64, f64)>, f64) {
-        let mut per_block = vec![0.0; self.blocks.len()];
-        let mut firings = 0;
-        for (r, (new, old)) in scored.iter().zip(self.scored).enumerate() {
-            firings += old.firings;
-            for (s, (a, b)) in new.per_scan.iter().zip(&old.per_scan).enumerate() {
-                per_block[self.blocks.of(r, s as u32)] += a - b;
-            }
-        }
-        let total: f64 = per_block.iter().sum();
-        (
-            total,
-            bootstrap::sum_interval(&per_block, self.resamples),
-            total / firings.max(1) as f64 * 1000.0,
-        )
+        self.set.cast(model)
     }
 
     fn candidate(
@@ -259,7 +305,11 @@ impl Fitting<'_> {
         above_floor: bool,
         scored: &[Scored],
     ) -> Candidate {
-        let (gain, gain_interval, per) = self.gain(scored);
+        let Gain {
+            total: gain,
+            interval: gain_interval,
+            per_1000_firings: per,
+        } = self.set.gain(scored, self.scored);
         let sum = |s: &[Scored]| {
             s.iter().fold([0.0; 4], |mut a, x| {
                 for (t, v) in a.iter_mut().zip(x.terms) {
@@ -291,11 +341,11 @@ impl Fitting<'_> {
     /// Residuals away from edges, with their pooled block.
     fn residual_blocks(&self, obs: &[Vec<Obs>]) -> Vec<(usize, f64)> {
         let mut out = Vec::new();
-        for (r, (o, f)) in obs.iter().zip(self.feats).enumerate() {
+        for (r, (o, f)) in obs.iter().zip(&self.set.feats).enumerate() {
             out.extend(
                 likelihood::residuals(o, f)
                     .into_iter()
-                    .map(|(s, e)| (self.blocks.of(r, s), e)),
+                    .map(|(s, e)| (self.set.blocks.of(r, s), e)),
             );
         }
         out
@@ -303,10 +353,11 @@ impl Fitting<'_> {
 
     fn bias(&self) -> Result<Candidate, GapError> {
         let res = self.residual_blocks(self.obs);
-        let all: Vec<u32> = vec![1; self.blocks.len()];
+        let all: Vec<u32> = vec![1; self.set.blocks.len()];
         let b = bootstrap::weighted_median(&res, &all).unwrap_or(0.0);
         // Each resample's median by itself (on every core; in order, so the same interval).
         let mut boots: Vec<f64> = self
+            .set
             .resamples
             .par_iter()
             .filter_map(|c| bootstrap::weighted_median(&res, c))
@@ -323,7 +374,7 @@ impl Fitting<'_> {
                 value: b,
                 interval,
             }],
-            clears(b, interval, 0.005),
+            clears(b, interval, floor::RANGE_BIAS_M),
             &scored,
         ))
     }
@@ -331,17 +382,18 @@ impl Fitting<'_> {
     fn noise(&self) -> Candidate {
         let mut diffs = Vec::new();
         let mut quantum = 0.002f64;
-        for (r, (o, f)) in self.obs.iter().zip(self.feats).enumerate() {
-            quantum = self.runs[r].range_quantum_m;
+        for (r, (o, f)) in self.obs.iter().zip(&self.set.feats).enumerate() {
+            quantum = self.set.runs[r].range_quantum_m;
             diffs.extend(
                 likelihood::differences(o, f)
                     .into_iter()
-                    .map(|(s, d)| (self.blocks.of(r, s), d)),
+                    .map(|(s, d)| (self.set.blocks.of(r, s), d)),
             );
         }
         let values: Vec<f64> = diffs.iter().map(|x| x.1).collect();
         let sigma = likelihood::noise_from_differences(&values, quantum).unwrap_or(0.0);
         let mut boots: Vec<f64> = self
+            .set
             .resamples
             .iter()
             .take(100)
@@ -361,7 +413,7 @@ impl Fitting<'_> {
                 value: sigma,
                 interval,
             }],
-            clears(sigma, interval, 0.003),
+            clears(sigma, interval, floor::RANGE_NOISE_M),
             &scored,
         )
     }
@@ -374,13 +426,13 @@ impl Fitting<'_> {
 
     fn detections_of(&self, obs: &[Vec<Obs>]) -> (Vec<DetectionRow>, Vec<(f64, f64)>) {
         let mut rows = Vec::new();
-        let mut per_block = vec![(0.0, 0.0); self.blocks.len()];
-        for (r, (o, f)) in obs.iter().zip(self.feats).enumerate() {
+        let mut per_block = vec![(0.0, 0.0); self.set.blocks.len()];
+        for (r, (o, f)) in obs.iter().zip(&self.set.feats).enumerate() {
             for (o, f) in o.iter().zip(f) {
                 if !o.cast || f.is_edge() || !o.predicted.is_finite() {
                     continue;
                 }
-                let b = self.blocks.of(r, f.scan);
+                let b = self.set.blocks.of(r, f.scan);
                 let hit = o.measured.is_finite();
                 rows.push((b, f64::from(o.power), hit));
                 per_block[b].0 += 1.0;
@@ -400,9 +452,9 @@ impl Fitting<'_> {
             });
             (n > 0.0).then(|| (1.0 - h / (n * (1.0 - likelihood::EPS))).max(0.0))
         };
-        let all = vec![1u32; self.blocks.len()];
+        let all = vec![1u32; self.set.blocks.len()];
         let p = share(&all).unwrap_or(0.0).min(0.999);
-        let mut boots: Vec<f64> = self.resamples.iter().filter_map(|c| share(c)).collect();
+        let mut boots: Vec<f64> = self.set.resamples.iter().filter_map(|c| share(c)).collect();
         let interval = bootstrap::interval(&mut boots);
         let effect = Effect::RandomDropout { probability: p };
         let model = with_effect(self.current, effect.clone());
@@ -415,7 +467,7 @@ impl Fitting<'_> {
                 value: p,
                 interval,
             }],
-            clears(p, interval, 0.002),
+            clears(p, interval, floor::DROPOUT),
             &scored,
         )
     }
@@ -443,6 +495,7 @@ impl Fitting<'_> {
             ));
         };
         let mut boots: Vec<f64> = self
+            .set
             .resamples
             .iter()
             .take(100)
@@ -472,7 +525,7 @@ impl Fitting<'_> {
                     interval: None,
                 },
             ],
-            k as f64 >= 0.002 * rows.len() as f64,
+            k as f64 >= floor::THRESHOLD_REMOVES * rows.len() as f64,
             &scored,
         ))
     }
@@ -480,7 +533,8 @@ impl Fitting<'_> {
     /// The largest finite value of `f` over the runs (0 when none is finite): a reference
     /// uncertainty that the repetitions need not average out.
     fn largest_over_runs(&self, f: impl Fn(&RunData) -> f64) -> f64 {
-        self.runs
+        self.set
+            .runs
             .iter()
             .map(f)
             .filter(|x| x.is_finite())
@@ -516,7 +570,7 @@ impl Fitting<'_> {
             progress(EffectKind::TimeOffset);
             // The trajectory's own timing is known only to the GNSS offset's uncertainty.
             let time_sigma = self.largest_over_runs(|r| r.time_sigma_ms);
-            let time_floor = time_sigma.max(1.0);
+            let time_floor = time_sigma.max(floor::TIME_OFFSET_MS);
             out.push(self.geometric(
                 EffectKind::TimeOffset,
                 &[Axis {
@@ -533,7 +587,7 @@ impl Fitting<'_> {
             progress(EffectKind::MountMisalignment);
             // The trajectory's heading error turns the whole scan like a mount yaw.
             let heading_sigma = self.largest_over_runs(|r| r.heading_sigma_deg);
-            let yaw_floor = heading_sigma.max(0.1);
+            let yaw_floor = heading_sigma.max(floor::MOUNT_DEG);
             let axis = |name, reference_sigma| Axis {
                 name,
                 step: 0.1,
@@ -553,8 +607,8 @@ impl Fitting<'_> {
                     yaw_deg: t[2],
                 },
                 &|t, i| {
-                    clears(t[0], i[0], 0.1)
-                        || clears(t[1], i[1], 0.1)
+                    clears(t[0], i[0], floor::MOUNT_DEG)
+                        || clears(t[1], i[1], floor::MOUNT_DEG)
                         || clears(t[2], i[2], yaw_floor)
                 },
             )?);
@@ -624,5 +678,35 @@ mod tests {
         assert!(m.effects.contains(&Effect::RangeBias { bias_m: 0.2 }));
         let r = random_of(&m);
         assert_eq!((r.sigma_m, r.dropout, r.clutter), (0.01, 0.0, None));
+    }
+}
+
+#[cfg(test)]
+mod floor_tests {
+    use super::*;
+
+    /// The words of the floors are the constants' (the report and gap.json quote them).
+    #[test]
+    fn the_floors_words_carry_the_constants() {
+        let text = |k: EffectKind| {
+            FLOORS
+                .iter()
+                .find(|(e, _)| *e == k)
+                .map(|(_, t)| t.clone())
+                .unwrap()
+        };
+        assert_eq!(text(EffectKind::RangeBias), "|bias| ≥ 5 mm");
+        assert_eq!(text(EffectKind::RangeNoise), "σ ≥ 3 mm");
+        assert_eq!(text(EffectKind::RandomDropout), "probability ≥ 0.2 %");
+        assert_eq!(text(EffectKind::BeamDivergence), "horizontal ≥ 0.5 mrad");
+        assert_eq!(
+            text(EffectKind::Weather),
+            "extinction ≥ 0.002 /m or clutter probability ≥ 0.2 %"
+        );
+        assert_eq!(
+            text(EffectKind::Intensity),
+            "exponent ≥ 0.2 or noise ≥ 1 count"
+        );
+        assert_eq!(FLOORS.len(), 10);
     }
 }

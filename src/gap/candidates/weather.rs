@@ -42,7 +42,7 @@ impl Fitting<'_> {
         // (block, power, returned, range) of predicted returns away from edges.
         let mut rows: Vec<(usize, f64, bool, f64)> = Vec::new();
         let mut clutter_ranges: Vec<f64> = Vec::new();
-        for (r, (o, f)) in obs.iter().zip(self.feats).enumerate() {
+        for (r, (o, f)) in obs.iter().zip(&self.set.feats).enumerate() {
             for (o, f) in o.iter().zip(f) {
                 if !o.cast || f.is_edge() {
                     continue;
@@ -56,7 +56,7 @@ impl Fitting<'_> {
                 }
                 if o.predicted.is_finite() {
                     rows.push((
-                        self.blocks.of(r, f.scan),
+                        self.set.blocks.of(r, f.scan),
                         f64::from(o.power),
                         o.measured.is_finite(),
                         f64::from(o.predicted),
@@ -101,7 +101,7 @@ impl Fitting<'_> {
         let exposure: f64 = obs
             .iter()
             .flatten()
-            .zip(self.feats.iter().flatten())
+            .zip(self.set.feats.iter().flatten())
             .filter(|(o, f)| o.cast && !f.is_edge())
             .map(|(o, _)| clutter.wins(o.predicted.is_finite().then_some(f64::from(o.power))))
             .sum();
@@ -147,7 +147,7 @@ impl Fitting<'_> {
             EffectKind::Weather,
             effect,
             params,
-            best >= 0.002 || probability >= 0.002,
+            best >= super::floor::EXTINCTION_PER_M || probability >= super::floor::CLUTTER,
             &scored,
         );
         c.refitted.extend(threshold);

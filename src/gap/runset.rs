@@ -1,0 +1,126 @@
+//! The runs of one role (parameterization or validation) as the workflow works on them: their
+//! sampled firings and features, the bootstrap blocks and resamples a gain's interval comes
+//! from, and the casts kept from round to round. Candidates are fitted and scored on one set,
+//! trials judged on the other, by the same scoring and the same gain: one type, so that the
+//! two cannot drift apart.
+
+use super::bootstrap::{self, Blocks};
+use super::candidates::random_of;
+use super::casts::Casts;
+use super::likelihood::{self, Random, Scales, Scored};
+use super::observe::{Feature, Obs, RunData};
+use super::GapError;
+use crate::sim::model::ModelFile;
+
+/// Runs of one role with everything a score and its interval need.
+pub struct RunSet {
+    /// The runs.
+    pub runs: Vec<RunData>,
+    /// Each run's features, one per sampled firing.
+    pub feats: Vec<Vec<Feature>>,
+    /// The bootstrap blocks over the runs' scans.
+    pub blocks: Blocks,
+    /// Resamples of the blocks (a fixed set per role, so that every interval of a study uses
+    /// the same ones).
+    pub resamples: Vec<Vec<u32>>,
+    /// Casts kept from round to round.
+    pub casts: Casts,
+}
+
+/// A model's observations, scores and the residual scales used, per run.
+pub struct Evaluation {
+    /// Observations per run.
+    pub obs: Vec<Vec<Obs>>,
+    /// Scores per run.
+    pub scored: Vec<Scored>,
+    /// Residual scales per run.
+    pub scales: Vec<Scales>,
+}
+
+/// How much better one model explains a set's firings than another: the log-likelihood gain.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Gain {
+    /// Total over the set.
+    pub total: f64,
+    /// Its bootstrap 95 % interval (none with fewer than two blocks).
+    pub interval: Option<(f64, f64)>,
+    /// The total per 1000 firings scored.
+    pub per_1000_firings: f64,
+}
+
+impl RunSet {
+    /// The set of `runs` with their features; `seed` fixes the bootstrap resamples.
+    pub fn new(runs: Vec<RunData>, feats: Vec<Vec<Feature>>, seed: u64) -> RunSet {
+        let blocks = Blocks::new(&runs.iter().map(|r| r.scans).collect::<Vec<_>>());
+        let resamples = blocks.resamples(seed);
+        RunSet {
+            runs,
+            feats,
+            blocks,
+            resamples,
+            casts: Casts::default(),
+        }
+    }
+
+    /// Every sampled firing cast with `model`'s deterministic part (kept casts reused).
+    pub fn cast(&self, model: &ModelFile) -> Result<Vec<Vec<Obs>>, GapError> {
+        self.casts.of(&self.runs, model)
+    }
+
+    /// The residual scales of `obs`, per run.
+    pub fn scales_of(&self, obs: &[Vec<Obs>]) -> Vec<Scales> {
+        obs.iter()
+            .zip(&self.feats)
+            .map(|(o, f)| likelihood::scales(o, f))
+            .collect()
+    }
+
+    /// Scores of `obs` under the random parts `random`, with the residual scales `scales`.
+    pub fn score(&self, obs: &[Vec<Obs>], random: Random, scales: &[Scales]) -> Vec<Scored> {
+        obs.iter()
+            .zip(&self.runs)
+            .zip(&self.feats)
+            .zip(scales)
+            .map(|(((o, r), f), s)| likelihood::score(o, f, random, s, r.range_quantum_m, r.scans))
+            .collect()
+    }
+
+    /// Observations and scores of `model`, with the residual scales `scales` (per run), or
+    /// the ones of these observations when `None`.
+    pub fn evaluate(
+        &self,
+        model: &ModelFile,
+        scales: Option<&[Scales]>,
+    ) -> Result<Evaluation, GapError> {
+        let obs = self.cast(model)?;
+        let scales = match scales {
+            Some(s) => s.to_vec(),
+            None => self.scales_of(&obs),
+        };
+        let scored = self.score(&obs, random_of(model), &scales);
+        Ok(Evaluation {
+            obs,
+            scored,
+            scales,
+        })
+    }
+
+    /// The gain of the scores `new` over `old` (both of this set), summed per bootstrap
+    /// block for its interval.
+    pub fn gain(&self, new: &[Scored], old: &[Scored]) -> Gain {
+        let mut per_block = vec![0.0; self.blocks.len()];
+        let mut firings = 0;
+        for (r, (a, b)) in new.iter().zip(old).enumerate() {
+            firings += b.firings;
+            for (s, (x, y)) in a.per_scan.iter().zip(&b.per_scan).enumerate() {
+                per_block[self.blocks.of(r, s as u32)] += x - y;
+            }
+        }
+        let total: f64 = per_block.iter().sum();
+        Gain {
+            total,
+            interval: bootstrap::sum_interval(&per_block, &self.resamples),
+            per_1000_firings: total / firings.max(1) as f64 * 1000.0,
+        }
+    }
+}
