@@ -6,6 +6,7 @@ pub mod cdr;
 pub mod clock_sync;
 pub mod info;
 pub mod msgs;
+pub mod packet_times;
 pub mod read;
 pub mod recover;
 pub mod scans;

@@ -10,7 +10,8 @@
 
 use super::study::Role;
 use super::GapError;
-use crate::bag::scans::{sensor_time, ScanStream};
+use crate::bag::packet_times::{PacketTimes, Timed};
+use crate::bag::scans::ScanStream;
 use crate::metrics::compare::Checked;
 use crate::reference::check::{check_with_trajectory, Fault, Verdict};
 use crate::rig::Rig;
@@ -239,46 +240,31 @@ pub fn load_run(
     let total: usize = index.iter().map(|s| s.packets as usize).sum();
     let every = (total * SLOTS).div_ceil(firings.max(SLOTS)).max(1);
     let mut packets = Vec::new();
-    let mut previous: Option<DataPacket> = None;
+    let mut times = PacketTimes::new(pps_locked);
     let mut n = 0usize;
     let mut undecodable = 0usize;
     let mut usable_scans = 0usize;
     // The scans are streamed: only the sample is kept.
     let mut stream = ScanStream::open(path)?;
     for (k, scan) in stream.by_ref().skip(from).take(to - from).enumerate() {
-        let mut rotation_start = None;
         let mut scan_usable = false;
-        for (t, b) in &scan.packets {
-            let Ok(p) = DataPacket::decode(&b[..]) else {
+        for timed in times.of(&scan) {
+            let Timed::Packet { packet, time, .. } = timed else {
                 undecodable += 1;
                 continue;
             };
-            let first = if pps_locked {
-                sensor_time(p.timestamp_us, *t)
-            } else {
-                *t
-            };
-            let rotation_start = *rotation_start.get_or_insert(first);
-            let rate = previous
-                .as_ref()
-                .and_then(|q| hilrig_velodyne::decode::rate_between(q, &p));
             let usable = !marked.iter().any(|m| {
                 let (a, b) = m.window();
-                (a..=b).contains(&first)
+                (a..=b).contains(&time.first_firing)
             });
             scan_usable |= usable;
             if usable && n.is_multiple_of(every) {
                 packets.push(Sampled {
                     scan: k as u32,
-                    packet: p.clone(),
-                    time: PacketTime {
-                        first_firing: first,
-                        rotation_start,
-                        rotation_rate: rate,
-                    },
+                    packet: *packet,
+                    time,
                 });
             }
-            previous = Some(p);
             n += 1;
         }
         usable_scans += usize::from(scan_usable);

@@ -2,10 +2,11 @@
 //! at each firing's pose, with each firing's range kept for the per-firing residuals.
 
 use super::roi::Roi;
-use crate::bag::scans::{sensor_time, Scan};
+use crate::bag::packet_times::{PacketTimes, Timed};
+use crate::bag::scans::Scan;
 use crate::scene::pose::Trajectory;
 use hilrig_stamp::UtcNanos;
-use hilrig_velodyne::{DataPacket, Decoder, Point as LidarPoint};
+use hilrig_velodyne::{Decoder, Point as LidarPoint};
 use nalgebra::{Isometry3, Point3};
 
 /// A decoded scan in the scene frame, with the firings for the residuals.
@@ -94,24 +95,25 @@ impl Frame<'_> {
         let mut hint = 0;
         let mut decoded: Vec<LidarPoint> = Vec::new();
         let mut times = Vec::new();
-        // The packet before (a dual-return VLS-128 packet takes its rotation rate from it).
-        let mut previous: Option<DataPacket> = None;
-        for (k, (t, bytes)) in scan.packets.iter().enumerate() {
-            let Ok(p) = DataPacket::decode(&bytes[..]) else {
+        // Scans are decoded on several cores: the packet before the scan's first is not known
+        // here, so a dual-return VLS-128 scan's first packet is decoded at its block azimuths.
+        for timed in PacketTimes::new(self.pps_locked).of(scan) {
+            let Timed::Packet {
+                index: k,
+                packet: p,
+                time,
+            } = timed
+            else {
                 continue;
             };
-            let first = if self.pps_locked {
-                sensor_time(p.timestamp_us, *t)
-            } else {
-                *t
-            };
+            let first = time.first_firing;
             times.push(first);
             decoded.clear();
-            let result = self
+            if self
                 .decoder
-                .decode_into_after(&p, previous.as_ref(), &mut decoded);
-            previous = Some(p);
-            if result.is_err() {
+                .decode_into_at_rate(&p, time.rotation_rate, &mut decoded)
+                .is_err()
+            {
                 continue;
             }
             let span = PacketPoses::new(self.trajectory, first, &decoded, &mut hint);

@@ -55,19 +55,9 @@ pub struct Returns {
     pub last: Option<Echo>,
 }
 
-/// When a packet's firings happened.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PacketTime {
-    /// Reference (UTC) time of the packet stamp, i.e. of its first firing.
-    pub first_firing: UtcNanos,
-    /// Reference time of the first firing of the rotation the packet belongs to (the single pose
-    /// used when `motion_distortion` is disabled).
-    pub rotation_start: UtcNanos,
-    /// The sensor's rotation rate, hundredths of a degree per µs, where the packet alone does
-    /// not give it (a dual-return VLS-128 packet holds one firing sequence): the spin's for
-    /// synthesized packets, the rate since the previous packet for recorded ones.
-    pub rotation_rate: Option<f64>,
-}
+/// When a packet's firings happened (the recorded packets' times are read in one place,
+/// [`crate::bag::packet_times`]).
+pub use crate::bag::packet_times::PacketTime;
 
 /// Counters of one simulation.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -10,11 +10,12 @@
 //! VelodyneScans (same stamps, so the same decoder and replay apply), `/sim/points` clouds for
 //! viewing, and the model, scene and trajectory source in its metadata.
 
-use super::lidar::{LidarSim, PacketTime, SimStats};
+use super::lidar::{LidarSim, SimStats};
 use super::model::ModelFile;
 use super::sim_file::{ScanMessages, Writer};
 use crate::bag::msgs;
-use crate::bag::scans::{sensor_time, Scan, ScanStream};
+use crate::bag::packet_times::{PacketTimes, Timed};
+use crate::bag::scans::{Scan, ScanStream};
 use crate::reference::check::{check_with_trajectory, Report, Verdict};
 use crate::rig::Rig;
 use crate::scene::pose::Trajectory;
@@ -234,12 +235,11 @@ pub fn resim_recording(
         trajectory: &trajectory,
         decoder: &decoder,
         frame_id: &lidar.frame_id,
-        pps_locked,
         seed,
     };
     // Scans in batches of about BATCH_PACKETS packets: both cores busy whatever the scan size,
     // while the reader decompresses the next scans and the writer compresses the last ones.
-    let mut state = CastState::default();
+    let mut state = CastState::new(pps_locked);
     let mut batch: Vec<Scan> = Vec::new();
     let mut in_batch = 0usize;
     let mut done = 0u64;
@@ -275,10 +275,18 @@ const BATCH_PACKETS: usize = 256;
 /// What is carried from batch to batch: the packet before (a dual-return VLS-128 packet takes
 /// its rotation rate from it) and the packets cast so far (each packet's seed is the run's
 /// seed and its index, so the result does not depend on the batching).
-#[derive(Default)]
 struct CastState {
-    previous: Option<DataPacket>,
+    times: PacketTimes,
     packets: u64,
+}
+
+impl CastState {
+    fn new(pps_locked: bool) -> CastState {
+        CastState {
+            times: PacketTimes::new(pps_locked),
+            packets: 0,
+        }
+    }
 }
 
 /// Casts batches of recorded scans.
@@ -289,7 +297,6 @@ struct Caster<'a> {
     trajectory: &'a Trajectory,
     decoder: &'a Decoder,
     frame_id: &'a str,
-    pps_locked: bool,
     seed: u64,
 }
 
@@ -313,63 +320,28 @@ impl Caster<'_> {
         state: &mut CastState,
         stats: &mut SimStats,
     ) -> Vec<[u8; DATA_PACKET_SIZE]> {
-        // All packets of the batch at once: both cores busy whatever the scan size.
+        // All packets of the batch at once: both cores busy whatever the scan size. A packet
+        // that does not decode is kept as it was (no time).
         let mut jobs = Vec::new();
         for (k, scan) in scans.iter().enumerate() {
-            let mut rates = Vec::with_capacity(scan.packets.len());
-            let firsts: Vec<Option<UtcNanos>> = scan
-                .packets
-                .iter()
-                .map(|(t, b)| {
-                    let p = DataPacket::decode(&b[..]).ok();
-                    // The rate since the packet before (what a dual-return VLS-128 packet needs).
-                    rates.push(
-                        p.as_ref()
-                            .zip(state.previous.as_ref())
-                            .and_then(|(p, q)| hilrig_velodyne::decode::rate_between(q, p)),
-                    );
-                    if p.is_some() {
-                        state.previous.clone_from(&p);
-                    }
-                    p.map(|p| {
-                        if self.pps_locked {
-                            sensor_time(p.timestamp_us, *t)
-                        } else {
-                            *t
-                        }
-                    })
-                })
-                .collect();
-            let rotation_start = firsts
-                .iter()
-                .flatten()
-                .next()
-                .copied()
-                .unwrap_or(scan.stamp);
-            for (i, (first, rate)) in firsts.into_iter().zip(rates).enumerate() {
-                jobs.push((k, i, first, rotation_start, rate, state.packets));
+            for timed in state.times.of(scan) {
+                let (i, time) = match timed {
+                    Timed::Packet { index, time, .. } => (index, Some(time)),
+                    Timed::Undecodable { index } => (index, None),
+                };
+                jobs.push((k, i, time, state.packets));
                 state.packets += 1;
             }
         }
         let simulated: Vec<([u8; DATA_PACKET_SIZE], SimStats)> = jobs
             .par_iter()
-            .map(|&(k, i, first, rotation_start, rotation_rate, n)| {
+            .map(|&(k, i, time, n)| {
                 let b = &scans[k].packets[i].1;
                 let mut st = SimStats::default();
-                let out = match (DataPacket::decode(&b[..]), first) {
-                    (Ok(p), Some(first)) => self
+                let out = match (DataPacket::decode(&b[..]), time) {
+                    (Ok(p), Some(time)) => self
                         .sim
-                        .simulate(
-                            &p,
-                            PacketTime {
-                                first_firing: first,
-                                rotation_start,
-                                rotation_rate,
-                            },
-                            self.trajectory,
-                            self.seed ^ n,
-                            &mut st,
-                        )
+                        .simulate(&p, time, self.trajectory, self.seed ^ n, &mut st)
                         .encode(),
                     _ => *b,
                 };
@@ -432,7 +404,8 @@ pub struct Resimulator<'a> {
     decoder: Decoder,
     frame_id: String,
     seed: u64,
-    state: CastState,
+    /// Made at the first cast, which says whether the lidar is PPS-locked.
+    state: Option<CastState>,
     writer: Writer,
     stats: SimStats,
 }
@@ -466,7 +439,7 @@ impl<'a> Resimulator<'a> {
             decoder: Decoder::with_calibration(sensor, calibration),
             frame_id: lidar.frame_id.clone(),
             seed,
-            state: CastState::default(),
+            state: None,
             writer: Writer::start(out, meta, model.to_toml(), first_log)?,
             stats: SimStats::default(),
         })
@@ -486,10 +459,10 @@ impl<'a> Resimulator<'a> {
             trajectory,
             decoder: &self.decoder,
             frame_id: &self.frame_id,
-            pps_locked,
             seed: self.seed,
         };
-        let simulated = caster.simulate(scans, &mut self.state, &mut self.stats);
+        let state = self.state.get_or_insert_with(|| CastState::new(pps_locked));
+        let simulated = caster.simulate(scans, state, &mut self.stats);
         for m in caster.messages(scans, &simulated) {
             self.writer.send(m)?;
         }

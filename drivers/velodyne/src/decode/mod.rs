@@ -207,9 +207,20 @@ impl Decoder {
         previous: Option<&DataPacket>,
         out: &mut Vec<Point>,
     ) -> Result<(), DecodeError> {
+        self.decode_into_at_rate(pkt, previous.and_then(|p| rate_between(p, pkt)), out)
+    }
+
+    /// Like [`Decoder::decode_into_after`], with the rotation rate since the packet before
+    /// already known (`None`: unknown): for a caller that keeps the rate rather than the
+    /// packet (hilrig's packet-times iterator).
+    pub fn decode_into_at_rate(
+        &self,
+        pkt: &DataPacket,
+        rate: Option<f64>,
+        out: &mut Vec<Point>,
+    ) -> Result<(), DecodeError> {
         let mode = pkt.return_mode.mode();
         if self.model == Model::Vls128 && mode == Some(ReturnMode::Dual) {
-            let rate = previous.and_then(|p| rate_between(p, pkt));
             return self.with_two_point(out, |out| {
                 self.decode_vls128(pkt, ReturnMode::Dual, rate, out)
             });
