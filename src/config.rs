@@ -32,6 +32,56 @@ pub fn check_finite(text: &str) -> Result<(), NonFinite> {
     }
 }
 
+/// Why a TOML file cannot be read as the type it should hold.
+#[derive(Debug, thiserror::Error)]
+pub enum TomlFileError {
+    /// The file cannot be read.
+    #[error("cannot read {}: {source}", .path.display())]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A number of it is NaN or infinite.
+    #[error("{}: {source}", .path.display())]
+    NonFinite {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The key and the value.
+        #[source]
+        source: NonFinite,
+    },
+    /// It is not TOML, or not of the type (an unknown key, a missing field: serde says where).
+    #[error("{}: {source}", .path.display())]
+    Toml {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Where and why.
+        #[source]
+        source: toml::de::Error,
+    },
+}
+
+/// Reads the TOML file at `path` as a `T`, every number finite ([`check_finite`]).
+pub fn read_toml<T: serde::de::DeserializeOwned>(
+    path: &std::path::Path,
+) -> Result<T, TomlFileError> {
+    let text = std::fs::read_to_string(path).map_err(|source| TomlFileError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    check_finite(&text).map_err(|source| TomlFileError::NonFinite {
+        path: path.to_owned(),
+        source,
+    })?;
+    toml::from_str(&text).map_err(|source| TomlFileError::Toml {
+        path: path.to_owned(),
+        source,
+    })
+}
+
 /// Depth first; `path` holds the key path of the value found.
 fn first_non_finite(v: &toml::Value, path: &mut Vec<String>) -> Option<f64> {
     match v {

@@ -23,6 +23,7 @@
 //! outlier share.
 
 use super::observe::{Feature, Obs};
+use crate::sim::model::{Effect, ModelFile};
 
 /// The random parts of a model, which the likelihood applies analytically.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -255,6 +256,36 @@ pub fn noise_from_differences(differences: &[f64], quantum_m: f64) -> Option<f64
     let s = robust_sigma(differences)?;
     let var = s * s / 2.0 - quantum_m * quantum_m / 12.0 - TAU_M * TAU_M / 2.0;
     Some(var.max(0.0).sqrt())
+}
+
+/// The random parts of a model.
+pub fn random_of(model: &ModelFile) -> Random {
+    let mut r = Random::default();
+    for e in &model.effects {
+        match *e {
+            Effect::RangeNoise { sigma_m } => r.sigma_m = sigma_m,
+            Effect::RandomDropout { probability } => r.dropout = probability,
+            Effect::Weather {
+                clutter_probability,
+                clutter_max_range_m,
+                clutter_reflectivity,
+                ..
+            } if clutter_probability > 0.0 => {
+                r.clutter = Some(Clutter {
+                    probability: clutter_probability,
+                    min_m: model
+                        .limits
+                        .and_then(|l| l.min_range_m)
+                        .unwrap_or(0.5)
+                        .min(clutter_max_range_m),
+                    max_m: clutter_max_range_m,
+                    reflectivity: clutter_reflectivity,
+                });
+            }
+            _ => {}
+        }
+    }
+    r
 }
 
 #[cfg(test)]

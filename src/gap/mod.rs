@@ -30,33 +30,9 @@ use std::path::PathBuf;
 /// Why the workflow cannot run.
 #[derive(Debug, thiserror::Error)]
 pub enum GapError {
-    /// The study file cannot be read.
-    #[error("cannot read {}: {source}", .path.display())]
-    StudyIo {
-        /// The study file.
-        path: PathBuf,
-        /// Cause.
-        #[source]
-        source: std::io::Error,
-    },
-    /// The study file is not a study (TOML, an unknown key, a missing field).
-    #[error("{}: {source}", .path.display())]
-    StudyToml {
-        /// The study file.
-        path: PathBuf,
-        /// Where and why.
-        #[source]
-        source: toml::de::Error,
-    },
-    /// A number of the study file is NaN or infinite.
-    #[error("{}: {source}", .path.display())]
-    StudyNumber {
-        /// The study file.
-        path: PathBuf,
-        /// The key and value.
-        #[source]
-        source: crate::config::NonFinite,
-    },
+    /// The study file cannot be read (or a number of it is not finite, or it is no study).
+    #[error(transparent)]
+    StudyFile(#[from] crate::config::TomlFileError),
     /// The study's runs cannot make a study.
     #[error(transparent)]
     Study(Box<study::StudyProblem>),

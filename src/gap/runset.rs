@@ -5,9 +5,8 @@
 //! two cannot drift apart.
 
 use super::bootstrap::{self, Blocks};
-use super::candidates::random_of;
 use super::casts::Casts;
-use super::likelihood::{self, Random, Scales, Scored};
+use super::likelihood::{self, random_of, Random, Scales, Scored};
 use super::observe::{Feature, Obs, RunData};
 use super::GapError;
 use crate::sim::model::ModelFile;

@@ -137,18 +137,7 @@ pub enum StudyProblem {
 impl Study {
     /// Reads a study file.
     pub fn load(path: &Path) -> Result<Study, GapError> {
-        let text = std::fs::read_to_string(path).map_err(|source| GapError::StudyIo {
-            path: path.to_owned(),
-            source,
-        })?;
-        crate::config::check_finite(&text).map_err(|source| GapError::StudyNumber {
-            path: path.to_owned(),
-            source,
-        })?;
-        let file: StudyFile = toml::from_str(&text).map_err(|source| GapError::StudyToml {
-            path: path.to_owned(),
-            source,
-        })?;
+        let file: StudyFile = crate::config::read_toml(path)?;
         let base = path.parent().unwrap_or(Path::new("."));
         let at = |p: &Path| base.join(p);
         let runs = file

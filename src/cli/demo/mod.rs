@@ -12,7 +12,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 use std::time::Instant;
 
-use hilrig::metrics::report::Comparison;
+mod stages;
+use stages::{Demo, STAGES};
 
 #[derive(clap::Args)]
 pub struct DemoArgs {
@@ -160,8 +161,12 @@ fn line(stage: &str, figure: &str, verdict: &str, started: Instant) {
 }
 
 pub fn run(args: DemoArgs) -> Result<ExitCode> {
-    let inputs = Inputs::locate(args.fixtures.as_deref(), args.quick)?;
-    let out = args.out.clone();
+    let demo = Demo {
+        inputs: Inputs::locate(args.fixtures.as_deref(), args.quick)?,
+        out: args.out.clone(),
+        quick: args.quick,
+    };
+    let out = &demo.out;
     for d in [
         "rec",
         "check",
@@ -182,308 +187,29 @@ pub fn run(args: DemoArgs) -> Result<ExitCode> {
         ),
     };
     let all = Instant::now();
-    let reps = inputs.reps.clone();
-    let rec = |rep: &str| out.join("rec").join(format!("{rep}.mcap"));
+    let n = demo.inputs.reps.len();
     println!(
-        "hilrig demo: the parking-lot drive of Rosenberger et al. 2019, Fig. 4, {} repetition{} (fixtures/parking)",
-        reps.len(),
-        if reps.len() == 1 { "" } else { "s" }
+        "hilrig demo: the parking-lot drive of Rosenberger et al. 2019, Fig. 4, {n} repetition{} (fixtures/parking)",
+        if n == 1 { "" } else { "s" }
     );
-
-    // 1. Record the captures as they came off the vehicle.
-    let t = Instant::now();
-    r.run(
-        reps.iter()
-            .map(|rep| Step {
-                log: format!("record-{rep}"),
-                args: vec![
-                    "record".into(),
-                    "--rig".into(),
-                    arg(&inputs.rig()),
-                    "--from".into(),
-                    arg(&inputs.capture(rep)),
-                    "-o".into(),
-                    arg(&rec(rep)),
-                ],
-                accept: &[],
-            })
-            .collect(),
-    )?;
-    r.run(
-        reps.iter()
-            .map(|rep| Step {
-                log: format!("info-{rep}"),
-                args: vec![
-                    "info".into(),
-                    arg(&rec(rep)),
-                    "--json".into(),
-                    arg(&out.join("rec").join(format!("{rep}.info.json"))),
-                ],
-                accept: &[],
-            })
-            .collect(),
-    )?;
-    let bytes: u64 = reps
-        .iter()
-        .filter_map(|rep| std::fs::metadata(rec(rep)).ok())
-        .map(|m| m.len())
-        .sum();
-    line(
-        "record",
-        &format!(
-            "{} capture(s) -> MCAP, {:.1} MB (lidar, GNSS, CAN, one clock)",
-            reps.len(),
-            bytes as f64 / 1e6
-        ),
-        "ok",
-        t,
-    );
-
-    // 2. Check the reference data of every run (Rosenberger et al. 2019, §6).
-    let t = Instant::now();
-    let check_json = |rep: &str| out.join("check").join(format!("{rep}.json"));
-    let codes = r.run(
-        reps.iter()
-            .map(|rep| Step {
-                log: format!("check-{rep}"),
-                args: vec![
-                    "check".into(),
-                    arg(&rec(rep)),
-                    "--scene".into(),
-                    arg(&inputs.scene(rep)),
-                    "--json".into(),
-                    arg(&check_json(rep)),
-                ],
-                accept: &[1],
-            })
-            .collect(),
-    )?;
-    let checks: Vec<hilrig::reference::check::Report> = reps
-        .iter()
-        .map(|rep| read_json(&check_json(rep)))
-        .collect::<Result<_>>()?;
-    let cell = checks
-        .iter()
-        .map(|c| c.accuracy.grid_cell_m)
-        .fold(0.0f64, f64::max);
-    let ego = checks
-        .iter()
-        .map(|c| c.accuracy.ego_m)
-        .fold(0.0f64, f64::max);
-    let passed = codes.iter().filter(|&&c| c == 0).count();
-    line(
-        "check",
-        &format!(
-            "{passed}/{} runs pass; ego accuracy <= {:.3} m; admissible cell {cell:.2} m",
-            reps.len(),
-            ego
-        ),
-        if passed == reps.len() { "pass" } else { "FAIL" },
-        t,
-    );
-    if passed != reps.len() {
-        println!(
-            "          a run failed its check: see {}",
-            out.join("check").display()
-        );
-    }
-
-    // 3. Re-simulate every run with the idealized model and with the truth model.
-    let t = Instant::now();
-    let sim = |model: &str, rep: &str| out.join("sim").join(model).join(format!("{rep}.mcap"));
-    let models = [
-        ("idealized", inputs.root.join("idealized.toml")),
-        ("truth", inputs.root.join("truth-model.toml")),
-    ];
-    let mut steps = Vec::new();
-    for (name, model) in &models {
-        for rep in &reps {
-            steps.push(Step {
-                log: format!("resim-{name}-{rep}"),
-                args: vec![
-                    "resim".into(),
-                    arg(&rec(rep)),
-                    "--scene".into(),
-                    arg(&inputs.scene(rep)),
-                    "--model".into(),
-                    arg(model),
-                    "-o".into(),
-                    arg(&sim(name, rep)),
-                ],
-                accept: &[],
-            });
+    for stage in &STAGES {
+        let t = Instant::now();
+        let mut codes = Vec::new();
+        for batch in (stage.steps)(&demo)? {
+            codes.extend(r.run(batch)?);
+        }
+        let o = (stage.outcome)(&demo, &codes)?;
+        line(stage.name, &o.figure, o.verdict, t);
+        if let Some(note) = o.note {
+            println!("          {note}");
         }
     }
-    r.run(steps)?;
-    line(
-        "resim",
-        &format!(
-            "{} runs x 2 models (idealized, truth) along the checked trajectories",
-            reps.len()
-        ),
-        "ok",
-        t,
-    );
-
-    // 4. Compare the first run with its idealized re-simulation, at the admissible cell and at
-    //    the paper's 10 cm (Fig. 5).
-    let t = Instant::now();
-    let first = &reps[0];
-    let cmp = |name: &str| out.join("compare").join(format!("{first}-{name}.json"));
-    let mut steps = Vec::new();
-    for (name, small) in [
-        ("idealized", false),
-        ("idealized-10cm", true),
-        ("truth", false),
-    ] {
-        let model = if name == "truth" {
-            "truth"
-        } else {
-            "idealized"
-        };
-        let mut a = vec![
-            "compare".into(),
-            arg(&rec(first)),
-            arg(&sim(model, first)),
-            "--scene".into(),
-            arg(&inputs.scene(first)),
-            "--json".into(),
-            arg(&cmp(name)),
-        ];
-        if small {
-            a.extend(["--cell".into(), "0.1".into(), "--allow-small-cell".into()]);
-        }
-        steps.push(Step {
-            log: format!("compare-{first}-{name}"),
-            args: a,
-            accept: &[],
-        });
-    }
-    r.run(steps)?;
-    let ci: Comparison = read_json(&cmp("idealized"))?;
-    let c10: Comparison = read_json(&cmp("idealized-10cm"))?;
-    let ct: Comparison = read_json(&cmp("truth"))?;
-    let nan = |x: Option<f64>| x.unwrap_or(f64::NAN);
-    line(
-        "compare",
-        &format!(
-            "OCR^K {:.2} idealized, {:.2} truth at {:.2} m; Spearman(OCR, distance) {:+.2} at 10 cm",
-            nan(ci.summary.ocr_mean),
-            nan(ct.summary.ocr_mean),
-            ci.cell_m,
-            nan(c10.summary.ocr_vs_distance.map(|r| r.rho))
-        ),
-        "ok",
-        t,
-    );
-
-    // 5. Statistical validation over the repetitions, per phase (Rosenberger et al. 2019, §8).
-    let t = Instant::now();
-    let val = |name: &str| out.join("validate").join(format!("{name}.json"));
-    let steps = models
-        .iter()
-        .map(|(name, _)| {
-            let mut a = vec!["validate".to_string()];
-            for rep in &reps {
-                a.extend(["--real".into(), arg(&rec(rep))]);
-            }
-            for rep in &reps {
-                a.extend(["--sim".into(), arg(&sim(name, rep))]);
-            }
-            a.extend([
-                "--phases".into(),
-                arg(&inputs.root.join("phases.toml")),
-                "--json".into(),
-                arg(&val(name)),
-            ]);
-            Step {
-                log: format!("validate-{name}"),
-                args: a,
-                accept: &[1],
-            }
-        })
-        .collect();
-    r.run(steps)?;
-    let mut figure = Vec::new();
-    for (name, _) in &models {
-        let v: hilrig::stats::repetitions::Validation = read_json(&val(name))?;
-        let [g, y, red, b] = hilrig::report::plots::lights(&v);
-        figure.push(format!(
-            "{name}: {g} green {y} yellow {red} red {b} black, {}",
-            v.verdict.name()
-        ));
-    }
-    line("validate", &figure.join("; "), "done", t);
-
-    // 6. The gap workflow: the idealized model against the measurement.
-    let t = Instant::now();
-    let gap_dir = out.join("gap");
-    // A study file, so that each run keeps its own scene (each repetition has its own survey
-    // and its own pedestrian walk; the shorthand would give them all the first one's).
-    let study = out.join("gap-study.toml");
-    let mut text = format!(
-        "# The demo's gap study: the first runs fit, the others validate.\nmodel = {:?}\n",
-        arg(&std::path::absolute(inputs.root.join("idealized.toml"))?)
-    );
-    let fit = if reps.len() >= 2 {
-        reps.len().div_ceil(2)
-    } else {
-        1
-    };
-    for (k, rep) in reps.iter().enumerate() {
-        text.push_str(&format!(
-            "\n[[run]]\nrecording = {:?}\nscene = {:?}\nrole = \"{}\"\n",
-            arg(&std::path::absolute(rec(rep))?),
-            arg(&std::path::absolute(inputs.scene(rep))?),
-            if k < fit { "fit" } else { "validate" }
-        ));
-    }
-    std::fs::write(&study, text).with_context(|| format!("cannot write {}", study.display()))?;
-    // One run alone is split in time by the workflow (first half fits, second validates).
-    let mut a = vec!["gap".to_string(), arg(&study), "-o".into(), arg(&gap_dir)];
-    if args.quick {
-        a.extend(["--firings".into(), "200000".into()]);
-    }
-    r.run(vec![Step {
-        log: "gap".into(),
-        args: a,
-        accept: &[],
-    }])?;
-    let gap: hilrig::gap::report::GapReport = read_json(&gap_dir.join("gap.json"))?;
-    let added: Vec<&str> = gap
-        .rounds
-        .iter()
-        .filter_map(|r| r.chosen.map(|c| c.name()))
-        .collect();
-    line(
-        "gap",
-        &format!(
-            "effects found: {}",
-            if added.is_empty() {
-                "none".to_string()
-            } else {
-                added.join(", ")
-            }
-        ),
-        "done",
-        t,
-    );
-
-    // 7. The report.
-    let t = Instant::now();
-    let report = out.join("report.html");
-    r.run(vec![Step {
-        log: "report".into(),
-        args: vec!["report".into(), arg(&out), "-o".into(), arg(&report)],
-        accept: &[],
-    }])?;
-    line("report", &arg(&report), "ok", t);
     std::fs::write(out.join("commands.sh"), &r.script)
         .with_context(|| format!("cannot write {}", out.join("commands.sh").display()))?;
     println!(
         "done in {:.0} s: open {} (the commands are in {})",
         all.elapsed().as_secs_f64(),
-        report.display(),
+        demo.report().display(),
         out.join("commands.sh").display()
     );
     Ok(ExitCode::SUCCESS)
