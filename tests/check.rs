@@ -605,7 +605,10 @@ fn rtk_float_sigma_spike_lidar_gap_and_free_running_lidar_clock_are_found_and_lo
     located(float[0], 12.0, 13.5, 0.15);
     // The largest sigmas are reported where they were: the float window (0.2 m), then the spike.
     let worst = v["spatial"]["worst_sigma_windows"].as_array().unwrap();
-    let (from, sigma) = (worst[0][0].as_f64().unwrap(), worst[0][2].as_f64().unwrap());
+    let (from, sigma) = (
+        worst[0]["from_s"].as_f64().unwrap(),
+        worst[0]["sigma_m"].as_f64().unwrap(),
+    );
     assert!((11.0..14.0).contains(&from) && sigma > 0.15, "{worst:?}");
     let spike = faults(&v, "sigma_spike");
     assert_eq!(spike.len(), 1, "{n:?}");

@@ -63,7 +63,7 @@ enum EfastCommand {
         #[arg(long)]
         params: PathBuf,
         /// The scenario: scene, drive, reality and model files, the metric, and a knob per
-        /// parameter (see `src/stats/scenario.rs`).
+        /// parameter (see `src/stats/scenario/mod.rs`).
         #[arg(long)]
         scenario: PathBuf,
         /// Samples per parameter (more than 4 M²).

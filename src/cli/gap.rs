@@ -160,7 +160,7 @@ pub fn run_cli(args: GapArgs) -> Result<ExitCode> {
             );
             Ok(ExitCode::SUCCESS)
         }
-        Err(e) if e.is_input() => fail(&e),
-        Err(e) => Err(e.into()),
+        // Every error names its file and cause in its own text (exit 2, as for bad input).
+        Err(e) => fail(&e),
     }
 }

@@ -167,14 +167,3 @@ impl From<study::StudyProblem> for GapError {
         GapError::Study(Box::new(p))
     }
 }
-
-impl GapError {
-    /// Whether the error is the input's (exit 2: a study, run, scene or model that cannot be
-    /// used), not the workflow's or the disk's.
-    pub fn is_input(&self) -> bool {
-        !matches!(
-            self,
-            GapError::Output { .. } | GapError::Json(_) | GapError::Validate(_)
-        )
-    }
-}

@@ -278,10 +278,7 @@ fn compare_twins(
     let (lidar, model, calibration) = reference.rig.lidar_sensor()?;
     let decoder = Decoder::with_calibration(model, calibration);
     if opts.sensor_frame && (opts.region != Region::All || opts.exclude_ground) {
-        return Err(CompareError::Option {
-            option: "--sensor-frame".into(),
-            why: "the sensor frame has no scene: --roi and ground exclusion need the scene frame (use --roi all --keep-ground)",
-        });
+        return Err(CompareError::SensorFrameHasNoScene);
     }
     let roi = Roi::new(opts.region.clone(), scene, opts.exclude_ground, 0.2)?;
     let frame = Frame {

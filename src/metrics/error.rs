@@ -24,6 +24,9 @@ pub enum CompareError {
         /// Why not.
         why: &'static str,
     },
+    /// A region or ground exclusion asked for in the sensor frame.
+    #[error("the sensor frame has no scene: --roi and ground exclusion need the scene frame (use --roi all --keep-ground)")]
+    SensorFrameHasNoScene,
     /// The run holds no lidar scan.
     #[error("no lidar scans (/velodyne_packets) in {}", .run.display())]
     NoScans {

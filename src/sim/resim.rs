@@ -446,7 +446,8 @@ impl<'a> Resimulator<'a> {
     }
 
     /// The simulated twins of `scans` (the run's next scans, in order), cast along
-    /// `trajectory` at the packets' own stamps (GNSS time when `pps_locked`).
+    /// `trajectory` at the packets' own stamps (GNSS time when `pps_locked`: a property of the
+    /// run, so the first call's value holds for the whole re-simulation).
     pub fn cast(
         &mut self,
         trajectory: &Trajectory,

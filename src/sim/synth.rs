@@ -181,19 +181,15 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<(), SynthError> {
 )]
 pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, SynthError> {
     let RigParts {
-        rig,
+        lidar,
+        gnss: gnss_cfg,
+        can: can_cfg,
         model,
         calibration,
         dbc,
         mode,
     } = rig_parts(job)?;
-    let lacks = |what| SynthError::RigLacks {
-        rig: job.drive_base.join(&job.drive.rig),
-        what,
-    };
-    let lidar = rig.lidar.as_ref().ok_or_else(|| lacks("[lidar]"))?;
-    let gnss_cfg = rig.gnss.as_ref().ok_or_else(|| lacks("[gnss]"))?;
-    let can_cfg = rig.can.as_ref().ok_or_else(|| lacks("[can]"))?;
+    let (lidar, gnss_cfg, can_cfg) = (&lidar, &gnss_cfg, &can_cfg);
     // Nothing is written for a drive no car can drive.
     job.drive.drivable()?;
     let errors = job.errors;
@@ -515,7 +511,9 @@ fn write_capture(
 
 /// What synthesis needs of the drive's rig, each part checked.
 struct RigParts {
-    rig: Rig,
+    lidar: crate::rig::LidarConfig,
+    gnss: crate::rig::GnssConfig,
+    can: crate::rig::CanConfig,
     model: Model,
     calibration: Calibration,
     dbc: Database,
@@ -527,7 +525,7 @@ struct RigParts {
 fn rig_parts(job: &SynthJob) -> Result<RigParts, SynthError> {
     let rig_path = job.drive_base.join(&job.drive.rig);
     let rig = Rig::load(&rig_path)?;
-    let (_, model, calibration) = rig.lidar_sensor().map_err(|source| SynthError::Lidar {
+    let (lidar, model, calibration) = rig.lidar_sensor().map_err(|source| SynthError::Lidar {
         rig: rig_path.clone(),
         source,
     })?;
@@ -535,9 +533,9 @@ fn rig_parts(job: &SynthJob) -> Result<RigParts, SynthError> {
         rig: rig_path.clone(),
         what,
     };
-    rig.gnss.as_ref().ok_or_else(|| lacks("[gnss]"))?;
-    let can_cfg = rig.can.as_ref().ok_or_else(|| lacks("[can]"))?;
-    let dbc = Database::from_file(&rig.resolve(&can_cfg.dbc))?;
+    let gnss = rig.gnss.clone().ok_or_else(|| lacks("[gnss]"))?;
+    let can = rig.can.clone().ok_or_else(|| lacks("[can]"))?;
+    let dbc = Database::from_file(&rig.resolve(&can.dbc))?;
     let mode = match job.drive.lidar.return_mode.as_str() {
         "strongest" => ReturnMode::Strongest,
         "last" => ReturnMode::Last,
@@ -545,7 +543,9 @@ fn rig_parts(job: &SynthJob) -> Result<RigParts, SynthError> {
         other => return Err(SynthError::ReturnMode(other.to_owned())),
     };
     Ok(RigParts {
-        rig,
+        lidar: lidar.clone(),
+        gnss,
+        can,
         model,
         calibration,
         dbc,

@@ -32,7 +32,8 @@ impl Demo {
         self.out.join("sim").join(model).join(format!("{rep}.mcap"))
     }
 
-    fn model(&self, file: &str) -> PathBuf {
+    /// A file of the parking fixture (a model, the phases).
+    fn fixture(&self, file: &str) -> PathBuf {
         self.inputs.root.join(file)
     }
 
@@ -247,7 +248,7 @@ fn resim_steps(d: &Demo) -> Result<Vec<Vec<Step>>> {
                     &"--scene",
                     &d.inputs.scene(rep),
                     &"--model",
-                    &d.model(file),
+                    &d.fixture(file),
                     &"-o",
                     &d.sim(name, rep),
                 ]),
@@ -334,7 +335,7 @@ fn validate_steps(d: &Demo) -> Result<Vec<Vec<Step>>> {
             }
             args.extend(words(&[
                 &"--phases",
-                &d.model("phases.toml"),
+                &d.fixture("phases.toml"),
                 &"--json",
                 &d.validate_json(name),
             ]));
@@ -370,7 +371,7 @@ fn gap_steps(d: &Demo) -> Result<Vec<Vec<Step>>> {
     let study = d.out.join("gap-study.toml");
     let fit = reps.len().div_ceil(2);
     let file = hilrig::gap::study::StudyFile {
-        model: std::path::absolute(d.model("idealized.toml"))?,
+        model: std::path::absolute(d.fixture("idealized.toml"))?,
         scene: None,
         rig: None,
         runs: reps

@@ -135,6 +135,19 @@ mod tests {
             text(EffectKind::Intensity),
             "exponent ≥ 0.2 or noise ≥ 1 count"
         );
+        assert_eq!(
+            text(EffectKind::DetectionThreshold),
+            "removes ≥ 0.2 % of the predicted returns"
+        );
+        assert_eq!(text(EffectKind::MotionDistortion), "none (a switch)");
+        assert_eq!(
+            text(EffectKind::TimeOffset),
+            "|offset| ≥ the larger of 1 ms and the uncertainty of the GNSS time offset `check` found"
+        );
+        assert_eq!(
+            text(EffectKind::MountMisalignment),
+            "largest angle ≥ 0.1° (the smoothed RTK heading is good to about that)"
+        );
         assert_eq!(FLOORS.len(), 10);
     }
 }

@@ -33,7 +33,7 @@ use detection::{power_at, sort_rows, sweep, sweep_ll};
 use geometric::Axis;
 
 use super::bootstrap;
-pub use super::likelihood::random_of;
+use super::likelihood::random_of;
 use super::likelihood::{self, Random, Scored};
 use super::observe::{Obs, RunData};
 use super::runset::{Gain, RunSet};

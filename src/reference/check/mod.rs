@@ -42,8 +42,8 @@ mod test_drive;
 
 pub use names::FaultName;
 pub use report::{
-    Accuracy, Fault, Report, RtkEpoch, Segment, SourceTiming, Spatial, Stats, Temporal, Verdict,
-    Warning,
+    Accuracy, Fault, Report, RtkEpoch, Segment, SigmaWindow, SourceTiming, Spatial, Stats,
+    Temporal, Verdict, Warning,
 };
 
 use super::noise::yaw_rate_noise;

@@ -110,6 +110,17 @@ pub struct RtkEpoch {
     pub sigma_horizontal_m: Option<f64>,
 }
 
+/// A one-second window of the receiver's stated horizontal sigma.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SigmaWindow {
+    /// Its start, s after the run's first epoch.
+    pub from_s: f64,
+    /// Its end, s.
+    pub to_s: f64,
+    /// The largest horizontal sigma in it (the larger of latitude and longitude), m.
+    pub sigma_m: f64,
+}
+
 /// Spatial measurements.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Spatial {
@@ -127,8 +138,8 @@ pub struct Spatial {
     pub rtk_fixed_share: f64,
     /// Receiver 1-sigma horizontal error per axis (larger of lat/lon), m.
     pub sigma_horizontal_m: Stats,
-    /// The three one-second windows with the largest horizontal sigma: (from s, to s, sigma m).
-    pub worst_sigma_windows: Vec<(f64, f64, f64)>,
+    /// The three one-second windows with the largest horizontal sigma, largest first.
+    pub worst_sigma_windows: Vec<SigmaWindow>,
     /// Receiver 1-sigma vertical error, m.
     pub sigma_vertical_m: Stats,
     /// Correction age, s.
@@ -370,7 +381,7 @@ impl Report {
             let w: Vec<String> = sp
                 .worst_sigma_windows
                 .iter()
-                .map(|(a, b, h)| format!("{a:.0}-{b:.0} s: {h:.3} m"))
+                .map(|w| format!("{:.0}-{:.0} s: {:.3} m", w.from_s, w.to_s, w.sigma_m))
                 .collect();
             let _ = writeln!(s, "largest sigmas: {}", w.join(", "));
         }

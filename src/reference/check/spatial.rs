@@ -4,7 +4,7 @@
 
 use super::faults::{iso, FaultLog};
 use super::names::FaultName;
-use super::report::{RtkEpoch, Spatial, Stats};
+use super::report::{RtkEpoch, SigmaWindow, Spatial, Stats};
 use crate::rig::Thresholds;
 use hilrig_gnss::{Fix, RtkState};
 use hilrig_stamp::UtcNanos;
@@ -106,8 +106,8 @@ pub(super) fn receiver(
     sp
 }
 
-/// The three one-second windows with the largest horizontal sigma: (from s, to s, sigma m).
-fn worst_sigma_windows(epochs: &[(UtcNanos, &Fix)], start: UtcNanos) -> Vec<(f64, f64, f64)> {
+/// The three one-second windows with the largest horizontal sigma.
+fn worst_sigma_windows(epochs: &[(UtcNanos, &Fix)], start: UtcNanos) -> Vec<SigmaWindow> {
     let mut windows: std::collections::BTreeMap<i64, f64> = std::collections::BTreeMap::new();
     for &(t, f) in epochs {
         if let Some(h) = f.sigma_lat_m.zip(f.sigma_lon_m).map(|(a, b)| a.max(b)) {
@@ -122,7 +122,11 @@ fn worst_sigma_windows(epochs: &[(UtcNanos, &Fix)], start: UtcNanos) -> Vec<(f64
     worst
         .iter()
         .take(3)
-        .map(|&(k, h)| (k as f64, k as f64 + 1.0, h))
+        .map(|&(k, h)| SigmaWindow {
+            from_s: k as f64,
+            to_s: k as f64 + 1.0,
+            sigma_m: h,
+        })
         .collect()
 }
 
@@ -167,7 +171,10 @@ mod tests {
         assert!((sp.sigma_horizontal_m.max - 1.5).abs() < 1e-12);
         assert_eq!(sp.sigma_horizontal_m.n, 100);
         assert_eq!(
-            sp.worst_sigma_windows,
+            sp.worst_sigma_windows
+                .iter()
+                .map(|w| (w.from_s, w.to_s, w.sigma_m))
+                .collect::<Vec<_>>(),
             [(9.0, 10.0, 1.5), (2.0, 3.0, 0.25), (5.0, 6.0, 0.05)]
         );
         assert!((sp.correction_age_s.max - 8.0).abs() < 1e-12);

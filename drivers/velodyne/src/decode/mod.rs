@@ -227,6 +227,7 @@ impl Decoder {
         }
         self.decode_into(pkt, out)
     }
+
     /// Decodes a packet into a new vector.
     pub fn decode(&self, pkt: &DataPacket) -> Result<Vec<Point>, DecodeError> {
         let mut v = Vec::with_capacity(BLOCKS * CHANNELS);
