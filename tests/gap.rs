@@ -544,3 +544,66 @@ fn runs_of_a_few_scans_are_refused_naming_their_scans_and_the_minimum() {
     );
     assert!(out.report.is_none(), "nothing written");
 }
+
+/// A detection threshold and random dropout hidden together: both remove returns, so the one
+/// fitted first takes some of the other's share. When the second joins, the first is fitted
+/// again with it (the joint re-fit): both end within 20 % of the truth, the re-fit is
+/// reported with the parameters before and after, and it moves the first effect toward the
+/// truth, not away.
+#[test]
+fn a_threshold_and_dropout_hidden_together_are_fitted_jointly() {
+    // 25 m at 10 % reflectivity (43.3 m at 0.3), and 2 % of the returns lost at random.
+    let (_d, out) = run_hidden(
+        "name = \"t\"\n[[effect]]\nname = \"detection_threshold\"\nreference_range_m = 43.3\nreference_reflectivity = 0.3\n[[effect]]\nname = \"random_dropout\"\nprobability = 0.02\n",
+        IDEALIZED,
+        23,
+        &|t| t,
+    );
+    let report = out.report.unwrap();
+    eprintln!("{}", out.stdout);
+    let f = found(&report);
+    let truth = |name: &str| match name {
+        "detection_threshold" => ("reference_range_m", 25.0),
+        _ => ("probability", 0.02),
+    };
+    for hidden in ["detection_threshold", "random_dropout"] {
+        let (_, params) = f
+            .iter()
+            .rev()
+            .find(|x| x.0 == hidden)
+            .unwrap_or_else(|| panic!("{hidden} not found:\n{}", out.stdout));
+        let (name, want) = truth(hidden);
+        // The last word on it: the joint re-fit of a later round, else its own round's fit.
+        let last = report["rounds"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|r| r["refits"].as_array().cloned().unwrap_or_default())
+            .rfind(|x| x["effect"] == hidden)
+            .map_or_else(|| param(params, name), |x| param(&x["after"], name));
+        assert!(
+            (last - want).abs() < 0.2 * want,
+            "{hidden}: {name} {last}, truth {want}:\n{}",
+            out.stdout
+        );
+    }
+    // The round that added the second re-fitted the first, toward its truth.
+    let second = report["rounds"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|r| r["chosen"].is_string())
+        .nth(1)
+        .expect("two effects added");
+    let refit = second["refits"]
+        .as_array()
+        .and_then(|r| r.first())
+        .unwrap_or_else(|| panic!("no re-fit reported: {second}"));
+    let first = refit["effect"].as_str().unwrap();
+    let (name, want) = truth(first);
+    let (before, after) = (param(&refit["before"], name), param(&refit["after"], name));
+    assert!(
+        (after - want).abs() <= (before - want).abs() + 0.01 * want,
+        "{first}: {name} {before} -> {after}, truth {want}"
+    );
+}

@@ -7,7 +7,7 @@
 //! model and pairs them with the measured returns; [`bins`] shows where they disagree;
 //! [`likelihood`] scores how well a model explains them; [`candidates`] fits every effect the
 //! model lacks and scores it on the parameterization runs' [`runset`], on casts [`casts`] keeps from round to round; [`workflow`] adds the best one, keeps it only when it improves
-//! the validation runs beyond their noise ([`bootstrap`]), re-simulates them in full for the
+//! the validation runs beyond their noise ([`bootstrap`]), re-fits the effects added before together with it ([`refit`]), re-simulates them in full for the
 //! metrics a user reads ([`full_metrics`]), and repeats; [`report`] is what it
 //! writes. The runs and their
 //! roles come from a [`study`] file. Parameterization and validation data never mix
@@ -20,6 +20,7 @@ pub mod casts;
 mod full_metrics;
 pub mod likelihood;
 pub mod observe;
+mod refit;
 pub mod report;
 pub mod runset;
 pub mod study;

@@ -66,6 +66,22 @@ pub struct FeatureLight {
     pub light: crate::stats::avm::Light,
 }
 
+/// An effect of the model re-fitted when another joined it: two effects that explain the same
+/// disagreement (a detection threshold and random dropout both remove returns) share it out
+/// only when they are fitted together.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Refit {
+    /// The effect re-fitted.
+    pub effect: EffectKind,
+    /// Its parameters before.
+    pub before: Vec<Param>,
+    /// And after, fitted with the new effect in the model.
+    pub after: Vec<Param>,
+    /// The re-fitted value no longer clears the effect's resolution floor: the new effect
+    /// explains what it did.
+    pub below_floor: bool,
+}
+
 /// An added effect tested on the validation runs.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Trial {
@@ -81,6 +97,10 @@ pub struct Trial {
     pub after: FiringStats,
     /// Kept: the interval lies above zero.
     pub kept: bool,
+    /// The effects the workflow had added before, re-fitted together with this one (the
+    /// model tried is the jointly fitted one).
+    #[serde(default)]
+    pub refits: Vec<Refit>,
 }
 
 /// One round.
@@ -99,8 +119,12 @@ pub struct Round {
     pub trials: Vec<Trial>,
     /// The effect added in this round.
     pub chosen: Option<EffectKind>,
-    /// Its fitted parameters.
+    /// Its fitted parameters (after the joint re-fit).
     pub parameters: Vec<Param>,
+    /// The effects added before, re-fitted together with it: their parameters before and
+    /// after.
+    #[serde(default)]
+    pub refits: Vec<Refit>,
     /// Full-run metrics on the validation runs before and after (when computed).
     pub metrics_before: Option<RunMetrics>,
     /// After.
@@ -223,7 +247,13 @@ pub(super) fn describe(tables: &[Table]) -> Vec<String> {
 
 /// The fitted parameters with their intervals, as the summary prints them.
 pub(super) fn params_text(c: &Candidate) -> String {
-    c.params
+    values_text(&c.params)
+}
+
+/// Fitted values as `name = value [low, high]`, comma-separated (a fixed reference
+/// reflectivity and a switch's `enabled` left out).
+fn values_text(params: &[Param]) -> String {
+    params
         .iter()
         .filter(|p| p.name != "reference_reflectivity" && p.name != "enabled")
         .map(|p| {
@@ -303,7 +333,32 @@ pub(super) fn summary_line(
     round: &Round,
     runs: usize,
 ) -> String {
-    let mut parts = vec![format!("found: {} {}", c.effect, params_text(c))];
+    // The parameters as the joint re-fit left them (the candidate's own fit where there was
+    // nothing to re-fit with).
+    let params = if round.parameters.is_empty() {
+        &c.params
+    } else {
+        &round.parameters
+    };
+    let mut parts = vec![format!("found: {} {}", c.effect, values_text(params))];
+    // Re-fits that changed nothing to the printed digits are in gap.json, not in the line.
+    for r in round
+        .refits
+        .iter()
+        .filter(|r| values_text(&r.before) != values_text(&r.after) || r.below_floor)
+    {
+        parts.push(format!(
+            "{} re-fitted with it: {} -> {}{}",
+            r.effect,
+            values_text(&r.before),
+            values_text(&r.after),
+            if r.below_floor {
+                " (now below its resolution floor)"
+            } else {
+                ""
+            }
+        ));
+    }
     if let (Some(b), Some(a)) = (&round.metrics_before, &round.metrics_after) {
         for (label, x, y) in [
             ("OCR", b.ocr, a.ocr),
@@ -434,6 +489,7 @@ mod tests {
             before: stats.clone(),
             after: stats,
             kept,
+            refits: Vec::new(),
         }
     }
 

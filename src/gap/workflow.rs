@@ -8,12 +8,13 @@
 
 use super::bins::{tables, Table};
 use super::bootstrap;
-use super::candidates::{with_effect, Candidate, Fitting};
+use super::candidates::{with_effect, Candidate, Fitting, Param};
 use super::full_metrics::run_metrics;
 use super::observe::{count_scans, evaluate, features, load_run, Feature, Obs, RunData};
+use super::refit::{joint_refit, Added};
 use super::report::{
     alike, confounded_line, describe, firing_stats, no_effect_line, save, summary_line, GapReport,
-    Round, RunInfo, Trial,
+    Refit, Round, RunInfo, Trial,
 };
 use super::runset::RunSet;
 use super::study::{Role, Study};
@@ -315,11 +316,15 @@ fn first_report(study: &Study, infos: Vec<RunInfo>, split: Option<String>) -> Ga
     report
 }
 
-/// An effect a round added: the candidate and the model with it.
+/// An effect a round added: the candidate, the model with it (the effects added before
+/// re-fitted together with it), and its gain on the validation runs.
 struct Accepted {
     candidate: Candidate,
     model: ModelFile,
     gain: f64,
+    /// The candidate's parameters after the joint re-fit.
+    params: Vec<Param>,
+    refits: Vec<Refit>,
 }
 
 /// The candidates of a round tried on the validation runs (`this.trials` gets each trial):
@@ -328,8 +333,9 @@ struct Accepted {
 /// ranking is no evidence, and of those the one that improves the validation runs most is
 /// added.
 fn try_candidates(
-    val: &RunSet,
+    (fit, val): (&RunSet, &RunSet),
     model: &ModelFile,
+    added: &[Added],
     candidates: &[Candidate],
     this: &mut Round,
 ) -> Result<Option<Accepted>, GapError> {
@@ -346,6 +352,7 @@ fn try_candidates(
         let next = c.refitted.iter().fold(with_effect(model, effect), |m, e| {
             with_effect(&m, e.clone())
         });
+        let (next, params, refits) = joint_refit(fit, next, c, added)?;
         let trial = val.evaluate(&next, Some(&now.scales))?;
         let gain = val.gain(&trial.scored, &now.scored);
         let kept = gain.interval.is_some_and(|(lo, _)| lo > 0.0);
@@ -356,12 +363,15 @@ fn try_candidates(
             before: before.clone(),
             after: firing_stats(&trial.obs, &val.feats, &trial.scored),
             kept,
+            refits: refits.clone(),
         });
         if kept && accepted.as_ref().is_none_or(|a| gain.total > a.gain) {
             accepted = Some(Accepted {
                 candidate: c.clone(),
                 model: next,
                 gain: gain.total,
+                params,
+                refits,
             });
         }
     }
@@ -412,6 +422,7 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
     let metrics_dir = opts.out.join("sim");
     let full_metrics = opts.full_metrics && report.split.is_none();
     let mut measured = Vec::new();
+    let mut added: Vec<Added> = Vec::new();
     let mut metrics_now = if full_metrics {
         progress.phase(0, "re-simulating the validation runs with the start model");
         Some(run_metrics(
@@ -441,6 +452,7 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             trials: Vec::new(),
             chosen: None,
             parameters: Vec::new(),
+            refits: Vec::new(),
             metrics_before: metrics_now.clone(),
             metrics_after: None,
         };
@@ -448,8 +460,10 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
         let Some(Accepted {
             candidate: c,
             model: next,
+            params,
+            refits,
             ..
-        }) = try_candidates(&val, &model, &candidates, &mut this)?
+        }) = try_candidates((&fit, &val), &model, &added, &candidates, &mut this)?
         else {
             let line = no_effect_line(round, &candidates, &this.trials);
             report.ended = Some(line.clone());
@@ -459,7 +473,17 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
         };
         model = next;
         this.chosen = Some(c.effect);
-        this.parameters = c.params.clone();
+        for r in &refits {
+            if let Some(a) = added.iter_mut().find(|a| a.kind == r.effect) {
+                a.params.clone_from(&r.after);
+            }
+        }
+        added.push(Added {
+            kind: c.effect,
+            params: params.clone(),
+        });
+        this.parameters = params;
+        this.refits = refits;
         if full_metrics {
             progress.phase(
                 round,

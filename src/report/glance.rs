@@ -170,6 +170,7 @@ mod tests {
             trials: Vec::new(),
             chosen,
             parameters: Vec::new(),
+            refits: Vec::new(),
             metrics_before: None,
             metrics_after: None,
         }

@@ -489,6 +489,35 @@ fn gap_section<'a>(out: &mut String, gaps: &[Named<'a, GapReport>]) {
                     &params,
                 );
             }
+            // The effects added before, re-fitted together with this one.
+            let refits: Vec<Vec<String>> = r
+                .refits
+                .iter()
+                .flat_map(|f| {
+                    f.after.iter().map(move |p| {
+                        let before = f.before.iter().find(|b| b.name == p.name);
+                        vec![
+                            esc(f.effect.name()),
+                            esc(&p.name),
+                            fixed(before.map(|b| b.value), 5),
+                            fixed(Some(p.value), 5),
+                            if f.below_floor {
+                                "below its floor now".to_owned()
+                            } else {
+                                String::new()
+                            },
+                        ]
+                    })
+                })
+                .collect();
+            if !refits.is_empty() {
+                table(
+                    out,
+                    &format!("gap-{g}-round-{k}-refits"),
+                    &["re-fitted with it", "parameter", "before", "after", ""],
+                    &refits,
+                );
+            }
             if let (Some(b), Some(a)) = (&r.metrics_before, &r.metrics_after) {
                 metrics_table(out, &format!("gap-{g}-round-{k}-metrics"), b, a);
             }

@@ -44,6 +44,20 @@ use rayon::prelude::*;
 /// A 95 % interval.
 pub type Interval = (f64, f64);
 
+/// The catalogue in the order its candidates are fitted.
+pub const CATALOGUE: [EffectKind; 10] = [
+    EffectKind::RangeBias,
+    EffectKind::RangeNoise,
+    EffectKind::RandomDropout,
+    EffectKind::DetectionThreshold,
+    EffectKind::MotionDistortion,
+    EffectKind::TimeOffset,
+    EffectKind::MountMisalignment,
+    EffectKind::BeamDivergence,
+    EffectKind::Intensity,
+    EffectKind::Weather,
+];
+
 /// A predicted return away from edges: its bootstrap block, predicted power, and whether the
 /// sensor returned it.
 pub(super) type DetectionRow = (usize, f64, bool);
@@ -408,89 +422,88 @@ impl Fitting<'_> {
             .fold(0.0, f64::max)
     }
 
-    /// Every candidate the current model lacks, fitted and scored; `progress` is told the name
-    /// of each as it starts.
+    /// Fits one effect of the catalogue to the runs under the current model (which should not
+    /// hold it): its candidate, or `None` where there is nothing to fit (motion distortion is a
+    /// switch, and is `None` when the current model has it on already).
+    pub fn fit(&self, kind: EffectKind) -> Result<Option<Candidate>, GapError> {
+        Ok(Some(match kind {
+            EffectKind::RangeBias => self.bias()?,
+            EffectKind::RangeNoise => self.noise(),
+            EffectKind::RandomDropout => self.dropout(),
+            EffectKind::DetectionThreshold => self.threshold()?,
+            EffectKind::MotionDistortion => return self.motion(),
+            EffectKind::TimeOffset => self.time_offset()?,
+            EffectKind::MountMisalignment => self.mount()?,
+            EffectKind::BeamDivergence => self.divergence()?,
+            EffectKind::Intensity => self.intensity()?,
+            EffectKind::Weather => self.weather()?,
+        }))
+    }
+
+    fn time_offset(&self) -> Result<Candidate, GapError> {
+        // The trajectory's own timing is known only to the GNSS offset's uncertainty.
+        let time_sigma = self.largest_over_runs(|r| r.time_sigma_ms);
+        let time_floor = time_sigma.max(floor::TIME_OFFSET_MS);
+        self.geometric(
+            EffectKind::TimeOffset,
+            &[Axis {
+                name: "offset_ms",
+                step: 2.0,
+                max_step: 60.0,
+                reference_sigma: time_sigma,
+            }],
+            &|t| Effect::TimeOffset { offset_ms: t[0] },
+            &|t, i| clears(t[0], i[0], time_floor),
+        )
+    }
+
+    fn mount(&self) -> Result<Candidate, GapError> {
+        // The trajectory's heading error turns the whole scan like a mount yaw.
+        let heading_sigma = self.largest_over_runs(|r| r.heading_sigma_deg);
+        let yaw_floor = heading_sigma.max(floor::MOUNT_DEG);
+        let axis = |name, reference_sigma| Axis {
+            name,
+            step: 0.1,
+            max_step: 3.0,
+            reference_sigma,
+        };
+        self.geometric(
+            EffectKind::MountMisalignment,
+            &[
+                axis("roll_deg", 0.0),
+                axis("pitch_deg", 0.0),
+                axis("yaw_deg", heading_sigma),
+            ],
+            &|t| Effect::MountMisalignment {
+                roll_deg: t[0],
+                pitch_deg: t[1],
+                yaw_deg: t[2],
+            },
+            &|t, i| {
+                clears(t[0], i[0], floor::MOUNT_DEG)
+                    || clears(t[1], i[1], floor::MOUNT_DEG)
+                    || clears(t[2], i[2], yaw_floor)
+            },
+        )
+    }
+
+    /// Every effect of the catalogue the current model lacks, fitted and scored, best first
+    /// (weather only on top of a detection threshold, whose extinction it changes); `progress`
+    /// is told the name of each as it starts.
     pub fn all(&self, progress: &dyn Fn(EffectKind)) -> Result<Vec<Candidate>, GapError> {
         let has = |kind: EffectKind| self.current.effects.iter().any(|e| e.kind() == kind);
         let mut out = Vec::new();
-        if !has(EffectKind::RangeBias) {
-            progress(EffectKind::RangeBias);
-            out.push(self.bias()?);
-        }
-        if !has(EffectKind::RangeNoise) {
-            progress(EffectKind::RangeNoise);
-            out.push(self.noise());
-        }
-        if !has(EffectKind::RandomDropout) {
-            progress(EffectKind::RandomDropout);
-            out.push(self.dropout());
-        }
-        if !has(EffectKind::DetectionThreshold) {
-            progress(EffectKind::DetectionThreshold);
-            out.push(self.threshold()?);
-        }
-        progress(EffectKind::MotionDistortion);
-        if let Some(c) = self.motion()? {
-            out.push(c);
-        }
-        if !has(EffectKind::TimeOffset) {
-            progress(EffectKind::TimeOffset);
-            // The trajectory's own timing is known only to the GNSS offset's uncertainty.
-            let time_sigma = self.largest_over_runs(|r| r.time_sigma_ms);
-            let time_floor = time_sigma.max(floor::TIME_OFFSET_MS);
-            out.push(self.geometric(
-                EffectKind::TimeOffset,
-                &[Axis {
-                    name: "offset_ms",
-                    step: 2.0,
-                    max_step: 60.0,
-                    reference_sigma: time_sigma,
-                }],
-                &|t| Effect::TimeOffset { offset_ms: t[0] },
-                &|t, i| clears(t[0], i[0], time_floor),
-            )?);
-        }
-        if !has(EffectKind::MountMisalignment) {
-            progress(EffectKind::MountMisalignment);
-            // The trajectory's heading error turns the whole scan like a mount yaw.
-            let heading_sigma = self.largest_over_runs(|r| r.heading_sigma_deg);
-            let yaw_floor = heading_sigma.max(floor::MOUNT_DEG);
-            let axis = |name, reference_sigma| Axis {
-                name,
-                step: 0.1,
-                max_step: 3.0,
-                reference_sigma,
+        for kind in CATALOGUE {
+            let wanted = match kind {
+                // A switch: `motion` says whether the current model has it off.
+                EffectKind::MotionDistortion => true,
+                EffectKind::Weather => !has(kind) && has(EffectKind::DetectionThreshold),
+                _ => !has(kind),
             };
-            out.push(self.geometric(
-                EffectKind::MountMisalignment,
-                &[
-                    axis("roll_deg", 0.0),
-                    axis("pitch_deg", 0.0),
-                    axis("yaw_deg", heading_sigma),
-                ],
-                &|t| Effect::MountMisalignment {
-                    roll_deg: t[0],
-                    pitch_deg: t[1],
-                    yaw_deg: t[2],
-                },
-                &|t, i| {
-                    clears(t[0], i[0], floor::MOUNT_DEG)
-                        || clears(t[1], i[1], floor::MOUNT_DEG)
-                        || clears(t[2], i[2], yaw_floor)
-                },
-            )?);
-        }
-        if !has(EffectKind::BeamDivergence) {
-            progress(EffectKind::BeamDivergence);
-            out.push(self.divergence()?);
-        }
-        if !has(EffectKind::Intensity) {
-            progress(EffectKind::Intensity);
-            out.push(self.intensity()?);
-        }
-        if !has(EffectKind::Weather) && has(EffectKind::DetectionThreshold) {
-            progress(EffectKind::Weather);
-            out.push(self.weather()?);
+            if wanted {
+                progress(kind);
+                out.extend(self.fit(kind)?);
+            }
         }
         out.sort_by(|a, b| b.gain.total_cmp(&a.gain));
         Ok(out)
