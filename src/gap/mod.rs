@@ -6,18 +6,21 @@
 //! workflow works firing by firing: [`observe`] casts a sample of each run's firings with a
 //! model and pairs them with the measured returns; [`bins`] shows where they disagree;
 //! [`likelihood`] scores how well a model explains them; [`candidates`] fits every effect the
-//! model lacks and scores it on the parameterization runs' [`runset`], on casts [`casts`] keeps from round to round; [`workflow`] adds the best one, keeps it only when it improves
-//! the validation runs beyond their noise ([`bootstrap`]), re-fits the effects added before together with it ([`refit`]), re-simulates them in full for the
-//! metrics a user reads ([`full_metrics`]), and repeats; [`report`] is what it
-//! writes. The runs and their
-//! roles come from a [`study`] file. Parameterization and validation data never mix
-//! (Rosenberger et al. 2019, §4).
+//! model lacks and scores it on the parameterization runs' [`runset`], on casts [`casts`]
+//! keeps from round to round; [`workflow`] tries the best one with the effects added before
+//! re-fitted together with it ([`refit`]), and keeps it only when it improves the validation
+//! runs' likelihood beyond their noise ([`bootstrap`]) and makes none of the metrics a user
+//! reads worse beyond theirs ([`keep`]: the validation runs re-simulated in full,
+//! [`full_metrics`]); then it repeats. [`report`] is what it writes. The runs and their roles
+//! come from a [`study`] file. Parameterization and validation data never mix (Rosenberger et
+//! al. 2019, §4).
 
 pub mod bins;
 pub mod bootstrap;
 pub mod candidates;
 pub mod casts;
 mod full_metrics;
+pub mod keep;
 pub mod likelihood;
 pub mod observe;
 mod refit;

@@ -95,12 +95,53 @@ pub struct Trial {
     pub before: FiringStats,
     /// After.
     pub after: FiringStats,
-    /// Kept: the interval lies above zero.
+    /// Kept: the interval lies above zero, and no validation metric got worse beyond its
+    /// noise ([`Trial::metrics`]).
     pub kept: bool,
     /// The effects the workflow had added before, re-fitted together with this one (the
     /// model tried is the jointly fitted one).
     #[serde(default)]
     pub refits: Vec<Refit>,
+    /// The keep rule's metric half: the validation runs re-simulated in full with the trial
+    /// and its metrics judged against the current model's (none where the likelihood already
+    /// refused it, or where full metrics were off: then it was judged on the likelihood
+    /// alone).
+    #[serde(default)]
+    pub metrics: Option<MetricCheck>,
+}
+
+impl Trial {
+    /// The metrics it made worse beyond their noise.
+    pub fn worse(&self) -> &[super::keep::Worse] {
+        self.metrics.as_ref().map_or(&[], |m| m.worse.as_slice())
+    }
+
+    /// Whether the metrics refused it (confounded).
+    pub fn confounded(&self) -> bool {
+        self.metrics
+            .as_ref()
+            .is_some_and(|m| m.decision == super::keep::Decision::Confounded)
+    }
+}
+
+/// The metric half of the keep rule for one trial.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct MetricCheck {
+    /// The trial's full-run metrics on the validation runs (as a round reports them).
+    pub after: RunMetrics,
+    /// What the grid metrics were judged on.
+    pub grid: super::keep::GridBasis,
+    /// Metrics judged (the Bonferroni family).
+    pub judged: usize,
+    /// The one-sided level of each: [`super::keep::FAMILY_LEVEL`] / `judged`.
+    pub level: f64,
+    /// The metrics made worse beyond their noise.
+    pub worse: Vec<super::keep::Worse>,
+    /// The grid metrics made better beyond their noise.
+    #[serde(default)]
+    pub improved: Vec<super::keep::Watched>,
+    /// What they decide: none worse, a trade-off (kept), or confounded (not kept).
+    pub decision: super::keep::Decision,
 }
 
 /// One round.
@@ -296,15 +337,19 @@ pub(super) fn no_effect_line(round: usize, candidates: &[Candidate], trials: &[T
         .filter(|t| !t.kept)
         .filter_map(|t| {
             let c = candidates.iter().find(|c| c.effect == t.effect)?;
-            Some(format!(
-                "{} ({}) fits the parameterization runs (gain {:.1} nats [{}]) but did not improve the validation runs beyond their noise (gain {:.1} nats [{}])",
-                c.effect,
-                params_text(c),
-                c.gain,
-                interval_text(c.gain_interval),
-                t.gain,
-                interval_text(t.gain_interval)
-            ))
+            Some(if !t.confounded() {
+                format!(
+                    "{} ({}) fits the parameterization runs (gain {:.1} nats [{}]) but did not improve the validation runs beyond their noise (gain {:.1} nats [{}])",
+                    c.effect,
+                    params_text(c),
+                    c.gain,
+                    interval_text(c.gain_interval),
+                    t.gain,
+                    interval_text(t.gain_interval)
+                )
+            } else {
+                worse_text(c, t)
+            })
         })
         .collect();
     if !tried.is_empty() {
@@ -324,6 +369,20 @@ pub(super) fn no_effect_line(round: usize, candidates: &[Candidate], trials: &[T
         ),
         None => format!("no missing effect found in round {round}: no candidate left"),
     }
+}
+
+/// A trial the metric half of the keep rule refused: confounded, with the metrics it made
+/// worse and by how much.
+pub(super) fn worse_text(c: &Candidate, t: &Trial) -> String {
+    let worse: Vec<String> = t.worse().iter().map(ToString::to_string).collect();
+    format!(
+        "{} ({}) is confounded: it improves the validation runs' likelihood (gain {:.1} nats [{}]) but makes a validation metric worse beyond its noise: {}; not kept",
+        c.effect,
+        params_text(c),
+        t.gain,
+        interval_text(t.gain_interval),
+        worse.join(", ")
+    )
 }
 
 /// The one-line finding of a round.
@@ -385,6 +444,19 @@ pub(super) fn summary_line(
             "log-likelihood {:+.3} -> {:+.3} per 1000 firings",
             t.before.log_likelihood_per_1000, t.after.log_likelihood_per_1000
         ));
+        if let Some(m) = t
+            .metrics
+            .as_ref()
+            .filter(|m| m.decision == super::keep::Decision::TradeOff)
+        {
+            let worse: Vec<String> = m.worse.iter().map(ToString::to_string).collect();
+            let better: Vec<String> = m.improved.iter().map(ToString::to_string).collect();
+            parts.push(format!(
+                "a trade-off: {} worse beyond noise while {} improved beyond noise",
+                worse.join(", "),
+                better.join(", ")
+            ));
+        }
     }
     format!("{} on {runs} validation runs", parts.join("; "))
 }
@@ -490,6 +562,7 @@ mod tests {
             after: stats,
             kept,
             refits: Vec::new(),
+            metrics: None,
         }
     }
 

@@ -9,7 +9,7 @@
 use super::bins::{tables, Table};
 use super::bootstrap;
 use super::candidates::{with_effect, Candidate, Fitting, Param};
-use super::full_metrics::run_metrics;
+use super::full_metrics::{Judged, Watch};
 use super::observe::{count_scans, evaluate, features, load_run, Feature, Obs, RunData};
 use super::refit::{joint_refit, Added};
 use super::report::{
@@ -325,18 +325,22 @@ struct Accepted {
     /// The candidate's parameters after the joint re-fit.
     params: Vec<Param>,
     refits: Vec<Refit>,
+    /// Its full re-simulation of the validation runs, judged (with full metrics on).
+    judged: Option<Judged>,
 }
 
 /// The candidates of a round tried on the validation runs (`this.trials` gets each trial):
 /// the first eligible candidate that improves the validation runs is added; but when others
 /// explain the parameterization runs as well as it does (confounded, see `alike`), their
 /// ranking is no evidence, and of those the one that improves the validation runs most is
-/// added.
+/// added. "Improves" is the keep rule: the likelihood's gain above zero, and (with `watch`)
+/// no validation metric worse beyond its noise ([`super::keep`]).
 fn try_candidates(
     (fit, val): (&RunSet, &RunSet),
     model: &ModelFile,
     added: &[Added],
     candidates: &[Candidate],
+    mut watch: Option<&mut Watch<'_>>,
     this: &mut Round,
 ) -> Result<Option<Accepted>, GapError> {
     let now = val.evaluate(model, None)?;
@@ -355,7 +359,18 @@ fn try_candidates(
         let (next, params, refits) = joint_refit(fit, next, c, added)?;
         let trial = val.evaluate(&next, Some(&now.scales))?;
         let gain = val.gain(&trial.scored, &now.scored);
-        let kept = gain.interval.is_some_and(|(lo, _)| lo > 0.0);
+        let likelier = gain.interval.is_some_and(|(lo, _)| lo > 0.0);
+        let judged = match watch.as_deref_mut() {
+            Some(w) if likelier => {
+                Some(w.judge(&next, &format!("round-{}-{}", this.round, c.effect))?)
+            }
+            _ => None,
+        };
+        let check = judged.as_ref().map(|j| j.check.clone());
+        let kept = likelier
+            && check
+                .as_ref()
+                .is_none_or(|m| m.decision != super::keep::Decision::Confounded);
         this.trials.push(Trial {
             effect: c.effect,
             gain: gain.total,
@@ -364,6 +379,7 @@ fn try_candidates(
             after: firing_stats(&trial.obs, &val.feats, &trial.scored),
             kept,
             refits: refits.clone(),
+            metrics: check,
         });
         if kept && accepted.as_ref().is_none_or(|a| gain.total > a.gain) {
             accepted = Some(Accepted {
@@ -372,6 +388,7 @@ fn try_candidates(
                 gain: gain.total,
                 params,
                 refits,
+                judged,
             });
         }
     }
@@ -419,19 +436,11 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
     model.name = format!("{} (gap-fitted)", study.model.name);
     let mut report = first_report(study, infos, split);
     save(&opts.out, &model, &report)?;
-    let metrics_dir = opts.out.join("sim");
     let full_metrics = opts.full_metrics && report.split.is_none();
-    let mut measured = Vec::new();
     let mut added: Vec<Added> = Vec::new();
-    let mut metrics_now = if full_metrics {
+    let mut watch = if full_metrics {
         progress.phase(0, "re-simulating the validation runs with the start model");
-        Some(run_metrics(
-            &val.runs,
-            &model,
-            &metrics_dir,
-            "round-0",
-            &mut measured,
-        )?)
+        Some(Watch::start(&val.runs, &model, opts.out.join("sim"))?)
     } else {
         None
     };
@@ -453,7 +462,7 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             chosen: None,
             parameters: Vec::new(),
             refits: Vec::new(),
-            metrics_before: metrics_now.clone(),
+            metrics_before: watch.as_ref().map(|w| w.metrics_now().clone()),
             metrics_after: None,
         };
         progress.phase(round, "validating");
@@ -462,8 +471,16 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             model: next,
             params,
             refits,
+            judged,
             ..
-        }) = try_candidates((&fit, &val), &model, &added, &candidates, &mut this)?
+        }) = try_candidates(
+            (&fit, &val),
+            &model,
+            &added,
+            &candidates,
+            watch.as_mut(),
+            &mut this,
+        )?
         else {
             let line = no_effect_line(round, &candidates, &this.trials);
             report.ended = Some(line.clone());
@@ -484,20 +501,9 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
         });
         this.parameters = params;
         this.refits = refits;
-        if full_metrics {
-            progress.phase(
-                round,
-                "re-simulating the validation runs with the new model",
-            );
-            let after = run_metrics(
-                &val.runs,
-                &model,
-                &metrics_dir,
-                &format!("round-{round}"),
-                &mut measured,
-            )?;
-            this.metrics_after = Some(after.clone());
-            metrics_now = Some(after);
+        if let (Some(w), Some(j)) = (watch.as_mut(), judged) {
+            this.metrics_after = Some(j.check.after.clone());
+            w.accept(j);
         }
         let trial = this
             .trials

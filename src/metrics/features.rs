@@ -15,6 +15,36 @@ pub const FEATURES: [&str; 4] = [
     "mean_intensity",
 ];
 
+/// A per-scan feature, as a value (the JSON and the validation cells spell it as in
+/// [`FEATURES`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ScanFeature {
+    /// Returns in the scan.
+    ReturnsPerScan,
+    /// Mean range of the returns, m.
+    MeanRangeM,
+    /// 95th percentile of the ranges, m.
+    RangeP95M,
+    /// Mean calibrated reflectivity.
+    MeanIntensity,
+}
+
+impl ScanFeature {
+    /// Every feature, in the order of [`ScanFeatures::values`].
+    pub const ALL: [ScanFeature; 4] = [
+        ScanFeature::ReturnsPerScan,
+        ScanFeature::MeanRangeM,
+        ScanFeature::RangeP95M,
+        ScanFeature::MeanIntensity,
+    ];
+
+    /// Its name, as in [`FEATURES`].
+    pub fn name(self) -> &'static str {
+        FEATURES[self as usize]
+    }
+}
+
 /// One scan's features.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScanFeatures {
@@ -81,6 +111,14 @@ pub fn scan_features(scans: &[Scan], decoder: &Decoder) -> Vec<ScanFeatures> {
 mod tests {
     use super::*;
     use hilrig_velodyne::{Channel, Model, PacketEncoder, ReturnMode, Sequence};
+
+    #[test]
+    fn a_feature_is_spelled_alike_as_a_value_and_by_name() {
+        for f in ScanFeature::ALL {
+            let json = serde_json::to_string(&f).unwrap();
+            assert_eq!(json, format!("\"{}\"", f.name()));
+        }
+    }
 
     /// A scan of known returns (every fourth laser empty, distances and reflectivities by
     /// formula), encoded as VLP-16 packets: the features against the same numbers computed

@@ -3,53 +3,17 @@
 //! reference data hold, what the simulation gets wrong and where, whether it is valid, and what
 //! the gap workflow found), each figure an inline SVG and each table plain HTML.
 
+use super::gap_section::gap_section;
+use super::markup::{esc, figure, table};
 use super::plots::{self, fixed, heading_from, usable_percent, Named};
 use super::Document;
 use super::Input;
 use crate::bag::info::Info;
-use crate::gap::report::{GapReport, Round, RunMetrics};
 use crate::metrics::report::Comparison;
 use crate::reference::check::{Report, Verdict};
 use crate::stats::avm::Light;
 use crate::stats::repetitions::Validation;
 use std::fmt::Write;
-
-/// HTML-escapes text.
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-}
-
-/// A figure: the SVG or a note why it is missing.
-fn figure(out: &mut String, id: &str, svg: Option<String>, caption: &str) {
-    let _ = write!(out, "<figure class=\"plot\" id=\"{id}\">");
-    match svg {
-        Some(svg) => out.push_str(&svg),
-        None => out.push_str("<p class=\"missing\">nothing to draw in the inputs</p>"),
-    }
-    let _ = writeln!(out, "<figcaption>{caption}</figcaption></figure>");
-}
-
-/// A table with a header row.
-fn table(out: &mut String, id: &str, head: &[&str], rows: &[Vec<String>]) {
-    let _ = write!(out, "<table id=\"{id}\"><thead><tr>");
-    for h in head {
-        let _ = write!(out, "<th>{}</th>", esc(h));
-    }
-    out.push_str("</tr></thead><tbody>");
-    for r in rows {
-        out.push_str("<tr>");
-        for c in r {
-            // Cells are escaped by the caller where they hold text from the inputs (some
-            // carry markup of their own: the traffic lights).
-            let _ = write!(out, "<td>{c}</td>");
-        }
-        out.push_str("</tr>");
-    }
-    out.push_str("</tbody></table>\n");
-}
 
 const STYLE: &str = "body{font-family:sans-serif;max-width:1060px;margin:24px auto;color:#222;line-height:1.4}\
 h1{font-size:24px}h2{font-size:19px;margin-top:34px;border-bottom:1px solid #ccc}h3{font-size:15px}\
@@ -400,161 +364,6 @@ fn validate_section(out: &mut String, vals: &[Named<Validation>]) {
         head.extend(metrics.iter().copied());
         table(out, &format!("traffic-light-{k}"), &head, &rows);
     }
-}
-
-fn gap_section<'a>(out: &mut String, gaps: &[Named<'a, GapReport>]) {
-    out.push_str("<h2 id=\"section-gap\">The gap workflow</h2>\n<p class=\"note\">Per round: every effect of the catalogue fitted to the parameterization runs and scored by the likelihood gain on the measured firings; the best one is kept only if the validation runs improve.</p>\n");
-    for (g, (name, v)) in gaps.iter().enumerate() {
-        let _ = write!(out, "<h3>{}</h3>\n<ul>", esc(name));
-        for line in &v.summary {
-            let _ = write!(out, "<li>{}</li>", esc(line));
-        }
-        out.push_str("</ul>\n");
-        let rounds = &v.rounds;
-        for (k, r) in rounds.iter().enumerate() {
-            let chosen = r.chosen.map_or("", |c| c.name());
-            let _ = writeln!(
-                out,
-                "<h3>Round {}: {}</h3>",
-                r.round,
-                if chosen.is_empty() {
-                    "nothing added".to_string()
-                } else {
-                    format!("{} added", esc(chosen))
-                }
-            );
-            figure(
-                out,
-                &format!("gap-{g}-round-{k}-candidates"),
-                super::gap_plots::gap_candidates(r),
-                "Candidates' likelihood gain with bootstrap intervals (the chosen one in blue).",
-            );
-            // The feature this round's effect settled most: the largest drop in disagreeing
-            // bins to the next round (else the one disagreeing most now).
-            let disagreeing = |round: &Round, feature: &str| -> usize {
-                round
-                    .bins
-                    .iter()
-                    .filter(|b| b.feature == feature)
-                    .flat_map(|b| &b.bins)
-                    .filter(|x| x.disagrees)
-                    .count()
-            };
-            let next = rounds.get(k + 1);
-            let feature = r
-                .bins
-                .iter()
-                .map(|b| b.feature.as_ref())
-                .max_by_key(|f| {
-                    let now = disagreeing(r, f);
-                    let drop = next.map_or(0, |x| now.saturating_sub(disagreeing(x, f)));
-                    (drop, now)
-                })
-                .unwrap_or_default()
-                .to_owned();
-            let of = |round: &'a Round| round.bins.iter().find(|b| b.feature == feature.as_str());
-            if let Some(before) = of(r) {
-                let after = next.and_then(of);
-                figure(
-                    out,
-                    &format!("gap-{g}-round-{k}-bins"),
-                    super::gap_plots::gap_bins(&feature, before, after),
-                    &format!(
-                        "Binned disagreement against {} before and after this round.",
-                        esc(&feature)
-                    ),
-                );
-            }
-            let params: Vec<Vec<String>> = r
-                .parameters
-                .iter()
-                .map(|p| {
-                    vec![
-                        esc(chosen),
-                        esc(&p.name),
-                        fixed(Some(p.value), 5),
-                        format!(
-                            "[{}, {}]",
-                            fixed(p.interval.map(|i| i.0), 5),
-                            fixed(p.interval.map(|i| i.1), 5)
-                        ),
-                    ]
-                })
-                .collect();
-            if !params.is_empty() {
-                table(
-                    out,
-                    &format!("gap-{g}-round-{k}-parameters"),
-                    &["effect", "parameter", "fitted", "95 % interval"],
-                    &params,
-                );
-            }
-            // The effects added before, re-fitted together with this one.
-            let refits: Vec<Vec<String>> = r
-                .refits
-                .iter()
-                .flat_map(|f| {
-                    f.after.iter().map(move |p| {
-                        let before = f.before.iter().find(|b| b.name == p.name);
-                        vec![
-                            esc(f.effect.name()),
-                            esc(&p.name),
-                            fixed(before.map(|b| b.value), 5),
-                            fixed(Some(p.value), 5),
-                            if f.below_floor {
-                                "below its floor now".to_owned()
-                            } else {
-                                String::new()
-                            },
-                        ]
-                    })
-                })
-                .collect();
-            if !refits.is_empty() {
-                table(
-                    out,
-                    &format!("gap-{g}-round-{k}-refits"),
-                    &["re-fitted with it", "parameter", "before", "after", ""],
-                    &refits,
-                );
-            }
-            if let (Some(b), Some(a)) = (&r.metrics_before, &r.metrics_after) {
-                metrics_table(out, &format!("gap-{g}-round-{k}-metrics"), b, a);
-            }
-        }
-    }
-}
-
-/// The validation runs' metrics before and after a round.
-fn metrics_table(out: &mut String, id: &str, b: &RunMetrics, a: &RunMetrics) {
-    let mut rows = Vec::new();
-    for (m, x, y) in [
-        ("OCR", b.ocr, a.ocr),
-        ("PRECISION", b.precision, a.precision),
-        ("IOU", b.iou, a.iou),
-    ] {
-        rows.push(vec![m.to_owned(), fixed(x, 3), fixed(y, 3)]);
-    }
-    let avm =
-        |x: &RunMetrics, name: &str| x.avm.iter().find(|p| p.metric == name).and_then(|p| p.avm);
-    for p in &b.avm {
-        rows.push(vec![
-            format!("AVM {}", esc(&p.metric)),
-            fixed(avm(b, &p.metric), 3),
-            fixed(avm(a, &p.metric), 3),
-        ]);
-    }
-    rows.push(vec![
-        "verdict".into(),
-        esc(b.verdict.name()),
-        esc(a.verdict.name()),
-    ]);
-    table(
-        out,
-        id,
-        &["metric on the validation runs", "before", "after"],
-        &rows,
-    );
 }
 
 fn inputs_section(out: &mut String, inputs: &[Input]) {

@@ -14,8 +14,10 @@
 
 mod document;
 pub mod gap_plots;
+mod gap_section;
 mod glance;
 mod html;
+mod markup;
 pub mod plots;
 
 pub use document::Document;
