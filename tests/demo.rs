@@ -254,6 +254,27 @@ fn no_effect_the_demo_s_gap_workflow_kept_made_a_validation_metric_worse() {
         }
     }
     assert!(kept > 0, "nothing kept");
+
+    // The fitted model beside the model that made the data: its metrics are the last
+    // model's (the last round's after, or before where the round added nothing), the
+    // generating model's differ from them, and the summary says what the JSON holds.
+    let r = gap
+        .reference
+        .as_ref()
+        .expect("the demo names its truth model");
+    let last = gap.rounds.last().expect("a round");
+    let fitted = last
+        .metrics_after
+        .as_ref()
+        .or(last.metrics_before.as_ref())
+        .unwrap();
+    assert_eq!(r.fitted.ocr, fitted.ocr);
+    assert_ne!(
+        r.metrics.ocr, r.fitted.ocr,
+        "the truth model simulated on its own"
+    );
+    assert!(r.judged >= 8, "{} metrics judged", r.judged);
+    assert!(gap.summary.contains(&r.line()), "{:?}", gap.summary);
 }
 
 /// `hilrig report` on its own refuses what is not one of the JSON kinds, and names the file.

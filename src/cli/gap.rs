@@ -45,6 +45,10 @@ pub struct GapArgs {
     /// (the decision rests on the per-firing likelihood either way).
     #[arg(long)]
     no_full_metrics: bool,
+    /// A model known to have made the data (a synthesized drive's truth): the fitted model's
+    /// validation metrics are set beside its, and judged against its noise.
+    #[arg(long)]
+    reference_model: Option<PathBuf>,
 }
 
 struct Bars {
@@ -128,6 +132,7 @@ pub fn run_cli(args: GapArgs) -> Result<ExitCode> {
         force: args.force,
         max_rounds: args.max_rounds,
         full_metrics: !args.no_full_metrics,
+        reference_model: args.reference_model.clone(),
     };
     let result = run(&study, &opts, &bars);
     if let Ok(mut started) = bars.started.lock() {

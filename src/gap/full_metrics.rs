@@ -6,7 +6,7 @@
 
 use super::keep::{self, GridBasis, Samples, ScanSample};
 use super::observe::RunData;
-use super::report::{FeatureAvm, FeatureLight, MetricCheck, RunMetrics};
+use super::report::{FeatureAvm, FeatureLight, MetricCheck, ReferenceCheck, RunMetrics};
 use super::GapError;
 use crate::metrics::compare::{compare_simulated, Options as CompareOptions, ToSimulate};
 use crate::metrics::features::scan_features;
@@ -264,11 +264,7 @@ impl<'a> Watch<'a> {
                 deterministic.as_ref().unwrap_or(&full.samples),
             )),
         };
-        let measured: keep::Measured = self
-            .measured
-            .iter()
-            .map(|r| r.scans.iter().map(|s| (s.stamp.0, s.values())).collect())
-            .collect();
+        let measured = self.measured_by_stamp();
         let j = keep::judge(&measured, (&self.now.samples, &full.samples), grid, 2019);
         Ok(Judged {
             check: MetricCheck {
@@ -283,6 +279,71 @@ impl<'a> Watch<'a> {
             full,
             deterministic,
         })
+    }
+
+    /// The current model against `reference` (a model known to have made the data): the
+    /// validation runs re-simulated with it (written as `reference`), and the current model
+    /// judged as a trial against it, the grid on the deterministic parts.
+    pub fn against(
+        &mut self,
+        reference: &ModelFile,
+        path: &Path,
+    ) -> Result<ReferenceCheck, GapError> {
+        let dir = self.dir.clone();
+        let (metrics, samples) = run_metrics(
+            self.val,
+            reference,
+            (&dir, "reference", true),
+            &mut self.measured,
+        )?;
+        let (det_ref, det_now) = (
+            keep::deterministic_part(reference),
+            keep::deterministic_part(&self.now.model),
+        );
+        let random_ref = !keep::same_effects(&det_ref, reference);
+        let random_now = !keep::same_effects(&det_now, &self.now.model);
+        let grid_ref = if random_ref {
+            Some(self.scratch(&det_ref, "reference-deterministic")?)
+        } else {
+            None
+        };
+        if random_now && self.deterministic_now.is_none() {
+            self.deterministic_now = Some(self.scratch(&det_now, "fitted-deterministic")?);
+        }
+        let grid_now = if random_now {
+            self.deterministic_now.as_ref().unwrap_or(&self.now.samples)
+        } else {
+            &self.now.samples
+        };
+        let measured = self.measured_by_stamp();
+        let j = keep::judge(
+            &measured,
+            (&samples, &self.now.samples),
+            Some((grid_ref.as_ref().unwrap_or(&samples), grid_now)),
+            2019,
+        );
+        Ok(ReferenceCheck {
+            path: path.display().to_string(),
+            name: reference.name.clone(),
+            metrics,
+            fitted: self.now.metrics.clone(),
+            grid: if random_ref || random_now {
+                GridBasis::DeterministicParts
+            } else {
+                GridBasis::Models
+            },
+            judged: j.judged,
+            level: keep::FAMILY_LEVEL / j.judged.max(1) as f64,
+            worse: j.worse,
+            improved: j.improved,
+        })
+    }
+
+    fn measured_by_stamp(&self) -> keep::Measured {
+        self.measured
+            .iter()
+            .map(|r| r.scans.iter().map(|s| (s.stamp.0, s.values())).collect())
+            .collect()
     }
 
     /// `judged`'s model becomes the current one.

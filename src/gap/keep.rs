@@ -120,7 +120,7 @@ impl std::fmt::Display for Worse {
                 noise_bound,
             } => write!(
                 f,
-                "{metric} {before:.4} -> {after:.4} (its noise under the current model reaches {noise_bound:.4})"
+                "{metric} {before:.4} -> {after:.4} (its noise reaches {noise_bound:.4})"
             ),
             Worse::Light {
                 feature,

@@ -43,6 +43,9 @@ pub enum GapError {
     /// The start model cannot be read.
     #[error("start model: {0}")]
     StartModel(#[source] crate::sim::model::ModelError),
+    /// The reference model (`--reference-model`) cannot be read.
+    #[error("reference model: {0}")]
+    ReferenceModel(#[source] crate::sim::model::ModelError),
     /// A run's scene cannot be read.
     #[error("scene of {}: {source}", .recording.display())]
     Scene {

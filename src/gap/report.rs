@@ -221,6 +221,56 @@ pub struct GapReport {
     /// round limit (also the summary's line of it).
     #[serde(default)]
     pub ended: Option<String>,
+    /// The fitted model against a model known to have made the data (`--reference-model`).
+    #[serde(default)]
+    pub reference: Option<ReferenceCheck>,
+}
+
+/// The fitted model's validation metrics beside those of a model known to have made the data
+/// (a synthesized drive's truth), judged as the keep rule judges a trial ([`super::keep`]):
+/// is the fitted model worse than the generating one beyond that one's noise?
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct ReferenceCheck {
+    /// The reference model's file.
+    pub path: String,
+    /// Its name.
+    pub name: String,
+    /// Its full-run metrics on the validation runs.
+    pub metrics: RunMetrics,
+    /// The fitted model's.
+    pub fitted: RunMetrics,
+    /// What the grid metrics were judged on.
+    pub grid: super::keep::GridBasis,
+    /// Metrics judged.
+    pub judged: usize,
+    /// The one-sided level of each.
+    pub level: f64,
+    /// Where the fitted model is worse than the reference beyond the reference's noise.
+    pub worse: Vec<super::keep::Worse>,
+    /// The grid metrics where it is better beyond it.
+    pub improved: Vec<super::keep::Watched>,
+}
+
+impl ReferenceCheck {
+    /// The summary's line.
+    pub fn line(&self) -> String {
+        if self.worse.is_empty() {
+            format!(
+                "against the generating model '{}' ({}): the fitted model is within its noise on all {} validation metrics judged",
+                self.name, self.path, self.judged
+            )
+        } else {
+            let worse: Vec<String> = self.worse.iter().map(ToString::to_string).collect();
+            format!(
+                "against the generating model '{}' ({}): the fitted model is worse beyond its noise in {} of {} validation metrics: {} (the generating model's value first)",
+                self.name,
+                self.path,
+                self.worse.len(),
+                self.judged,
+                worse.join(", ")
+            )
+        }
+    }
 }
 
 fn write_atomic(path: &Path, text: &str) -> Result<(), GapError> {

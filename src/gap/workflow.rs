@@ -36,6 +36,8 @@ pub struct Options {
     pub max_rounds: usize,
     /// Also re-simulate the validation runs in full for OCR^K and the traffic light.
     pub full_metrics: bool,
+    /// A model known to have made the data, to set the fitted model's metrics beside.
+    pub reference_model: Option<PathBuf>,
 }
 
 /// What the workflow reports as it goes.
@@ -304,6 +306,7 @@ fn first_report(study: &Study, infos: Vec<RunInfo>, split: Option<String>) -> Ga
         finished: false,
         summary: Vec::new(),
         ended: None,
+        reference: None,
     };
     for r in &report.runs {
         for m in &r.left_out {
@@ -524,6 +527,24 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             );
             report.ended = Some(line.clone());
             report.summary.push(line);
+        }
+    }
+    if let Some(path) = &opts.reference_model {
+        let reference = ModelFile::load(path).map_err(GapError::ReferenceModel)?;
+        match watch.as_mut() {
+            Some(w) => {
+                progress.phase(
+                    0,
+                    "re-simulating the validation runs with the reference model",
+                );
+                let r = w.against(&reference, path)?;
+                report.summary.push(r.line());
+                report.reference = Some(r);
+            }
+            None => report.summary.push(format!(
+                "the reference model {} was not compared: full metrics are off",
+                path.display()
+            )),
         }
     }
     report.finished = true;

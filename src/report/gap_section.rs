@@ -15,6 +15,29 @@ pub(super) fn gap_section<'a>(out: &mut String, gaps: &[Named<'a, GapReport>]) {
             let _ = write!(out, "<li>{}</li>", esc(line));
         }
         out.push_str("</ul>\n");
+        if let Some(r) = &v.reference {
+            let _ = writeln!(
+                out,
+                "<p class=\"note\">The fitted model beside the model known to have made the data ({}), on the validation runs; \"worse beyond noise\" as the keep rule judges a trial.</p>",
+                esc(&r.path)
+            );
+            metrics_table_with(
+                out,
+                &format!("gap-{g}-reference"),
+                (&r.metrics, &r.fitted),
+                [&format!("generating model '{}'", r.name), "fitted model"],
+            );
+            let worse: Vec<Vec<String>> =
+                r.worse.iter().map(|w| vec![esc(&w.to_string())]).collect();
+            if !worse.is_empty() {
+                table(
+                    out,
+                    &format!("gap-{g}-reference-worse"),
+                    &["the fitted model worse beyond the generating model's noise"],
+                    &worse,
+                );
+            }
+        }
         let rounds = &v.rounds;
         for (k, r) in rounds.iter().enumerate() {
             let chosen = r.chosen.map_or("", |c| c.name());
@@ -204,6 +227,16 @@ fn trials_table(out: &mut String, id: &str, r: &Round) {
 
 /// The validation runs' metrics before and after a round.
 fn metrics_table(out: &mut String, id: &str, b: &RunMetrics, a: &RunMetrics) {
+    metrics_table_with(out, id, (b, a), ["before", "after"]);
+}
+
+/// The validation runs' metrics of two models, under the given column heads.
+fn metrics_table_with(
+    out: &mut String,
+    id: &str,
+    (b, a): (&RunMetrics, &RunMetrics),
+    heads: [&str; 2],
+) {
     let mut rows = Vec::new();
     for (m, x, y) in [
         ("OCR", b.ocr, a.ocr),
@@ -229,7 +262,7 @@ fn metrics_table(out: &mut String, id: &str, b: &RunMetrics, a: &RunMetrics) {
     table(
         out,
         id,
-        &["metric on the validation runs", "before", "after"],
+        &["metric on the validation runs", heads[0], heads[1]],
         &rows,
     );
 }

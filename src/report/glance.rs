@@ -223,6 +223,7 @@ mod tests {
                 "no missing effect found in round 2: x".into(),
             ],
             ended: Some("no missing effect found in round 2: x".into()),
+            reference: None,
         };
         let summary = crate::metrics::report::Summary {
             ocr_mean: Some(0.8734),

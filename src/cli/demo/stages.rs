@@ -395,7 +395,16 @@ fn gap_steps(d: &Demo) -> Result<Vec<Vec<Step>>> {
         file.to_toml()?
     );
     std::fs::write(&study, text).with_context(|| format!("cannot write {}", study.display()))?;
-    let mut args = words(&[&"gap", &study, &"-o", &d.gap_dir()]);
+    // The demo knows what made its data: the fitted model is set beside it.
+    let truth = std::path::absolute(d.fixture("truth-model.toml"))?;
+    let mut args = words(&[
+        &"gap",
+        &study,
+        &"-o",
+        &d.gap_dir(),
+        &"--reference-model",
+        &truth,
+    ]);
     if d.quick {
         args.extend(words(&[&"--firings", &"200000"]));
     }
