@@ -285,7 +285,8 @@ fn runs_that_fail_the_check_are_refused_unless_forced() {
         String::from_utf8_lossy(&out.stderr)
     );
     let info = hilrig::bag::info::info(&out_path).unwrap();
-    assert_eq!(info.metadata["sim"]["check_verdict"], "Fail");
+    // The verdict spelt as check's JSON spells it.
+    assert_eq!(info.metadata["sim"]["check_verdict"], "fail");
 }
 
 /// Re-simulation with a model that has effects: on the noise-free drive and its own trajectory

@@ -219,7 +219,7 @@ pub fn resim_recording(
             "the recorder's clock model (lidar not PPS-locked)".to_owned()
         },
     );
-    meta.insert("check_verdict".to_owned(), format!("{:?}", report.verdict));
+    meta.insert("check_verdict".to_owned(), report.verdict.name().to_owned());
     meta.insert(
         "viewing_clouds".to_owned(),
         match clouds {

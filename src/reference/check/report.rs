@@ -18,6 +18,16 @@ pub enum Verdict {
 }
 
 impl Verdict {
+    /// Its name, as in the JSON ("pass", "fail", "unusable"): the one spelling wherever a
+    /// verdict is written as text (the simulation's metadata too).
+    pub fn name(self) -> &'static str {
+        match self {
+            Verdict::Pass => "pass",
+            Verdict::Fail => "fail",
+            Verdict::Unusable => "unusable",
+        }
+    }
+
     /// The process exit code: 0 pass, 1 fail, 2 unusable.
     pub fn exit_code(self) -> u8 {
         match self {
@@ -559,4 +569,19 @@ fn heading_text(h: Option<&HeadingReport>) -> String {
 impl crate::output::Output for Report {
     const KIND: crate::output::OutputKind = crate::output::OutputKind::Check;
     const SCHEMA: u32 = 1;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Verdict;
+
+    #[test]
+    fn a_verdict_s_name_is_its_json_spelling() {
+        for v in [Verdict::Pass, Verdict::Fail, Verdict::Unusable] {
+            assert_eq!(
+                serde_json::to_string(&v).unwrap(),
+                format!("\"{}\"", v.name())
+            );
+        }
+    }
 }
