@@ -235,8 +235,8 @@ impl<'a> Watch<'a> {
             keep::deterministic_part(&self.now.model),
             keep::deterministic_part(trial),
         );
-        let random_now = !keep::same_effects(&det_now, &self.now.model);
-        let random_trial = !keep::same_effects(&det_trial, trial);
+        let random_now = keep::has_random_effects(&self.now.model);
+        let random_trial = keep::has_random_effects(trial);
         let basis = if keep::same_effects(&det_now, &det_trial) {
             GridBasis::Unchanged
         } else if random_now || random_trial {
@@ -244,9 +244,8 @@ impl<'a> Watch<'a> {
         } else {
             GridBasis::Models
         };
-        if basis != GridBasis::Unchanged && random_now && self.deterministic_now.is_none() {
-            self.deterministic_now =
-                Some(self.scratch(&det_now, &format!("{tag}-current-deterministic"))?);
+        if basis != GridBasis::Unchanged {
+            self.simulate_deterministic_now(&format!("{tag}-current-deterministic"))?;
         }
         let deterministic = match basis {
             GridBasis::Unchanged => None,
@@ -256,11 +255,7 @@ impl<'a> Watch<'a> {
         let grid = match basis {
             GridBasis::Unchanged => None,
             _ => Some((
-                if random_now {
-                    self.deterministic_now.as_ref().unwrap_or(&self.now.samples)
-                } else {
-                    &self.now.samples
-                },
+                self.grid_now(),
                 deterministic.as_ref().unwrap_or(&full.samples),
             )),
         };
@@ -296,30 +291,22 @@ impl<'a> Watch<'a> {
             (&dir, "reference", true),
             &mut self.measured,
         )?;
-        let (det_ref, det_now) = (
-            keep::deterministic_part(reference),
-            keep::deterministic_part(&self.now.model),
-        );
-        let random_ref = !keep::same_effects(&det_ref, reference);
-        let random_now = !keep::same_effects(&det_now, &self.now.model);
+        let random_ref = keep::has_random_effects(reference);
+        let random_now = keep::has_random_effects(&self.now.model);
         let grid_ref = if random_ref {
-            Some(self.scratch(&det_ref, "reference-deterministic")?)
+            Some(self.scratch(
+                &keep::deterministic_part(reference),
+                "reference-deterministic",
+            )?)
         } else {
             None
         };
-        if random_now && self.deterministic_now.is_none() {
-            self.deterministic_now = Some(self.scratch(&det_now, "fitted-deterministic")?);
-        }
-        let grid_now = if random_now {
-            self.deterministic_now.as_ref().unwrap_or(&self.now.samples)
-        } else {
-            &self.now.samples
-        };
+        self.simulate_deterministic_now("fitted-deterministic")?;
         let measured = self.measured_by_stamp();
         let j = keep::judge(
             &measured,
             (&samples, &self.now.samples),
-            Some((grid_ref.as_ref().unwrap_or(&samples), grid_now)),
+            Some((grid_ref.as_ref().unwrap_or(&samples), self.grid_now())),
             2019,
         );
         Ok(ReferenceCheck {
@@ -339,6 +326,22 @@ impl<'a> Watch<'a> {
         })
     }
 
+    /// Re-simulates the current model's deterministic part (as `tag`) when it has random
+    /// effects and no trial has yet.
+    fn simulate_deterministic_now(&mut self, tag: &str) -> Result<(), GapError> {
+        if keep::has_random_effects(&self.now.model) && self.deterministic_now.is_none() {
+            let det = keep::deterministic_part(&self.now.model);
+            self.deterministic_now = Some(self.scratch(&det, tag)?);
+        }
+        Ok(())
+    }
+
+    /// What the current model's grid metrics are judged on: its deterministic part's
+    /// simulation, or its own where it has no random effect.
+    fn grid_now(&self) -> &Samples {
+        self.deterministic_now.as_ref().unwrap_or(&self.now.samples)
+    }
+
     fn measured_by_stamp(&self) -> keep::Measured {
         self.measured
             .iter()
@@ -352,10 +355,10 @@ impl<'a> Watch<'a> {
         self.deterministic_now = match judged.check.grid {
             // The deterministic part stayed: so did its simulation (the old model's own, when
             // it had no random effect).
-            GridBasis::Unchanged => self.deterministic_now.take().or_else(|| {
-                keep::same_effects(&keep::deterministic_part(&old.model), &old.model)
-                    .then_some(old.samples)
-            }),
+            GridBasis::Unchanged => self
+                .deterministic_now
+                .take()
+                .or_else(|| (!keep::has_random_effects(&old.model)).then_some(old.samples)),
             _ => judged.deterministic,
         };
     }

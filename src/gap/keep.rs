@@ -69,6 +69,13 @@ pub enum Watched {
     Light(ScanFeature),
 }
 
+impl Watched {
+    /// Whether it is a grid metric (each scan set against its twin cell by cell).
+    pub fn is_grid(self) -> bool {
+        matches!(self, Watched::Ocr | Watched::Precision | Watched::Iou)
+    }
+}
+
 impl std::fmt::Display for Watched {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
@@ -167,11 +174,10 @@ pub enum Decision {
 impl Judgement {
     /// The decision: see [`Decision`].
     pub fn decision(&self) -> Decision {
-        let grid = |w: &Watched| matches!(w, Watched::Ocr | Watched::Precision | Watched::Iou);
         let grid_worse = self
             .worse
             .iter()
-            .any(|w| matches!(w, Worse::Value { metric, .. } if grid(metric)));
+            .any(|w| matches!(w, Worse::Value { metric, .. } if metric.is_grid()));
         if self.worse.is_empty() {
             Decision::NoneWorse
         } else if !grid_worse && !self.improved.is_empty() {
@@ -244,6 +250,11 @@ pub fn deterministic_part(model: &ModelFile) -> ModelFile {
         })
         .collect();
     m
+}
+
+/// Whether the model has a random effect (its deterministic part differs from it).
+pub fn has_random_effects(model: &ModelFile) -> bool {
+    !same_effects(&deterministic_part(model), model)
 }
 
 /// Whether two models have the same effects (in any order) and limits.
@@ -433,10 +444,7 @@ pub fn judge(
     // The family: the metrics with a value (a light: evaluable) under both models.
     let point_f = ones(&feat_runs);
     let point_g = ones(&grid_runs);
-    let point = |w: Watched| match w {
-        Watched::Ocr | Watched::Precision | Watched::Iou => &point_g,
-        _ => &point_f,
-    };
+    let point = |w: Watched| if w.is_grid() { &point_g } else { &point_f };
     values.retain(|(w, _, stat)| matches!(stat(point(*w)), (Some(_), Some(_))));
     let lit: Vec<usize> = (0..ScanFeature::ALL.len())
         .filter(|&k| matches!(lights(k, &point_f), (Some(_), Some(_))))
@@ -462,11 +470,7 @@ pub fn judge(
         let mut spread: Vec<f64> = draws
             .iter()
             .filter_map(|(f, g)| {
-                let c = if matches!(w, Watched::Ocr | Watched::Precision | Watched::Iou) {
-                    g
-                } else {
-                    f
-                };
+                let c = if w.is_grid() { g } else { f };
                 stat(c).0.map(|b| sign * b)
             })
             .collect();
