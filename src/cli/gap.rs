@@ -49,6 +49,10 @@ pub struct GapArgs {
     /// validation metrics are set beside its, and judged against its noise.
     #[arg(long)]
     reference_model: Option<PathBuf>,
+    /// Skip the search for the detection limits of the effects not found (the smallest size
+    /// of each that the runs would have shown, found by injecting it into them).
+    #[arg(long)]
+    no_detection_limits: bool,
 }
 
 struct Bars {
@@ -133,6 +137,7 @@ pub fn run_cli(args: GapArgs) -> Result<ExitCode> {
         max_rounds: args.max_rounds,
         full_metrics: !args.no_full_metrics,
         reference_model: args.reference_model.clone(),
+        detection_limits: !args.no_detection_limits,
     };
     let result = run(&study, &opts, &bars);
     if let Ok(mut started) = bars.started.lock() {

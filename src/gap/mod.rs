@@ -22,6 +22,7 @@ pub mod casts;
 mod full_metrics;
 pub mod keep;
 pub mod likelihood;
+pub mod limits;
 pub mod observe;
 mod refit;
 pub mod report;

@@ -224,6 +224,10 @@ pub struct GapReport {
     /// The fitted model against a model known to have made the data (`--reference-model`).
     #[serde(default)]
     pub reference: Option<ReferenceCheck>,
+    /// For each effect not added when no further one was found: the smallest size of it these
+    /// runs would have shown.
+    #[serde(default)]
+    pub limits: Vec<super::limits::DetectionLimit>,
 }
 
 /// The fitted model's validation metrics beside those of a model known to have made the data

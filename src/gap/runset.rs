@@ -10,6 +10,10 @@ use super::likelihood::{self, random_of, Random, Scales, Scored};
 use super::observe::{Feature, Obs, RunData};
 use super::GapError;
 use crate::sim::model::ModelFile;
+use std::sync::{Arc, PoisonError, RwLock};
+
+/// Measured ranges per run and sampled slot (NaN: no return), standing in for the recorded ones.
+pub type Measured = Vec<Vec<f32>>;
 
 /// Runs of one role with everything a score and its interval need.
 pub struct RunSet {
@@ -24,6 +28,9 @@ pub struct RunSet {
     pub resamples: Vec<Vec<u32>>,
     /// Casts kept from round to round.
     pub casts: Casts,
+    /// Measured ranges that stand in for the recorded ones while a detection limit is searched
+    /// ([`RunSet::with_measured`]); none otherwise.
+    measured: RwLock<Option<Arc<Measured>>>,
 }
 
 /// A model's observations, scores and the residual scales used, per run.
@@ -58,12 +65,54 @@ impl RunSet {
             blocks,
             resamples,
             casts: Casts::default(),
+            measured: RwLock::new(None),
         }
+    }
+
+    /// `f` run on this set with `measured` in place of the recorded ranges: every cast, score,
+    /// fit and gain made inside sees them. A detection limit injects an effect into the data
+    /// this way: the runs, the sample and the casts (which depend on the model only) stay the
+    /// set's own, so nothing is loaded or cast twice.
+    pub fn with_measured<T>(&self, measured: Measured, f: impl FnOnce(&RunSet) -> T) -> T {
+        let slot = || {
+            self.measured
+                .write()
+                .unwrap_or_else(PoisonError::into_inner)
+        };
+        *slot() = Some(Arc::new(measured));
+        // Restored whatever `f` does, even when it panics.
+        struct Restore<'a>(&'a RwLock<Option<Arc<Measured>>>);
+        impl Drop for Restore<'_> {
+            fn drop(&mut self) {
+                *self.0.write().unwrap_or_else(PoisonError::into_inner) = None;
+            }
+        }
+        let _restore = Restore(&self.measured);
+        f(self)
+    }
+
+    /// The set's casts with the recorded ranges, whatever [`RunSet::with_measured`] put in
+    /// their place.
+    pub fn cast_recorded(&self, model: &ModelFile) -> Result<Vec<Vec<Obs>>, GapError> {
+        self.casts.of(&self.runs, model)
     }
 
     /// Every sampled firing cast with `model`'s deterministic part (kept casts reused).
     pub fn cast(&self, model: &ModelFile) -> Result<Vec<Vec<Obs>>, GapError> {
-        self.casts.of(&self.runs, model)
+        let mut obs = self.casts.of(&self.runs, model)?;
+        let measured = self
+            .measured
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone();
+        if let Some(m) = measured {
+            for (o, m) in obs.iter_mut().zip(m.iter()) {
+                for (o, &m) in o.iter_mut().zip(m) {
+                    o.measured = m;
+                }
+            }
+        }
+        Ok(obs)
     }
 
     /// The residual scales of `obs`, per run.

@@ -38,6 +38,9 @@ pub struct Options {
     pub full_metrics: bool,
     /// A model known to have made the data, to set the fitted model's metrics beside.
     pub reference_model: Option<PathBuf>,
+    /// When no further effect is found: search the detection limit of each one not added
+    /// ([`super::limits`]).
+    pub detection_limits: bool,
 }
 
 /// What the workflow reports as it goes.
@@ -307,6 +310,7 @@ fn first_report(study: &Study, infos: Vec<RunInfo>, split: Option<String>) -> Ga
         summary: Vec::new(),
         ended: None,
         reference: None,
+        limits: Vec::new(),
     };
     for r in &report.runs {
         for m in &r.left_out {
@@ -489,6 +493,13 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             report.ended = Some(line.clone());
             report.summary.push(line);
             report.rounds.push(this);
+            if opts.detection_limits {
+                let limits = super::limits::limits((&fit, &val), &model, &|kind| {
+                    progress.phase(round, &format!("detection limit of {kind}"));
+                })?;
+                report.summary.extend(limits.iter().map(|l| l.line()));
+                report.limits = limits;
+            }
             break;
         };
         model = next;

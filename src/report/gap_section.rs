@@ -4,6 +4,7 @@
 
 use super::markup::{esc, figure, table};
 use super::plots::{fixed, Named};
+use crate::gap::limits::DetectionLimit;
 use crate::gap::report::{GapReport, Round, RunMetrics};
 use std::fmt::Write;
 
@@ -15,6 +16,7 @@ pub(super) fn gap_section<'a>(out: &mut String, gaps: &[Named<'a, GapReport>]) {
             let _ = write!(out, "<li>{}</li>", esc(line));
         }
         out.push_str("</ul>\n");
+        limits_table(out, &format!("gap-{g}-limits"), &v.limits);
         if let Some(r) = &v.reference {
             let _ = writeln!(
                 out,
@@ -156,6 +158,58 @@ pub(super) fn gap_section<'a>(out: &mut String, gaps: &[Named<'a, GapReport>]) {
 
 /// The candidates tried on the validation runs and the keep rule's decision on each: the
 /// likelihood gain's interval, then the metrics judged and those made worse.
+/// The detection limits of the effects not added: the smallest size of each the runs would
+/// have shown, the size missed below it, and every size injected.
+fn limits_table(out: &mut String, id: &str, limits: &[DetectionLimit]) {
+    if limits.is_empty() {
+        return;
+    }
+    out.push_str("<p class=\"note\">What was not found, and what would have been: each effect injected into the runs' own measured ranges at growing sizes, and the workflow's test run on each (Rosenberger et al. 2019, §6: the reference data's accuracy bounds what the data can show).</p>\n");
+    let rows: Vec<Vec<String>> = limits
+        .iter()
+        .map(|l| {
+            let sign = if l.at_most { "≤" } else { "≥" };
+            let cell = |x: Option<f64>| x.map_or_else(String::new, |x| format!("{x:.3}"));
+            let tried: Vec<String> = l
+                .tries
+                .iter()
+                .map(|t| format!("{:.3}{}", t.size, if t.seen { " seen" } else { "" }))
+                .collect();
+            match &l.note {
+                Some(n) => vec![
+                    esc(l.effect.name()),
+                    String::new(),
+                    esc(n),
+                    String::new(),
+                    String::new(),
+                ],
+                None => vec![
+                    esc(l.effect.name()),
+                    esc(&format!("{} ({})", l.parameter, l.unit)),
+                    l.seen_at.map_or_else(
+                        || "not seen at any size tried".to_owned(),
+                        |s| format!("{sign} {}", cell(Some(s))),
+                    ),
+                    cell(l.missed_at),
+                    esc(&tried.join(", ")),
+                ],
+            }
+        })
+        .collect();
+    table(
+        out,
+        id,
+        &[
+            "effect not added",
+            "size",
+            "would have been seen at",
+            "missed at",
+            "sizes injected",
+        ],
+        &rows,
+    );
+}
+
 fn trials_table(out: &mut String, id: &str, r: &Round) {
     use crate::gap::keep::GridBasis;
     let rows: Vec<Vec<String>> = r

@@ -224,6 +224,7 @@ mod tests {
             ],
             ended: Some("no missing effect found in round 2: x".into()),
             reference: None,
+            limits: Vec::new(),
         };
         let summary = crate::metrics::report::Summary {
             ocr_mean: Some(0.8734),

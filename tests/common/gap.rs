@@ -68,8 +68,16 @@ pub struct Outcome {
     pub report: Option<serde_json::Value>,
 }
 
-/// Runs `hilrig gap ARGS -o OUT` to the end.
+/// Runs `hilrig gap ARGS -o OUT` to the end, without the search for detection limits (it
+/// adds a few seconds per effect; [`gap_with_limits`] runs it).
 pub fn gap(args: &[&std::ffi::OsStr], out: &Path) -> Outcome {
+    let mut all = args.to_vec();
+    all.push("--no-detection-limits".as_ref());
+    gap_with_limits(&all, out)
+}
+
+/// Runs `hilrig gap ARGS -o OUT` to the end as a user would: detection limits searched.
+pub fn gap_with_limits(args: &[&std::ffi::OsStr], out: &Path) -> Outcome {
     let o = std::process::Command::new(hilrig_bin())
         .arg("gap")
         .args(args)
