@@ -152,6 +152,31 @@ fn the_demo_numbers_agree_with_the_model_that_made_its_data() {
         );
     }
     assert!(added > 0, "the gap workflow added nothing: {stdout}");
+    // Each effect of the truth the workflow did not add has its detection limit searched and
+    // printed (issue 33): the size these runs would have shown.
+    let chosen: Vec<&str> = gap["rounds"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|r| r["chosen"].as_str())
+        .collect();
+    for e in truth.effects.iter().filter(|e| !chosen.contains(&e.name())) {
+        let limit = gap["limits"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|l| l["effect"] == e.name())
+            .unwrap_or_else(|| panic!("no detection limit for {}: {}", e.name(), gap["limits"]));
+        assert!(limit["seen_at"].as_f64().is_some(), "{limit}");
+        assert!(
+            stdout.contains(&format!(
+                "{} {} ",
+                e.name(),
+                limit["parameter"].as_str().unwrap()
+            )),
+            "{stdout}"
+        );
+    }
 
     let (ci, ct) = (
         json("compare/rep-01-idealized.json"),

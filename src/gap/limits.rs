@@ -79,6 +79,18 @@ pub struct Try {
 }
 
 impl DetectionLimit {
+    /// In a few words: the effect and the smallest size seen ("beam_divergence
+    /// horizontal_mrad ≥ 2.83"), or why there is none.
+    pub fn short(&self) -> String {
+        let name = self.effect.name();
+        let sign = if self.at_most { "≤" } else { "≥" };
+        match (&self.note, self.seen_at) {
+            (Some(_), _) => format!("{name} (no limit)"),
+            (None, Some(s)) => format!("{name} {} {sign} {}", self.parameter, number(s)),
+            (None, None) => format!("{name} (not seen at any size tried)"),
+        }
+    }
+
     /// The summary's line: what was not found, and what would have been.
     pub fn line(&self) -> String {
         let name = self.effect.name();
@@ -636,6 +648,9 @@ mod tests {
             "{}",
             l.line()
         );
+        assert_eq!(l.short(), "range_bias (not seen at any size tried)");
+        l.seen_at = Some(0.0141);
+        assert_eq!(l.short(), "range_bias bias_m ≥ 0.0141");
         l.note = Some("a switch, it has no size".into());
         assert!(l
             .line()

@@ -422,14 +422,23 @@ fn gap_outcome(d: &Demo, _: &[i32]) -> Result<Outcome> {
         .iter()
         .filter_map(|r| r.chosen.map(|c| c.name()))
         .collect();
+    let limits: Vec<String> = gap.limits.iter().map(|l| l.short()).collect();
     Ok(Outcome::new(
         "done",
         format!(
-            "effects found: {}",
+            "effects found: {}{}",
             if added.is_empty() {
                 "none".to_string()
             } else {
                 added.join(", ")
+            },
+            if limits.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; not found, would have been seen at: {}",
+                    limits.join(", ")
+                )
             }
         ),
     ))
