@@ -5,10 +5,11 @@ RTK noise, GNSS latency and jitter, lidar clock jitter, CAN noise and survey err
 effect the workflow adds is a false alarm.
 
 Each study is three drives (two fit, one validates), as in benches/gap_hidden.py. The studies
-alternate between the two bundled drives through the parking scene: fixtures/gap/drive.toml
-(town speed with a bend, started moving) at cruise speeds spread over 2-12 m/s, and
-fixtures/parking/drive.toml (the parking manoeuvre from standstill, with the walker) at
-1.5-4 m/s. Each study's synthesis seed is a hash of its drive, speed and index
+take turns between three drives: the two bundled ones through the parking scene,
+fixtures/gap/drive.toml (town speed with a bend, started moving) at cruise speeds spread over
+2-12 m/s and fixtures/parking/drive.toml (the parking manoeuvre from standstill, with the
+walker) at 1.5-4 m/s; and a second scene layout, fixtures/street/ (a residential street between
+rows of houses, parked cars, lamp posts and trees) at 2-12 m/s. Each study's synthesis seed is a hash of its drive, speed and index
 (gap_hidden.synth_seed), so no two studies share their noise.
 
 The workflow runs with --no-full-metrics: the decision then rests on the likelihood alone, and
@@ -21,6 +22,7 @@ usage: benches/gap_null.py [--hilrig PATH] [--work DIR] [--studies N] [--first K
 import argparse
 import json
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -28,17 +30,19 @@ import tempfile
 import gap_hidden as gh
 
 PARKING_DRIVE = os.path.join(gh.root, "fixtures/parking/drive.toml")
+STREET_SCENE = os.path.join(gh.root, "fixtures/street/scene.toml")
+STREET_DRIVE = os.path.join(gh.root, "fixtures/street/drive.toml")
+DRIVES = ("gap", "parking", "street")
+# Cruise speeds each drive is swept over, m/s (the parking manoeuvre is a slow one).
+SPEEDS = {"gap": (2.0, 12.0), "parking": (1.5, 4.0), "street": (2.0, 12.0)}
 
 
 def drive_at(work, which, speed):
-    """The drive `which` ("gap" or "parking") at cruise speed `speed`, written into `work`."""
-    src = gh.DRIVE if which == "gap" else PARKING_DRIVE
+    """The drive `which` (of DRIVES) at cruise speed `speed`, written into `work`."""
+    src = {"gap": gh.DRIVE, "parking": PARKING_DRIVE, "street": STREET_DRIVE}[which]
     text = open(src).read().replace('rig = "../../rigs/demo.toml"', f'rig = "{gh.RIG}"')
-    if which == "gap":
-        text = text.replace("cruise_speed_mps = 6.0", f"cruise_speed_mps = {speed}")
-        text = text.replace("start_speed_mps = 6.0", f"start_speed_mps = {speed}")
-    else:
-        text = text.replace("cruise_speed_mps = 2.2", f"cruise_speed_mps = {speed}")
+    for key in ("cruise_speed_mps", "start_speed_mps"):
+        text = re.sub(rf"^{key} = [0-9.]+", f"{key} = {speed}", text, flags=re.M)
     path = os.path.join(work, "drive.toml")
     open(path, "w").write(text)
     return path
@@ -48,9 +52,10 @@ def plan(n):
     """The studies: (index, drive, speed, synthesis seed)."""
     out = []
     for k in range(n):
-        which = "gap" if k % 2 == 0 else "parking"
-        j, m = k // 2, max((n + 1) // 2 - 1, 1)
-        speed = round(2.0 + 10.0 * j / m, 2) if which == "gap" else round(1.5 + 2.5 * j / m, 2)
+        which = DRIVES[k % len(DRIVES)]
+        j, m = k // len(DRIVES), max((n + len(DRIVES) - 1) // len(DRIVES) - 1, 1)
+        lo, hi = SPEEDS[which]
+        speed = round(lo + (hi - lo) * j / m, 2)
         out.append((k, which, speed, gh.synth_seed(f"null/{which}/{speed}", k)))
     return out
 
@@ -63,7 +68,8 @@ def study(hilrig, work, k, which, speed, seed):
     truth = os.path.join(d, "truth.toml")
     open(truth, "w").write('name = "idealized"\n')
     shutil.copy(truth, os.path.join(d, "start.toml"))
-    gh.run([hilrig, "synth", "--scene", gh.SCENE, "--drive", drive, "--truth", truth, "--reps", "3",
+    scene = STREET_SCENE if which == "street" else gh.SCENE
+    gh.run([hilrig, "synth", "--scene", scene, "--drive", drive, "--truth", truth, "--reps", "3",
             "--seed", str(seed), "-o", d])
     lines = ['model = "start.toml"']
     for i in (1, 2, 3):
