@@ -223,7 +223,15 @@ def judge(hidden, report, tally):
             out.append(f"{e}: found")
             tally["within"] += 1
             continue
-        par = next(x for x in rd["parameters"] if x["name"] == key)
+        # The value in the final model: the round's, or a later round's re-fit of it (fitted
+        # again with the effects added after it).
+        params = rd["parameters"]
+        for later in report["rounds"]:
+            if later["round"] > rd["round"] and later["chosen"]:
+                for rf in later.get("refits") or []:
+                    if rf["effect"] == e:
+                        params = rf["after"]
+        par = next(x for x in params if x["name"] == key)
         truth, got = p[key], par["value"]
         err = (got - truth) / abs(truth)
         tally["within"] += abs(err) <= 0.2
