@@ -20,12 +20,20 @@
 //!   return with its probability. The draws are the same at every size (fixed per firing), so
 //!   a larger size is the smaller one and more: the search sees one realisation growing.
 //!
-//! The search doubles the size from the effect's resolution floor until the test fires, then
-//! halves the last step once (so the limit is known to a factor of √2), and stops at the
-//! catalogue's largest sizes. Two parts of the workflow's decision are left out, on purpose:
-//! the joint re-fit of the effects added before (it moves them, not the injected one) and the
-//! keep rule's metric half (it can only refuse an effect the likelihood found, so the limit
-//! is where an effect is *seen*; a refusal is said in the rounds).
+//! The runs may hold some of the effect already, too little for the workflow to add (its
+//! candidate was fitted at a size and not kept): the injection then starts from there, moving
+//! the data from the size fitted to the size tried, so that a limit is a size of the effect in
+//! the data and not one on top of what they hold. A limit below an effect a drive was made
+//! with would say the workflow should have seen it. An effect whose trial the keep rule
+//! refused (a validation metric worse) was seen: its line says it was refused, not missed.
+//!
+//! The search doubles the size from the effect's resolution floor (or the size fitted, if
+//! larger) until the test fires, then halves the last step once (so the limit is known to a
+//! factor of √2), and stops at the catalogue's largest sizes. Two parts of the workflow's
+//! decision are left out, on purpose: the joint re-fit of the effects added before (it moves
+//! them, not the injected one) and the keep rule's metric half (it can only refuse an effect
+//! the likelihood found, so the limit is where an effect is *seen*; a refusal is said in the
+//! rounds).
 
 use super::candidates::{floor, with_effect, Fitting};
 use super::observe::Obs;
@@ -67,6 +75,10 @@ pub struct DetectionLimit {
     /// limit is a largest value, not a smallest.
     #[serde(default)]
     pub at_most: bool,
+    /// The last round tried it on the validation runs and the keep rule refused it (a
+    /// validation metric worse beyond its noise): it was seen, and not added.
+    #[serde(default)]
+    pub refused: bool,
 }
 
 /// One injection of a detection limit's search.
@@ -84,9 +96,10 @@ impl DetectionLimit {
     pub fn short(&self) -> String {
         let name = self.effect.name();
         let sign = if self.at_most { "≤" } else { "≥" };
+        let refused = if self.refused { " (seen, refused)" } else { "" };
         match (&self.note, self.seen_at) {
             (Some(_), _) => format!("{name} (no limit)"),
-            (None, Some(s)) => format!("{name} {} {sign} {}", self.parameter, number(s)),
+            (None, Some(s)) => format!("{name} {} {sign} {}{refused}", self.parameter, number(s)),
             (None, None) => format!("{name} (not seen at any size tried)"),
         }
     }
@@ -97,6 +110,11 @@ impl DetectionLimit {
         if let Some(n) = &self.note {
             return format!("{name}: none found; no detection limit ({n})");
         }
+        let none = if self.refused {
+            "refused, not missed (a validation metric got worse: see the last round)"
+        } else {
+            "none found"
+        };
         let (sign, up_to) = if self.at_most {
             ("≤", "down to")
         } else {
@@ -106,20 +124,20 @@ impl DetectionLimit {
         let largest = self.tries.last().map_or(f64::NAN, |t| t.size);
         match (self.seen_at, self.missed_at) {
             (Some(s), Some(m)) => format!(
-                "{name}: none found; would have seen {} {sign} {} ({}; {} missed)",
+                "{name}: {none}; would have seen {} {sign} {} ({}; {} missed)",
                 self.parameter,
                 number(s),
                 self.unit,
                 number(m)
             ),
             (Some(s), None) => format!(
-                "{name}: none found; would have seen {} {sign} {} ({}; the smallest effect tried, at the resolution floor)",
+                "{name}: {none}; would have seen {} {sign} {} ({}; the smallest size tried)",
                 self.parameter,
                 number(s),
                 self.unit
             ),
             (None, _) => format!(
-                "{name}: none found; would not have seen {} {up_to} {} ({}), the largest effect tried",
+                "{name}: {none}; would not have seen {} {up_to} {} ({}), the largest effect tried",
                 self.parameter,
                 number(largest),
                 self.unit
@@ -331,6 +349,7 @@ fn inject(
     set: &RunSet,
     model: &ModelFile,
     injection: &Injection,
+    present: Option<&Effect>,
     salt: u64,
 ) -> Result<Measured, GapError> {
     // A geometric effect is injected with the model's detection threshold left out of both
@@ -347,10 +366,27 @@ fn inject(
         }
         _ => model.clone(),
     };
-    let now = set.cast_recorded(&base)?;
+    // The data as they are hold the effect at about the size its candidate was fitted at
+    // (`present`): the injection takes them from there to `injection`'s size, so that the
+    // limit is a size of the effect in the data, not one on top of it. (On the parking demo
+    // the truth's 3 mrad divergence is in the data, fitted at 1.4 mrad and not added; an
+    // injection on top said 1.4 mrad more would have been seen.)
+    let now = match (injection, present) {
+        (Injection::Predicted(_), Some(p)) => set.cast_recorded(&with_effect(&base, p.clone()))?,
+        _ => set.cast_recorded(&base)?,
+    };
     let with = match injection {
         Injection::Predicted(e) => Some(set.cast_recorded(&with_effect(&base, e.clone()))?),
         _ => None,
+    };
+    let injection = &match (injection, present) {
+        (Injection::Noise(s), Some(Effect::RangeNoise { sigma_m })) => {
+            Injection::Noise((s * s - sigma_m * sigma_m).max(0.0).sqrt())
+        }
+        (Injection::Dropout(p), Some(Effect::RandomDropout { probability })) => {
+            Injection::Dropout(((p - probability) / (1.0 - probability)).max(0.0))
+        }
+        (i, _) => i.clone(),
     };
     let mut out = Vec::with_capacity(now.len());
     for (r, o) in now.iter().enumerate() {
@@ -398,12 +434,12 @@ fn seen(
     (fit, val): (&RunSet, &RunSet),
     model: &ModelFile,
     kind: EffectKind,
-    injection: &Injection,
+    (injection, present): (&Injection, Option<&Effect>),
     salt: u64,
 ) -> Result<bool, GapError> {
     let (mf, mv) = (
-        inject(fit, model, injection, salt)?,
-        inject(val, model, injection, salt ^ 0x7661)?,
+        inject(fit, model, injection, present, salt)?,
+        inject(val, model, injection, present, salt ^ 0x7661)?,
     );
     fit.with_measured(mf, |fit| {
         val.with_measured(mv, |val| {
@@ -497,10 +533,32 @@ fn search(
     })
 }
 
-/// The detection limit of every effect of the catalogue `model` lacks, on these runs.
+/// The strength of `effect` as its search measures it (see [`Searched`]).
+fn strength_of(effect: &Effect) -> Option<f64> {
+    Some(match *effect {
+        Effect::RangeBias { bias_m } => bias_m,
+        Effect::RangeNoise { sigma_m } => sigma_m,
+        Effect::RandomDropout { probability } => probability,
+        Effect::DetectionThreshold {
+            reference_range_m,
+            reference_reflectivity,
+        } => reference_reflectivity / (reference_range_m * reference_range_m),
+        Effect::TimeOffset { offset_ms } => offset_ms,
+        Effect::MountMisalignment { yaw_deg, .. } => yaw_deg,
+        Effect::BeamDivergence {
+            horizontal_mrad, ..
+        } => horizontal_mrad,
+        _ => return None,
+    })
+}
+
+/// The detection limit of every effect of the catalogue `model` lacks, on these runs;
+/// `fitted` are the last round's candidates, fitted to the runs under `model` (what the data
+/// hold of each effect, added or not).
 pub fn limits(
     (fit, val): (&RunSet, &RunSet),
     model: &ModelFile,
+    fitted: &[super::candidates::Candidate],
     progress: &dyn Fn(EffectKind),
 ) -> Result<Vec<DetectionLimit>, GapError> {
     let has = |kind: EffectKind| model.effects.iter().any(|e| e.kind() == kind);
@@ -528,6 +586,7 @@ pub fn limits(
             tries: Vec::new(),
             note: None,
             at_most: false,
+            refused: false,
         };
         match searched(kind, fit, model)? {
             Err(why) => limit.note = Some(why.to_owned()),
@@ -537,18 +596,24 @@ pub fn limits(
                 limit.unit = Cow::Borrowed(s.unit);
                 limit.at_most = s.at_most;
                 let salt = 0x6c69_6d69_7400 ^ kind as u64;
+                let present = fitted
+                    .iter()
+                    .find(|c| c.effect == kind)
+                    .and_then(|c| c.fitted.as_ref());
+                // Sizes up to what the data hold already are the data as they are: the
+                // search starts there.
+                let start = present
+                    .and_then(strength_of)
+                    .filter(|x| x.is_finite())
+                    .map_or(s.start, |x| s.start.max(x).min(s.largest));
                 let Outcome {
                     seen_at,
                     missed_at,
                     tries,
-                } = search(
-                    s.start,
-                    s.largest,
-                    &mut |size| match injection(kind, size) {
-                        Some(inj) => seen((fit, val), model, kind, &inj, salt),
-                        None => Ok(false),
-                    },
-                )?;
+                } = search(start, s.largest, &mut |size| match injection(kind, size) {
+                    Some(inj) => seen((fit, val), model, kind, (&inj, present), salt),
+                    None => Ok(false),
+                })?;
                 let p = s.parameter_of;
                 limit.seen_at = seen_at.map(p);
                 limit.missed_at = missed_at.map(p);
@@ -633,6 +698,7 @@ mod tests {
             tries: vec![],
             note: None,
             at_most: false,
+            refused: false,
         };
         assert_eq!(
             l.line(),

@@ -492,11 +492,21 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
             let line = no_effect_line(round, &candidates, &this.trials);
             report.ended = Some(line.clone());
             report.summary.push(line);
+            let refused: Vec<_> = this
+                .trials
+                .iter()
+                .filter(|t| t.confounded())
+                .map(|t| t.effect)
+                .collect();
             report.rounds.push(this);
             if opts.detection_limits {
-                let limits = super::limits::limits((&fit, &val), &model, &|kind| {
-                    progress.phase(round, &format!("detection limit of {kind}"));
-                })?;
+                let mut limits =
+                    super::limits::limits((&fit, &val), &model, &candidates, &|kind| {
+                        progress.phase(round, &format!("detection limit of {kind}"));
+                    })?;
+                for l in &mut limits {
+                    l.refused = refused.contains(&l.effect);
+                }
                 report.summary.extend(limits.iter().map(|l| l.line()));
                 report.limits = limits;
             }
