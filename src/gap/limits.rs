@@ -34,6 +34,10 @@
 //! them, not the injected one) and the keep rule's metric half (it can only refuse an effect
 //! the likelihood found, so the limit is where an effect is *seen*; a refusal is said in the
 //! rounds).
+//!
+//! Long file: one search (what each effect's size means, how it is injected into the data,
+//! the workflow's test on the injection, the search over sizes and what it writes), of which
+//! about a sixth is its tests.
 
 use super::candidates::{floor, with_effect, Fitting};
 use super::observe::Obs;
