@@ -185,13 +185,6 @@ fn searched(
     fit: &RunSet,
     model: &ModelFile,
 ) -> Result<Result<Searched, &'static str>, GapError> {
-    let largest_over_runs = |f: &dyn Fn(&super::observe::RunData) -> f64| {
-        fit.runs
-            .iter()
-            .map(f)
-            .filter(|x| x.is_finite())
-            .fold(0.0, f64::max)
-    };
     let plain = |parameter, unit, start, largest| Searched {
         parameter,
         unit,
@@ -247,13 +240,13 @@ fn searched(
         EffectKind::TimeOffset => plain(
             "offset_ms",
             "ms, the lidar's clock late",
-            floor::TIME_OFFSET_MS.max(largest_over_runs(&|r| r.time_sigma_ms)),
+            floor::TIME_OFFSET_MS.max(fit.largest_over_runs(|r| r.time_sigma_ms)),
             256.0,
         ),
         EffectKind::MountMisalignment => plain(
             "yaw_deg",
             "°, the sensor turned about its vertical axis",
-            floor::MOUNT_DEG.max(largest_over_runs(&|r| r.heading_sigma_deg)),
+            floor::MOUNT_DEG.max(fit.largest_over_runs(|r| r.heading_sigma_deg)),
             6.4,
         ),
         EffectKind::BeamDivergence => plain(
@@ -448,13 +441,7 @@ fn seen(
     fit.with_measured(mf, |fit| {
         val.with_measured(mv, |val| {
             let now = fit.evaluate(model, None)?;
-            let fitting = Fitting {
-                set: fit,
-                current: model,
-                obs: &now.obs,
-                scored: &now.scored,
-                scales: &now.scales,
-            };
+            let fitting = Fitting::of(fit, model, &now);
             let Some(c) = fitting.fit(kind)? else {
                 return Ok(false);
             };

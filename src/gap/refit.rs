@@ -69,13 +69,7 @@ pub(super) fn joint_refit(
         for (kind, now, above) in &mut params {
             let rest = without(&model, *kind);
             let e = fit.evaluate(&rest, None)?;
-            let fitting = Fitting {
-                set: fit,
-                current: &rest,
-                obs: &e.obs,
-                scored: &e.scored,
-                scales: &e.scales,
-            };
+            let fitting = Fitting::of(fit, &rest, &e);
             let Some(c) = fitting.fit(*kind)? else {
                 continue;
             };

@@ -91,6 +91,16 @@ impl RunSet {
         f(self)
     }
 
+    /// The largest finite value of `f` over the runs (0 when none is finite): a reference
+    /// uncertainty that the repetitions need not average out.
+    pub fn largest_over_runs(&self, f: impl Fn(&RunData) -> f64) -> f64 {
+        self.runs
+            .iter()
+            .map(f)
+            .filter(|x| x.is_finite())
+            .fold(0.0, f64::max)
+    }
+
     /// The set's casts with the recorded ranges, whatever [`RunSet::with_measured`] put in
     /// their place.
     pub fn cast_recorded(&self, model: &ModelFile) -> Result<Vec<Vec<Obs>>, GapError> {

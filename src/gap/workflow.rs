@@ -419,13 +419,7 @@ fn fit_candidates(
         .map(|(o, f)| (o.as_slice(), f.as_slice()))
         .collect();
     let bins = tables(&pairs);
-    let fitting = Fitting {
-        set: fit,
-        current: model,
-        obs: &now.obs,
-        scored: &now.scored,
-        scales: &now.scales,
-    };
+    let fitting = Fitting::of(fit, model, &now);
     let candidates = fitting.all(&|name| progress.phase(round, &format!("candidate {name}")))?;
     Ok((bins, candidates))
 }

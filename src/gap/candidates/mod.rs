@@ -35,7 +35,7 @@ use geometric::Axis;
 use super::bootstrap;
 use super::likelihood::random_of;
 use super::likelihood::{self, Random, Scored};
-use super::observe::{Obs, RunData};
+use super::observe::Obs;
 use super::runset::{Gain, RunSet};
 use super::GapError;
 use crate::sim::model::{Effect, ModelFile};
@@ -167,6 +167,24 @@ pub fn with_effect(model: &ModelFile, effect: Effect) -> ModelFile {
     m.effects.retain(|e| e.name() != effect.name());
     m.effects.push(effect);
     m
+}
+
+impl<'a> Fitting<'a> {
+    /// The fitting of `set` under `current`, from its evaluation `now` (observations, scores
+    /// and residual scales of `current` on `set`).
+    pub fn of(
+        set: &'a RunSet,
+        current: &'a ModelFile,
+        now: &'a super::runset::Evaluation,
+    ) -> Fitting<'a> {
+        Fitting {
+            set,
+            current,
+            obs: &now.obs,
+            scored: &now.scored,
+            scales: &now.scales,
+        }
+    }
 }
 
 impl Fitting<'_> {
@@ -411,17 +429,6 @@ impl Fitting<'_> {
         ))
     }
 
-    /// The largest finite value of `f` over the runs (0 when none is finite): a reference
-    /// uncertainty that the repetitions need not average out.
-    fn largest_over_runs(&self, f: impl Fn(&RunData) -> f64) -> f64 {
-        self.set
-            .runs
-            .iter()
-            .map(f)
-            .filter(|x| x.is_finite())
-            .fold(0.0, f64::max)
-    }
-
     /// Fits one effect of the catalogue to the runs under the current model (which should not
     /// hold it): its candidate, or `None` where there is nothing to fit (motion distortion is a
     /// switch, and is `None` when the current model has it on already).
@@ -442,7 +449,7 @@ impl Fitting<'_> {
 
     fn time_offset(&self) -> Result<Candidate, GapError> {
         // The trajectory's own timing is known only to the GNSS offset's uncertainty.
-        let time_sigma = self.largest_over_runs(|r| r.time_sigma_ms);
+        let time_sigma = self.set.largest_over_runs(|r| r.time_sigma_ms);
         let time_floor = time_sigma.max(floor::TIME_OFFSET_MS);
         self.geometric(
             EffectKind::TimeOffset,
@@ -459,7 +466,7 @@ impl Fitting<'_> {
 
     fn mount(&self) -> Result<Candidate, GapError> {
         // The trajectory's heading error turns the whole scan like a mount yaw.
-        let heading_sigma = self.largest_over_runs(|r| r.heading_sigma_deg);
+        let heading_sigma = self.set.largest_over_runs(|r| r.heading_sigma_deg);
         let yaw_floor = heading_sigma.max(floor::MOUNT_DEG);
         let axis = |name, reference_sigma| Axis {
             name,
