@@ -494,6 +494,9 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
                 .collect();
             report.rounds.push(this);
             if opts.detection_limits {
+                // The final round is saved before the search, so that a search that fails
+                // loses none of it.
+                save(&opts.out, &model, &report)?;
                 let mut limits =
                     super::limits::limits((&fit, &val), &model, &candidates, &|kind| {
                         progress.phase(round, &format!("detection limit of {kind}"));
