@@ -158,7 +158,15 @@ pub struct Feature {
     /// The ideal beam hits the scene's ground plane. A flat ground matches any trajectory
     /// over it, so only the other returns can tell whether a run and a scene belong together.
     pub ground: bool,
+    /// The surface the ideal beam hits ([`SurfaceId`]'s number; none: `u32::MAX - 1`).
+    pub surface: u32,
+    /// How well that surface's place is known, 1 sigma, m ([`crate::scene::Scene::accuracy_of`]):
+    /// an error every scan of the run shares.
+    pub accuracy: f32,
 }
+
+/// [`Feature::surface`] of a beam that hits nothing.
+pub const NO_SURFACE: u32 = u32::MAX - 1;
 
 impl Feature {
     /// A firing whose beam footprint holds a depth edge: geometry errors there move returns
@@ -468,6 +476,10 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                         ground: centre
                             .as_ref()
                             .is_some_and(|h| h.material.surface == SurfaceId::GROUND),
+                        surface: centre.as_ref().map_or(NO_SURFACE, |h| h.material.surface.0),
+                        accuracy: centre
+                            .as_ref()
+                            .map_or(0.0, |h| scene.accuracy_of(h.material.surface) as f32),
                     };
                 },
             );

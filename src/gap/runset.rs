@@ -101,6 +101,25 @@ impl RunSet {
             .fold(0.0, f64::max)
     }
 
+    /// The standard error a mean residual of `obs` (this set's casts) inherits from the
+    /// surveys of the runs' scenes ([`likelihood::survey_sigma`]): runs measured against the
+    /// same scene file share its errors.
+    pub fn survey_sigma(&self, obs: &[Vec<Obs>]) -> f64 {
+        let survey_of = |r: &RunData| {
+            self.runs
+                .iter()
+                .position(|s| s.scene_path == r.scene_path)
+                .unwrap_or(0)
+        };
+        let runs: Vec<(&[Obs], &[Feature], usize)> = obs
+            .iter()
+            .zip(&self.feats)
+            .zip(&self.runs)
+            .map(|((o, f), r)| (o.as_slice(), f.as_slice(), survey_of(r)))
+            .collect();
+        likelihood::survey_sigma(runs)
+    }
+
     /// The set's casts with the recorded ranges, whatever [`RunSet::with_measured`] put in
     /// their place.
     pub fn cast_recorded(&self, model: &ModelFile) -> Result<Vec<Vec<Obs>>, GapError> {

@@ -257,6 +257,21 @@ impl Scene {
             .map_or("?", |a| &a.name)
     }
 
+    /// How well a surface's place is known (its file's `accuracy_m`, 1 sigma, metres): the
+    /// survey of a static object or the ground, the trajectory of an actor.
+    pub fn accuracy_of(&self, s: SurfaceId) -> f64 {
+        if s == SurfaceId::GROUND {
+            return self.file.ground.as_ref().map_or(0.0, |g| g.accuracy_m);
+        }
+        let i = s.0 as usize;
+        if let Some(o) = self.file.objects.get(i) {
+            return o.accuracy_m;
+        }
+        self.actors
+            .get(i - self.file.objects.len())
+            .map_or(0.0, |a| a.accuracy_m)
+    }
+
     /// The first hit along the unit ray `o + t d` (`t` in `(tmin, tmax)`), with actors at
     /// `actors` (from [`Scene::actor_poses`]).
     #[inline]

@@ -229,7 +229,7 @@ fn irls(rows: &[Row], s: f64, counts: &[u32]) -> Option<Vec<f64>> {
 
 /// `interval` about `value` with `sigma` more on each side: each half-width and 1.96 sigma in
 /// quadrature.
-fn widened(value: f64, (lo, hi): Interval, sigma: f64) -> Interval {
+pub(super) fn widened(value: f64, (lo, hi): Interval, sigma: f64) -> Interval {
     let extra = 1.96 * sigma.max(0.0);
     let (below, above) = ((value - lo).max(0.0), (hi - value).max(0.0));
     (value - below.hypot(extra), value + above.hypot(extra))
