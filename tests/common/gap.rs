@@ -13,6 +13,21 @@ pub fn hidden(
     seed: u64,
     edit: &dyn Fn(String) -> String,
 ) -> PathBuf {
+    hidden_captured(dir, truth, start, seed, edit, &|rep| {
+        rep.join("drive.pcapng")
+    })
+}
+
+/// [`hidden`], recording for each repetition (its folder given) the capture `capture` returns:
+/// the synthesized one, or one a test made from it.
+pub fn hidden_captured(
+    dir: &Path,
+    truth: &str,
+    start: &str,
+    seed: u64,
+    edit: &dyn Fn(String) -> String,
+    capture: &dyn Fn(&Path) -> PathBuf,
+) -> PathBuf {
     let drive_text = edit(std::fs::read_to_string(fixture("gap/drive.toml")).unwrap()).replace(
         "rig = \"../../rigs/demo.toml\"",
         &format!("rig = {:?}", demo_rig().display().to_string()),
@@ -42,7 +57,7 @@ pub fn hidden(
         let run = dir.join(format!("run-{i}.mcap"));
         let rec = record_from(
             &demo_rig(),
-            &[&dir.join(format!("rep-{i:02}/drive.pcapng"))],
+            &[&capture(&dir.join(format!("rep-{i:02}")))],
             &run,
         );
         assert!(

@@ -1,0 +1,200 @@
+//! Beam divergence from a footprint model that is not the simulator's (issue 33, must-hold 6):
+//! the gap workflow fits divergence on what every footprint model shares, not on the echo logic
+//! of `LidarSim`, which the other hidden-effect tests synthesize with.
+//!
+//! The model here is written from its physical description alone: a beam whose footprint is a
+//! cone of full angle `W` with an even (top-hat) profile; the first echo the receiver detects is
+//! the nearest surface that holds a sizeable share of the footprint (a quarter of its power), at
+//! the mean range of the part of the footprint on it; a surface with a smaller share is not seen.
+//! The footprint is sampled by 37 rays spread evenly over the disc (a sunflower pattern). Three
+//! drives are synthesized with the idealized model and the drive's reference errors (RTK noise,
+//! timing jitter, CAN noise, survey error); each capture's lidar packets are then measured again
+//! with this model along the drive's true path, through the true scene, before `record`.
+
+mod common;
+
+use common::gap::{drive_at, found, hidden_captured, param, seed_of, IDEALIZED};
+use common::{demo_rig, fixture};
+use hilrig::bag::scans::sensor_time;
+use hilrig::capture::{CaptureReader, PcapngWriter};
+use hilrig::rig::Rig;
+use hilrig::scene::pose::Trajectory;
+use hilrig::scene::Scene;
+use hilrig::sim::{LidarSim, ModelFile, PacketTime, SimStats};
+use hilrig::velodyne::{Channel, DataPacket, DATA_PACKET_SIZE};
+use nalgebra::Vector3;
+use std::path::{Path, PathBuf};
+
+/// Sub-rays sampling the footprint.
+const SUB_RAYS: usize = 37;
+/// The share of the footprint a surface must hold to be seen.
+const SIZEABLE: f64 = 0.25;
+
+/// The footprint's sub-ray offsets (across, along elevation), radians, for full angle `w`:
+/// evenly spread over the disc.
+fn sunflower(w_rad: f64) -> Vec<(f64, f64)> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..SUB_RAYS)
+        .map(|k| {
+            let r = 0.5 * w_rad * ((k as f64 + 0.5) / SUB_RAYS as f64).sqrt();
+            let t = k as f64 * golden;
+            (r * t.cos(), r * t.sin())
+        })
+        .collect()
+}
+
+/// What the beam measures: the nearest surface holding a sizeable share of the footprint, at the
+/// mean range of its part, with its reflectivity; `None` when no surface holds that much.
+fn nearest_sizeable(hits: &[(u32, f64, f64)]) -> Option<(f64, f64)> {
+    // (surface, nearest range, sum of ranges, count, reflectivity)
+    let mut surfaces: Vec<(u32, f64, f64, usize, f64)> = Vec::new();
+    for &(s, r, refl) in hits {
+        match surfaces.iter_mut().find(|x| x.0 == s) {
+            Some(x) => {
+                x.1 = x.1.min(r);
+                x.2 += r;
+                x.3 += 1;
+            }
+            None => surfaces.push((s, r, r, 1, refl)),
+        }
+    }
+    surfaces.sort_by(|a, b| a.1.total_cmp(&b.1));
+    surfaces
+        .iter()
+        .find(|x| x.3 as f64 >= SIZEABLE * SUB_RAYS as f64)
+        .map(|x| (x.2 / x.3 as f64, x.4))
+}
+
+/// `src` with every lidar data packet measured again by the footprint model of full angle
+/// `w_mrad`, through `scene` along the true path `truth`, written to `dst`.
+fn remeasure(src: &Path, dst: &Path, w_mrad: f64, scene: &Scene, truth: &Trajectory) {
+    let rig = Rig::load(&demo_rig()).unwrap();
+    let (lidar, model, calibration) = rig.lidar_sensor().unwrap();
+    let ideal = ModelFile::idealized();
+    let sim = LidarSim::new(scene, model, calibration.clone(), &lidar.mounting, &ideal).unwrap();
+    let offsets = sunflower(w_mrad * 1e-3);
+    let mut reader =
+        CaptureReader::new(std::io::BufReader::new(std::fs::File::open(src).unwrap())).unwrap();
+    let mut w = PcapngWriter::new(Vec::new(), "tests/gap_footprint.rs").unwrap();
+    let mut declared = 0usize;
+    let mut actors = scene.new_actor_poses();
+    let (mut packets, mut returns) = (0usize, 0usize);
+    while let Some(rec) = reader.next_record() {
+        let rec = rec.unwrap();
+        let (interface, time, mut data) = (rec.interface, rec.time, rec.data.to_vec());
+        while declared <= interface as usize {
+            let i = reader.interfaces()[declared].clone();
+            w.add_interface(i.link, i.name.as_deref().unwrap_or(""))
+                .unwrap();
+            declared += 1;
+        }
+        let at = data.len().saturating_sub(DATA_PACKET_SIZE);
+        if let Ok(mut packet) = DataPacket::decode(&data[at..]) {
+            packets += 1;
+            let first = sensor_time(packet.timestamp_us, time);
+            let t = PacketTime {
+                first_firing: first,
+                rotation_start: first,
+                rotation_rate: None,
+            };
+            let mut measured: Vec<(u8, u8, Channel)> = Vec::new();
+            let mut stats = SimStats::default();
+            sim.simulate_observed(&packet, t, truth, 0, &mut stats, &mut |f| {
+                scene.actor_poses(f.time, &mut actors);
+                let d = f.direction;
+                let u = d.cross(&Vector3::z()).normalize();
+                let v = u.cross(&d);
+                let hits: Vec<(u32, f64, f64)> = offsets
+                    .iter()
+                    .filter_map(|&(a, b)| {
+                        let sd = (d + u * a + v * b).normalize();
+                        scene
+                            .cast(&f.origin, &sd, 0.0, 200.0, &actors)
+                            .map(|h| (h.material.surface.0, h.range, h.material.reflectivity))
+                    })
+                    .collect();
+                let channel = nearest_sizeable(&hits)
+                    .filter(|(r, _)| (0.5..=100.0).contains(r))
+                    .and_then(|(r, refl)| {
+                        Some(Channel {
+                            distance: calibration.raw_distance(usize::from(f.laser), r)?,
+                            reflectivity: (refl * 100.0).round().clamp(0.0, 100.0) as u8,
+                        })
+                    })
+                    .unwrap_or_default();
+                measured.push((f.block, f.channel, channel));
+            });
+            for (b, c, ch) in measured {
+                returns += usize::from(ch.distance > 0);
+                packet.blocks[usize::from(b)].channels[usize::from(c)] = ch;
+            }
+            data[at..].copy_from_slice(&packet.encode());
+        }
+        w.write_packet(interface, time, &data).unwrap();
+    }
+    assert!(
+        packets > 500 && returns > 100 * packets,
+        "{packets} packets, {returns} returns"
+    );
+    std::fs::write(dst, w.finish().unwrap()).unwrap();
+}
+
+/// Synthesizes the study with divergence `w_mrad` of this footprint model, runs `hilrig gap`
+/// from the idealized model and returns the fitted divergence (horizontal, vertical) of the
+/// first round, which must have added beam divergence.
+fn fitted(w_mrad: f64, speed: f64, case: &str) -> (f64, f64) {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Scene::load(&fixture("parking/scene.toml")).unwrap();
+    let capture = |rep: &Path| -> PathBuf {
+        let truth =
+            Trajectory::from_csv(&std::fs::read_to_string(rep.join("truth.csv")).unwrap()).unwrap();
+        let dst = rep.join("footprint.pcapng");
+        remeasure(&rep.join("drive.pcapng"), &dst, w_mrad, &scene, &truth);
+        dst
+    };
+    let study = hidden_captured(
+        dir.path(),
+        IDEALIZED,
+        IDEALIZED,
+        seed_of(case),
+        &drive_at(speed, false),
+        &capture,
+    );
+    let out = common::gap::gap(
+        &[
+            study.as_os_str(),
+            "--max-rounds".as_ref(),
+            "1".as_ref(),
+            "--no-full-metrics".as_ref(),
+        ],
+        &dir.path().join("out"),
+    );
+    eprintln!("{}", out.stdout);
+    assert_eq!(out.code, Some(0), "{}\n{}", out.stdout, out.stderr);
+    let f = found(out.report.as_ref().unwrap());
+    assert_eq!(
+        f.first().map(|x| x.0.as_str()),
+        Some("beam_divergence"),
+        "{}",
+        out.stdout
+    );
+    (
+        param(&f[0].1, "horizontal_mrad"),
+        param(&f[0].1, "vertical_mrad"),
+    )
+}
+
+/// Not met yet, and so not run by default (`cargo test --test gap_footprint -- --ignored`):
+/// the workflow adds beam divergence first, but fits it as 1.9 × 2.0 mrad for the 8 mrad
+/// footprint. The fit is decided by the ranges on the ground at grazing incidence, where this
+/// model (the centroid of the footprint's part on a surface) and the simulator's (sub-ray hits
+/// merged into echoes where they lie within 0.5 m, the strongest reported) differ by
+/// decimetres at 30 m and beyond, and not by the edges the two models share.
+#[test]
+#[ignore = "issue 33, must-hold 6 not met: 1.9 x 2.0 mrad fitted for 8 mrad"]
+fn an_8_mrad_footprint_of_another_model_is_found_and_fitted_within_30_percent() {
+    let w = 8.0;
+    let (h, v) = fitted(w, 5.0, "footprint 8 mrad");
+    assert!((h - w).abs() <= 0.3 * w, "horizontal {h} mrad for {w}");
+    assert!((v - w).abs() <= 0.3 * w, "vertical {v} mrad for {w}");
+}
