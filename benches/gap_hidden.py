@@ -202,9 +202,26 @@ MAIN = {
 }
 
 
-def judge(hidden, report, tally):
+# The tolerance each fitted main parameter is judged by: 20 %, and 30 % for the horizontal
+# beam divergence, which shows only at the sides of objects and whose 95 % intervals on these
+# drives span about ±30 % (README, the gap workflow's intervals; issue 33 asks 30 % of divergence from
+# another footprint model too).
+TOLERANCE = {"beam_divergence": 0.3}
+
+
+def limits_of(hilrig, d):
+    """The detection limits of case directory `d`'s study: `hilrig gap` run again with them (the
+    cases run without, to save their time), by effect name."""
+    run([hilrig, "gap", os.path.join(d, "study.toml"), "-o", os.path.join(d, "out-limits")])
+    report = json.load(open(os.path.join(d, "out-limits", "gap.json")))
+    return {lim["effect"]: lim for lim in report.get("limits") or []}
+
+
+def judge(hidden, report, tally, limits=lambda: {}):
     """Per hidden effect: found, the fitted main parameter's error against the truth, and whether
-    its 95 % interval holds the truth; and the kept rounds whose trial made a metric worse."""
+    its 95 % interval holds the truth; and the kept rounds whose trial made a metric worse. An
+    effect not found is set against its detection limit (`limits`, asked only then): missed
+    below the limit the runs could show, or missed although the runs could have shown it."""
     out = []
     for e, p in hidden:
         tally["hidden"] += 1
@@ -216,7 +233,15 @@ def judge(hidden, report, tally):
             key = MAIN[e]
         rd = next((r for r in report["rounds"] if r["chosen"] == e), None)
         if rd is None:
-            out.append(f"{e}: not found")
+            lim = limits().get(e)
+            seen = lim and lim.get("seen_at")
+            if key is None or seen is None:
+                out.append(f"{e}: not found (no limit)")
+            elif (abs(p[key]) >= seen) != bool(lim.get("at_most")):
+                out.append(f"{e}: not found, although above its limit {seen:.3g}")
+            else:
+                tally["below_limit"] += 1
+                out.append(f"{e}: not found, below its limit {seen:.3g} (truth {abs(p[key]):.3g})")
             continue
         tally["found"] += 1
         if key is None:
@@ -234,7 +259,7 @@ def judge(hidden, report, tally):
         par = next(x for x in params if x["name"] == key)
         truth, got = p[key], par["value"]
         err = (got - truth) / abs(truth)
-        tally["within"] += abs(err) <= 0.2
+        tally["within"] += abs(err) <= TOLERANCE.get(e, 0.2)
         inside = ""
         if par.get("interval"):
             lo, hi = par["interval"]
@@ -285,10 +310,18 @@ def main():
           f", lidar {a.rpm or 600} rpm, {a.return_mode or 'strongest'} return")
     print("| case | hidden (truth) | found, in order (fitted) | validation log-likelihood per 1000 firings | validation metrics before -> after | per hidden effect: found, error, truth in 95 % interval | kept rounds with a metric worse |")
     print("|---|---|---|---|---|---|---|")
-    tally = {"hidden": 0, "found": 0, "within": 0, "intervals": 0, "covered": 0, "worse": 0}
+    tally = {"hidden": 0, "found": 0, "below_limit": 0, "within": 0, "intervals": 0, "covered": 0,
+             "worse": 0}
     for n in names:
         hidden, report, _ = case(a.hilrig, work, n, a.seed, drive)
-        checks, worse = judge(hidden, report, tally)
+        cache = {}
+
+        def limits(n=n):
+            if "l" not in cache:
+                cache["l"] = limits_of(a.hilrig, os.path.join(work, n))
+            return cache["l"]
+
+        checks, worse = judge(hidden, report, tally, limits)
         found = []
         ll = ""
         ocr = ""
@@ -305,7 +338,8 @@ def main():
                             f'AVM returns/scan {avm(b):.0f} -> {avm(f):.0f}; ')
         truth = "; ".join(f"{e} ({fmt_params(p)})" for e, p in hidden) or "nothing (reference noise only)"
         print(f"| {n} | {truth} | {'; '.join(found) or 'nothing'} | {ll or '-'} | {ocr or '-'} | {checks or '-'} | {worse or 'none'} |", flush=True)
-    print(f"hidden effects: {tally['hidden']}, found {tally['found']}, fitted within 20 % {tally['within']}; "
+    print(f"hidden effects: {tally['hidden']}, found {tally['found']}, not found below their detection limit "
+          f"{tally['below_limit']}, fitted within their tolerance (20 %; divergence 30 %) {tally['within']}; "
           f"fitted parameters with an interval {tally['intervals']}, truth inside {tally['covered']}; "
           f"kept rounds that made a validation metric worse: {tally['worse']}")
 

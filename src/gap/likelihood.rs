@@ -76,7 +76,7 @@ const WINDOW_M: f64 = 10.0;
 const TAU_M: f64 = 1e-3;
 const INTENSITY_WINDOW: f64 = 100.0;
 
-pub use crate::estimate::robust::{median, robust_sigma};
+pub use crate::estimate::robust::{core_sigma, median, robust_sigma};
 
 fn ln_gauss_mix(e: f64, sigma: f64, outlier: f64, window: f64) -> f64 {
     let g = (-0.5 * (e / sigma).powi(2)).exp() / (sigma * (2.0 * std::f64::consts::PI).sqrt());
@@ -328,9 +328,10 @@ pub fn dither(differences: &mut [(usize, f64)], quantum_m: f64) {
 const DITHER_STREAM: u64 = 0x6469_7468_6572;
 
 /// The range noise σ that explains the spread of `dithered` differences (m, see [`dither`]),
-/// given the quantum: `s² = 2(σ² + q²/12) + τ² + q²/12`.
+/// given the quantum: `s² = 2(σ² + q²/12) + τ² + q²/12`, s the spread of the differences'
+/// Gaussian core ([`core_sigma`]: pairs on a surface the model did not predict are left out).
 pub fn noise_from_differences(dithered: &[f64], quantum_m: f64) -> Option<f64> {
-    let s = robust_sigma(dithered)?;
+    let s = core_sigma(dithered)?;
     let var = s * s / 2.0 - quantum_m * quantum_m / 8.0 - TAU_M * TAU_M / 2.0;
     Some(var.max(0.0).sqrt())
 }

@@ -369,6 +369,11 @@ impl Fitting<'_> {
         let p = share(&all).unwrap_or(0.0).min(0.999);
         let mut boots: Vec<f64> = self.set.resamples.iter().filter_map(|c| share(c)).collect();
         let interval = bootstrap::interval(&mut boots);
+        let above = clears(p, interval, floor::DROPOUT);
+        // The share assumes the sensor loses a further EPS of returns that no model explains
+        // (the likelihood's floor); if it loses none, the dropout is larger by EPS (1 − p). The
+        // reported interval holds both readings.
+        let interval = interval.map(|(lo, hi)| (lo, hi + likelihood::EPS * (1.0 - hi)));
         let effect = Effect::RandomDropout { probability: p };
         let model = with_effect(self.current, effect.clone());
         let scored = self.score_all(self.obs, random_of(&model));
@@ -380,7 +385,7 @@ impl Fitting<'_> {
                 value: p,
                 interval,
             }],
-            clears(p, interval, floor::DROPOUT),
+            above,
             &scored,
         )
     }
@@ -392,6 +397,21 @@ impl Fitting<'_> {
         sort_rows(&mut rows);
         let keep = 1.0 - random_of(self.current).dropout;
         power_at(&rows, sweep(&rows, keep, &|_| 1.0))
+    }
+
+    /// The median predicted range of the firings (away from edges) whose predicted power lies
+    /// within a quarter of `p_min`: where a threshold there decides; infinite when none does.
+    fn ranges_near(&self, p_min: f64) -> f64 {
+        let mut r: Vec<f64> = self
+            .obs
+            .iter()
+            .zip(&self.set.feats)
+            .flat_map(|(o, f)| o.iter().zip(f))
+            .filter(|(o, f)| o.cast && !f.is_edge() && o.predicted.is_finite())
+            .filter(|(o, _)| (f64::from(o.power) / p_min - 1.0).abs() < 0.25)
+            .map(|(o, _)| f64::from(o.predicted))
+            .collect();
+        likelihood::median(&mut r).unwrap_or(f64::INFINITY)
     }
 
     fn threshold(&self) -> Result<Candidate, GapError> {
@@ -421,6 +441,12 @@ impl Fitting<'_> {
             reference_range_m: range_of(p_min),
             reference_reflectivity,
         };
+        // The powers are the model's, from the surveyed places: surfaces that all lie δ
+        // farther than surveyed are δ / r weaker than predicted at the threshold's ranges r,
+        // and the reference range moves by as much, relative. The interval holds that.
+        let survey = self.set.survey_sigma(self.obs) / self.ranges_near(p_min);
+        let interval = bootstrap::interval(&mut boots)
+            .map(|i| widened(range_of(p_min), i, range_of(p_min) * survey));
         let model = with_effect(self.current, effect.clone());
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
         Ok(self.candidate(
@@ -430,7 +456,7 @@ impl Fitting<'_> {
                 Param {
                     name: "reference_range_m".into(),
                     value: range_of(p_min),
-                    interval: bootstrap::interval(&mut boots),
+                    interval,
                 },
                 Param {
                     name: "reference_reflectivity".into(),
