@@ -442,8 +442,9 @@ impl Fitting<'_> {
             reference_reflectivity,
         };
         // The powers are the model's, from the surveyed places: surfaces that all lie δ
-        // farther than surveyed are δ / r weaker than predicted at the threshold's ranges r,
-        // and the reference range moves by as much, relative. The interval holds that.
+        // farther than surveyed return 2δ / r less power than predicted at the threshold's
+        // ranges r, and the reference range (power^-1/2) moves by δ / r, relative. The
+        // interval holds that.
         let survey = self.set.survey_sigma(self.obs) / self.ranges_near(p_min);
         let interval = bootstrap::interval(&mut boots)
             .map(|i| widened(range_of(p_min), i, range_of(p_min) * survey));
