@@ -13,10 +13,14 @@ pub fn median(v: &mut [f64]) -> Option<f64> {
 /// 1.4826 × the median absolute deviation from the median: the standard deviation of a
 /// Gaussian, robust to outliers.
 pub fn robust_sigma(v: &[f64]) -> Option<f64> {
+    median(&mut deviations(v)?).map(|x| 1.4826 * x)
+}
+
+/// The absolute deviations of a sample from its median; `None` when empty.
+fn deviations(v: &[f64]) -> Option<Vec<f64>> {
     let mut c = v.to_vec();
     let m = median(&mut c)?;
-    let mut d: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
-    median(&mut d).map(|x| 1.4826 * x)
+    Some(v.iter().map(|x| (x - m).abs()).collect())
 }
 
 /// Beyond this many robust sigmas a deviation is counted a gross outlier: a Gaussian puts
@@ -35,10 +39,9 @@ const GAUSS_BEYOND_GROSS: f64 = 6.334e-5;
 /// hidden-effect drive, more than its bootstrap interval's half-width. Outliers nearer than
 /// four sigmas are not counted, so the correction is a lower bound.
 pub fn core_sigma(v: &[f64]) -> Option<f64> {
-    let mut c = v.to_vec();
-    let m = median(&mut c)?;
-    let mut d: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
-    let s0 = 1.4826 * median(&mut d.clone())?;
+    let mut d = deviations(v)?;
+    // The median reorders `d`; the count and the second selection do not mind.
+    let s0 = 1.4826 * median(&mut d)?;
     let gross = d.iter().filter(|&&x| x > GROSS * s0).count() as f64 / d.len() as f64;
     let eps = (gross - GAUSS_BEYOND_GROSS).max(0.0);
     if eps <= 0.0 || s0 <= 0.0 {

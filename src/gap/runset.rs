@@ -101,7 +101,7 @@ impl RunSet {
             .fold(0.0, f64::max)
     }
 
-    /// The standard error a mean residual of `obs` (this set's casts) inherits from the
+    /// The standard error the median residual of `obs` (this set's casts) inherits from the
     /// surveys of the runs' scenes ([`likelihood::survey_sigma`]): runs measured against the
     /// same scene file share its errors.
     pub fn survey_sigma(&self, obs: &[Vec<Obs>]) -> f64 {
