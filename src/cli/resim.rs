@@ -109,6 +109,11 @@ pub fn run(args: ResimArgs) -> Result<ExitCode> {
                     s.stats.outside_trajectory
                 );
             }
+            tracing::debug!(
+                rays = s.stats.rays,
+                footprints_cast = s.stats.footprints_cast,
+                "rays cast"
+            );
             Ok(ExitCode::SUCCESS)
         }
         Err(ResimError::Refused(report)) => {

@@ -16,7 +16,7 @@ mod banked;
 mod cast;
 mod echo;
 mod effects;
-mod footprint;
+pub mod footprint;
 
 use effects::Compiled;
 use footprint::{CentreRay, SubHit};
@@ -174,6 +174,9 @@ pub struct LidarSim<'a> {
 struct Scratch {
     hits: Vec<SubHit>,
     echoes: Vec<Echo>,
+    /// Sub-ray directions and their hits, for a footprint cast in full.
+    dirs: Vec<Vector3<f64>>,
+    cast: Vec<Option<crate::scene::Hit>>,
 }
 
 /// Velodyne's calibrated reflectivity byte: 0-100 for diffuse targets (percent), 101-255 for

@@ -353,6 +353,8 @@ impl Caster<'_> {
             stats.firings += st.firings;
             stats.returns += st.returns;
             stats.outside_trajectory += st.outside_trajectory;
+            stats.rays += st.rays;
+            stats.footprints_cast += st.footprints_cast;
             out.push(b);
         }
         out

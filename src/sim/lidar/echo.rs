@@ -188,17 +188,29 @@ impl LidarSim<'_> {
     ) {
         let (u, w) = beam_frame(d);
         let tmax = self.casting_range();
-        let mut cast = |sd: &Vector3<f64>| self.scene.cast(o, sd, 0.0, tmax, actors);
         let Some((centre, witnesses)) = neighbourhood else {
+            // Every sub-ray, in one traversal (each exactly as cast alone).
             stats.footprints_cast += 1;
             stats.rays += div.pattern.offsets.len() as u64;
             scratch.hits.clear();
-            scratch
-                .hits
-                .extend(div.pattern.offsets.iter().map(|&(a, b)| {
-                    let sd = footprint::sub_ray(d, &u, &w, a, b);
-                    (sd, cast(&sd), true)
-                }));
+            scratch.dirs.clear();
+            scratch.dirs.extend(
+                div.pattern
+                    .offsets
+                    .iter()
+                    .map(|&(a, b)| footprint::sub_ray(d, &u, &w, a, b)),
+            );
+            scratch.cast.clear();
+            scratch.cast.resize(scratch.dirs.len(), None);
+            self.scene
+                .cast_bundle(o, &scratch.dirs, 0.0, tmax, actors, &mut scratch.cast);
+            scratch.hits.extend(
+                scratch
+                    .dirs
+                    .iter()
+                    .zip(&scratch.cast)
+                    .map(|(sd, h)| (*sd, *h, true)),
+            );
             return;
         };
         let footprint = Footprint {
@@ -206,6 +218,7 @@ impl LidarSim<'_> {
             frame: (&u, &w),
             witnesses,
         };
+        let mut cast = |sd: &Vector3<f64>| self.scene.cast(o, sd, 0.0, tmax, actors);
         let Resolved { cast: rays, full } = footprint::resolve(
             &footprint,
             &div.pattern,
