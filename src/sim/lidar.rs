@@ -16,7 +16,7 @@ mod banked;
 mod cast;
 mod echo;
 mod effects;
-pub mod footprint;
+mod footprint;
 
 use effects::Compiled;
 use footprint::{CentreRay, SubHit};
@@ -73,6 +73,25 @@ pub struct SimStats {
     /// Firings whose every sub-ray was cast (with the beam divergence effect): all of them with
     /// [`FootprintCast::Full`], those near an edge with [`FootprintCast::Adaptive`].
     pub footprints_cast: u64,
+}
+
+impl std::ops::AddAssign for SimStats {
+    /// Adds another simulation's counts (a packet's, cast on another thread). The fields are
+    /// named exhaustively, so that a counter added later cannot be left out of a sum.
+    fn add_assign(&mut self, o: SimStats) {
+        let SimStats {
+            firings,
+            returns,
+            outside_trajectory,
+            rays,
+            footprints_cast,
+        } = o;
+        self.firings += firings;
+        self.returns += returns;
+        self.outside_trajectory += outside_trajectory;
+        self.rays += rays;
+        self.footprints_cast += footprints_cast;
+    }
 }
 
 /// How the sub-rays of a divergent beam (the `beam_divergence` effect) are found.

@@ -350,11 +350,7 @@ impl Caster<'_> {
             .collect();
         let mut out = Vec::with_capacity(simulated.len());
         for (b, st) in simulated {
-            stats.firings += st.firings;
-            stats.returns += st.returns;
-            stats.outside_trajectory += st.outside_trajectory;
-            stats.rays += st.rays;
-            stats.footprints_cast += st.footprints_cast;
+            *stats += st;
             out.push(b);
         }
         out
