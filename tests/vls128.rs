@@ -36,6 +36,19 @@ fn vls128_rig(dir: &Path) -> PathBuf {
 /// sensor in `return_mode`, synthesized with the idealized model and realistic reference
 /// errors, and recorded.
 fn short_drive(dir: &Path, rig: &Path, return_mode: &str) -> (PathBuf, PathBuf) {
+    let runs = short_drives(dir, rig, return_mode, &fixture("parking/idealized.toml"), 1);
+    runs.into_iter().next().unwrap()
+}
+
+/// [`short_drive`] synthesized `reps` times with the model `truth`: each repetition's folder
+/// and its recording.
+fn short_drives(
+    dir: &Path,
+    rig: &Path,
+    return_mode: &str,
+    truth: &Path,
+    reps: usize,
+) -> Vec<(PathBuf, PathBuf)> {
     let text = std::fs::read_to_string(fixture("parking/drive.toml"))
         .unwrap()
         .replace(
@@ -64,8 +77,8 @@ fn short_drive(dir: &Path, rig: &Path, return_mode: &str) -> (PathBuf, PathBuf) 
         .arg("--drive")
         .arg(&drive)
         .arg("--truth")
-        .arg(fixture("parking/idealized.toml"))
-        .args(["--reps", "1", "--seed", "128", "-o"])
+        .arg(truth)
+        .args(["--reps", &reps.to_string(), "--seed", "128", "-o"])
         .arg(dir.join("out"))
         .output()
         .unwrap();
@@ -74,15 +87,19 @@ fn short_drive(dir: &Path, rig: &Path, return_mode: &str) -> (PathBuf, PathBuf) 
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let rep = dir.join("out/rep-01");
-    let run = dir.join("run.mcap");
-    let rec = record_from(rig, &[&rep.join("drive.pcapng")], &run);
-    assert!(
-        rec.status.success(),
-        "record: {}",
-        String::from_utf8_lossy(&rec.stderr)
-    );
-    (rep, run)
+    (1..=reps)
+        .map(|k| {
+            let rep = dir.join(format!("out/rep-{k:02}"));
+            let run = dir.join(format!("run-{k}.mcap"));
+            let rec = record_from(rig, &[&rep.join("drive.pcapng")], &run);
+            assert!(
+                rec.status.success(),
+                "record: {}",
+                String::from_utf8_lossy(&rec.stderr)
+            );
+            (rep, run)
+        })
+        .collect()
 }
 
 /// Data packets in `/velodyne_packets`, and the scans.
@@ -182,4 +199,56 @@ fn a_short_vls128_drive_records_checks_resimulates_and_compares() {
 #[test]
 fn a_short_dual_return_vls128_drive_records_checks_resimulates_and_compares() {
     end_to_end("dual");
+}
+
+/// The gap workflow on a dual-return VLS-128, whose packets hold one firing sequence each: a
+/// hidden range noise is found and fitted. Its fit compares each firing with the same laser's
+/// firing before it; within such a packet a laser fires once, so the sample takes packets in
+/// pairs (the fit was 0 and no noise, not even 0.4 m, could have been seen).
+#[test]
+fn a_dual_return_vls128s_hidden_range_noise_is_found_by_the_gap_workflow() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = vls128_rig(dir.path());
+    let truth = dir.path().join("truth.toml");
+    let sigma = 0.02;
+    std::fs::write(
+        &truth,
+        format!("name = \"noisy\"\n[[effect]]\nname = \"range_noise\"\nsigma_m = {sigma}\n"),
+    )
+    .unwrap();
+    let runs = short_drives(dir.path(), &rig, "dual", &truth, 3);
+    let mut study = format!("model = {:?}\n", fixture("parking/idealized.toml"));
+    for (k, (rep, run)) in runs.iter().enumerate() {
+        study.push_str(&format!(
+            "[[run]]\nrecording = {:?}\nscene = {:?}\nrole = \"{}\"\n",
+            run,
+            rep.join("scene.toml"),
+            if k == 2 { "validate" } else { "fit" }
+        ));
+    }
+    let study_path = dir.path().join("study.toml");
+    std::fs::write(&study_path, study).unwrap();
+    let out = common::gap::gap(
+        &[
+            study_path.as_os_str(),
+            "--max-rounds".as_ref(),
+            "1".as_ref(),
+            "--no-full-metrics".as_ref(),
+        ],
+        &dir.path().join("gap"),
+    );
+    assert_eq!(out.code, Some(0), "{}\n{}", out.stdout, out.stderr);
+    let f = common::gap::found(out.report.as_ref().unwrap());
+    assert_eq!(
+        f.first().map(|x| x.0.as_str()),
+        Some("range_noise"),
+        "{}",
+        out.stdout
+    );
+    let fitted = common::gap::param(&f[0].1, "sigma_m");
+    assert!(
+        (fitted - sigma).abs() <= 0.2 * sigma,
+        "range noise {fitted} m for {sigma} m: {}",
+        out.stdout
+    );
 }

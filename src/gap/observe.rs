@@ -51,6 +51,21 @@ pub struct Sampled {
     pub packet: DataPacket,
     /// Its timing.
     pub time: PacketTime,
+    /// The sample's packet before it is the run's packet just before it, sampled with it so
+    /// that its firings have a neighbour: the same laser one firing sequence earlier (a packet
+    /// that holds one firing sequence, a dual-return VLS-128's, has none within itself).
+    pub after_previous: bool,
+}
+
+/// Whether a packet holds one firing per laser, so that each firing's neighbour (the same
+/// laser's firing before it) lies in the packet before: the layout's firing sequences per
+/// packet, from the model and the packet's return mode.
+fn one_sequence_per_packet(model: hilrig_velodyne::Model, packet: &DataPacket) -> bool {
+    let mode = packet
+        .return_mode
+        .mode()
+        .unwrap_or(hilrig_velodyne::ReturnMode::Strongest);
+    hilrig_velodyne::PacketEncoder::new(model, mode).sequences_per_packet() < 2
 }
 
 /// One run, loaded and sampled.
@@ -247,6 +262,10 @@ pub fn load_run(
         .collect();
     let total: usize = index.iter().map(|s| s.packets as usize).sum();
     let every = (total * SLOTS).div_ceil(firings.max(SLOTS)).max(1);
+    // Whether sampled packets come in pairs (see `Sampled::after_previous`), decided at the
+    // first packet; pairs are taken half as often, so that the sample keeps its size.
+    let mut paired: Option<bool> = None;
+    let mut previous: Option<(Sampled, bool)> = None;
     let mut packets = Vec::new();
     let mut times = PacketTimes::new(pps_locked);
     let mut n = 0usize;
@@ -259,6 +278,7 @@ pub fn load_run(
         for timed in times.of(&scan) {
             let Timed::Packet { packet, time, .. } = timed else {
                 undecodable += 1;
+                previous = None;
                 continue;
             };
             let usable = !marked.iter().any(|m| {
@@ -266,12 +286,27 @@ pub fn load_run(
                 (a..=b).contains(&time.first_firing)
             });
             scan_usable |= usable;
-            if usable && n.is_multiple_of(every) {
-                packets.push(Sampled {
-                    scan: k as u32,
-                    packet: *packet,
-                    time,
-                });
+            let pairs = *paired.get_or_insert_with(|| one_sequence_per_packet(model, &packet));
+            let stride = if pairs { 2 * every } else { every };
+            let this = Sampled {
+                scan: k as u32,
+                packet: *packet,
+                time,
+                after_previous: false,
+            };
+            if usable && n.is_multiple_of(stride) {
+                match previous.take() {
+                    Some((before, true)) if pairs => {
+                        packets.push(before);
+                        packets.push(Sampled {
+                            after_previous: true,
+                            ..this
+                        });
+                    }
+                    _ => packets.push(this),
+                }
+            } else if pairs {
+                previous = Some((this, usable));
             }
             n += 1;
         }
@@ -406,14 +441,18 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
     let sim = simulator(run, &model)?;
     let scene = &run.scene;
     let mut out = vec![Feature::default(); run.packets.len() * SLOTS];
-    out.par_chunks_mut(SLOTS)
+    // Per sampled packet, the slots of each laser's first and last firing in it.
+    type Slots = std::collections::HashMap<u16, u32>;
+    let ends: Vec<(Slots, Slots)> = out
+        .par_chunks_mut(SLOTS)
         .zip(run.packets.par_iter())
         .enumerate()
-        .for_each(|(i, (slots, s))| {
+        .map(|(i, (slots, s))| {
             let mut stats = SimStats::default();
             let mut actors = scene.new_actor_poses();
             scene.actor_poses(s.time.first_firing, &mut actors);
-            let mut last_of_laser = std::collections::HashMap::new();
+            let mut last_of_laser = Slots::new();
+            let mut first_of_laser = Slots::new();
             let mut hint = 0usize;
             let max = 400.0;
             sim.simulate_observed(
@@ -455,9 +494,13 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                         }
                         _ => 0.0,
                     };
-                    let neighbour = last_of_laser
-                        .insert(f.laser, slot as u32)
-                        .map_or(u32::MAX, |p| slot_index(i, p));
+                    let neighbour = match last_of_laser.insert(f.laser, slot as u32) {
+                        Some(p) => slot_index(i, p),
+                        None => {
+                            first_of_laser.insert(f.laser, slot as u32);
+                            u32::MAX
+                        }
+                    };
                     slots[slot] = Feature {
                         scan: s.scan,
                         laser: f.laser,
@@ -487,7 +530,21 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
             for f in slots.iter_mut() {
                 f.scan = s.scan;
             }
-        });
+            (first_of_laser, last_of_laser)
+        })
+        .collect();
+    // A packet sampled with the one before it: each laser's first firing in it has that
+    // packet's last firing of the laser as its neighbour.
+    for (i, s) in run.packets.iter().enumerate().skip(1) {
+        if !s.after_previous {
+            continue;
+        }
+        for (laser, &first) in &ends[i].0 {
+            if let Some(&before) = ends[i - 1].1.get(laser) {
+                out[i * SLOTS + first as usize].neighbour = slot_index(i - 1, before);
+            }
+        }
+    }
     Ok(out)
 }
 
