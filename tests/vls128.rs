@@ -217,17 +217,11 @@ fn a_dual_return_vls128s_hidden_range_noise_is_found_by_the_gap_workflow() {
     )
     .unwrap();
     let runs = short_drives(dir.path(), &rig, "dual", &truth, 3);
-    let mut study = format!("model = {:?}\n", fixture("parking/idealized.toml"));
-    for (k, (rep, run)) in runs.iter().enumerate() {
-        study.push_str(&format!(
-            "[[run]]\nrecording = {:?}\nscene = {:?}\nrole = \"{}\"\n",
-            run,
-            rep.join("scene.toml"),
-            if k == 2 { "validate" } else { "fit" }
-        ));
-    }
-    let study_path = dir.path().join("study.toml");
-    std::fs::write(&study_path, study).unwrap();
+    let runs: Vec<(PathBuf, PathBuf)> = runs
+        .into_iter()
+        .map(|(rep, run)| (run, rep.join("scene.toml")))
+        .collect();
+    let study_path = common::gap::study(dir.path(), &fixture("parking/idealized.toml"), &runs);
     let out = common::gap::gap(
         &[
             study_path.as_os_str(),

@@ -193,17 +193,18 @@ pub enum Decision {
 impl Judgement {
     /// The decision: see [`Decision`].
     pub fn decision(&self) -> Decision {
-        let grid_worse = |which: &dyn Fn(Watched) -> bool| {
-            self.worse.iter().any(
-                |w| matches!(w, Worse::Value { metric, .. } if metric.is_grid() && which(*metric)),
-            )
-        };
-        let traded = if grid_worse(&|m| m == Watched::Iou) {
-            false
-        } else if grid_worse(&|_| true) {
-            self.improved.contains(&Watched::Iou)
-        } else {
+        let grid_worse: Vec<Watched> = self
+            .worse
+            .iter()
+            .filter_map(|w| match w {
+                Worse::Value { metric, .. } if metric.is_grid() => Some(*metric),
+                _ => None,
+            })
+            .collect();
+        let traded = if grid_worse.is_empty() {
             !self.improved.is_empty()
+        } else {
+            !grid_worse.contains(&Watched::Iou) && self.improved.contains(&Watched::Iou)
         };
         if self.worse.is_empty() {
             Decision::NoneWorse

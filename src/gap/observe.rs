@@ -265,7 +265,8 @@ pub fn load_run(
     // Whether sampled packets come in pairs (see `Sampled::after_previous`), decided at the
     // first packet; pairs are taken half as often, so that the sample keeps its size.
     let mut paired: Option<bool> = None;
-    let mut previous: Option<(Sampled, bool)> = None;
+    // The packet just before the next one sampled, when pairs are taken and it is usable.
+    let mut previous: Option<Sampled> = None;
     let mut packets = Vec::new();
     let mut times = PacketTimes::new(pps_locked);
     let mut n = 0usize;
@@ -288,25 +289,22 @@ pub fn load_run(
             scan_usable |= usable;
             let pairs = *paired.get_or_insert_with(|| one_sequence_per_packet(model, &packet));
             let stride = if pairs { 2 * every } else { every };
-            let this = Sampled {
+            let sampled = |after_previous| Sampled {
                 scan: k as u32,
                 packet: *packet,
                 time,
-                after_previous: false,
+                after_previous,
             };
             if usable && n.is_multiple_of(stride) {
-                match previous.take() {
-                    Some((before, true)) if pairs => {
-                        packets.push(before);
-                        packets.push(Sampled {
-                            after_previous: true,
-                            ..this
-                        });
-                    }
-                    _ => packets.push(this),
+                if let Some(before) = previous.take() {
+                    packets.push(before);
+                    packets.push(sampled(true));
+                } else {
+                    packets.push(sampled(false));
                 }
-            } else if pairs {
-                previous = Some((this, usable));
+            } else {
+                previous =
+                    (pairs && usable && (n + 1).is_multiple_of(stride)).then(|| sampled(false));
             }
             n += 1;
         }
@@ -441,9 +439,8 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
     let sim = simulator(run, &model)?;
     let scene = &run.scene;
     let mut out = vec![Feature::default(); run.packets.len() * SLOTS];
-    // Per sampled packet, the slots of each laser's first and last firing in it.
-    type Slots = std::collections::HashMap<u16, u32>;
-    let ends: Vec<(Slots, Slots)> = out
+    // Per sampled packet, the slot of each laser's last firing in it.
+    let last_of_lasers: Vec<std::collections::HashMap<u16, u32>> = out
         .par_chunks_mut(SLOTS)
         .zip(run.packets.par_iter())
         .enumerate()
@@ -451,8 +448,7 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
             let mut stats = SimStats::default();
             let mut actors = scene.new_actor_poses();
             scene.actor_poses(s.time.first_firing, &mut actors);
-            let mut last_of_laser = Slots::new();
-            let mut first_of_laser = Slots::new();
+            let mut last_of_laser = std::collections::HashMap::new();
             let mut hint = 0usize;
             let max = 400.0;
             sim.simulate_observed(
@@ -494,13 +490,9 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                         }
                         _ => 0.0,
                     };
-                    let neighbour = match last_of_laser.insert(f.laser, slot as u32) {
-                        Some(p) => slot_index(i, p),
-                        None => {
-                            first_of_laser.insert(f.laser, slot as u32);
-                            u32::MAX
-                        }
-                    };
+                    let neighbour = last_of_laser
+                        .insert(f.laser, slot as u32)
+                        .map_or(u32::MAX, |p| slot_index(i, p));
                     slots[slot] = Feature {
                         scan: s.scan,
                         laser: f.laser,
@@ -530,18 +522,21 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
             for f in slots.iter_mut() {
                 f.scan = s.scan;
             }
-            (first_of_laser, last_of_laser)
+            last_of_laser
         })
         .collect();
-    // A packet sampled with the one before it: each laser's first firing in it has that
-    // packet's last firing of the laser as its neighbour.
+    // A packet sampled with the one before it: each laser's first firing in it (a cast slot
+    // still without a neighbour; a slot never cast has the default, 0) takes that packet's
+    // last firing of the laser.
     for (i, s) in run.packets.iter().enumerate().skip(1) {
         if !s.after_previous {
             continue;
         }
-        for (laser, &first) in &ends[i].0 {
-            if let Some(&before) = ends[i - 1].1.get(laser) {
-                out[i * SLOTS + first as usize].neighbour = slot_index(i - 1, before);
+        for f in &mut out[i * SLOTS..(i + 1) * SLOTS] {
+            if f.neighbour == u32::MAX {
+                if let Some(&before) = last_of_lasers[i - 1].get(&f.laser) {
+                    f.neighbour = slot_index(i - 1, before);
+                }
             }
         }
     }

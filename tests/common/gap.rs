@@ -52,22 +52,41 @@ pub fn hidden_captured(
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let mut study = String::from("model = \"start.toml\"\n");
-    for i in 1..=3 {
-        let run = dir.join(format!("run-{i}.mcap"));
-        let rec = record_from(
-            &demo_rig(),
-            &[&capture(&dir.join(format!("rep-{i:02}")))],
-            &run,
-        );
-        assert!(
-            rec.status.success(),
-            "{}",
-            String::from_utf8_lossy(&rec.stderr)
-        );
+    let runs: Vec<(PathBuf, PathBuf)> = (1..=3)
+        .map(|i| {
+            let run = dir.join(format!("run-{i}.mcap"));
+            let rec = record_from(
+                &demo_rig(),
+                &[&capture(&dir.join(format!("rep-{i:02}")))],
+                &run,
+            );
+            assert!(
+                rec.status.success(),
+                "{}",
+                String::from_utf8_lossy(&rec.stderr)
+            );
+            (run, dir.join(format!("rep-{i:02}/scene.toml")))
+        })
+        .collect();
+    study(dir, &dir.join("start.toml"), &runs)
+}
+
+/// Writes `dir/study.toml`: the start model and the runs (recording, scene), the last one
+/// validating and the others fitting, each path relative to `dir` where it lies within it (as
+/// a user writes a study); returns its path.
+pub fn study(dir: &Path, model: &Path, runs: &[(PathBuf, PathBuf)]) -> PathBuf {
+    let rel = |p: &Path| p.strip_prefix(dir).unwrap_or(p).display().to_string();
+    let mut study = format!("model = {:?}\n", rel(model));
+    for (k, (run, scene)) in runs.iter().enumerate() {
         study.push_str(&format!(
-            "[[run]]\nrecording = \"run-{i}.mcap\"\nscene = \"rep-{i:02}/scene.toml\"\nrole = \"{}\"\n",
-            if i == 3 { "validate" } else { "fit" }
+            "[[run]]\nrecording = {:?}\nscene = {:?}\nrole = \"{}\"\n",
+            rel(run),
+            rel(scene),
+            if k + 1 == runs.len() {
+                "validate"
+            } else {
+                "fit"
+            }
         ));
     }
     let path = dir.join("study.toml");
