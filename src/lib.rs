@@ -18,6 +18,8 @@
 //! - [`gap`]: the gap workflow: the missing effect found, fitted and validated (`hilrig gap`);
 //! - [`stats`]: over repetitions: area validation metric, traffic lights, rank correlation;
 //! - [`output`]: the JSON files the commands write, one typed struct per kind in an envelope;
+//! - [`campaign`]: many drives through the steps above, planned as a graph of commands and run
+//!   here, resumable (`hilrig campaign`);
 //! - [`report`]: the HTML validation report from the JSON the steps write (`hilrig report`);
 //! - [`rig`]: the rig file every step reads (sensors, mounting, ports, thresholds).
 
@@ -25,6 +27,7 @@
 #![warn(clippy::too_many_lines)]
 
 pub mod bag;
+pub mod campaign;
 pub mod config;
 pub mod decode;
 pub mod estimate;

@@ -76,6 +76,10 @@ enum Command {
     /// The validation report (one self-contained HTML file) from the JSON that check,
     /// compare, validate and gap write.
     Report(cli::report::ReportArgs),
+    /// Many drives through the method: a campaign file planned into tasks (each one command
+    /// on files) and run here, resumable; `campaign plan --json` prints the graph for any
+    /// engine.
+    Campaign(cli::campaign::CampaignArgs),
 }
 
 fn init_logging(verbose: u8) {
@@ -122,6 +126,7 @@ fn main() -> ExitCode {
         Command::Gap(args) => cli::gap::run_cli(args),
         Command::Demo(args) => cli::demo::run(args),
         Command::Report(args) => cli::report::run(args),
+        Command::Campaign(args) => cli::campaign::run(args),
     };
     match result {
         Ok(code) => code,

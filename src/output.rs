@@ -34,6 +34,10 @@ pub enum OutputKind {
     Validate,
     /// `hilrig gap` (`gap.json`): the rounds of the gap workflow.
     Gap,
+    /// `hilrig campaign plan --json`: a campaign's task graph.
+    CampaignPlan,
+    /// A campaign task's stamp: what it read and wrote when it finished.
+    CampaignTask,
 }
 
 impl OutputKind {
@@ -45,7 +49,14 @@ impl OutputKind {
             OutputKind::Compare => "compare",
             OutputKind::Validate => "validate",
             OutputKind::Gap => "gap",
+            OutputKind::CampaignPlan => "campaign plan --json",
+            OutputKind::CampaignTask => "campaign",
         }
+    }
+
+    /// Whether `report` reads it (the campaign's own files are not results).
+    pub fn is_result(self) -> bool {
+        !matches!(self, OutputKind::CampaignPlan | OutputKind::CampaignTask)
     }
 
     /// The spelling in the envelope.
@@ -56,6 +67,8 @@ impl OutputKind {
             OutputKind::Compare => "compare",
             OutputKind::Validate => "validate",
             OutputKind::Gap => "gap",
+            OutputKind::CampaignPlan => "campaign_plan",
+            OutputKind::CampaignTask => "campaign_task",
         }
     }
 }
@@ -99,7 +112,7 @@ pub enum OutputError {
         path: PathBuf,
     },
     /// A kind this build does not know.
-    #[error("{path}: kind \"{kind}\" is not one of recording, check, compare, validate, gap")]
+    #[error("{path}: kind \"{kind}\" is not one of recording, check, compare, validate, gap, campaign_plan, campaign_task")]
     UnknownKind {
         /// The file.
         path: PathBuf,

@@ -3,6 +3,7 @@
 //! `hilrig::record`, replay's pacing, sinks and `--now` in `hilrig::replay`, the check in
 //! `hilrig::reference`, synthesis and re-simulation in `hilrig::sim`, the metrics in `hilrig::metrics`.
 
+pub mod campaign;
 pub mod check;
 pub mod compare;
 pub mod coverage;

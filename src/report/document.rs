@@ -29,6 +29,13 @@ impl Document {
             OutputKind::Compare => Document::Compare(Box::new(from_slice(path, bytes)?)),
             OutputKind::Validate => Document::Validate(Box::new(from_slice(path, bytes)?)),
             OutputKind::Gap => Document::Gap(Box::new(from_slice(path, bytes)?)),
+            found @ (OutputKind::CampaignPlan | OutputKind::CampaignTask) => {
+                return Err(OutputError::WrongKind {
+                    path: path.to_owned(),
+                    found: found.name(),
+                    wanted: "check, compare, validate, gap or recording",
+                })
+            }
         })
     }
 

@@ -22,7 +22,7 @@ pub mod plots;
 
 pub use document::Document;
 
-use crate::output::{OutputError, OutputKind};
+use crate::output::{header, OutputError, OutputKind};
 use sha2::Digest;
 use std::path::{Path, PathBuf};
 
@@ -133,6 +133,10 @@ fn read(path: &Path, base: &Path, named: bool) -> Result<Option<Input>, ReportEr
         path: path.to_owned(),
         source,
     })?;
+    // A campaign's own files (its plan, its stamps) sit beside its results: not inputs.
+    if !named && header(path, &bytes).is_ok_and(|(k, _)| !k.is_result()) {
+        return Ok(None);
+    }
     let value = match Document::from_slice(path, &bytes) {
         Ok(v) => v,
         Err(OutputError::NotJson { .. }) if !named => return Ok(None),

@@ -1,0 +1,389 @@
+//! The local executor: a plan's tasks as subprocesses of this machine, up to `jobs` at a time,
+//! each as soon as the tasks it waits for have passed.
+//!
+//! A task that fails is named with its log and the rest of the graph still runs where it does
+//! not wait for it; the tasks that do are reported as not run, with the reason. Finished tasks
+//! leave a stamp (stamp.rs), so a campaign that was stopped (killed, a machine rebooted) skips
+//! on its next run every task whose files are as it left them. Each task's process is killed
+//! with the executor (`PR_SET_PDEATHSIG`): a killed campaign leaves no command writing on.
+
+use super::plan::{Plan, Task};
+use super::stamp::{self, FileHash, Hashes, Stamp};
+use super::CampaignError;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+/// How to run a plan.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// The `hilrig` executable the tasks run.
+    pub exe: PathBuf,
+    /// Tasks at a time.
+    pub jobs: usize,
+    /// Run every task, up to date or not.
+    pub force: bool,
+}
+
+/// How a task ended.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Outcome {
+    /// It ran and ended with one of its results.
+    Ran {
+        /// Its exit code.
+        exit: i32,
+        /// Its wall time.
+        time: Duration,
+    },
+    /// Its stamp showed it up to date; it did not run.
+    UpToDate {
+        /// The exit code it ended with then.
+        exit: i32,
+    },
+    /// It ran and failed.
+    Failed {
+        /// What went wrong.
+        why: String,
+    },
+    /// It did not run because a task it waits for did not pass.
+    NotRun {
+        /// That task's id and what it ended with.
+        because: String,
+    },
+}
+
+impl Outcome {
+    /// Its exit code, when it has a result.
+    pub fn exit(&self) -> Option<i32> {
+        match self {
+            Outcome::Ran { exit, .. } | Outcome::UpToDate { exit } => Some(*exit),
+            _ => None,
+        }
+    }
+}
+
+/// Told of every task as it starts and ends (the command line's progress bar).
+pub trait Progress: Sync {
+    /// A task started.
+    fn started(&self, task: &Task);
+    /// A task ended (or was found up to date, or will not run).
+    fn finished(&self, task: &Task, outcome: &Outcome);
+}
+
+/// Every task's outcome, in the plan's order.
+#[derive(Clone, Debug)]
+pub struct Summary {
+    /// (task id, outcome).
+    pub outcomes: Vec<(String, Outcome)>,
+}
+
+impl Summary {
+    /// Tasks that ran, were up to date, failed, did not run.
+    pub fn counts(&self) -> [usize; 4] {
+        let mut c = [0; 4];
+        for (_, o) in &self.outcomes {
+            c[match o {
+                Outcome::Ran { .. } => 0,
+                Outcome::UpToDate { .. } => 1,
+                Outcome::Failed { .. } => 2,
+                Outcome::NotRun { .. } => 3,
+            }] += 1;
+        }
+        c
+    }
+}
+
+/// What the executor knows of a task while the plan runs.
+enum State {
+    Waiting,
+    Running {
+        inputs: Vec<FileHash>,
+        started: Instant,
+    },
+    Done(Outcome),
+}
+
+/// Writes the plan's own files, creates every output's directory, then runs the tasks.
+pub fn run(
+    plan: &Plan,
+    options: &Options,
+    progress: &dyn Progress,
+) -> Result<Summary, CampaignError> {
+    prepare(plan)?;
+    let mut hashes = Hashes::default();
+    let mut states: Vec<State> = plan.tasks.iter().map(|_| State::Waiting).collect();
+    let index: std::collections::HashMap<&str, usize> = plan
+        .tasks
+        .iter()
+        .enumerate()
+        .map(|(i, t)| (t.id.as_str(), i))
+        .collect();
+    let (tx, rx) = mpsc::channel::<(usize, std::io::Result<std::process::ExitStatus>)>();
+    let mut running = 0usize;
+    // The order tasks start in when several are ready: the gap workflow first (it is the
+    // longest task by far and nothing waits for it but the report), then the plan's order.
+    let mut starts: Vec<usize> = (0..plan.tasks.len()).collect();
+    starts.sort_by_key(|&i| plan.tasks[i].step != super::file::Step::Gap);
+    loop {
+        // Settle what can be settled without running anything: tasks whose predecessor did
+        // not pass, and tasks that are up to date.
+        let mut changed = true;
+        while changed {
+            changed = false;
+            for (i, task) in plan.tasks.iter().enumerate() {
+                if !matches!(states[i], State::Waiting) {
+                    continue;
+                }
+                let mut blocked = None;
+                let mut ready = true;
+                for dep in &task.after {
+                    let j = index[dep.as_str()];
+                    match &states[j] {
+                        State::Done(o) => {
+                            if !o.exit().is_some_and(|e| plan.tasks[j].passes.contains(&e)) {
+                                blocked.get_or_insert_with(|| format!("{dep}: {}", short(o)));
+                            }
+                        }
+                        _ => ready = false,
+                    }
+                }
+                if let Some(because) = blocked.filter(|_| ready) {
+                    let o = Outcome::NotRun { because };
+                    progress.finished(task, &o);
+                    states[i] = State::Done(o);
+                    changed = true;
+                } else if ready && !options.force {
+                    if let Some(exit) = stamp::up_to_date(&plan.out, task, &mut hashes)? {
+                        let o = Outcome::UpToDate { exit };
+                        progress.finished(task, &o);
+                        states[i] = State::Done(o);
+                        changed = true;
+                    }
+                }
+            }
+        }
+        // Start what is ready.
+        for &i in &starts {
+            let task = &plan.tasks[i];
+            if running >= options.jobs.max(1) {
+                break;
+            }
+            let ready = matches!(states[i], State::Waiting)
+                && task
+                    .after
+                    .iter()
+                    .all(|d| matches!(states[index[d.as_str()]], State::Done(_)));
+            if !ready {
+                continue;
+            }
+            match start(plan, task, i, options, &mut hashes, &tx) {
+                Ok(inputs) => {
+                    progress.started(task);
+                    states[i] = State::Running {
+                        inputs,
+                        started: Instant::now(),
+                    };
+                    running += 1;
+                }
+                Err(why) => {
+                    let o = Outcome::Failed { why };
+                    progress.finished(task, &o);
+                    states[i] = State::Done(o);
+                }
+            }
+        }
+        if running == 0 {
+            if states.iter().all(|s| matches!(s, State::Done(_))) {
+                break;
+            }
+            // Something became decidable by a failure to start: settle again.
+            continue;
+        }
+        let (i, status) = rx.recv().expect("a waiter per running task");
+        running -= 1;
+        let task = &plan.tasks[i];
+        let State::Running { inputs, started } = std::mem::replace(&mut states[i], State::Waiting)
+        else {
+            unreachable!("only running tasks are waited for");
+        };
+        let o = finish(plan, task, status, inputs, started.elapsed(), &mut hashes)?;
+        progress.finished(task, &o);
+        states[i] = State::Done(o);
+    }
+    Ok(Summary {
+        outcomes: plan
+            .tasks
+            .iter()
+            .zip(states)
+            .map(|(t, s)| match s {
+                State::Done(o) => (t.id.clone(), o),
+                _ => unreachable!("the loop ends when every task is done"),
+            })
+            .collect(),
+    })
+}
+
+/// One line for an outcome that stops the tasks after it.
+fn short(o: &Outcome) -> String {
+    match o {
+        Outcome::Ran { exit, .. } | Outcome::UpToDate { exit } => format!("exit {exit}"),
+        Outcome::Failed { why } => format!("failed ({why})"),
+        Outcome::NotRun { because } => format!("not run ({because})"),
+    }
+}
+
+fn prepare(plan: &Plan) -> Result<(), CampaignError> {
+    let io = |path: &Path| {
+        let path = path.to_owned();
+        move |source| CampaignError::Io { path, source }
+    };
+    let mut dirs: Vec<PathBuf> = plan
+        .tasks
+        .iter()
+        .flat_map(|t| {
+            t.outputs
+                .iter()
+                .chain([&t.log])
+                .map(|p| p.parent().unwrap_or(Path::new("/")).to_owned())
+        })
+        .chain(
+            plan.files
+                .iter()
+                .map(|f| f.path.parent().unwrap_or(Path::new("/")).to_owned()),
+        )
+        .chain(plan.tasks.iter().map(|t| {
+            stamp::path(&plan.out, &t.id)
+                .parent()
+                .unwrap_or(Path::new("/"))
+                .to_owned()
+        }))
+        .collect();
+    dirs.sort();
+    dirs.dedup();
+    for d in dirs {
+        std::fs::create_dir_all(&d).map_err(io(&d))?;
+    }
+    for f in &plan.files {
+        // Rewritten only when it differs, so that an unchanged study keeps its hash and time.
+        if std::fs::read_to_string(&f.path).ok().as_deref() != Some(f.text.as_str()) {
+            std::fs::write(&f.path, &f.text).map_err(io(&f.path))?;
+        }
+    }
+    Ok(())
+}
+
+/// Starts `task` with its inputs hashed; the reason when it cannot start.
+fn start(
+    plan: &Plan,
+    task: &super::plan::Task,
+    i: usize,
+    options: &Options,
+    hashes: &mut Hashes,
+    tx: &mpsc::Sender<(usize, std::io::Result<std::process::ExitStatus>)>,
+) -> Result<Vec<FileHash>, String> {
+    let inputs = match hashes.all(&task.inputs) {
+        Ok(Some(h)) => h,
+        Ok(None) => {
+            let missing = task
+                .inputs
+                .iter()
+                .find(|p| !p.is_file())
+                .map(|p| p.display().to_string())
+                .unwrap_or_default();
+            return Err(format!("input {missing} does not exist"));
+        }
+        Err(e) => return Err(e.to_string()),
+    };
+    let stamp_path = stamp::path(&plan.out, &task.id);
+    match std::fs::remove_file(&stamp_path) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(format!("cannot remove {}: {e}", stamp_path.display())),
+    }
+    let log = std::fs::File::create(&task.log)
+        .map_err(|e| format!("cannot create {}: {e}", task.log.display()))?;
+    let err = log
+        .try_clone()
+        .map_err(|e| format!("{}: {e}", task.log.display()))?;
+    let mut cmd = Command::new(&options.exe);
+    cmd.args(&task.args)
+        .stdin(Stdio::null())
+        .stdout(log)
+        .stderr(err);
+    // SAFETY: the closure runs in the child between fork and exec and only calls prctl(2),
+    // which is async-signal-safe; it touches no memory of the parent.
+    unsafe {
+        use std::os::unix::process::CommandExt;
+        cmd.pre_exec(|| {
+            nix::sys::prctl::set_pdeathsig(nix::sys::signal::Signal::SIGKILL)
+                .map_err(std::io::Error::from)
+        });
+    }
+    let mut child = cmd
+        .spawn()
+        .map_err(|e| format!("cannot start {}: {e}", options.exe.display()))?;
+    let tx = tx.clone();
+    std::thread::spawn(move || {
+        let status = child.wait();
+        let _ = tx.send((i, status));
+    });
+    Ok(inputs)
+}
+
+/// The outcome of a task that ended, its stamp written when it has a result.
+fn finish(
+    plan: &Plan,
+    task: &Task,
+    status: std::io::Result<std::process::ExitStatus>,
+    inputs: Vec<FileHash>,
+    time: Duration,
+    hashes: &mut Hashes,
+) -> Result<Outcome, CampaignError> {
+    let log = task.log.display();
+    let code = match status {
+        Ok(s) => match s.code() {
+            Some(c) => c,
+            None => {
+                return Ok(Outcome::Failed {
+                    why: format!("killed by a signal ({s}); see {log}"),
+                })
+            }
+        },
+        Err(e) => {
+            return Ok(Outcome::Failed {
+                why: format!("cannot wait for it: {e}"),
+            })
+        }
+    };
+    if !task.results.contains(&code) {
+        return Ok(Outcome::Failed {
+            why: format!("exit {code}; see {log}"),
+        });
+    }
+    let Some(outputs) = hashes.all(&task.outputs)? else {
+        let missing = task
+            .outputs
+            .iter()
+            .find(|p| !p.is_file())
+            .map(|p| p.display().to_string())
+            .unwrap_or_default();
+        return Ok(Outcome::Failed {
+            why: format!("exit {code} but {missing} was not written; see {log}"),
+        });
+    };
+    let stamp = Stamp {
+        task: task.id.clone(),
+        args: task.args.clone(),
+        exit: code,
+        inputs,
+        outputs,
+    };
+    crate::output::write(&stamp::path(&plan.out, &task.id), &stamp).map_err(|e| {
+        CampaignError::Invalid {
+            path: stamp::path(&plan.out, &task.id),
+            what: e.to_string(),
+        }
+    })?;
+    Ok(Outcome::Ran { exit: code, time })
+}

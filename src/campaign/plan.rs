@@ -1,0 +1,560 @@
+//! The task graph of a campaign: each task one invocation of an existing command on files,
+//! with the files it reads and writes and the tasks it waits for.
+//!
+//! The graph is derived from the files, as `make` derives it: a task waits for the task that
+//! writes a file it reads (plus the one gate the method has: a drive is re-simulated and
+//! studied only after its reference data passed `check`). So a campaign whose drives lie among
+//! its own outputs is a cycle, and two tasks writing one file is a conflict; both are refused
+//! before anything runs. The plan is written as JSON (`hilrig campaign plan --json`) so that any
+//! engine can run it: every path in it is absolute, every command line complete.
+
+use super::file::{Campaign, Scenario, Step};
+use super::CampaignError;
+use crate::gap::study::{Role, RunEntry, StudyFile};
+use crate::output::{Output, OutputKind};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// One invocation of `hilrig`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Task {
+    /// Unique name: the step, then the model and drive or scenario it is for
+    /// (`resim/truth/rep-01`).
+    pub id: String,
+    /// The step it is of.
+    pub step: Step,
+    /// The command line after `hilrig`.
+    pub args: Vec<String>,
+    /// The files it reads (each one that a task writes makes it wait for that task).
+    pub inputs: Vec<PathBuf>,
+    /// The files it writes.
+    pub outputs: Vec<PathBuf>,
+    /// The tasks it waits for (ids; every one is earlier in [`Plan::tasks`]).
+    pub after: Vec<String>,
+    /// Exit codes that are results, not failures (`check` exits 1 for a run that fails).
+    pub results: Vec<i32>,
+    /// Exit codes after which the tasks waiting for it run (`check`'s 0 only).
+    pub passes: Vec<i32>,
+    /// Where its standard output and error go.
+    pub log: PathBuf,
+}
+
+/// A file the plan itself makes before any task runs (the gap workflow's study files).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PlannedFile {
+    /// Where.
+    pub path: PathBuf,
+    /// Its whole text.
+    pub text: String,
+}
+
+/// A campaign's tasks in an order that runs each after the ones it waits for.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Plan {
+    /// The campaign's name.
+    pub campaign: String,
+    /// The campaign file.
+    pub campaign_file: PathBuf,
+    /// The output directory.
+    pub out: PathBuf,
+    /// Files written before the first task.
+    pub files: Vec<PlannedFile>,
+    /// The tasks.
+    pub tasks: Vec<Task>,
+}
+
+impl Output for Plan {
+    const KIND: OutputKind = OutputKind::CampaignPlan;
+    const SCHEMA: u32 = 1;
+}
+
+fn s(p: &Path) -> String {
+    p.display().to_string()
+}
+
+/// Where a campaign's files go under its output directory.
+struct Layout<'a> {
+    out: &'a Path,
+}
+
+impl Layout<'_> {
+    fn rec(&self, drive: &str) -> PathBuf {
+        self.out.join("rec").join(format!("{drive}.mcap"))
+    }
+    fn check(&self, drive: &str) -> PathBuf {
+        self.out.join("check").join(format!("{drive}.json"))
+    }
+    fn sim(&self, model: &str, drive: &str) -> PathBuf {
+        self.out
+            .join("sim")
+            .join(model)
+            .join(format!("{drive}.mcap"))
+    }
+    fn compare(&self, model: &str, drive: &str) -> PathBuf {
+        self.out
+            .join("compare")
+            .join(model)
+            .join(format!("{drive}.json"))
+    }
+    fn validate(&self, scenario: &str, model: &str) -> PathBuf {
+        self.out
+            .join("validate")
+            .join(scenario)
+            .join(format!("{model}.json"))
+    }
+    fn gap(&self, scenario: &str) -> PathBuf {
+        self.out.join("gap").join(scenario)
+    }
+    fn log(&self, id: &str) -> PathBuf {
+        self.out.join("logs").join(format!("{id}.log"))
+    }
+}
+
+/// Adds a campaign's tasks step by step, with defaults for their exit codes and log.
+struct Builder<'a> {
+    campaign: &'a Campaign,
+    layout: Layout<'a>,
+    /// Each drive's recording: the capture recorded, or the file as given.
+    recs: Vec<PathBuf>,
+    tasks: Vec<Task>,
+    /// Gate edges: task id -> the ids it waits for beyond its files.
+    gates: BTreeMap<String, Vec<String>>,
+    /// Files the plan writes itself.
+    files: Vec<PlannedFile>,
+}
+
+impl Builder<'_> {
+    fn has(&self, step: Step) -> bool {
+        self.campaign.steps.contains(&step)
+    }
+
+    fn add(
+        &mut self,
+        id: String,
+        step: Step,
+        args: Vec<String>,
+        inputs: Vec<PathBuf>,
+        outputs: Vec<PathBuf>,
+    ) -> &mut Task {
+        let log = self.layout.log(&id);
+        self.tasks.push(Task {
+            id,
+            step,
+            args,
+            inputs,
+            outputs,
+            after: Vec::new(),
+            results: vec![0],
+            passes: vec![0],
+            log,
+        });
+        self.tasks.last_mut().expect("just pushed")
+    }
+
+    /// The check of drive `d`, which its re-simulations and studies wait for.
+    fn check_of(&self, d: &str) -> Option<String> {
+        self.has(Step::Check).then(|| format!("check/{d}"))
+    }
+
+    /// `record` and `check` per drive.
+    fn drives(&mut self) {
+        let c = self.campaign;
+        for (d, rec) in c.drives.iter().zip(self.recs.clone()) {
+            if d.is_capture && self.has(Step::Record) {
+                let rig = c
+                    .rig
+                    .clone()
+                    .expect("checked: captures with record have a rig");
+                let args = vec![
+                    "record".into(),
+                    "--rig".into(),
+                    s(&rig),
+                    "--from".into(),
+                    s(&d.source),
+                    "-o".into(),
+                    s(&rec),
+                ];
+                self.add(
+                    format!("record/{}", d.name),
+                    Step::Record,
+                    args,
+                    vec![rig, d.source.clone()],
+                    vec![rec.clone()],
+                );
+            }
+            if self.has(Step::Check) {
+                let json = self.layout.check(&d.name);
+                let args = vec![
+                    "check".into(),
+                    s(&rec),
+                    "--scene".into(),
+                    s(&d.scene),
+                    "--json".into(),
+                    s(&json),
+                ];
+                let t = self.add(
+                    format!("check/{}", d.name),
+                    Step::Check,
+                    args,
+                    vec![rec, d.scene.clone()],
+                    vec![json],
+                );
+                // A run that fails its check is a result; nothing waiting for it runs.
+                t.results = vec![0, 1];
+            }
+        }
+    }
+
+    /// `resim` and `compare` per model and drive.
+    fn models(&mut self) {
+        let c = self.campaign;
+        for m in &c.models {
+            for (d, rec) in c.drives.iter().zip(self.recs.clone()) {
+                let sim = self.layout.sim(&m.name, &d.name);
+                if self.has(Step::Resim) {
+                    let id = format!("resim/{}/{}", m.name, d.name);
+                    let args = vec![
+                        "resim".into(),
+                        s(&rec),
+                        "--scene".into(),
+                        s(&d.scene),
+                        "--model".into(),
+                        s(&m.file),
+                        "-o".into(),
+                        s(&sim),
+                    ];
+                    let inputs = vec![rec.clone(), d.scene.clone(), m.file.clone()];
+                    self.add(id.clone(), Step::Resim, args, inputs, vec![sim.clone()]);
+                    if let Some(check) = self.check_of(&d.name) {
+                        self.gates.entry(id).or_default().push(check);
+                    }
+                }
+                if self.has(Step::Compare) {
+                    let json = self.layout.compare(&m.name, &d.name);
+                    let args = vec![
+                        "compare".into(),
+                        s(&rec),
+                        s(&sim),
+                        "--scene".into(),
+                        s(&d.scene),
+                        "--json".into(),
+                        s(&json),
+                    ];
+                    let inputs = vec![rec, sim, d.scene.clone()];
+                    self.add(
+                        format!("compare/{}/{}", m.name, d.name),
+                        Step::Compare,
+                        args,
+                        inputs,
+                        vec![json],
+                    );
+                }
+            }
+        }
+    }
+
+    /// `validate` of scenario `sc` per model, over its repetitions.
+    fn validate(&mut self, sc: &Scenario) {
+        let c = self.campaign;
+        for m in &c.models {
+            let json = self.layout.validate(&sc.name, &m.name);
+            let mut args = vec!["validate".to_string()];
+            let mut inputs = Vec::new();
+            for &i in &sc.drives {
+                args.extend(["--real".into(), s(&self.recs[i])]);
+                inputs.push(self.recs[i].clone());
+            }
+            for &i in &sc.drives {
+                let sim = self.layout.sim(&m.name, &c.drives[i].name);
+                args.extend(["--sim".into(), s(&sim)]);
+                inputs.push(sim);
+            }
+            if let Some(p) = &sc.phases {
+                args.extend(["--phases".into(), s(p)]);
+                inputs.push(p.clone());
+            }
+            args.extend(["--json".into(), s(&json)]);
+            let t = self.add(
+                format!("validate/{}/{}", sc.name, m.name),
+                Step::Validate,
+                args,
+                inputs,
+                vec![json],
+            );
+            // A model that is not valid is the result, and the report shows it.
+            t.results = vec![0, 1];
+            t.passes = vec![0, 1];
+        }
+    }
+
+    /// `gap` of scenario `sc`, with the study file it reads.
+    fn gap(&mut self, sc: &Scenario) -> Result<(), CampaignError> {
+        let c = self.campaign;
+        let dir = self.layout.gap(&sc.name);
+        let study_path = dir.join("study.toml");
+        let model = &c.models[sc.gap_model];
+        let study = StudyFile {
+            model: model.file.clone(),
+            scene: None,
+            rig: None,
+            runs: sc
+                .drives
+                .iter()
+                .enumerate()
+                .map(|(k, &i)| RunEntry {
+                    recording: self.recs[i].clone(),
+                    scene: Some(c.drives[i].scene.clone()),
+                    role: if k < sc.fit_runs {
+                        Role::Fit
+                    } else {
+                        Role::Validate
+                    },
+                })
+                .collect(),
+        };
+        let text = study.to_toml().map_err(|e| CampaignError::Invalid {
+            path: c.path.clone(),
+            what: format!("scenario '{}': the gap study: {e}", sc.name),
+        })?;
+        self.files.push(PlannedFile {
+            path: study_path.clone(),
+            text: format!(
+                "# The gap study of scenario '{}' of campaign '{}'.\n{text}",
+                sc.name, c.name
+            ),
+        });
+        let mut args = vec!["gap".into(), s(&study_path), "-o".into(), s(&dir)];
+        let mut inputs = vec![study_path, model.file.clone()];
+        if let Some(r) = sc.reference_model {
+            let r = &c.models[r].file;
+            args.extend(["--reference-model".into(), s(r)]);
+            inputs.push(r.clone());
+        }
+        for &i in &sc.drives {
+            inputs.extend([self.recs[i].clone(), c.drives[i].scene.clone()]);
+        }
+        let id = format!("gap/{}", sc.name);
+        let outputs = vec![dir.join("gap.json"), dir.join("model.fitted.toml")];
+        self.add(id.clone(), Step::Gap, args, inputs, outputs);
+        // The workflow refuses runs that fail their check.
+        let checks: Vec<String> = sc
+            .drives
+            .iter()
+            .filter_map(|&i| self.check_of(&c.drives[i].name))
+            .collect();
+        self.gates.entry(id).or_default().extend(checks);
+        Ok(())
+    }
+
+    /// `report` over every JSON the tasks before it write.
+    fn report(&mut self) {
+        let jsons: Vec<PathBuf> = self
+            .tasks
+            .iter()
+            .filter(|t| {
+                matches!(
+                    t.step,
+                    Step::Check | Step::Compare | Step::Validate | Step::Gap
+                )
+            })
+            .flat_map(|t| {
+                t.outputs
+                    .iter()
+                    .filter(|o| o.extension().is_some_and(|e| e == "json"))
+                    .cloned()
+            })
+            .collect();
+        let html = self.layout.out.join("report.html");
+        let mut args = vec!["report".to_string()];
+        args.extend(jsons.iter().map(|p| s(p)));
+        args.extend(["-o".into(), s(&html)]);
+        let json = self.layout.out.join("report.json");
+        self.add("report".into(), Step::Report, args, jsons, vec![html, json]);
+    }
+}
+
+impl Plan {
+    /// The plan of `campaign` with its outputs under `out` (made absolute).
+    pub fn build(campaign: &Campaign, out: &Path) -> Result<Plan, CampaignError> {
+        let out = canonical(out).map_err(|source| CampaignError::Io {
+            path: out.to_owned(),
+            source,
+        })?;
+        let layout = Layout { out: &out };
+        let recs = campaign
+            .drives
+            .iter()
+            .map(|d| {
+                if d.is_capture {
+                    layout.rec(&d.name)
+                } else {
+                    d.source.clone()
+                }
+            })
+            .collect();
+        let mut b = Builder {
+            campaign,
+            layout,
+            recs,
+            tasks: Vec::new(),
+            gates: BTreeMap::new(),
+            files: Vec::new(),
+        };
+        b.drives();
+        b.models();
+        for sc in &campaign.scenarios {
+            if b.has(Step::Validate) {
+                b.validate(sc);
+            }
+            if b.has(Step::Gap) {
+                b.gap(sc)?;
+            }
+        }
+        if b.has(Step::Report) {
+            b.report();
+        }
+        let Builder {
+            tasks,
+            gates,
+            files,
+            ..
+        } = b;
+        let tasks = order(tasks, &gates)?;
+        Ok(Plan {
+            campaign: campaign.name.clone(),
+            campaign_file: campaign.path.clone(),
+            out,
+            files,
+            tasks,
+        })
+    }
+
+    /// The task called `id`.
+    pub fn task(&self, id: &str) -> Option<&Task> {
+        self.tasks.iter().find(|t| t.id == id)
+    }
+}
+
+/// `path` absolute, with its longest existing ancestor canonical: the campaign's inputs are
+/// canonical paths, so an output is recognised as an input (a cycle) whichever way it is named.
+fn canonical(path: &Path) -> std::io::Result<PathBuf> {
+    let path = std::path::absolute(path)?;
+    let mut rest = Vec::new();
+    let mut base = path.as_path();
+    loop {
+        if let Ok(c) = std::fs::canonicalize(base) {
+            return Ok(rest.iter().rev().fold(c, |p: PathBuf, part| p.join(part)));
+        }
+        match (base.parent(), base.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name.to_owned());
+                base = parent;
+            }
+            _ => return Ok(path),
+        }
+    }
+}
+
+/// Derives each task's `after` from the files (and `gates`), and sorts the tasks so that each
+/// comes after those it waits for; a cycle or two writers of one file is an error.
+fn order(
+    mut tasks: Vec<Task>,
+    gates: &BTreeMap<String, Vec<String>>,
+) -> Result<Vec<Task>, CampaignError> {
+    let mut writer: BTreeMap<&Path, usize> = BTreeMap::new();
+    for (i, t) in tasks.iter().enumerate() {
+        for o in &t.outputs {
+            if let Some(&j) = writer.get(o.as_path()) {
+                return Err(CampaignError::TwoWriters {
+                    path: o.clone(),
+                    first: tasks[j].id.clone(),
+                    second: t.id.clone(),
+                });
+            }
+            writer.insert(o, i);
+        }
+    }
+    let index: BTreeMap<String, usize> = tasks
+        .iter()
+        .enumerate()
+        .map(|(i, t)| (t.id.clone(), i))
+        .collect();
+    let mut deps: Vec<Vec<usize>> = vec![Vec::new(); tasks.len()];
+    for (i, t) in tasks.iter().enumerate() {
+        let mut d: Vec<usize> = t
+            .inputs
+            .iter()
+            .filter_map(|p| writer.get(p.as_path()).copied())
+            .collect();
+        if let Some(g) = gates.get(&t.id) {
+            d.extend(g.iter().filter_map(|id| index.get(id).copied()));
+        }
+        d.sort_unstable();
+        d.dedup();
+        deps[i] = d;
+    }
+    // Depth-first, in the tasks' own order, so that the plan reads like the method.
+    #[derive(Clone, Copy, PartialEq)]
+    enum Mark {
+        New,
+        Open,
+        Done,
+    }
+    fn visit(
+        i: usize,
+        deps: &[Vec<usize>],
+        marks: &mut [Mark],
+        stack: &mut Vec<usize>,
+        sorted: &mut Vec<usize>,
+    ) -> Result<(), Vec<usize>> {
+        match marks[i] {
+            Mark::Done => return Ok(()),
+            Mark::Open => {
+                let from = stack.iter().position(|&k| k == i).unwrap_or(0);
+                let mut cycle = stack[from..].to_vec();
+                cycle.push(i);
+                return Err(cycle);
+            }
+            Mark::New => {}
+        }
+        marks[i] = Mark::Open;
+        stack.push(i);
+        for &d in &deps[i] {
+            visit(d, deps, marks, stack, sorted)?;
+        }
+        stack.pop();
+        marks[i] = Mark::Done;
+        sorted.push(i);
+        Ok(())
+    }
+    let mut marks = vec![Mark::New; tasks.len()];
+    let mut sorted = Vec::with_capacity(tasks.len());
+    for i in 0..tasks.len() {
+        let mut stack = Vec::new();
+        if let Err(cycle) = visit(i, &deps, &mut marks, &mut stack, &mut sorted) {
+            let ids: Vec<String> = cycle.iter().map(|&k| tasks[k].id.clone()).collect();
+            // The file that closes the cycle: one the last task but one reads and the last writes.
+            let (reader, written_by) = (cycle[cycle.len() - 2], cycle[cycle.len() - 1]);
+            let file = tasks[reader]
+                .inputs
+                .iter()
+                .find(|p| writer.get(p.as_path()) == Some(&written_by))
+                .cloned()
+                .unwrap_or_default();
+            return Err(CampaignError::Cycle {
+                tasks: ids.join(" -> "),
+                file,
+            });
+        }
+    }
+    let ids: Vec<String> = tasks.iter().map(|t| t.id.clone()).collect();
+    for (t, d) in tasks.iter_mut().zip(&deps) {
+        t.after = d.iter().map(|&k| ids[k].clone()).collect();
+    }
+    let mut slots: Vec<Option<Task>> = tasks.into_iter().map(Some).collect();
+    Ok(sorted
+        .into_iter()
+        .map(|i| slots[i].take().expect("each task once"))
+        .collect())
+}

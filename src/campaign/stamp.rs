@@ -1,0 +1,137 @@
+//! What a finished task leaves behind so that the next run can skip it: the command line, the
+//! exit code, and the SHA-256 of every file it read and wrote.
+//!
+//! A task is up to date when its stamp exists, its command line is the plan's, and every input
+//! and output still has the hash the stamp gives (an output that is missing, cut short or
+//! edited makes it run again; so does an input that a task before it wrote anew). A stamp is
+//! written only after the task ended with a result, and removed before it starts: a task killed
+//! half-way has none. Content hashes, not modification times, so that a drive copied to another
+//! disk, or an output rewritten with the same bytes, does not redo the work after it.
+
+use super::plan::Task;
+use super::CampaignError;
+use crate::output::{Output, OutputKind};
+use serde::{Deserialize, Serialize};
+use sha2::Digest;
+use std::collections::HashMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::time::SystemTime;
+
+/// A file and its content hash.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FileHash {
+    /// The file.
+    pub path: PathBuf,
+    /// SHA-256 of its bytes, lowercase hex.
+    pub sha256: String,
+}
+
+/// A finished task (`OUT/campaign/done/<task id>.json`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Stamp {
+    /// The task's id.
+    pub task: String,
+    /// Its command line after `hilrig`.
+    pub args: Vec<String>,
+    /// Its exit code (one of the task's results).
+    pub exit: i32,
+    /// Its inputs as they were when it started.
+    pub inputs: Vec<FileHash>,
+    /// Its outputs as it left them.
+    pub outputs: Vec<FileHash>,
+}
+
+impl Output for Stamp {
+    const KIND: OutputKind = OutputKind::CampaignTask;
+    const SCHEMA: u32 = 1;
+}
+
+/// Where the stamp of task `id` lives under the output directory `out`.
+pub fn path(out: &Path, id: &str) -> PathBuf {
+    out.join("campaign").join("done").join(format!("{id}.json"))
+}
+
+/// Hashes files, each once while its size and modification time stay the same (a recording of
+/// a fleet's drive is gigabytes, and every task of the drive reads it).
+#[derive(Default)]
+pub struct Hashes {
+    known: HashMap<PathBuf, (u64, Option<SystemTime>, String)>,
+}
+
+impl Hashes {
+    /// The file's hash, or `None` when it does not exist.
+    pub fn of(&mut self, path: &Path) -> Result<Option<String>, CampaignError> {
+        let io = |source| CampaignError::Io {
+            path: path.to_owned(),
+            source,
+        };
+        let meta = match std::fs::metadata(path) {
+            Ok(m) if m.is_file() => m,
+            Ok(_) => return Ok(None),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(io(e)),
+        };
+        let key = (meta.len(), meta.modified().ok());
+        if let Some((len, modified, hash)) = self.known.get(path) {
+            if (*len, *modified) == key {
+                return Ok(Some(hash.clone()));
+            }
+        }
+        let mut f = std::fs::File::open(path).map_err(io)?;
+        let mut h = sha2::Sha256::new();
+        let mut buf = vec![0u8; 1 << 20];
+        loop {
+            let n = f.read(&mut buf).map_err(io)?;
+            if n == 0 {
+                break;
+            }
+            h.update(&buf[..n]);
+        }
+        let hash: String = h.finalize().iter().map(|b| format!("{b:02x}")).collect();
+        self.known
+            .insert(path.to_owned(), (key.0, key.1, hash.clone()));
+        Ok(Some(hash))
+    }
+
+    /// Every file of `paths` with its hash; `None` when one is missing.
+    pub fn all(&mut self, paths: &[PathBuf]) -> Result<Option<Vec<FileHash>>, CampaignError> {
+        let mut out = Vec::with_capacity(paths.len());
+        for p in paths {
+            let Some(sha256) = self.of(p)? else {
+                return Ok(None);
+            };
+            out.push(FileHash {
+                path: p.clone(),
+                sha256,
+            });
+        }
+        Ok(Some(out))
+    }
+}
+
+/// The exit code `task` ended with last time, when its stamp shows it up to date.
+pub fn up_to_date(
+    out: &Path,
+    task: &Task,
+    hashes: &mut Hashes,
+) -> Result<Option<i32>, CampaignError> {
+    let p = path(out, &task.id);
+    let Ok(bytes) = std::fs::read(&p) else {
+        return Ok(None);
+    };
+    // A stamp this build cannot read (another schema, damaged) only means the task runs again.
+    let Ok(stamp) = crate::output::from_slice::<Stamp>(&p, &bytes) else {
+        return Ok(None);
+    };
+    if stamp.args != task.args || !task.results.contains(&stamp.exit) {
+        return Ok(None);
+    }
+    let same = |now: Option<Vec<FileHash>>, then: &[FileHash]| now.is_some_and(|n| n == then);
+    if !same(hashes.all(&task.inputs)?, &stamp.inputs)
+        || !same(hashes.all(&task.outputs)?, &stamp.outputs)
+    {
+        return Ok(None);
+    }
+    Ok(Some(stamp.exit))
+}

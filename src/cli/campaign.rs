@@ -1,0 +1,210 @@
+//! `hilrig campaign`: a campaign file planned into tasks and run here (`--jobs` at a time,
+//! resumable), or the plan printed for another engine (`campaign plan`). Exit 0 when every task
+//! ran with a passing result, 1 when a task failed or did not run (or a check failed), 2 when
+//! the campaign cannot be planned (nothing runs then).
+
+use anyhow::{Context, Result};
+use hilrig::campaign::file::Campaign;
+use hilrig::campaign::local::{self, Outcome, Progress};
+use hilrig::campaign::plan::{Plan, Task};
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Mutex;
+
+#[derive(clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct CampaignArgs {
+    #[command(subcommand)]
+    sub: Option<Sub>,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+#[derive(clap::Subcommand)]
+enum Sub {
+    /// Print the task graph (inputs, outputs, command line, what each waits for).
+    Plan(PlanArgs),
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
+    /// The campaign file (TOML: steps, [[drive]], [[scenario]], [[model]]).
+    #[arg(required = true)]
+    campaign: Option<PathBuf>,
+    /// Output directory.
+    #[arg(long, default_value = "campaign-out")]
+    out: PathBuf,
+    /// Tasks at a time (each command also uses every core for its own work).
+    #[arg(long, short)]
+    jobs: Option<usize>,
+    /// Run every task again, including those a previous run finished.
+    #[arg(long)]
+    force: bool,
+}
+
+#[derive(clap::Args)]
+struct PlanArgs {
+    /// The campaign file.
+    campaign: PathBuf,
+    /// The output directory the plan writes into.
+    #[arg(long, default_value = "campaign-out")]
+    out: PathBuf,
+    /// The plan as JSON (schema in hilrig::campaign::plan) instead of one line per task.
+    #[arg(long)]
+    json: bool,
+}
+
+/// The plan, or exit 2 with the reason.
+fn plan(campaign: &std::path::Path, out: &std::path::Path) -> Result<Plan, ExitCode> {
+    let planned = Campaign::load(campaign).and_then(|c| Plan::build(&c, out));
+    planned.map_err(|e| {
+        eprintln!("error: {e}");
+        ExitCode::from(2)
+    })
+}
+
+pub fn run(args: CampaignArgs) -> Result<ExitCode> {
+    if let Some(Sub::Plan(p)) = args.sub {
+        let plan = match plan(&p.campaign, &p.out) {
+            Ok(p) => p,
+            Err(code) => return Ok(code),
+        };
+        let mut out = std::io::stdout().lock();
+        if p.json {
+            writeln!(out, "{}", hilrig::output::to_json(&plan)?)?;
+        } else {
+            for t in &plan.tasks {
+                let after = if t.after.is_empty() {
+                    "-".into()
+                } else {
+                    t.after.join(", ")
+                };
+                writeln!(
+                    out,
+                    "{}  (after: {after})\n    hilrig {}",
+                    t.id,
+                    t.args.join(" ")
+                )?;
+            }
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
+    let a = args.run;
+    let campaign = a.campaign.expect("required unless a subcommand is given");
+    let plan = match plan(&campaign, &a.out) {
+        Ok(p) => p,
+        Err(code) => return Ok(code),
+    };
+    let jobs = a
+        .jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
+    let options = local::Options {
+        exe: std::env::current_exe().context("cannot find the hilrig executable")?,
+        jobs,
+        force: a.force,
+    };
+    std::fs::create_dir_all(&plan.out)
+        .with_context(|| format!("cannot create {}", plan.out.display()))?;
+    let plan_path = plan.out.join("campaign").join("plan.json");
+    std::fs::create_dir_all(plan_path.parent().expect("has a parent"))?;
+    hilrig::output::write(&plan_path, &plan)?;
+    println!(
+        "campaign '{}': {} tasks, {jobs} at a time (plan: {})",
+        plan.campaign,
+        plan.tasks.len(),
+        plan_path.display()
+    );
+    let bars = Bars::new(plan.tasks.len());
+    let summary = local::run(&plan, &options, &bars)?;
+    bars.bar.finish_and_clear();
+    let [ran, current, failed, not_run] = summary.counts();
+    let checks_failed = summary
+        .outcomes
+        .iter()
+        .filter(|(id, o)| id.starts_with("check/") && o.exit() == Some(1))
+        .count();
+    println!(
+        "campaign '{}': {ran} ran, {current} up to date, {failed} failed, {not_run} not run; {checks_failed} drive(s) failed check; outputs in {}",
+        plan.campaign,
+        plan.out.display()
+    );
+    for (id, o) in &summary.outcomes {
+        match o {
+            Outcome::Failed { why } => println!("  FAILED  {id}: {why}"),
+            Outcome::NotRun { because } => println!("  not run {id}: waits for {because}"),
+            _ => {}
+        }
+    }
+    Ok(if failed + not_run + checks_failed == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+/// One bar over the tasks, a line per task that ends.
+struct Bars {
+    bar: indicatif::ProgressBar,
+    running: Mutex<Vec<String>>,
+}
+
+impl Bars {
+    fn new(n: usize) -> Bars {
+        let bar = indicatif::ProgressBar::new(n as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:30} {pos}/{len} tasks {elapsed} {wide_msg}",
+            )
+            .expect("a valid template"),
+        );
+        Bars {
+            bar,
+            running: Mutex::new(Vec::new()),
+        }
+    }
+
+    fn show(&self) {
+        if let Ok(r) = self.running.lock() {
+            self.bar.set_message(r.join(", "));
+        }
+    }
+}
+
+impl Progress for Bars {
+    fn started(&self, task: &Task) {
+        if let Ok(mut r) = self.running.lock() {
+            r.push(task.id.clone());
+        }
+        self.show();
+    }
+
+    fn finished(&self, task: &Task, outcome: &Outcome) {
+        if let Ok(mut r) = self.running.lock() {
+            r.retain(|id| id != &task.id);
+        }
+        let line = match outcome {
+            Outcome::Ran { exit, time } => format!(
+                "{:<8} {} ({:.1} s, exit {exit})",
+                "ran",
+                task.id,
+                time.as_secs_f64()
+            ),
+            Outcome::UpToDate { exit } => {
+                format!("{:<8} {} (exit {exit} before)", "current", task.id)
+            }
+            Outcome::Failed { why } => format!("{:<8} {}: {why}", "FAILED", task.id),
+            Outcome::NotRun { because } => {
+                format!("{:<8} {}: waits for {because}", "not run", task.id)
+            }
+        };
+        // A hidden bar (output not a terminal: a log, a test) prints nothing of its own.
+        if self.bar.is_hidden() {
+            println!("{line}");
+        } else {
+            self.bar.println(line);
+        }
+        self.bar.inc(1);
+        self.show();
+    }
+}

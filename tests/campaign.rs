@@ -1,0 +1,412 @@
+//! `hilrig campaign` (issue 31): the parking study as a campaign gives the outputs of its
+//! commands typed one by one, a campaign killed mid-run resumes without redoing finished work,
+//! and a campaign that cannot run says why before anything runs.
+
+mod common;
+
+use std::collections::BTreeSet;
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const REPS: [&str; 5] = ["rep-01", "rep-02", "rep-03", "rep-04", "rep-05"];
+const MODELS: [(&str, &str); 2] = [
+    ("idealized", "idealized.toml"),
+    ("truth", "truth-model.toml"),
+];
+
+/// The parking campaign without the gap workflow (a minute and a half on its own, and not
+/// what these tests are about), its paths pointing into the fixture.
+fn campaign_file(dir: &Path) -> PathBuf {
+    let parking = common::fixture("parking");
+    let text = format!(
+        r#"name = "parking"
+steps = ["record", "check", "resim", "compare", "validate", "report"]
+rig = "{rig}"
+
+[[drive]]
+recordings = "{parking}/rep-*/drive.pcapng.zst"
+scene = "{{dir}}/scene.toml"
+scenario = "parking"
+
+[[scenario]]
+name = "parking"
+phases = "{parking}/phases.toml"
+
+[[model]]
+name = "idealized"
+file = "{parking}/idealized.toml"
+
+[[model]]
+name = "truth"
+file = "{parking}/truth-model.toml"
+"#,
+        rig = common::demo_rig().display(),
+        parking = parking.display()
+    );
+    let path = dir.join("campaign.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// The commands a user would type for the same study, in two threads, into `dir`.
+fn one_by_one(dir: &Path) {
+    let parking = common::fixture("parking");
+    let rec = |rep: &str| dir.join(format!("{rep}.mcap"));
+    let sim = |model: &str, rep: &str| dir.join(format!("{model}-{rep}.mcap"));
+    std::thread::scope(|s| {
+        for pair in REPS.chunks(3) {
+            let parking = &parking;
+            s.spawn(move || {
+                for rep in pair {
+                    let scene = parking.join(rep).join("scene.toml");
+                    common::hilrig_ok(&[
+                        OsStr::new("record"),
+                        OsStr::new("--rig"),
+                        common::demo_rig().as_os_str(),
+                        OsStr::new("--from"),
+                        parking.join(rep).join("drive.pcapng.zst").as_os_str(),
+                        OsStr::new("-o"),
+                        rec(rep).as_os_str(),
+                    ]);
+                    for (model, file) in MODELS {
+                        common::hilrig_ok(&[
+                            OsStr::new("resim"),
+                            rec(rep).as_os_str(),
+                            OsStr::new("--scene"),
+                            scene.as_os_str(),
+                            OsStr::new("--model"),
+                            parking.join(file).as_os_str(),
+                            OsStr::new("-o"),
+                            sim(model, rep).as_os_str(),
+                        ]);
+                        common::hilrig_ok(&[
+                            OsStr::new("compare"),
+                            rec(rep).as_os_str(),
+                            sim(model, rep).as_os_str(),
+                            OsStr::new("--scene"),
+                            scene.as_os_str(),
+                            OsStr::new("--json"),
+                            dir.join(format!("compare-{model}-{rep}.json")).as_os_str(),
+                        ]);
+                    }
+                }
+            });
+        }
+    });
+    for (model, _) in MODELS {
+        let mut cmd = Command::new(common::hilrig_bin());
+        cmd.arg("validate");
+        for rep in REPS {
+            cmd.arg("--real").arg(rec(rep));
+        }
+        for rep in REPS {
+            cmd.arg("--sim").arg(sim(model, rep));
+        }
+        cmd.arg("--phases")
+            .arg(parking.join("phases.toml"))
+            .arg("--json")
+            .arg(dir.join(format!("validate-{model}.json")));
+        let out = cmd.output().unwrap();
+        // 0 valid, 1 partly valid or invalid: both are results.
+        assert!(
+            matches!(out.status.code(), Some(0 | 1)),
+            "validate {model}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}
+
+fn campaign(file: &Path, out: &Path) -> Command {
+    let mut cmd = Command::new(common::hilrig_bin());
+    cmd.args([
+        OsStr::new("campaign"),
+        file.as_os_str(),
+        OsStr::new("--out"),
+        out.as_os_str(),
+    ])
+    .args(["--jobs", "2"]);
+    cmd
+}
+
+/// The tasks with a stamp: those a run finished.
+fn finished(out: &Path) -> BTreeSet<String> {
+    fn walk(dir: &Path, base: &Path, out: &mut BTreeSet<String>) {
+        for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                walk(&p, base, out);
+            } else if p.extension().is_some_and(|x| x == "json") {
+                let id = p.strip_prefix(base).unwrap().with_extension("");
+                out.insert(id.display().to_string());
+            }
+        }
+    }
+    let base = out.join("campaign/done");
+    let mut ids = BTreeSet::new();
+    walk(&base, &base, &mut ids);
+    ids
+}
+
+/// Processes whose command line names `needle` (a campaign's output folder).
+fn processes_naming(needle: &str) -> Vec<String> {
+    let mut found = Vec::new();
+    for e in std::fs::read_dir("/proc").unwrap().flatten() {
+        if let Ok(cmdline) = std::fs::read(e.path().join("cmdline")) {
+            let text = String::from_utf8_lossy(&cmdline).replace('\0', " ");
+            if text.contains(needle) {
+                found.push(text);
+            }
+        }
+    }
+    found
+}
+
+/// Lines of a campaign's output that start with `word` (ran, current), by task id.
+fn tasks_reported(stdout: &str, word: &str) -> BTreeSet<String> {
+    stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix(word))
+        .filter_map(|l| l.split_whitespace().next())
+        .map(str::to_owned)
+        .collect()
+}
+
+#[test]
+fn a_campaign_killed_mid_run_resumes_and_gives_what_the_commands_give_one_by_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = campaign_file(dir.path());
+    let out = dir.path().join("out");
+    // 5 record + 5 check + 10 resim + 10 compare + 2 validate + 1 report.
+    let total = 33;
+
+    // Killed once a third of the tasks are done (records, checks and the first re-simulations).
+    let mut child = campaign(&file, &out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    while finished(&out).len() < 11 {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the campaign ended before it was killed"
+        );
+        assert!(
+            started.elapsed() < Duration::from_secs(600),
+            "no progress: {:?}",
+            finished(&out)
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let before = finished(&out);
+    assert!(before.len() < total, "everything finished before the kill");
+    // The tasks it was running died with it (they would write on into the next run's files).
+    let needle = out.display().to_string();
+    assert_eq!(
+        processes_naming(&needle),
+        Vec::<String>::new(),
+        "tasks outlived the campaign"
+    );
+
+    // The next run skips every finished task and runs the rest.
+    let second = campaign(&file, &out).output().unwrap();
+    let stdout = String::from_utf8_lossy(&second.stdout);
+    assert!(
+        second.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&second.stderr)
+    );
+    let current = tasks_reported(&stdout, "current");
+    let ran = tasks_reported(&stdout, "ran");
+    assert_eq!(current, before, "{stdout}");
+    assert_eq!(ran.len() + current.len(), total, "{stdout}");
+    assert!(ran.is_disjoint(&before), "{stdout}");
+    assert_eq!(finished(&out).len(), total);
+    // And a third finds nothing to do.
+    let third = campaign(&file, &out).output().unwrap();
+    let stdout = String::from_utf8_lossy(&third.stdout);
+    assert!(third.status.success(), "{stdout}");
+    assert_eq!(tasks_reported(&stdout, "current").len(), total, "{stdout}");
+    assert!(tasks_reported(&stdout, "ran").is_empty(), "{stdout}");
+
+    // The same numbers as the commands typed one by one: every comparison and both
+    // validations, byte for byte (neither names its input files).
+    let manual = dir.path().join("manual");
+    std::fs::create_dir_all(&manual).unwrap();
+    one_by_one(&manual);
+    let same = |a: PathBuf, b: PathBuf| {
+        let (x, y) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+        assert!(x == y, "{} differs from {}", a.display(), b.display());
+    };
+    for (model, _) in MODELS {
+        for rep in REPS {
+            same(
+                out.join(format!("compare/{model}/{rep}.json")),
+                manual.join(format!("compare-{model}-{rep}.json")),
+            );
+        }
+        // A validation names the files of each repetition, which the two runs keep apart.
+        let unnamed = |p: PathBuf| {
+            let mut v: serde_json::Value =
+                serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap();
+            let pairs = v["measurement"].as_array_mut().expect("measurement");
+            assert_eq!(pairs.len(), 5);
+            for pair in pairs {
+                for key in ["real", "sim"] {
+                    assert!(pair[key].is_string(), "{pair}");
+                    pair[key] = serde_json::Value::Null;
+                }
+            }
+            v
+        };
+        assert_eq!(
+            unnamed(out.join(format!("validate/parking/{model}.json"))),
+            unnamed(manual.join(format!("validate-{model}.json"))),
+            "validate {model}"
+        );
+    }
+    // The report was built from every JSON the campaign wrote.
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["inputs"].as_array().unwrap().len(), 5 + 10 + 2);
+}
+
+/// Runs a campaign that cannot run: exit 2, the reason on stderr, and no task started.
+fn refused(text: &str, dir: &Path) -> String {
+    let file = dir.join("bad.toml");
+    std::fs::write(&file, text).unwrap();
+    let out = dir.join("bad-out");
+    let o = campaign(&file, &out).output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{stderr}\n{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    assert!(!out.join("logs").exists(), "a task ran: {stderr}");
+    assert!(
+        !out.join("campaign").exists(),
+        "a plan was written: {stderr}"
+    );
+    stderr
+}
+
+#[test]
+fn a_campaign_that_cannot_run_says_why_before_any_task_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let parking = common::fixture("parking");
+    let p = parking.display();
+    let models = format!("[[model]]\nname = \"idealized\"\nfile = \"{p}/idealized.toml\"\n");
+    // A drive that is not there.
+    let e = refused(
+        &format!(
+            "name = \"x\"\nsteps = [\"check\"]\n[[drive]]\nrecordings = \"{p}/rep-09/*.mcap\"\nscene = \"{{dir}}/scene.toml\"\n"
+        ),
+        dir.path(),
+    );
+    assert!(e.contains("no file matches") && e.contains("rep-09"), "{e}");
+    // An unknown step, named.
+    let e = refused(
+        &format!(
+            "name = \"x\"\nsteps = [\"check\", \"resimulate\"]\n[[drive]]\nrecordings = \"{p}/rep-01/drive.pcapng.zst\"\nscene = \"{{dir}}/scene.toml\"\n{models}"
+        ),
+        dir.path(),
+    );
+    assert!(e.contains("resimulate"), "{e}");
+    // A capture without the record step.
+    let e = refused(
+        &format!(
+            "name = \"x\"\nsteps = [\"check\"]\n[[drive]]\nrecordings = \"{p}/rep-01/drive.pcapng.zst\"\nscene = \"{{dir}}/scene.toml\"\n"
+        ),
+        dir.path(),
+    );
+    assert!(e.contains("is a capture") && e.contains("record"), "{e}");
+    // A cycle: the drives are the campaign's own re-simulations.
+    let sims = dir.path().join("bad-out/sim/idealized");
+    std::fs::create_dir_all(&sims).unwrap();
+    std::fs::write(sims.join("rep-01.mcap"), b"not read by the planner").unwrap();
+    std::fs::copy(parking.join("rep-01/scene.toml"), sims.join("scene.toml")).unwrap();
+    let e = refused(
+        &format!(
+            "name = \"x\"\nsteps = [\"resim\"]\n[[drive]]\nrecordings = \"bad-out/sim/idealized/*.mcap\"\nscene = \"{{dir}}/scene.toml\"\n{models}"
+        ),
+        dir.path(),
+    );
+    assert!(
+        e.contains("circle") && e.contains("resim/idealized/rep-01"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(dir.path().join("bad-out")).unwrap();
+    // Two drives that would write the same outputs.
+    std::fs::create_dir_all(dir.path().join("a")).unwrap();
+    std::fs::create_dir_all(dir.path().join("b")).unwrap();
+    let e = refused(
+        &format!(
+            "name = \"x\"\nsteps = [\"check\"]\n[[drive]]\nrecordings = \"{p}/rep-01/drive.pcapng.zst\"\nscene = \"{{dir}}/scene.toml\"\n[[drive]]\nrecordings = \"{p}/rep-01/drive.pcapng.zst\"\nscene = \"{{dir}}/scene.toml\"\n"
+        ),
+        dir.path(),
+    );
+    assert!(e.contains("matched by two"), "{e}");
+    // A model file that is not there.
+    let e = refused(
+        &format!(
+            "name = \"x\"\nsteps = [\"record\", \"resim\"]\nrig = \"{}\"\n[[drive]]\nrecordings = \"{p}/rep-0[12]/drive.pcapng.zst\"\nscene = \"{{dir}}/scene.toml\"\n[[model]]\nname = \"m\"\nfile = \"nowhere.toml\"\n",
+            common::demo_rig().display()
+        ),
+        dir.path(),
+    );
+    assert!(e.contains("model 'm'") && e.contains("nowhere.toml"), "{e}");
+}
+
+#[test]
+fn the_plan_is_json_that_names_every_command_and_what_it_waits_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(common::hilrig_bin())
+        .args(["campaign", "plan"])
+        .arg(common::fixture("parking/campaign.toml"))
+        .arg("--out")
+        .arg(dir.path().join("out"))
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let plan: hilrig::campaign::plan::Plan =
+        hilrig::output::from_slice(Path::new("stdout"), &out.stdout).unwrap();
+    // The bundled campaign: 5 x (record, check), 2 x 5 x (resim, compare), 2 validate, gap, report.
+    assert_eq!(plan.tasks.len(), 10 + 20 + 2 + 1 + 1);
+    let mut seen = BTreeSet::new();
+    for t in &plan.tasks {
+        for a in &t.after {
+            assert!(
+                seen.contains(a),
+                "{} waits for {a}, which comes later",
+                t.id
+            );
+        }
+        seen.insert(t.id.clone());
+        assert_eq!(t.args[0], t.step.name());
+    }
+    let resim = plan.task("resim/truth/rep-03").unwrap();
+    let after: BTreeSet<&str> = resim.after.iter().map(String::as_str).collect();
+    assert_eq!(after, BTreeSet::from(["check/rep-03", "record/rep-03"]));
+    let gap = plan.task("gap/parking").unwrap();
+    assert!(gap.args.iter().any(|a| a == "--reference-model"));
+    assert_eq!(plan.files.len(), 1);
+    // The study the gap task reads fits on the first three repetitions and validates on two.
+    let study = &plan.files[0].text;
+    assert_eq!(study.matches("role = \"fit\"").count(), 3, "{study}");
+    assert_eq!(study.matches("role = \"validate\"").count(), 2, "{study}");
+    assert!(plan.task("report").unwrap().after.len() >= 18);
+    // Nothing was run or written by planning.
+    assert!(!dir.path().join("out").exists());
+}
