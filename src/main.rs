@@ -76,10 +76,11 @@ enum Command {
     /// The validation report (one self-contained HTML file) from the JSON that check,
     /// compare, validate and gap write.
     Report(cli::report::ReportArgs),
-    /// Many drives through the method: a campaign file planned into tasks (each one command
-    /// on files) and run here, resumable; `campaign plan --json` prints the graph for any
-    /// engine.
+    /// Many drives through the method: a campaign planned into commands on files, run here
+    /// (resumable) or printed for another engine (`campaign plan --json`).
     Campaign(cli::campaign::CampaignArgs),
+    /// A JSON output of check, compare, validate or gap as Parquet tables, with labels.
+    Table(cli::table::TableArgs),
 }
 
 fn init_logging(verbose: u8) {
@@ -127,6 +128,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => cli::demo::run(args),
         Command::Report(args) => cli::report::run(args),
         Command::Campaign(args) => cli::campaign::run(args),
+        Command::Table(args) => cli::table::run(args),
     };
     match result {
         Ok(code) => code,

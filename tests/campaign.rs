@@ -22,7 +22,7 @@ fn campaign_file(dir: &Path) -> PathBuf {
     let parking = common::fixture("parking");
     let text = format!(
         r#"name = "parking"
-steps = ["record", "check", "resim", "compare", "validate", "report"]
+steps = ["record", "check", "resim", "compare", "validate", "tables", "report"]
 rig = "{rig}"
 
 [[drive]]
@@ -178,8 +178,9 @@ fn a_campaign_killed_mid_run_resumes_and_gives_what_the_commands_give_one_by_one
     let dir = tempfile::tempdir().unwrap();
     let file = campaign_file(dir.path());
     let out = dir.path().join("out");
-    // 5 record + 5 check + 10 resim + 10 compare + 2 validate + 1 report.
-    let total = 33;
+    // 5 record + 5 check + 10 resim + 10 compare + 2 validate + 1 report, and a table task
+    // for each of the 17 JSON files.
+    let total = 50;
 
     // Killed once a third of the tasks are done (records, checks and the first re-simulations).
     let mut child = campaign(&file, &out)
@@ -269,6 +270,39 @@ fn a_campaign_killed_mid_run_resumes_and_gives_what_the_commands_give_one_by_one
             unnamed(manual.join(format!("validate-{model}.json"))),
             "validate {model}"
         );
+    }
+    // The Parquet tables, read by DuckDB: the mean OCR^K per model over every scan of every
+    // drive is the one the comparisons' JSON gives.
+    let got: serde_json::Value = serde_json::from_slice(&common::interop_script(
+        "campaign_duckdb.py",
+        &[out.as_os_str()],
+    ))
+    .unwrap();
+    // compare_scans 10, check_epochs 5, check_runs 5, validate_cells 2.
+    assert_eq!(got["files"], 22, "{got}");
+    assert_eq!(got["runs"], serde_json::json!([5, 5]), "{got}");
+    for (k, (model, _)) in MODELS.iter().enumerate() {
+        let ocr: Vec<f64> = REPS
+            .iter()
+            .flat_map(|rep| {
+                let c: hilrig::metrics::report::Comparison =
+                    hilrig::output::read(&out.join(format!("compare/{model}/{rep}.json"))).unwrap();
+                c.scans
+                    .iter()
+                    .filter_map(|s| s.grid.and_then(|g| g.ocr))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let mean = ocr.iter().sum::<f64>() / ocr.len() as f64;
+        let row = &got["ocr"][k];
+        assert_eq!(row[0], *model, "{got}");
+        assert!(
+            (row[1].as_f64().unwrap() - mean).abs() < 1e-12,
+            "{model}: {} vs {mean}",
+            row[1]
+        );
+        assert_eq!(row[2], ocr.len(), "{got}");
+        assert_eq!(row[3], 5, "{got}");
     }
     // The report was built from every JSON the campaign wrote.
     let report: serde_json::Value =
@@ -382,8 +416,9 @@ fn the_plan_is_json_that_names_every_command_and_what_it_waits_for() {
     );
     let plan: hilrig::campaign::plan::Plan =
         hilrig::output::from_slice(Path::new("stdout"), &out.stdout).unwrap();
-    // The bundled campaign: 5 x (record, check), 2 x 5 x (resim, compare), 2 validate, gap, report.
-    assert_eq!(plan.tasks.len(), 10 + 20 + 2 + 1 + 1);
+    // The bundled campaign: 5 x (record, check), 2 x 5 x (resim, compare), 2 validate, gap,
+    // report, and the tables of the 5 + 10 + 2 + 1 JSON files.
+    assert_eq!(plan.tasks.len(), 10 + 20 + 2 + 1 + 1 + 18);
     let mut seen = BTreeSet::new();
     for t in &plan.tasks {
         for a in &t.after {
@@ -394,7 +429,7 @@ fn the_plan_is_json_that_names_every_command_and_what_it_waits_for() {
             );
         }
         seen.insert(t.id.clone());
-        assert_eq!(t.args[0], t.step.name());
+        assert_eq!(t.args[0], t.step.command());
     }
     let resim = plan.task("resim/truth/rep-03").unwrap();
     let after: BTreeSet<&str> = resim.after.iter().map(String::as_str).collect();

@@ -3,7 +3,7 @@
 //!
 //! ```toml
 //! name = "parking"
-//! steps = ["record", "check", "resim", "compare", "validate", "gap", "report"]
+//! steps = ["record", "check", "resim", "compare", "validate", "gap", "tables", "report"]
 //! rig = "../../rigs/demo.toml"          # for `record` of captures
 //!
 //! [[drive]]
@@ -49,6 +49,8 @@ pub enum Step {
     Validate,
     /// `gap` per scenario, from its start model.
     Gap,
+    /// `table` of every JSON the campaign wrote: Parquet for DuckDB, Polars or Spark.
+    Tables,
     /// `report` over every JSON the campaign wrote.
     Report,
 }
@@ -63,7 +65,16 @@ impl Step {
             Step::Compare => "compare",
             Step::Validate => "validate",
             Step::Gap => "gap",
+            Step::Tables => "tables",
             Step::Report => "report",
+        }
+    }
+
+    /// The command its tasks run.
+    pub fn command(self) -> &'static str {
+        match self {
+            Step::Tables => "table",
+            other => other.name(),
         }
     }
 }
@@ -378,14 +389,17 @@ impl Campaign {
         if (has(Step::Resim) || has(Step::Gap)) && self.models.is_empty() {
             return Err(invalid("resim and gap need at least one [[model]]".into()));
         }
-        if has(Step::Report)
-            && ![Step::Check, Step::Compare, Step::Validate, Step::Gap]
-                .iter()
-                .any(|&s| has(s))
-        {
-            return Err(invalid(
-                "\"report\" needs a step that writes JSON (check, compare, validate or gap)".into(),
-            ));
+        for step in [Step::Report, Step::Tables] {
+            if has(step)
+                && ![Step::Check, Step::Compare, Step::Validate, Step::Gap]
+                    .iter()
+                    .any(|&s| has(s))
+            {
+                return Err(invalid(format!(
+                    "\"{}\" needs a step that writes JSON (check, compare, validate or gap)",
+                    step.name()
+                )));
+            }
         }
         for s in &self.scenarios {
             if s.drives.is_empty() {

@@ -9,9 +9,13 @@
 //! on files can run a plan (`hilrig campaign plan --json`).
 
 pub mod file;
+mod graph;
 pub mod local;
+pub mod parquet;
 pub mod plan;
 pub mod stamp;
+pub mod tables;
+mod task;
 
 use std::path::PathBuf;
 

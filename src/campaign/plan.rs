@@ -9,36 +9,14 @@
 //! engine can run it: every path in it is absolute, every command line complete.
 
 use super::file::{Campaign, Scenario, Step};
+use super::tables::{Labels, TableKind};
+pub use super::task::Task;
 use super::CampaignError;
 use crate::gap::study::{Role, RunEntry, StudyFile};
 use crate::output::{Output, OutputKind};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-
-/// One invocation of `hilrig`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Task {
-    /// Unique name: the step, then the model and drive or scenario it is for
-    /// (`resim/truth/rep-01`).
-    pub id: String,
-    /// The step it is of.
-    pub step: Step,
-    /// The command line after `hilrig`.
-    pub args: Vec<String>,
-    /// The files it reads (each one that a task writes makes it wait for that task).
-    pub inputs: Vec<PathBuf>,
-    /// The files it writes.
-    pub outputs: Vec<PathBuf>,
-    /// The tasks it waits for (ids; every one is earlier in [`Plan::tasks`]).
-    pub after: Vec<String>,
-    /// Exit codes that are results, not failures (`check` exits 1 for a run that fails).
-    pub results: Vec<i32>,
-    /// Exit codes after which the tasks waiting for it run (`check`'s 0 only).
-    pub passes: Vec<i32>,
-    /// Where its standard output and error go.
-    pub log: PathBuf,
-}
 
 /// A file the plan itself makes before any task runs (the gap workflow's study files).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -122,6 +100,8 @@ struct Builder<'a> {
     gates: BTreeMap<String, Vec<String>>,
     /// Files the plan writes itself.
     files: Vec<PlannedFile>,
+    /// The JSON outputs with the name and labels of their tables.
+    tables: Vec<(PathBuf, String, Labels)>,
 }
 
 impl Builder<'_> {
@@ -150,6 +130,67 @@ impl Builder<'_> {
             log,
         });
         self.tasks.last_mut().expect("just pushed")
+    }
+
+    /// Notes a JSON output for the `tables` step: its tables' file name and labels.
+    fn table(
+        &mut self,
+        json: &Path,
+        name: &str,
+        drive: Option<&str>,
+        scenario: Option<usize>,
+        model: Option<&str>,
+    ) {
+        if self.has(Step::Tables) {
+            let labels = Labels {
+                drive: drive.map(str::to_owned),
+                scenario: scenario.map(|i| self.campaign.scenarios[i].name.clone()),
+                model: model.map(str::to_owned),
+            };
+            self.tables.push((json.to_owned(), name.to_owned(), labels));
+        }
+    }
+
+    /// `table` of every JSON noted: Parquet files under `OUT/tables/TABLE/NAME.parquet`.
+    fn tables(&mut self) {
+        let dir = self.layout.out.join("tables");
+        for (json, name, labels) in std::mem::take(&mut self.tables) {
+            let doc_kind = self
+                .tasks
+                .iter()
+                .find(|t| t.outputs.contains(&json))
+                .map(|t| t.step)
+                .expect("a table of a task's output");
+            let kind = match doc_kind {
+                Step::Check => crate::output::OutputKind::Check,
+                Step::Compare => crate::output::OutputKind::Compare,
+                Step::Validate => crate::output::OutputKind::Validate,
+                _ => crate::output::OutputKind::Gap,
+            };
+            let mut args = vec![
+                "table".into(),
+                s(&json),
+                "--dir".into(),
+                s(&dir),
+                "--name".into(),
+                name.clone(),
+            ];
+            for (flag, v) in [
+                ("--drive", &labels.drive),
+                ("--scenario", &labels.scenario),
+                ("--model", &labels.model),
+            ] {
+                if let Some(v) = v {
+                    args.extend([flag.into(), v.clone()]);
+                }
+            }
+            let outputs = TableKind::of(kind)
+                .iter()
+                .map(|k| dir.join(k.name()).join(format!("{name}.parquet")))
+                .collect();
+            let id = format!("tables/{}/{name}", doc_kind.name());
+            self.add(id, Step::Tables, args, vec![json], outputs);
+        }
     }
 
     /// The check of drive `d`, which its re-simulations and studies wait for.
@@ -193,6 +234,7 @@ impl Builder<'_> {
                     "--json".into(),
                     s(&json),
                 ];
+                self.table(&json, &d.name, Some(&d.name), Some(d.scenario), None);
                 let t = self.add(
                     format!("check/{}", d.name),
                     Step::Check,
@@ -242,6 +284,8 @@ impl Builder<'_> {
                         s(&json),
                     ];
                     let inputs = vec![rec, sim, d.scene.clone()];
+                    let name = format!("{}-{}", m.name, d.name);
+                    self.table(&json, &name, Some(&d.name), Some(d.scenario), Some(&m.name));
                     self.add(
                         format!("compare/{}/{}", m.name, d.name),
                         Step::Compare,
@@ -275,6 +319,9 @@ impl Builder<'_> {
                 inputs.push(p.clone());
             }
             args.extend(["--json".into(), s(&json)]);
+            let name = format!("{}-{}", sc.name, m.name);
+            let scenario = c.scenarios.iter().position(|x| x.name == sc.name);
+            self.table(&json, &name, None, scenario, Some(&m.name));
             let t = self.add(
                 format!("validate/{}/{}", sc.name, m.name),
                 Step::Validate,
@@ -336,6 +383,8 @@ impl Builder<'_> {
         }
         let id = format!("gap/{}", sc.name);
         let outputs = vec![dir.join("gap.json"), dir.join("model.fitted.toml")];
+        let scenario = c.scenarios.iter().position(|x| x.name == sc.name);
+        self.table(&outputs[0], &sc.name, None, scenario, Some(&model.name));
         self.add(id.clone(), Step::Gap, args, inputs, outputs);
         // The workflow refuses runs that fail their check.
         let checks: Vec<String> = sc
@@ -377,7 +426,7 @@ impl Builder<'_> {
 impl Plan {
     /// The plan of `campaign` with its outputs under `out` (made absolute).
     pub fn build(campaign: &Campaign, out: &Path) -> Result<Plan, CampaignError> {
-        let out = canonical(out).map_err(|source| CampaignError::Io {
+        let out = super::graph::canonical(out).map_err(|source| CampaignError::Io {
             path: out.to_owned(),
             source,
         })?;
@@ -400,6 +449,7 @@ impl Plan {
             tasks: Vec::new(),
             gates: BTreeMap::new(),
             files: Vec::new(),
+            tables: Vec::new(),
         };
         b.drives();
         b.models();
@@ -411,6 +461,7 @@ impl Plan {
                 b.gap(sc)?;
             }
         }
+        b.tables();
         if b.has(Step::Report) {
             b.report();
         }
@@ -420,7 +471,7 @@ impl Plan {
             files,
             ..
         } = b;
-        let tasks = order(tasks, &gates)?;
+        let tasks = super::graph::order(tasks, &gates)?;
         Ok(Plan {
             campaign: campaign.name.clone(),
             campaign_file: campaign.path.clone(),
@@ -434,127 +485,4 @@ impl Plan {
     pub fn task(&self, id: &str) -> Option<&Task> {
         self.tasks.iter().find(|t| t.id == id)
     }
-}
-
-/// `path` absolute, with its longest existing ancestor canonical: the campaign's inputs are
-/// canonical paths, so an output is recognised as an input (a cycle) whichever way it is named.
-fn canonical(path: &Path) -> std::io::Result<PathBuf> {
-    let path = std::path::absolute(path)?;
-    let mut rest = Vec::new();
-    let mut base = path.as_path();
-    loop {
-        if let Ok(c) = std::fs::canonicalize(base) {
-            return Ok(rest.iter().rev().fold(c, |p: PathBuf, part| p.join(part)));
-        }
-        match (base.parent(), base.file_name()) {
-            (Some(parent), Some(name)) => {
-                rest.push(name.to_owned());
-                base = parent;
-            }
-            _ => return Ok(path),
-        }
-    }
-}
-
-/// Derives each task's `after` from the files (and `gates`), and sorts the tasks so that each
-/// comes after those it waits for; a cycle or two writers of one file is an error.
-fn order(
-    mut tasks: Vec<Task>,
-    gates: &BTreeMap<String, Vec<String>>,
-) -> Result<Vec<Task>, CampaignError> {
-    let mut writer: BTreeMap<&Path, usize> = BTreeMap::new();
-    for (i, t) in tasks.iter().enumerate() {
-        for o in &t.outputs {
-            if let Some(&j) = writer.get(o.as_path()) {
-                return Err(CampaignError::TwoWriters {
-                    path: o.clone(),
-                    first: tasks[j].id.clone(),
-                    second: t.id.clone(),
-                });
-            }
-            writer.insert(o, i);
-        }
-    }
-    let index: BTreeMap<String, usize> = tasks
-        .iter()
-        .enumerate()
-        .map(|(i, t)| (t.id.clone(), i))
-        .collect();
-    let mut deps: Vec<Vec<usize>> = vec![Vec::new(); tasks.len()];
-    for (i, t) in tasks.iter().enumerate() {
-        let mut d: Vec<usize> = t
-            .inputs
-            .iter()
-            .filter_map(|p| writer.get(p.as_path()).copied())
-            .collect();
-        if let Some(g) = gates.get(&t.id) {
-            d.extend(g.iter().filter_map(|id| index.get(id).copied()));
-        }
-        d.sort_unstable();
-        d.dedup();
-        deps[i] = d;
-    }
-    // Depth-first, in the tasks' own order, so that the plan reads like the method.
-    #[derive(Clone, Copy, PartialEq)]
-    enum Mark {
-        New,
-        Open,
-        Done,
-    }
-    fn visit(
-        i: usize,
-        deps: &[Vec<usize>],
-        marks: &mut [Mark],
-        stack: &mut Vec<usize>,
-        sorted: &mut Vec<usize>,
-    ) -> Result<(), Vec<usize>> {
-        match marks[i] {
-            Mark::Done => return Ok(()),
-            Mark::Open => {
-                let from = stack.iter().position(|&k| k == i).unwrap_or(0);
-                let mut cycle = stack[from..].to_vec();
-                cycle.push(i);
-                return Err(cycle);
-            }
-            Mark::New => {}
-        }
-        marks[i] = Mark::Open;
-        stack.push(i);
-        for &d in &deps[i] {
-            visit(d, deps, marks, stack, sorted)?;
-        }
-        stack.pop();
-        marks[i] = Mark::Done;
-        sorted.push(i);
-        Ok(())
-    }
-    let mut marks = vec![Mark::New; tasks.len()];
-    let mut sorted = Vec::with_capacity(tasks.len());
-    for i in 0..tasks.len() {
-        let mut stack = Vec::new();
-        if let Err(cycle) = visit(i, &deps, &mut marks, &mut stack, &mut sorted) {
-            let ids: Vec<String> = cycle.iter().map(|&k| tasks[k].id.clone()).collect();
-            // The file that closes the cycle: one the last task but one reads and the last writes.
-            let (reader, written_by) = (cycle[cycle.len() - 2], cycle[cycle.len() - 1]);
-            let file = tasks[reader]
-                .inputs
-                .iter()
-                .find(|p| writer.get(p.as_path()) == Some(&written_by))
-                .cloned()
-                .unwrap_or_default();
-            return Err(CampaignError::Cycle {
-                tasks: ids.join(" -> "),
-                file,
-            });
-        }
-    }
-    let ids: Vec<String> = tasks.iter().map(|t| t.id.clone()).collect();
-    for (t, d) in tasks.iter_mut().zip(&deps) {
-        t.after = d.iter().map(|&k| ids[k].clone()).collect();
-    }
-    let mut slots: Vec<Option<Task>> = tasks.into_iter().map(Some).collect();
-    Ok(sorted
-        .into_iter()
-        .map(|i| slots[i].take().expect("each task once"))
-        .collect())
 }

@@ -18,6 +18,7 @@ pub mod replay;
 pub mod report;
 pub mod resim;
 pub mod synth;
+pub mod table;
 pub mod validate;
 
 use anyhow::{Context, Result};

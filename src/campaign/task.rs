@@ -1,0 +1,29 @@
+//! One task of a plan: a command line with the files it reads and writes.
+
+use super::file::Step;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// One invocation of `hilrig`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Task {
+    /// Unique name: the step, then the model and drive or scenario it is for
+    /// (`resim/truth/rep-01`).
+    pub id: String,
+    /// The step it is of.
+    pub step: Step,
+    /// The command line after `hilrig`.
+    pub args: Vec<String>,
+    /// The files it reads (each one that a task writes makes it wait for that task).
+    pub inputs: Vec<PathBuf>,
+    /// The files it writes.
+    pub outputs: Vec<PathBuf>,
+    /// The tasks it waits for (ids; every one is earlier in [`Plan::tasks`]).
+    pub after: Vec<String>,
+    /// Exit codes that are results, not failures (`check` exits 1 for a run that fails).
+    pub results: Vec<i32>,
+    /// Exit codes after which the tasks waiting for it run (`check`'s 0 only).
+    pub passes: Vec<i32>,
+    /// Where its standard output and error go.
+    pub log: PathBuf,
+}
