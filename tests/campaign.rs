@@ -1,10 +1,12 @@
 //! `hilrig campaign` (issue 31): the parking study as a campaign gives the outputs of its
 //! commands typed one by one, a campaign killed mid-run resumes without redoing finished work,
-//! and a campaign that cannot run says why before anything runs.
+//! its Parquet tables read in DuckDB give the JSON's numbers, the same plan on a Ray cluster
+//! that loses a worker node gives the same files byte for byte, and a campaign that cannot run
+//! says why before anything runs.
 
 mod common;
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -50,11 +52,22 @@ file = "{parking}/truth-model.toml"
     path
 }
 
-/// The commands a user would type for the same study, in two threads, into `dir`.
+/// The commands a user would type for the same study, in two threads, into `dir` with the
+/// campaign's layout.
 fn one_by_one(dir: &Path) {
     let parking = common::fixture("parking");
-    let rec = |rep: &str| dir.join(format!("{rep}.mcap"));
-    let sim = |model: &str, rep: &str| dir.join(format!("{model}-{rep}.mcap"));
+    for d in [
+        "rec",
+        "sim/idealized",
+        "sim/truth",
+        "compare/idealized",
+        "compare/truth",
+        "validate/parking",
+    ] {
+        std::fs::create_dir_all(dir.join(d)).unwrap();
+    }
+    let rec = |rep: &str| dir.join(format!("rec/{rep}.mcap"));
+    let sim = |model: &str, rep: &str| dir.join(format!("sim/{model}/{rep}.mcap"));
     std::thread::scope(|s| {
         for pair in REPS.chunks(3) {
             let parking = &parking;
@@ -88,7 +101,7 @@ fn one_by_one(dir: &Path) {
                             OsStr::new("--scene"),
                             scene.as_os_str(),
                             OsStr::new("--json"),
-                            dir.join(format!("compare-{model}-{rep}.json")).as_os_str(),
+                            dir.join(format!("compare/{model}/{rep}.json")).as_os_str(),
                         ]);
                     }
                 }
@@ -107,7 +120,7 @@ fn one_by_one(dir: &Path) {
         cmd.arg("--phases")
             .arg(parking.join("phases.toml"))
             .arg("--json")
-            .arg(dir.join(format!("validate-{model}.json")));
+            .arg(dir.join(format!("validate/parking/{model}.json")));
         let out = cmd.output().unwrap();
         // 0 valid, 1 partly valid or invalid: both are results.
         assert!(
@@ -174,7 +187,7 @@ fn tasks_reported(stdout: &str, word: &str) -> BTreeSet<String> {
 }
 
 #[test]
-fn a_campaign_killed_mid_run_resumes_and_gives_what_the_commands_give_one_by_one() {
+fn a_campaign_killed_mid_run_resumes_gives_what_the_commands_give_one_by_one_and_the_same_on_ray() {
     let dir = tempfile::tempdir().unwrap();
     let file = campaign_file(dir.path());
     let out = dir.path().join("out");
@@ -214,65 +227,57 @@ fn a_campaign_killed_mid_run_resumes_and_gives_what_the_commands_give_one_by_one
         "tasks outlived the campaign"
     );
 
-    // The next run skips every finished task and runs the rest.
-    let second = campaign(&file, &out).output().unwrap();
-    let stdout = String::from_utf8_lossy(&second.stdout);
-    assert!(
-        second.status.success(),
-        "{stdout}\n{}",
-        String::from_utf8_lossy(&second.stderr)
-    );
-    let current = tasks_reported(&stdout, "current");
-    let ran = tasks_reported(&stdout, "ran");
-    assert_eq!(current, before, "{stdout}");
-    assert_eq!(ran.len() + current.len(), total, "{stdout}");
-    assert!(ran.is_disjoint(&before), "{stdout}");
+    // The next run, on a Ray cluster that loses a worker node while it runs tasks, skips every
+    // finished task and runs the rest.
+    let ray = on_ray(&file, &out, dir.path());
+    let outcomes = ray["outcomes"].as_array().unwrap();
+    let with = |word: &str| -> BTreeSet<String> {
+        outcomes
+            .iter()
+            .filter(|o| o["outcome"] == word)
+            .map(|o| o["task"].as_str().unwrap().to_owned())
+            .collect()
+    };
+    assert_eq!(with("up_to_date"), before, "{ray}");
+    assert_eq!(with("ran").len() + before.len(), total, "{ray}");
     assert_eq!(finished(&out).len(), total);
-    // And a third finds nothing to do.
+    // And a third, here, finds nothing to do.
     let third = campaign(&file, &out).output().unwrap();
     let stdout = String::from_utf8_lossy(&third.stdout);
     assert!(third.status.success(), "{stdout}");
     assert_eq!(tasks_reported(&stdout, "current").len(), total, "{stdout}");
     assert!(tasks_reported(&stdout, "ran").is_empty(), "{stdout}");
 
-    // The same numbers as the commands typed one by one: every comparison and both
-    // validations, byte for byte (neither names its input files).
-    let manual = dir.path().join("manual");
-    std::fs::create_dir_all(&manual).unwrap();
-    one_by_one(&manual);
-    let same = |a: PathBuf, b: PathBuf| {
-        let (x, y) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
-        assert!(x == y, "{} differs from {}", a.display(), b.display());
-    };
-    for (model, _) in MODELS {
-        for rep in REPS {
-            same(
-                out.join(format!("compare/{model}/{rep}.json")),
-                manual.join(format!("compare-{model}-{rep}.json")),
-            );
-        }
-        // A validation names the files of each repetition, which the two runs keep apart.
-        let unnamed = |p: PathBuf| {
-            let mut v: serde_json::Value =
-                serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap();
-            let pairs = v["measurement"].as_array_mut().expect("measurement");
-            assert_eq!(pairs.len(), 5);
-            for pair in pairs {
-                for key in ["real", "sim"] {
-                    assert!(pair[key].is_string(), "{pair}");
-                    pair[key] = serde_json::Value::Null;
-                }
-            }
-            v
-        };
-        assert_eq!(
-            unnamed(out.join(format!("validate/parking/{model}.json"))),
-            unnamed(manual.join(format!("validate-{model}.json"))),
-            "validate {model}"
-        );
-    }
     // The Parquet tables, read by DuckDB: the mean OCR^K per model over every scan of every
     // drive is the one the comparisons' JSON gives.
+    duckdb_agrees(&out);
+    // The report was built from every JSON the campaign wrote.
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["inputs"].as_array().unwrap().len(), 5 + 10 + 2);
+
+    // The commands typed one by one, into the same paths (a re-simulation and a validation
+    // quote their input files' paths): every recording, re-simulation, comparison and
+    // validation the campaign made, whichever executor ran it, is the same file byte for byte.
+    let campaign_out = dir.path().join("out-campaign");
+    std::fs::rename(&out, &campaign_out).unwrap();
+    one_by_one(&out);
+    let mut compared = 0;
+    for (rel, bytes) in tree(&out) {
+        let theirs = std::fs::read(campaign_out.join(&rel)).unwrap();
+        assert!(
+            bytes == theirs,
+            "{} differs from the campaign's",
+            rel.display()
+        );
+        compared += 1;
+    }
+    // 5 recordings, 10 re-simulations, 10 comparisons, 2 validations.
+    assert_eq!(compared, 27);
+}
+
+/// DuckDB over the campaign's Parquet tables agrees with its JSON.
+fn duckdb_agrees(out: &Path) {
     let got: serde_json::Value = serde_json::from_slice(&common::interop_script(
         "campaign_duckdb.py",
         &[out.as_os_str()],
@@ -304,10 +309,113 @@ fn a_campaign_killed_mid_run_resumes_and_gives_what_the_commands_give_one_by_one
         assert_eq!(row[2], ocr.len(), "{got}");
         assert_eq!(row[3], 5, "{got}");
     }
-    // The report was built from every JSON the campaign wrote.
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["inputs"].as_array().unwrap().len(), 5 + 10 + 2);
+}
+
+/// The campaign's plan run on a Ray cluster of two worker nodes, one of them killed once the
+/// run has finished three more tasks; the executor's summary (every task's outcome).
+fn on_ray(file: &Path, out: &Path, dir: &Path) -> serde_json::Value {
+    let plan_path = dir.join("plan.json");
+    let plan = Command::new(common::hilrig_bin())
+        .args(["campaign", "plan"])
+        .arg(file)
+        .arg("--out")
+        .arg(out)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(
+        plan.status.success(),
+        "{}",
+        String::from_utf8_lossy(&plan.stderr)
+    );
+    std::fs::write(&plan_path, &plan.stdout).unwrap();
+    let before = finished(out).len();
+
+    let cluster = common::ray::Cluster::start();
+    let mut exec = Command::new(common::python())
+        .args(["-m", "hilrig_ray"])
+        .arg(&plan_path)
+        .args(["--address", &cluster.address, "--hilrig"])
+        .arg(common::hilrig_bin())
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("python"))
+        .env("RAY_USAGE_STATS_ENABLED", "0")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    while finished(out).len() < before + 3 {
+        assert!(
+            exec.try_wait().unwrap().is_none(),
+            "the campaign ended before a worker was killed"
+        );
+        assert!(
+            started.elapsed() < Duration::from_secs(600),
+            "no progress on Ray"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    cluster.kill_a_worker_node();
+    let result = exec.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&result.stdout);
+    assert!(
+        result.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    // Both workers ran tasks (their process ids differ), one of them lost mid-run.
+    let pids: BTreeSet<i64> = summary["outcomes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|o| o["outcome"] == "ran")
+        .filter_map(|o| o["pid"].as_i64())
+        .collect();
+    assert!(pids.len() >= 2, "{pids:?}");
+    drop(cluster);
+    summary
+}
+
+/// Every file under `dir` (relative path -> bytes), without the logs (their timings differ).
+fn tree(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    fn walk(d: &Path, base: &Path, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
+        for e in std::fs::read_dir(d).unwrap().flatten() {
+            let p = e.path();
+            let rel = p.strip_prefix(base).unwrap().to_owned();
+            // Logs hold timings; the local executor keeps its plan beside its outputs.
+            if rel.starts_with("logs") || rel == Path::new("campaign/plan.json") {
+                continue;
+            }
+            if p.is_dir() {
+                walk(&p, base, out);
+            } else {
+                out.insert(rel, std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(dir, dir, &mut out);
+    out
+}
+
+#[test]
+fn the_executors_own_tests_pass() {
+    let out = Command::new(common::python())
+        .args(["-m", "unittest", "discover", "-s"])
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("python/tests"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("Ran 5 tests") && stderr.contains("OK"),
+        "{stderr}"
+    );
 }
 
 /// Runs a campaign that cannot run: exit 2, the reason on stderr, and no task started.

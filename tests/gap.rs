@@ -365,6 +365,9 @@ fn bad_studies_are_refused_with_exit_2() {
             "--max-rounds".as_ref(),
             "1".as_ref(),
             "--no-full-metrics".as_ref(),
+            // A round, not its numbers, is what this asserts: a small sample is enough.
+            "--firings".as_ref(),
+            "100000".as_ref(),
         ],
         &d.join("forced"),
     );
@@ -388,6 +391,9 @@ fn bad_studies_are_refused_with_exit_2() {
             "--max-rounds".as_ref(),
             "1".as_ref(),
             "--no-full-metrics".as_ref(),
+            // A round, not its numbers, is what this asserts: a small sample is enough.
+            "--firings".as_ref(),
+            "100000".as_ref(),
         ],
         &d.join("damaged"),
     );

@@ -265,9 +265,13 @@ fn prepare(plan: &Plan) -> Result<(), CampaignError> {
         std::fs::create_dir_all(&d).map_err(io(&d))?;
     }
     for f in &plan.files {
-        // Rewritten only when it differs, so that an unchanged study keeps its hash and time.
+        // Rewritten only when it differs, so that an unchanged study keeps its hash and time;
+        // through a file renamed into place, because engines that run single tasks on several
+        // workers prepare the plan on each of them.
         if std::fs::read_to_string(&f.path).ok().as_deref() != Some(f.text.as_str()) {
-            std::fs::write(&f.path, &f.text).map_err(io(&f.path))?;
+            let tmp = f.path.with_extension(format!("tmp{}", std::process::id()));
+            std::fs::write(&tmp, &f.text).map_err(io(&tmp))?;
+            std::fs::rename(&tmp, &f.path).map_err(io(&f.path))?;
         }
     }
     Ok(())
@@ -386,4 +390,58 @@ fn finish(
         }
     })?;
     Ok(Outcome::Ran { exit: code, time })
+}
+
+/// Runs the single task `id` of `plan`, as an engine that schedules tasks itself does it (one
+/// `hilrig campaign task` per task, on any worker): the plan's files made, the tasks it waits
+/// for checked by their stamps (each must have passed), skipped when up to date, else run and
+/// stamped like the local executor's tasks.
+pub fn run_task(plan: &Plan, id: &str, options: &Options) -> Result<Outcome, CampaignError> {
+    let Some(task) = plan.task(id) else {
+        return Err(CampaignError::Invalid {
+            path: plan.campaign_file.clone(),
+            what: format!("the plan has no task '{id}'"),
+        });
+    };
+    prepare(plan)?;
+    for dep in &task.after {
+        let passes = plan.task(dep).map(|t| t.passes.clone()).unwrap_or_default();
+        let p = stamp::path(&plan.out, dep);
+        let exit = std::fs::read(&p)
+            .ok()
+            .and_then(|b| crate::output::from_slice::<Stamp>(&p, &b).ok())
+            .map(|s| s.exit);
+        match exit {
+            Some(e) if passes.contains(&e) => {}
+            Some(e) => {
+                return Ok(Outcome::NotRun {
+                    because: format!("{dep}: exit {e}"),
+                })
+            }
+            None => {
+                return Ok(Outcome::NotRun {
+                    because: format!("{dep}: not finished"),
+                })
+            }
+        }
+    }
+    let mut hashes = Hashes::default();
+    if !options.force {
+        if let Some(exit) = stamp::up_to_date(&plan.out, task, &mut hashes)? {
+            return Ok(Outcome::UpToDate { exit });
+        }
+    }
+    let i = plan
+        .tasks
+        .iter()
+        .position(|t| t.id == id)
+        .expect("found above");
+    let (tx, rx) = mpsc::channel();
+    let started = Instant::now();
+    let inputs = match start(plan, task, i, options, &mut hashes, &tx) {
+        Ok(inputs) => inputs,
+        Err(why) => return Ok(Outcome::Failed { why }),
+    };
+    let (_, status) = rx.recv().expect("the waiter sends once");
+    finish(plan, task, status, inputs, started.elapsed(), &mut hashes)
 }

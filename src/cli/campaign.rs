@@ -25,6 +25,92 @@ pub struct CampaignArgs {
 enum Sub {
     /// Print the task graph (inputs, outputs, command line, what each waits for).
     Plan(PlanArgs),
+    /// Run one task of a plan (for engines that schedule the tasks themselves): its
+    /// predecessors must have passed (their stamps say so); skipped when up to date. Prints
+    /// one JSON line with the outcome; exit 0 when the task has a result, 1 when not.
+    Task(TaskArgs),
+}
+
+#[derive(clap::Args)]
+struct TaskArgs {
+    /// The plan (`campaign plan --json`, or DIR/campaign/plan.json).
+    #[arg(long)]
+    plan: PathBuf,
+    /// The task's id.
+    id: String,
+    /// Run it even when it is up to date.
+    #[arg(long)]
+    force: bool,
+}
+
+/// What `campaign task` prints: one task's outcome, for the engine that ran it.
+#[derive(serde::Serialize)]
+struct TaskOutcome<'a> {
+    task: &'a str,
+    /// ran, up_to_date, failed, not_run.
+    outcome: &'static str,
+    /// Its exit code, when it has a result.
+    exit: Option<i32>,
+    /// Whether the tasks that wait for it may run.
+    passes: bool,
+    /// Why it failed or did not run.
+    why: Option<String>,
+}
+
+fn run_task(t: TaskArgs) -> Result<ExitCode> {
+    // An engine's worker that dies (a lost node) takes this task with it, and the command it
+    // runs after it (that one dies with this process): a retry elsewhere must not race a task
+    // still writing the same files.
+    nix::sys::prctl::set_pdeathsig(nix::sys::signal::Signal::SIGKILL)?;
+    if nix::unistd::getppid() == nix::unistd::Pid::from_raw(1) {
+        anyhow::bail!("the engine that started this task has gone");
+    }
+    let plan: Plan = match hilrig::output::read(&t.plan) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return Ok(ExitCode::from(2));
+        }
+    };
+    let options = local::Options {
+        exe: std::env::current_exe().context("cannot find the hilrig executable")?,
+        jobs: 1,
+        force: t.force,
+    };
+    let outcome = match local::run_task(&plan, &t.id, &options) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return Ok(ExitCode::from(2));
+        }
+    };
+    let passes = outcome.exit().is_some_and(|e| {
+        plan.task(&t.id)
+            .is_some_and(|task| task.passes.contains(&e))
+    });
+    let (name, why) = match &outcome {
+        Outcome::Ran { .. } => ("ran", None),
+        Outcome::UpToDate { .. } => ("up_to_date", None),
+        Outcome::Failed { why } => ("failed", Some(why.clone())),
+        Outcome::NotRun { because } => ("not_run", Some(because.clone())),
+    };
+    let report = TaskOutcome {
+        task: &t.id,
+        outcome: name,
+        exit: outcome.exit(),
+        passes,
+        why,
+    };
+    writeln!(
+        std::io::stdout().lock(),
+        "{}",
+        serde_json::to_string(&report)?
+    )?;
+    Ok(if outcome.exit().is_some() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
 }
 
 #[derive(clap::Args)]
@@ -65,6 +151,9 @@ fn plan(campaign: &std::path::Path, out: &std::path::Path) -> Result<Plan, ExitC
 }
 
 pub fn run(args: CampaignArgs) -> Result<ExitCode> {
+    if let Some(Sub::Task(t)) = args.sub {
+        return run_task(t);
+    }
     if let Some(Sub::Plan(p)) = args.sub {
         let plan = match plan(&p.campaign, &p.out) {
             Ok(p) => p,

@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod gap;
+pub mod ray;
 
 use hilrig::decode::lidar::{decode_capture, LidarOptions, LidarSummary, PointSink, PointTime};
 use hilrig::velodyne::Point;

@@ -1,0 +1,75 @@
+"""The Ray executor's own tests: what it accepts as a plan, and how a task whose predecessor did
+not pass is answered without running hilrig. (The cluster itself is exercised by
+tests/campaign_ray.rs, which starts one.)"""
+
+import json
+import os
+import sys
+import tempfile
+import unittest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from hilrig_ray.executor import PlanError, load_plan, run_one  # noqa: E402
+
+
+def task(id_, after=()):
+    return {
+        "id": id_,
+        "step": "check",
+        "args": ["check"],
+        "inputs": [],
+        "outputs": [],
+        "after": list(after),
+        "results": [0],
+        "passes": [0],
+        "log": "/dev/null",
+    }
+
+
+class LoadPlan(unittest.TestCase):
+    def write(self, plan):
+        f = tempfile.NamedTemporaryFile("w", suffix=".json", delete=False)
+        json.dump(plan, f)
+        f.close()
+        self.addCleanup(os.unlink, f.name)
+        return f.name
+
+    def plan(self, tasks, **over):
+        p = {"kind": "campaign_plan", "schema": 1, "campaign": "c", "campaign_file": "/c.toml",
+             "out": "/o", "files": [], "tasks": tasks}
+        p.update(over)
+        return p
+
+    def test_a_plan_in_order_is_read(self):
+        p = load_plan(self.write(self.plan([task("a"), task("b", ["a"])])))
+        self.assertEqual([t["id"] for t in p["tasks"]], ["a", "b"])
+
+    def test_another_kind_or_schema_is_refused(self):
+        with self.assertRaisesRegex(PlanError, "kind 'check'"):
+            load_plan(self.write(self.plan([], kind="check")))
+        with self.assertRaisesRegex(PlanError, "schema 2"):
+            load_plan(self.write(self.plan([], schema=2)))
+
+    def test_a_task_before_what_it_waits_for_is_refused(self):
+        with self.assertRaisesRegex(PlanError, "waits for a"):
+            load_plan(self.write(self.plan([task("b", ["a"]), task("a")])))
+        with self.assertRaisesRegex(PlanError, "twice"):
+            load_plan(self.write(self.plan([task("a"), task("a")])))
+
+
+class RunOne(unittest.TestCase):
+    def test_a_predecessor_that_did_not_pass_stops_the_task_without_running_hilrig(self):
+        failed = {"task": "check/r1", "outcome": "ran", "exit": 1, "passes": False}
+        out = run_one("/nonexistent/hilrig", "/nonexistent/plan.json", "resim/m/r1", failed)
+        self.assertEqual(out["outcome"], "not_run")
+        self.assertIn("check/r1", out["why"])
+
+    def test_hilrig_that_cannot_run_the_task_is_a_failure_with_its_message(self):
+        out = run_one(sys.executable, "/nonexistent/plan.json", "x")
+        self.assertEqual(out["outcome"], "failed")
+        self.assertFalse(out["passes"])
+
+
+if __name__ == "__main__":
+    unittest.main()

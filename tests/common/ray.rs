@@ -1,0 +1,141 @@
+//! A local Ray cluster for the tests (PyPI `ray` in the test venv): a head that takes no tasks
+//! and two worker nodes, started with `ray start`; its processes are found by its own temp dir
+//! in their command lines, so that dropping it stops this cluster and no other.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+/// The `ray` command of the test venv.
+pub fn ray() -> PathBuf {
+    super::python().with_file_name("ray")
+}
+
+/// A cluster started for this test; its processes (found by its own temp dir in their command
+/// lines) are killed when it is dropped, and no other cluster on the machine is touched.
+pub struct Cluster {
+    temp: tempfile::TempDir,
+    /// HOST:PORT of its head.
+    pub address: String,
+}
+
+impl Cluster {
+    /// Starts a head and two worker nodes of one CPU each.
+    pub fn start() -> Cluster {
+        let temp = tempfile::Builder::new()
+            .prefix("ray")
+            .tempdir_in("/tmp")
+            .unwrap();
+        let port = free_port();
+        let address = format!("127.0.0.1:{port}");
+        let start = |args: &[&str]| {
+            let out = Command::new(ray())
+                .arg("start")
+                .args(args)
+                .env("RAY_USAGE_STATS_ENABLED", "0")
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "ray start {args:?}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        };
+        // The head takes no tasks: they run on the two workers.
+        start(&[
+            "--head",
+            "--port",
+            &port.to_string(),
+            "--num-cpus",
+            "0",
+            "--include-dashboard",
+            "false",
+            "--temp-dir",
+            &temp.path().display().to_string(),
+            "--disable-usage-stats",
+        ]);
+        let cluster = Cluster { temp, address };
+        for _ in 0..2 {
+            start(&["--address", &cluster.address, "--num-cpus", "1"]);
+        }
+        cluster
+    }
+
+    /// Processes of this cluster: (pid, command line).
+    pub fn processes(&self) -> Vec<(i32, String)> {
+        let needle = self.temp.path().display().to_string();
+        let mut found = Vec::new();
+        for e in std::fs::read_dir("/proc").unwrap().flatten() {
+            let Ok(pid) = e.file_name().to_string_lossy().parse::<i32>() else {
+                continue;
+            };
+            if let Ok(cmdline) = std::fs::read(e.path().join("cmdline")) {
+                let text = String::from_utf8_lossy(&cmdline).replace('\0', " ");
+                if text.contains(&needle) {
+                    found.push((pid, text));
+                }
+            }
+        }
+        found
+    }
+
+    /// Kills one worker node: its raylet and every process it started.
+    pub fn kill_a_worker_node(&self) -> i32 {
+        let raylet = self
+            .processes()
+            .into_iter()
+            .find(|(_, c)| c.contains("raylet/raylet") && !c.contains(" --head"))
+            .expect("a worker node's raylet")
+            .0;
+        let children = children_of(raylet);
+        let _ = nix::sys::signal::kill(
+            nix::unistd::Pid::from_raw(raylet),
+            nix::sys::signal::Signal::SIGKILL,
+        );
+        for c in children {
+            let _ = nix::sys::signal::kill(
+                nix::unistd::Pid::from_raw(c),
+                nix::sys::signal::Signal::SIGKILL,
+            );
+        }
+        raylet
+    }
+}
+
+impl Drop for Cluster {
+    fn drop(&mut self) {
+        for (pid, _) in self.processes() {
+            let _ = nix::sys::signal::kill(
+                nix::unistd::Pid::from_raw(pid),
+                nix::sys::signal::Signal::SIGKILL,
+            );
+        }
+    }
+}
+
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// Direct children of `pid`.
+pub fn children_of(pid: i32) -> Vec<i32> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(child) = e.file_name().to_string_lossy().parse::<i32>() else {
+            continue;
+        };
+        if let Ok(stat) = std::fs::read_to_string(e.path().join("stat")) {
+            // pid (comm) state ppid ...: the command may hold spaces, the fields after ')' not.
+            let ppid = stat
+                .rsplit_once(')')
+                .and_then(|(_, rest)| rest.split_whitespace().nth(1)?.parse::<i32>().ok());
+            if ppid == Some(pid) {
+                out.push(child);
+            }
+        }
+    }
+    out
+}
