@@ -445,29 +445,26 @@ fn a_campaign_that_cannot_run_says_why_before_any_task_runs() {
     let parking = common::fixture("parking");
     let p = parking.display();
     let models = format!("[[model]]\nname = \"idealized\"\nfile = \"{p}/idealized.toml\"\n");
+    // A campaign's first lines, and a [[drive]] of `pattern` with the scenes beside the drives.
+    let head = |steps: &str| format!("name = \"x\"\nsteps = [{steps}]\n");
+    let drive = |pattern: &str| {
+        format!("[[drive]]\nrecordings = \"{pattern}\"\nscene = \"{{dir}}/scene.toml\"\n")
+    };
+    let rep01 = format!("{p}/rep-01/drive.pcapng.zst");
     // A drive that is not there.
     let e = refused(
-        &format!(
-            "name = \"x\"\nsteps = [\"check\"]\n[[drive]]\nrecordings = \"{p}/rep-09/*.mcap\"\nscene = \"{{dir}}/scene.toml\"\n"
-        ),
+        &(head("\"check\"") + &drive(&format!("{p}/rep-09/*.mcap"))),
         dir.path(),
     );
     assert!(e.contains("no file matches") && e.contains("rep-09"), "{e}");
     // An unknown step, named.
     let e = refused(
-        &format!(
-            "name = \"x\"\nsteps = [\"check\", \"resimulate\"]\n[[drive]]\nrecordings = \"{p}/rep-01/drive.pcapng.zst\"\nscene = \"{{dir}}/scene.toml\"\n{models}"
-        ),
+        &(head("\"check\", \"resimulate\"") + &drive(&rep01) + &models),
         dir.path(),
     );
     assert!(e.contains("resimulate"), "{e}");
     // A capture without the record step.
-    let e = refused(
-        &format!(
-            "name = \"x\"\nsteps = [\"check\"]\n[[drive]]\nrecordings = \"{p}/rep-01/drive.pcapng.zst\"\nscene = \"{{dir}}/scene.toml\"\n"
-        ),
-        dir.path(),
-    );
+    let e = refused(&(head("\"check\"") + &drive(&rep01)), dir.path());
     assert!(e.contains("is a capture") && e.contains("record"), "{e}");
     // A cycle: the drives are the campaign's own re-simulations.
     let sims = dir.path().join("bad-out/sim/idealized");
@@ -475,9 +472,7 @@ fn a_campaign_that_cannot_run_says_why_before_any_task_runs() {
     std::fs::write(sims.join("rep-01.mcap"), b"not read by the planner").unwrap();
     std::fs::copy(parking.join("rep-01/scene.toml"), sims.join("scene.toml")).unwrap();
     let e = refused(
-        &format!(
-            "name = \"x\"\nsteps = [\"resim\"]\n[[drive]]\nrecordings = \"bad-out/sim/idealized/*.mcap\"\nscene = \"{{dir}}/scene.toml\"\n{models}"
-        ),
+        &(head("\"resim\"") + &drive("bad-out/sim/idealized/*.mcap") + &models),
         dir.path(),
     );
     assert!(
@@ -486,21 +481,17 @@ fn a_campaign_that_cannot_run_says_why_before_any_task_runs() {
     );
     std::fs::remove_dir_all(dir.path().join("bad-out")).unwrap();
     // Two drives that would write the same outputs.
-    std::fs::create_dir_all(dir.path().join("a")).unwrap();
-    std::fs::create_dir_all(dir.path().join("b")).unwrap();
     let e = refused(
-        &format!(
-            "name = \"x\"\nsteps = [\"check\"]\n[[drive]]\nrecordings = \"{p}/rep-01/drive.pcapng.zst\"\nscene = \"{{dir}}/scene.toml\"\n[[drive]]\nrecordings = \"{p}/rep-01/drive.pcapng.zst\"\nscene = \"{{dir}}/scene.toml\"\n"
-        ),
+        &(head("\"check\"") + &drive(&rep01) + &drive(&rep01)),
         dir.path(),
     );
     assert!(e.contains("matched by two"), "{e}");
     // A model file that is not there.
     let e = refused(
-        &format!(
-            "name = \"x\"\nsteps = [\"record\", \"resim\"]\nrig = \"{}\"\n[[drive]]\nrecordings = \"{p}/rep-0[12]/drive.pcapng.zst\"\nscene = \"{{dir}}/scene.toml\"\n[[model]]\nname = \"m\"\nfile = \"nowhere.toml\"\n",
-            common::demo_rig().display()
-        ),
+        &(head("\"record\", \"resim\"")
+            + &format!("rig = \"{}\"\n", common::demo_rig().display())
+            + &drive(&format!("{p}/rep-0[12]/drive.pcapng.zst"))
+            + "[[model]]\nname = \"m\"\nfile = \"nowhere.toml\"\n"),
         dir.path(),
     );
     assert!(e.contains("model 'm'") && e.contains("nowhere.toml"), "{e}");
