@@ -101,7 +101,7 @@ struct Builder<'a> {
     /// Files the plan writes itself.
     files: Vec<PlannedFile>,
     /// The JSON outputs with the name and labels of their tables.
-    tables: Vec<(PathBuf, String, Labels)>,
+    tables: Vec<(OutputKind, PathBuf, String, Labels)>,
 }
 
 impl Builder<'_> {
@@ -135,38 +135,26 @@ impl Builder<'_> {
     /// Notes a JSON output for the `tables` step: its tables' file name and labels.
     fn table(
         &mut self,
+        kind: OutputKind,
         json: &Path,
         name: &str,
-        drive: Option<&str>,
-        scenario: Option<usize>,
-        model: Option<&str>,
+        [drive, scenario, model]: [Option<&str>; 3],
     ) {
         if self.has(Step::Tables) {
             let labels = Labels {
                 drive: drive.map(str::to_owned),
-                scenario: scenario.map(|i| self.campaign.scenarios[i].name.clone()),
+                scenario: scenario.map(str::to_owned),
                 model: model.map(str::to_owned),
             };
-            self.tables.push((json.to_owned(), name.to_owned(), labels));
+            self.tables
+                .push((kind, json.to_owned(), name.to_owned(), labels));
         }
     }
 
     /// `table` of every JSON noted: Parquet files under `OUT/tables/TABLE/NAME.parquet`.
     fn tables(&mut self) {
         let dir = self.layout.out.join("tables");
-        for (json, name, labels) in std::mem::take(&mut self.tables) {
-            let doc_kind = self
-                .tasks
-                .iter()
-                .find(|t| t.outputs.contains(&json))
-                .map(|t| t.step)
-                .expect("a table of a task's output");
-            let kind = match doc_kind {
-                Step::Check => crate::output::OutputKind::Check,
-                Step::Compare => crate::output::OutputKind::Compare,
-                Step::Validate => crate::output::OutputKind::Validate,
-                _ => crate::output::OutputKind::Gap,
-            };
+        for (kind, json, name, labels) in std::mem::take(&mut self.tables) {
             let mut args = vec![
                 "table".into(),
                 s(&json),
@@ -188,7 +176,7 @@ impl Builder<'_> {
                 .iter()
                 .map(|k| dir.join(k.name()).join(format!("{name}.parquet")))
                 .collect();
-            let id = format!("tables/{}/{name}", doc_kind.name());
+            let id = format!("tables/{}/{name}", kind.name());
             self.add(id, Step::Tables, args, vec![json], outputs);
         }
     }
@@ -234,7 +222,13 @@ impl Builder<'_> {
                     "--json".into(),
                     s(&json),
                 ];
-                self.table(&json, &d.name, Some(&d.name), Some(d.scenario), None);
+                let scenario = c.scenarios[d.scenario].name.as_str();
+                self.table(
+                    OutputKind::Check,
+                    &json,
+                    &d.name,
+                    [Some(&d.name), Some(scenario), None],
+                );
                 let t = self.add(
                     format!("check/{}", d.name),
                     Step::Check,
@@ -285,7 +279,9 @@ impl Builder<'_> {
                     ];
                     let inputs = vec![rec, sim, d.scene.clone()];
                     let name = format!("{}-{}", m.name, d.name);
-                    self.table(&json, &name, Some(&d.name), Some(d.scenario), Some(&m.name));
+                    let scenario = c.scenarios[d.scenario].name.as_str();
+                    let labels = [Some(d.name.as_str()), Some(scenario), Some(m.name.as_str())];
+                    self.table(OutputKind::Compare, &json, &name, labels);
                     self.add(
                         format!("compare/{}/{}", m.name, d.name),
                         Step::Compare,
@@ -320,8 +316,8 @@ impl Builder<'_> {
             }
             args.extend(["--json".into(), s(&json)]);
             let name = format!("{}-{}", sc.name, m.name);
-            let scenario = c.scenarios.iter().position(|x| x.name == sc.name);
-            self.table(&json, &name, None, scenario, Some(&m.name));
+            let labels = [None, Some(sc.name.as_str()), Some(m.name.as_str())];
+            self.table(OutputKind::Validate, &json, &name, labels);
             let t = self.add(
                 format!("validate/{}/{}", sc.name, m.name),
                 Step::Validate,
@@ -383,8 +379,8 @@ impl Builder<'_> {
         }
         let id = format!("gap/{}", sc.name);
         let outputs = vec![dir.join("gap.json"), dir.join("model.fitted.toml")];
-        let scenario = c.scenarios.iter().position(|x| x.name == sc.name);
-        self.table(&outputs[0], &sc.name, None, scenario, Some(&model.name));
+        let labels = [None, Some(sc.name.as_str()), Some(model.name.as_str())];
+        self.table(OutputKind::Gap, &outputs[0], &sc.name, labels);
         self.add(id.clone(), Step::Gap, args, inputs, outputs);
         // The workflow refuses runs that fail their check.
         let checks: Vec<String> = sc

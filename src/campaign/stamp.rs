@@ -88,7 +88,7 @@ impl Hashes {
             }
             h.update(&buf[..n]);
         }
-        let hash: String = h.finalize().iter().map(|b| format!("{b:02x}")).collect();
+        let hash = crate::report::hex(&h.finalize());
         self.known
             .insert(path.to_owned(), (key.0, key.1, hash.clone()));
         Ok(Some(hash))

@@ -162,7 +162,8 @@ fn read(path: &Path, base: &Path, named: bool) -> Result<Option<Input>, ReportEr
     }))
 }
 
-fn hex(b: &[u8]) -> String {
+/// Lowercase hex of bytes: the SHA-256 digests the report and the campaign's stamps quote.
+pub(crate) fn hex(b: &[u8]) -> String {
     b.iter().map(|x| format!("{x:02x}")).collect()
 }
 
