@@ -238,8 +238,13 @@ fn a_campaign_killed_mid_run_resumes_gives_what_the_commands_give_one_by_one_and
             .map(|o| o["task"].as_str().unwrap().to_owned())
             .collect()
     };
-    assert_eq!(with("up_to_date"), before, "{ray}");
-    assert_eq!(with("ran").len() + before.len(), total, "{ray}");
+    // Every task the local run finished is skipped, none is run again. A task the lost worker
+    // finished and stamped before Ray heard of it is skipped too, on its retry: so the skipped
+    // may be more than those.
+    let (skipped, ran) = (with("up_to_date"), with("ran"));
+    assert!(skipped.is_superset(&before), "{ray}");
+    assert!(ran.is_disjoint(&before), "{ray}");
+    assert_eq!(skipped.len() + ran.len(), total, "{ray}");
     assert_eq!(finished(&out).len(), total);
     // And a third, here, finds nothing to do.
     let third = campaign(&file, &out).output().unwrap();
