@@ -503,6 +503,60 @@ fn a_campaign_that_cannot_run_says_why_before_any_task_runs() {
 }
 
 #[test]
+fn a_drive_that_fails_its_check_gets_its_tables_but_is_not_re_simulated() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let parking = common::fixture("parking");
+    // Two recordings, one cut after its first 300 kB: no GNSS fixes, no ego motion in it.
+    for (rep, cut) in [("rep-01", false), ("rep-02", true)] {
+        std::fs::create_dir_all(d.join(rep)).unwrap();
+        let rec = d.join(rep).join("run.mcap");
+        let out = common::record_from(
+            &common::demo_rig(),
+            &[&parking.join(rep).join("drive.pcapng.zst")],
+            &rec,
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        if cut {
+            let bytes = std::fs::read(&rec).unwrap();
+            std::fs::write(&rec, &bytes[..300_000]).unwrap();
+        }
+    }
+    let file = d.join("c.toml");
+    std::fs::write(
+        &file,
+        format!(
+            "name = \"x\"\nsteps = [\"check\", \"resim\", \"tables\"]\n[[drive]]\nrecordings = \"*/run.mcap\"\nscene = \"{p}/scene.toml\"\n[[model]]\nname = \"idealized\"\nfile = \"{p}/idealized.toml\"\n",
+            p = parking.display()
+        ),
+    )
+    .unwrap();
+    let run = campaign(&file, &d.join("out")).output().unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    // A failed check is a result the user must see: exit 1, named.
+    assert_eq!(run.status.code(), Some(1), "{stdout}");
+    assert!(stdout.contains("1 drive(s) failed check"), "{stdout}");
+    assert!(
+        stdout.contains("not run  resim/idealized/rep-02: waits for check/rep-02: exit 1"),
+        "{stdout}"
+    );
+    let out = d.join("out");
+    assert!(out.join("sim/idealized/rep-01.mcap").is_file());
+    assert!(!out.join("sim/idealized/rep-02.mcap").exists());
+    // Its check's tables are made all the same: the fleet's verdicts include the failed one.
+    for t in ["check_runs", "check_epochs"] {
+        assert!(
+            out.join(format!("tables/{t}/rep-02.parquet")).is_file(),
+            "{stdout}"
+        );
+    }
+}
+
+#[test]
 fn the_plan_is_json_that_names_every_command_and_what_it_waits_for() {
     let dir = tempfile::tempdir().unwrap();
     let out = Command::new(common::hilrig_bin())

@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 PLAN_KIND = "campaign_plan"
-PLAN_SCHEMA = 1
+PLAN_SCHEMA = 2
 
 
 class PlanError(ValueError):

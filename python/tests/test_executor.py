@@ -22,7 +22,7 @@ def task(id_, after=()):
         "outputs": [],
         "after": list(after),
         "results": [0],
-        "passes": [0],
+        "gates": [],
         "log": "/dev/null",
     }
 
@@ -36,7 +36,7 @@ class LoadPlan(unittest.TestCase):
         return f.name
 
     def plan(self, tasks, **over):
-        p = {"kind": "campaign_plan", "schema": 1, "campaign": "c", "campaign_file": "/c.toml",
+        p = {"kind": "campaign_plan", "schema": 2, "campaign": "c", "campaign_file": "/c.toml",
              "out": "/o", "files": [], "tasks": tasks}
         p.update(over)
         return p
@@ -48,8 +48,8 @@ class LoadPlan(unittest.TestCase):
     def test_another_kind_or_schema_is_refused(self):
         with self.assertRaisesRegex(PlanError, "kind 'check'"):
             load_plan(self.write(self.plan([], kind="check")))
-        with self.assertRaisesRegex(PlanError, "schema 2"):
-            load_plan(self.write(self.plan([], schema=2)))
+        with self.assertRaisesRegex(PlanError, "schema 3"):
+            load_plan(self.write(self.plan([], schema=3)))
 
     def test_a_task_before_what_it_waits_for_is_refused(self):
         with self.assertRaisesRegex(PlanError, "waits for a"):

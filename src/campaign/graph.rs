@@ -122,6 +122,13 @@ pub(super) fn order(
     let ids: Vec<String> = tasks.iter().map(|t| t.id.clone()).collect();
     for (t, d) in tasks.iter_mut().zip(&deps) {
         t.after = d.iter().map(|&k| ids[k].clone()).collect();
+        t.gates = gates
+            .get(&t.id)
+            .into_iter()
+            .flatten()
+            .filter(|g| index.contains_key(*g))
+            .cloned()
+            .collect();
     }
     let mut slots: Vec<Option<Task>> = tasks.into_iter().map(Some).collect();
     Ok(sorted

@@ -141,7 +141,7 @@ pub fn run(
                     let j = index[dep.as_str()];
                     match &states[j] {
                         State::Done(o) => {
-                            if !o.exit().is_some_and(|e| plan.tasks[j].passes.contains(&e)) {
+                            if !passed(task, dep, o.exit()) {
                                 blocked.get_or_insert_with(|| format!("{dep}: {}", short(o)));
                             }
                         }
@@ -222,6 +222,15 @@ pub fn run(
             })
             .collect(),
     })
+}
+
+/// Whether `task` may run after its predecessor `dep` ended with `exit` (`None`: it failed or
+/// did not run): any result does, except for a gate, which must have passed (exit 0).
+fn passed(task: &Task, dep: &str, exit: Option<i32>) -> bool {
+    match exit {
+        None => false,
+        Some(e) => e == 0 || !task.gates.iter().any(|g| g == dep),
+    }
 }
 
 /// One line for an outcome that stops the tasks after it.
@@ -405,14 +414,13 @@ pub fn run_task(plan: &Plan, id: &str, options: &Options) -> Result<Outcome, Cam
     };
     prepare(plan)?;
     for dep in &task.after {
-        let passes = plan.task(dep).map(|t| t.passes.clone()).unwrap_or_default();
         let p = stamp::path(&plan.out, dep);
         let exit = std::fs::read(&p)
             .ok()
             .and_then(|b| crate::output::from_slice::<Stamp>(&p, &b).ok())
             .map(|s| s.exit);
         match exit {
-            Some(e) if passes.contains(&e) => {}
+            e @ Some(_) if passed(task, dep, e) => {}
             Some(e) => {
                 return Ok(Outcome::NotRun {
                     because: format!("{dep}: exit {e}"),

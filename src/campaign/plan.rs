@@ -44,7 +44,7 @@ pub struct Plan {
 
 impl Output for Plan {
     const KIND: OutputKind = OutputKind::CampaignPlan;
-    const SCHEMA: u32 = 1;
+    const SCHEMA: u32 = 2;
 }
 
 fn s(p: &Path) -> String {
@@ -126,7 +126,7 @@ impl Builder<'_> {
             outputs,
             after: Vec::new(),
             results: vec![0],
-            passes: vec![0],
+            gates: Vec::new(),
             log,
         });
         self.tasks.last_mut().expect("just pushed")
@@ -327,7 +327,6 @@ impl Builder<'_> {
             );
             // A model that is not valid is the result, and the report shows it.
             t.results = vec![0, 1];
-            t.passes = vec![0, 1];
         }
     }
 

@@ -20,10 +20,13 @@ pub struct Task {
     pub outputs: Vec<PathBuf>,
     /// The tasks it waits for (ids; every one is earlier in [`Plan::tasks`]).
     pub after: Vec<String>,
-    /// Exit codes that are results, not failures (`check` exits 1 for a run that fails).
+    /// Exit codes that are results, not failures (`check` exits 1 for a run that fails). A
+    /// task that ended with one lets the tasks that read its outputs run.
     pub results: Vec<i32>,
-    /// Exit codes after which the tasks waiting for it run (`check`'s 0 only).
-    pub passes: Vec<i32>,
+    /// Of `after`, the tasks that must have exited 0, not only with a result: a drive is
+    /// re-simulated and studied only after it passed `check`, while the tables and the report
+    /// of a failed check are still made.
+    pub gates: Vec<String>,
     /// Where its standard output and error go.
     pub log: PathBuf,
 }
