@@ -2,7 +2,8 @@
 //! commands typed one by one, a campaign killed mid-run resumes without redoing finished work,
 //! its Parquet tables read in DuckDB give the JSON's numbers, the same plan on a Ray cluster
 //! that loses a worker node gives the same files byte for byte, and a campaign that cannot run
-//! says why before anything runs.
+//! says why before anything runs. The same campaign from and into a bucket of an S3 server gives
+//! the local executor's files byte for byte.
 
 mod common;
 
@@ -21,8 +22,18 @@ const MODELS: [(&str, &str); 2] = [
 /// The parking campaign without the gap workflow (a minute and a half on its own, and not
 /// what these tests are about), its paths pointing into the fixture.
 fn campaign_file(dir: &Path) -> PathBuf {
-    let parking = common::fixture("parking");
-    let text = format!(
+    let path = dir.join("campaign.toml");
+    let text = campaign_text(
+        &common::fixture("parking").display().to_string(),
+        &common::demo_rig().display().to_string(),
+    );
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// That campaign with the parking fixture at `parking` and the rig at `rig`.
+fn campaign_text(parking: &str, rig: &str) -> String {
+    format!(
         r#"name = "parking"
 steps = ["record", "check", "resim", "compare", "validate", "tables", "report"]
 rig = "{rig}"
@@ -43,13 +54,8 @@ file = "{parking}/idealized.toml"
 [[model]]
 name = "truth"
 file = "{parking}/truth-model.toml"
-"#,
-        rig = common::demo_rig().display(),
-        parking = parking.display()
-    );
-    let path = dir.join("campaign.toml");
-    std::fs::write(&path, text).unwrap();
-    path
+"#
+    )
 }
 
 /// The commands a user would type for the same study, in two threads, into `dir` with the
@@ -475,7 +481,9 @@ fn a_campaign_that_cannot_run_says_why_before_any_task_runs() {
     let sims = dir.path().join("bad-out/sim/idealized");
     std::fs::create_dir_all(&sims).unwrap();
     std::fs::write(sims.join("rep-01.mcap"), b"not read by the planner").unwrap();
-    std::fs::copy(parking.join("rep-01/scene.toml"), sims.join("scene.toml")).unwrap();
+    for f in ["scene.toml", "pedestrian.csv"] {
+        std::fs::copy(parking.join("rep-01").join(f), sims.join(f)).unwrap();
+    }
     let e = refused(
         &(head("\"resim\"") + &drive("bad-out/sim/idealized/*.mcap") + &models),
         dir.path(),
@@ -485,6 +493,16 @@ fn a_campaign_that_cannot_run_says_why_before_any_task_runs() {
         "{e}"
     );
     std::fs::remove_dir_all(dir.path().join("bad-out")).unwrap();
+    // A scene whose pedestrian's trajectory is missing (a file the scene names).
+    let lone = dir.path().join("lone");
+    std::fs::create_dir_all(&lone).unwrap();
+    std::fs::write(lone.join("run.mcap"), b"not read by the planner").unwrap();
+    std::fs::copy(parking.join("rep-01/scene.toml"), lone.join("scene.toml")).unwrap();
+    let e = refused(&(head("\"check\"") + &drive("lone/*.mcap")), dir.path());
+    assert!(
+        e.contains("lone/scene.toml names") && e.contains("pedestrian.csv does not exist"),
+        "{e}"
+    );
     // Two drives that would write the same outputs.
     let e = refused(
         &(head("\"check\"") + &drive(&rep01) + &drive(&rep01)),
@@ -500,6 +518,40 @@ fn a_campaign_that_cannot_run_says_why_before_any_task_runs() {
         dir.path(),
     );
     assert!(e.contains("model 'm'") && e.contains("nowhere.toml"), "{e}");
+    // A bucket without credentials, for the outputs or for the drives: refused before anything
+    // is asked of the network, and nothing written here.
+    let work = dir.path().join("work");
+    std::fs::create_dir_all(&work).unwrap();
+    let runnable = head("\"record\", \"check\"")
+        + &format!("rig = \"{}\"\n", common::demo_rig().display())
+        + &drive(&rep01);
+    let in_bucket = head("\"check\"") + &drive("s3://hilrig-drives/rep-*/run.mcap");
+    for (text, out) in [
+        (runnable.as_str(), "s3://hilrig-out/campaign"),
+        (in_bucket.as_str(), "out"),
+    ] {
+        let file = dir.path().join("bucket.toml");
+        std::fs::write(&file, text).unwrap();
+        let mut cmd = campaign(&file, Path::new(out));
+        for (k, _) in std::env::vars_os() {
+            if k.to_string_lossy().starts_with("AWS_") {
+                cmd.env_remove(k);
+            }
+        }
+        let o = cmd
+            .env("HILRIG_CACHE", dir.path().join("cache"))
+            .current_dir(&work)
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(
+            e.contains("no credentials for S3") && e.contains("AWS_ACCESS_KEY_ID"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read_dir(&work).unwrap().count(), 0);
+        assert!(!dir.path().join("cache/objects").exists());
+    }
 }
 
 #[test]
@@ -602,4 +654,101 @@ fn the_plan_is_json_that_names_every_command_and_what_it_waits_for() {
     assert!(plan.task("report").unwrap().after.len() >= 18);
     // Nothing was run or written by planning.
     assert!(!dir.path().join("out").exists());
+}
+
+/// Every file under `dir` but the executor's own (logs, plan, stamps), by relative path.
+fn outputs(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    tree(dir)
+        .into_iter()
+        .filter(|(rel, _)| !rel.starts_with("logs") && !rel.starts_with("campaign"))
+        .collect()
+}
+
+#[test]
+fn a_campaign_in_a_bucket_runs_from_it_into_it_and_gives_the_local_executors_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let server = common::s3::Server::start();
+    // The fixture and the rig in a bucket as in this repository, and beside them the campaign,
+    // its paths relative to itself.
+    let bucket = "hilrig-drives";
+    server.put(bucket, "fixtures/parking", &common::fixture("parking"));
+    server.put(bucket, "rigs", common::demo_rig().parent().unwrap());
+    let upload = d.join("upload");
+    std::fs::create_dir_all(&upload).unwrap();
+    std::fs::write(
+        upload.join("campaign-test.toml"),
+        campaign_text(".", "../../rigs/demo.toml"),
+    )
+    .unwrap();
+    server.put(bucket, "fixtures/parking", &upload);
+    let file = format!("s3://{bucket}/fixtures/parking/campaign-test.toml");
+    let out = format!("s3://{bucket}/out");
+    let cache = d.join("cache");
+    // Run where nothing is on disk but the cache: whatever it writes elsewhere shows up here.
+    let work = d.join("work");
+    std::fs::create_dir_all(&work).unwrap();
+    let in_bucket = |cache: &Path| {
+        let mut cmd = campaign(Path::new(&file), Path::new(&out));
+        server
+            .env(&mut cmd)
+            .env("HILRIG_CACHE", cache)
+            .current_dir(&work);
+        let o = cmd.output().unwrap();
+        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(
+            o.status.success(),
+            "{stdout}\n{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        stdout
+    };
+    let stdout = in_bucket(&cache);
+    assert!(
+        stdout.contains("50 ran, 0 up to date, 0 failed"),
+        "{stdout}"
+    );
+    assert_eq!(std::fs::read_dir(&work).unwrap().count(), 0);
+
+    // Read back by another client.
+    let got = d.join("from-bucket");
+    let objects = server.get(bucket, "out", &got);
+    // The stamps name the objects, not this machine's copies of them.
+    let stamp = std::fs::read_to_string(got.join("campaign/done/check/rep-01.json")).unwrap();
+    assert!(
+        stamp.contains(&format!("\"{out}/rec/rep-01.mcap\""))
+            && !stamp.contains(&*cache.to_string_lossy()),
+        "{stamp}"
+    );
+    // A worker that shares no disk with this one (an empty cache) finds every task done.
+    let again = in_bucket(&d.join("another-cache"));
+    assert!(again.contains("0 ran, 50 up to date"), "{again}");
+
+    // The local executor on the same files, at the paths the tasks saw (this machine's copies:
+    // a re-simulation quotes its inputs' paths), with the bucket's outputs moved away.
+    let mirror = cache.join("objects/s3").join(bucket);
+    std::fs::remove_dir_all(mirror.join("out")).unwrap();
+    let local = campaign(
+        &mirror.join("fixtures/parking/campaign-test.toml"),
+        &mirror.join("out"),
+    )
+    .output()
+    .unwrap();
+    assert!(
+        local.status.success(),
+        "{}",
+        String::from_utf8_lossy(&local.stderr)
+    );
+    let (ours, theirs) = (outputs(&mirror.join("out")), outputs(&got));
+    assert_eq!(
+        ours.keys().collect::<Vec<_>>(),
+        theirs.keys().collect::<Vec<_>>()
+    );
+    for (rel, bytes) in &ours {
+        assert!(theirs[rel] == *bytes, "{} differs", rel.display());
+    }
+    // 5 recordings, 10 re-simulations, 5 checks, 10 comparisons, 2 validations, 22 tables and
+    // the report (HTML and JSON); besides them, 50 logs, 50 stamps and the plan.
+    assert_eq!(ours.len(), 5 + 10 + 5 + 10 + 2 + 22 + 2);
+    assert_eq!(objects, ours.len() + 50 + 50 + 1);
 }

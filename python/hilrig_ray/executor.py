@@ -39,8 +39,10 @@ def load_plan(path):
     return plan
 
 
-def run_one(hilrig, plan_path, task_id, *before):
-    """One task on this worker; `before` are the outcomes of the tasks it waits for."""
+def run_one(hilrig, plan_text, task_id, *before):
+    """One task on this worker; `before` are the outcomes of the tasks it waits for. The plan
+    comes as text (standard input of `hilrig campaign task --plan -`), so that a worker needs
+    no disk shared with the head: a campaign whose files are in a bucket runs on any node."""
     for dep in before:
         if not dep["passes"]:
             return {
@@ -51,7 +53,8 @@ def run_one(hilrig, plan_path, task_id, *before):
                 "why": f"{dep['task']}: {dep['outcome']}",
             }
     proc = subprocess.run(
-        [hilrig, "campaign", "task", "--plan", plan_path, task_id],
+        [hilrig, "campaign", "task", "--plan", "-", task_id],
+        input=plan_text,
         capture_output=True,
         text=True,
         check=False,
@@ -77,16 +80,19 @@ def run(plan_path, hilrig="hilrig", address=None, retries=3):
 
     plan_path = os.path.abspath(plan_path)
     plan = load_plan(plan_path)
+    with open(plan_path, encoding="utf-8") as f:
+        plan_text = f.read()
     package = os.path.dirname(os.path.abspath(__file__))
     ray.init(address=address, runtime_env={"py_modules": [package]}, log_to_driver=False)
     try:
         # Retried on system failures only (a worker or node lost): a task that fails in
         # hilrig fails the same way on any node, and says so in its outcome.
         remote = ray.remote(max_retries=retries, retry_exceptions=False, num_cpus=1)(run_one)
+        plan_ref = ray.put(plan_text)
         refs = {}
         for task in plan["tasks"]:
             deps = [refs[d] for d in task["after"]]
-            refs[task["id"]] = remote.remote(hilrig, plan_path, task["id"], *deps)
+            refs[task["id"]] = remote.remote(hilrig, plan_ref, task["id"], *deps)
         return ray.get([refs[t["id"]] for t in plan["tasks"]])
     finally:
         ray.shutdown()

@@ -61,12 +61,12 @@ class LoadPlan(unittest.TestCase):
 class RunOne(unittest.TestCase):
     def test_a_predecessor_that_did_not_pass_stops_the_task_without_running_hilrig(self):
         failed = {"task": "check/r1", "outcome": "ran", "exit": 1, "passes": False}
-        out = run_one("/nonexistent/hilrig", "/nonexistent/plan.json", "resim/m/r1", failed)
+        out = run_one("/nonexistent/hilrig", "{}", "resim/m/r1", failed)
         self.assertEqual(out["outcome"], "not_run")
         self.assertIn("check/r1", out["why"])
 
     def test_hilrig_that_cannot_run_the_task_is_a_failure_with_its_message(self):
-        out = run_one(sys.executable, "/nonexistent/plan.json", "x")
+        out = run_one(sys.executable, "{}", "x")
         self.assertEqual(out["outcome"], "failed")
         self.assertFalse(out["passes"])
 

@@ -21,12 +21,16 @@
 //! file = "idealized.toml"
 //! ```
 //!
-//! Relative paths are relative to the campaign file. A drive's name (the stem of its file
+//! Relative paths are relative to the campaign file. Any path may be an object's URL
+//! (`s3://bucket/drives/rep-*/drive.pcapng.zst`), and a campaign file that is an object names
+//! objects beside it with relative paths (store.rs). A drive's name (the stem of its file
 //! names, and how the plan's task ids name it) is its file's stem; where stems repeat (every
 //! repetition's capture is `drive.pcapng.zst`) it is its directory's name, and where those
 //! repeat too, its path. Everything a step will need is looked for here, so that a campaign
 //! that cannot run fails before its first task, not an hour into it.
 
+use super::mirror;
+use super::resolve::{existing_in, joined, matching, named_files, parent_of, read_text, Names};
 use super::CampaignError;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
@@ -156,6 +160,9 @@ pub struct Drive {
     pub is_capture: bool,
     /// Its scene.
     pub scene: PathBuf,
+    /// The files its scene names (meshes, actors' trajectories): inputs of every task that
+    /// reads the scene, so that an edited mesh re-runs them and a worker fetches them.
+    pub scene_files: Vec<PathBuf>,
     /// Its scenario's index in [`Campaign::scenarios`].
     pub scenario: usize,
 }
@@ -197,6 +204,8 @@ pub struct Campaign {
     pub steps: BTreeSet<Step>,
     /// The rig file for `record`.
     pub rig: Option<PathBuf>,
+    /// The files the rig names (its DBC).
+    pub rig_files: Vec<PathBuf>,
     /// The drives, in name order.
     pub drives: Vec<Drive>,
     /// The scenarios, in the file's order (an implicit `default` last).
@@ -248,10 +257,7 @@ fn safe(name: &str) -> String {
 impl Campaign {
     /// Reads and resolves a campaign file.
     pub fn load(path: &Path) -> Result<Campaign, CampaignError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CampaignError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
+        let text = read_text("the campaign file", path)?;
         crate::config::check_finite(&text).map_err(|e| CampaignError::Invalid {
             path: path.to_owned(),
             what: e.to_string(),
@@ -260,19 +266,21 @@ impl Campaign {
             path: path.to_owned(),
             what: e.to_string(),
         })?;
-        let path = std::path::absolute(path).map_err(|source| CampaignError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
+        let path = if mirror::is_url(path) {
+            path.to_owned()
+        } else {
+            std::path::absolute(path).map_err(|source| CampaignError::Io {
+                path: path.to_owned(),
+                source,
+            })?
+        };
         Campaign::resolve(&path, file)
     }
 
     /// Resolves `file`, read from `path` (absolute).
     pub fn resolve(path: &Path, file: CampaignFile) -> Result<Campaign, CampaignError> {
-        let r = Resolver {
-            path,
-            base: path.parent().unwrap_or(Path::new("/")),
-        };
+        let base = parent_of(path);
+        let r = Resolver { path, base: &base };
         if file.steps.is_empty() {
             return Err(r.invalid("`steps` is empty: name at least one step".into()));
         }
@@ -292,6 +300,10 @@ impl Campaign {
         let rig = match &file.rig {
             Some(p) => Some(r.existing("the rig".into(), p)?),
             None => None,
+        };
+        let rig_files = match &rig {
+            Some(p) => named_files(p, Names::Rig)?,
+            None => Vec::new(),
         };
         let found = r.drives(&file.drives)?;
         let names = drive_names(
@@ -326,11 +338,13 @@ impl Campaign {
                     scenarios.len() - 1
                 }
             };
+            let scene_files = named_files(&f.scene, Names::Scene)?;
             drives.push(Drive {
                 name,
                 source: f.source,
                 is_capture: f.is_capture,
                 scene: f.scene,
+                scene_files,
                 scenario: index,
             });
         }
@@ -343,6 +357,7 @@ impl Campaign {
             name: file.name,
             steps: file.steps.iter().copied().collect(),
             rig,
+            rig_files,
             drives,
             scenarios,
             models,
@@ -448,12 +463,7 @@ impl Resolver<'_> {
     /// An existing file by its canonical path: the plan's command lines read plainly, and one
     /// file reached two ways is one file.
     fn existing(&self, what: String, p: &Path) -> Result<PathBuf, CampaignError> {
-        let p = self.base.join(p);
-        if p.is_file() {
-            Ok(std::fs::canonicalize(&p).unwrap_or(p))
-        } else {
-            Err(CampaignError::Missing { what, path: p })
-        }
+        existing_in(self.base, what, p)
     }
 
     /// Every drive the patterns match, each with its scene.
@@ -463,16 +473,10 @@ impl Resolver<'_> {
         }
         let mut found = Vec::new();
         for (k, d) in entries.iter().enumerate() {
-            let pattern = self.base.join(&d.recordings);
-            let matches = glob::glob(&pattern.to_string_lossy()).map_err(|e| {
+            let pattern = joined(self.base, Path::new(&d.recordings))?;
+            let files = matching(&pattern)?.map_err(|e| {
                 self.invalid(format!("drive {}: pattern '{}': {e}", k + 1, d.recordings))
             })?;
-            let mut files: Vec<PathBuf> = matches
-                .filter_map(Result::ok)
-                .filter(|p| p.is_file())
-                .map(|p| std::fs::canonicalize(&p).unwrap_or(p))
-                .collect();
-            files.sort();
             if files.is_empty() {
                 return Err(CampaignError::NoDrive {
                     entry: k + 1,
@@ -487,11 +491,7 @@ impl Resolver<'_> {
                         source.display()
                     ))
                 })?;
-                let dir = source
-                    .parent()
-                    .unwrap_or(Path::new("/"))
-                    .to_string_lossy()
-                    .into_owned();
+                let dir = parent_of(&source).to_string_lossy().into_owned();
                 let scene = d.scene.replace("{dir}", &dir);
                 if scene.contains('{') {
                     return Err(self.invalid(format!(

@@ -8,6 +8,7 @@
 //! with the executor (`PR_SET_PDEATHSIG`): a killed campaign leaves no command writing on.
 
 use super::plan::{Plan, Task};
+use super::staged::Staged;
 use super::stamp::{self, FileHash, Hashes, Stamp};
 use super::CampaignError;
 use std::path::{Path, PathBuf};
@@ -110,6 +111,20 @@ pub fn run(
     options: &Options,
     progress: &dyn Progress,
 ) -> Result<Summary, CampaignError> {
+    // A plan on object storage runs on this machine's mirror of it (store.rs).
+    let staged = Staged::new(plan)?;
+    let plan = staged.as_ref().map_or(plan, |s| &s.plan);
+    let mut pulled = vec![staged.is_none(); plan.tasks.len()];
+    let mut pull = |i: usize| -> Result<(), String> {
+        match &staged {
+            Some(s) if !pulled[i] => {
+                s.pull(&plan.tasks[i]).map_err(|e| e.to_string())?;
+                pulled[i] = true;
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    };
     prepare(plan)?;
     let mut hashes = Hashes::default();
     let mut states: Vec<State> = plan.tasks.iter().map(|_| State::Waiting).collect();
@@ -154,6 +169,13 @@ pub fn run(
                     states[i] = State::Done(o);
                     changed = true;
                 } else if ready && !options.force {
+                    if let Err(why) = pull(i) {
+                        let o = named(&staged, Outcome::Failed { why });
+                        progress.finished(task, &o);
+                        states[i] = State::Done(o);
+                        changed = true;
+                        continue;
+                    }
                     if let Some(exit) = stamp::up_to_date(&plan.out, task, &mut hashes)? {
                         let o = Outcome::UpToDate { exit };
                         progress.finished(task, &o);
@@ -177,7 +199,7 @@ pub fn run(
             if !ready {
                 continue;
             }
-            match start(plan, task, i, options, &mut hashes, &tx) {
+            match pull(i).and_then(|()| start(plan, task, i, options, &mut hashes, &tx)) {
                 Ok(inputs) => {
                     progress.started(task);
                     states[i] = State::Running {
@@ -187,7 +209,7 @@ pub fn run(
                     running += 1;
                 }
                 Err(why) => {
-                    let o = Outcome::Failed { why };
+                    let o = named(&staged, Outcome::Failed { why });
                     progress.finished(task, &o);
                     states[i] = State::Done(o);
                 }
@@ -208,6 +230,7 @@ pub fn run(
             unreachable!("only running tasks are waited for");
         };
         let o = finish(plan, task, status, inputs, started.elapsed(), &mut hashes)?;
+        let o = named(&staged, pushed(&staged, task, o));
         progress.finished(task, &o);
         states[i] = State::Done(o);
     }
@@ -222,6 +245,32 @@ pub fn run(
             })
             .collect(),
     })
+}
+
+/// `o` after what the task left was put into object storage: a task whose outputs did not
+/// reach the bucket failed (its stamp is not put, so the next run does it again).
+fn pushed(staged: &Option<Staged>, task: &Task, o: Outcome) -> Outcome {
+    let Some(s) = staged else {
+        return o;
+    };
+    match s.push(task, matches!(o, Outcome::Ran { .. })) {
+        Ok(()) => o,
+        Err(e) if matches!(o, Outcome::Ran { .. }) => Outcome::Failed {
+            why: format!("its files were not stored: {e}"),
+        },
+        Err(_) => o,
+    }
+}
+
+/// `o` with mirror paths named as the user named them (their URLs).
+fn named(staged: &Option<Staged>, o: Outcome) -> Outcome {
+    match (staged, o) {
+        (Some(s), Outcome::Failed { why }) => Outcome::Failed { why: s.named(&why) },
+        (Some(s), Outcome::NotRun { because }) => Outcome::NotRun {
+            because: s.named(&because),
+        },
+        (_, o) => o,
+    }
 }
 
 /// Whether `task` may run after its predecessor `dep` ended with `exit` (`None`: it failed or
@@ -406,6 +455,8 @@ fn finish(
 /// for checked by their stamps (each must have passed), skipped when up to date, else run and
 /// stamped like the local executor's tasks.
 pub fn run_task(plan: &Plan, id: &str, options: &Options) -> Result<Outcome, CampaignError> {
+    let staged = Staged::new(plan)?;
+    let plan = staged.as_ref().map_or(plan, |s| &s.plan);
     let Some(task) = plan.task(id) else {
         return Err(CampaignError::Invalid {
             path: plan.campaign_file.clone(),
@@ -413,6 +464,12 @@ pub fn run_task(plan: &Plan, id: &str, options: &Options) -> Result<Outcome, Cam
         });
     };
     prepare(plan)?;
+    if let Some(s) = &staged {
+        let fetched = s.pull_stamps(&task.after).and_then(|()| s.pull(task));
+        if let Err(e) = fetched {
+            return Ok(named(&staged, Outcome::Failed { why: e.to_string() }));
+        }
+    }
     for dep in &task.after {
         let p = stamp::path(&plan.out, dep);
         let exit = std::fs::read(&p)
@@ -448,8 +505,9 @@ pub fn run_task(plan: &Plan, id: &str, options: &Options) -> Result<Outcome, Cam
     let started = Instant::now();
     let inputs = match start(plan, task, i, options, &mut hashes, &tx) {
         Ok(inputs) => inputs,
-        Err(why) => return Ok(Outcome::Failed { why }),
+        Err(why) => return Ok(named(&staged, Outcome::Failed { why })),
     };
     let (_, status) = rx.recv().expect("the waiter sends once");
-    finish(plan, task, status, inputs, started.elapsed(), &mut hashes)
+    let o = finish(plan, task, status, inputs, started.elapsed(), &mut hashes)?;
+    Ok(named(&staged, pushed(&staged, task, o)))
 }

@@ -2,7 +2,7 @@
 //! scenario, parameterization and validation sets). A campaign file ([`file`]) names the drives,
 //! their scenarios and the models; [`plan`] turns it into a graph of tasks, each one invocation
 //! of an existing command on files; [`local`] runs the graph on this machine, skipping what a
-//! stopped run already finished ([`stamp`]).
+//! stopped run already finished ([`stamp`]); [`store`] runs it on files in object storage.
 //!
 //! The tasks are the commands a user would type, so a campaign computes nothing the commands do
 //! not: its outputs are the commands' outputs, byte for byte. Any engine that can run a command
@@ -11,9 +11,13 @@
 pub mod file;
 mod graph;
 pub mod local;
+pub mod mirror;
 pub mod parquet;
 pub mod plan;
+mod resolve;
+pub mod staged;
 pub mod stamp;
+pub mod store;
 pub mod tables;
 mod task;
 
@@ -73,4 +77,13 @@ pub enum CampaignError {
         /// A file that closes it.
         file: PathBuf,
     },
+    /// Object storage: no credentials, a bucket that does not answer, a failed transfer.
+    #[error(transparent)]
+    Store(#[from] store::StoreError),
+}
+
+impl From<mirror::UrlError> for CampaignError {
+    fn from(e: mirror::UrlError) -> CampaignError {
+        CampaignError::Store(e.into())
+    }
 }

@@ -208,7 +208,7 @@ impl Builder<'_> {
                     format!("record/{}", d.name),
                     Step::Record,
                     args,
-                    vec![rig, d.source.clone()],
+                    [vec![rig, d.source.clone()], c.rig_files.clone()].concat(),
                     vec![rec.clone()],
                 );
             }
@@ -233,7 +233,7 @@ impl Builder<'_> {
                     format!("check/{}", d.name),
                     Step::Check,
                     args,
-                    vec![rec, d.scene.clone()],
+                    [vec![rec, d.scene.clone()], d.scene_files.clone()].concat(),
                     vec![json],
                 );
                 // A run that fails its check is a result; nothing waiting for it runs.
@@ -260,7 +260,11 @@ impl Builder<'_> {
                         "-o".into(),
                         s(&sim),
                     ];
-                    let inputs = vec![rec.clone(), d.scene.clone(), m.file.clone()];
+                    let inputs = [
+                        vec![rec.clone(), d.scene.clone(), m.file.clone()],
+                        d.scene_files.clone(),
+                    ]
+                    .concat();
                     self.add(id.clone(), Step::Resim, args, inputs, vec![sim.clone()]);
                     if let Some(check) = self.check_of(&d.name) {
                         self.gates.entry(id).or_default().push(check);
@@ -277,7 +281,7 @@ impl Builder<'_> {
                         "--json".into(),
                         s(&json),
                     ];
-                    let inputs = vec![rec, sim, d.scene.clone()];
+                    let inputs = [vec![rec, sim, d.scene.clone()], d.scene_files.clone()].concat();
                     let name = format!("{}-{}", m.name, d.name);
                     let scenario = c.scenarios[d.scenario].name.as_str();
                     let labels = [Some(d.name.as_str()), Some(scenario), Some(m.name.as_str())];
@@ -336,8 +340,15 @@ impl Builder<'_> {
         let dir = self.layout.gap(&sc.name);
         let study_path = dir.join("study.toml");
         let model = &c.models[sc.gap_model];
+        // Objects named relative to the study in a bucket, so that its text (and so its hash in
+        // the stamps) is the same on every worker's mirror.
+        let dir_text = dir.to_string_lossy();
+        let named = |p: &PathBuf| {
+            super::mirror::relative(&dir_text, &p.to_string_lossy())
+                .map_or_else(|| p.clone(), PathBuf::from)
+        };
         let study = StudyFile {
-            model: model.file.clone(),
+            model: named(&model.file),
             scene: None,
             rig: None,
             runs: sc
@@ -345,8 +356,8 @@ impl Builder<'_> {
                 .iter()
                 .enumerate()
                 .map(|(k, &i)| RunEntry {
-                    recording: self.recs[i].clone(),
-                    scene: Some(c.drives[i].scene.clone()),
+                    recording: named(&self.recs[i]),
+                    scene: Some(named(&c.drives[i].scene)),
                     role: if k < sc.fit_runs {
                         Role::Fit
                     } else {
@@ -375,6 +386,7 @@ impl Builder<'_> {
         }
         for &i in &sc.drives {
             inputs.extend([self.recs[i].clone(), c.drives[i].scene.clone()]);
+            inputs.extend(c.drives[i].scene_files.iter().cloned());
         }
         let id = format!("gap/{}", sc.name);
         let outputs = vec![dir.join("gap.json"), dir.join("model.fitted.toml")];
@@ -421,10 +433,14 @@ impl Builder<'_> {
 impl Plan {
     /// The plan of `campaign` with its outputs under `out` (made absolute).
     pub fn build(campaign: &Campaign, out: &Path) -> Result<Plan, CampaignError> {
-        let out = super::graph::canonical(out).map_err(|source| CampaignError::Io {
-            path: out.to_owned(),
-            source,
-        })?;
+        let out = if super::mirror::is_url(out) {
+            PathBuf::from(super::mirror::join(&out.to_string_lossy(), ".")?)
+        } else {
+            super::graph::canonical(out).map_err(|source| CampaignError::Io {
+                path: out.to_owned(),
+                source,
+            })?
+        };
         let layout = Layout { out: &out };
         let recs = campaign
             .drives

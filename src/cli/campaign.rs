@@ -7,6 +7,7 @@ use anyhow::{Context, Result};
 use hilrig::campaign::file::Campaign;
 use hilrig::campaign::local::{self, Outcome, Progress};
 use hilrig::campaign::plan::{Plan, Task};
+use hilrig::campaign::{mirror, store};
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -33,7 +34,8 @@ enum Sub {
 
 #[derive(clap::Args)]
 struct TaskArgs {
-    /// The plan (`campaign plan --json`, or DIR/campaign/plan.json).
+    /// The plan (`campaign plan --json`, or DIR/campaign/plan.json): a file, an object
+    /// (`s3://...`), or `-` for standard input.
     #[arg(long)]
     plan: PathBuf,
     /// The task's id.
@@ -57,6 +59,24 @@ struct TaskOutcome<'a> {
     why: Option<String>,
 }
 
+/// The plan from a file, an object (`s3://...`) or standard input (`-`: an engine passes it to a
+/// worker that shares no disk with it).
+fn read_plan(path: &std::path::Path) -> Result<Plan> {
+    if path == std::path::Path::new("-") {
+        let mut bytes = Vec::new();
+        std::io::Read::read_to_end(&mut std::io::stdin(), &mut bytes)?;
+        return Ok(hilrig::output::from_slice(path, &bytes)?);
+    }
+    if mirror::is_url(path) {
+        let url = path.to_string_lossy();
+        let bytes = store::shared()?
+            .get_bytes(&url)?
+            .with_context(|| format!("{url} does not exist"))?;
+        return Ok(hilrig::output::from_slice(path, &bytes)?);
+    }
+    Ok(hilrig::output::read(path)?)
+}
+
 fn run_task(t: TaskArgs) -> Result<ExitCode> {
     // An engine's worker that dies (a lost node) takes this task with it, and the command it
     // runs after it (that one dies with this process): a retry elsewhere must not race a task
@@ -65,10 +85,10 @@ fn run_task(t: TaskArgs) -> Result<ExitCode> {
     if nix::unistd::getppid() == nix::unistd::Pid::from_raw(1) {
         anyhow::bail!("the engine that started this task has gone");
     }
-    let plan: Plan = match hilrig::output::read(&t.plan) {
+    let plan: Plan = match read_plan(&t.plan) {
         Ok(p) => p,
         Err(e) => {
-            eprintln!("error: {e}");
+            eprintln!("error: {e:#}");
             return Ok(ExitCode::from(2));
         }
     };
@@ -141,7 +161,14 @@ struct PlanArgs {
 
 /// The plan, or exit 2 with the reason.
 fn plan(campaign: &std::path::Path, out: &std::path::Path) -> Result<Plan, ExitCode> {
-    let planned = Campaign::load(campaign).and_then(|c| Plan::build(&c, out));
+    let planned = Campaign::load(campaign).and_then(|c| {
+        let plan = Plan::build(&c, out)?;
+        // Outputs in a bucket: that it answers with these credentials, before any task runs.
+        if mirror::is_url(&plan.out) {
+            store::shared()?.reachable(&plan.out.to_string_lossy())?;
+        }
+        Ok(plan)
+    });
     planned.map_err(|e| {
         eprintln!("error: {e}");
         ExitCode::from(2)
@@ -191,11 +218,23 @@ pub fn run(args: CampaignArgs) -> Result<ExitCode> {
         jobs,
         force: a.force,
     };
-    std::fs::create_dir_all(&plan.out)
-        .with_context(|| format!("cannot create {}", plan.out.display()))?;
     let plan_path = plan.out.join("campaign").join("plan.json");
-    std::fs::create_dir_all(plan_path.parent().expect("has a parent"))?;
-    hilrig::output::write(&plan_path, &plan)?;
+    // Beside its outputs, also in a bucket: through this machine's mirror of it.
+    let url = mirror::is_url(&plan_path).then(|| plan_path.to_string_lossy().into_owned());
+    let store = match &url {
+        Some(_) => Some(store::shared()?),
+        None => None,
+    };
+    let local_plan = match (&url, store) {
+        (Some(u), Some(s)) => s.mirror.local(u),
+        _ => plan_path.clone(),
+    };
+    std::fs::create_dir_all(local_plan.parent().expect("has a parent"))
+        .with_context(|| format!("cannot create the folder of {}", local_plan.display()))?;
+    hilrig::output::write(&local_plan, &plan)?;
+    if let (Some(u), Some(s)) = (&url, store) {
+        s.put(u)?;
+    }
     println!(
         "campaign '{}': {} tasks, {jobs} at a time (plan: {})",
         plan.campaign,

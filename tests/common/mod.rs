@@ -4,6 +4,7 @@
 
 pub mod gap;
 pub mod ray;
+pub mod s3;
 
 use hilrig::decode::lidar::{decode_capture, LidarOptions, LidarSummary, PointSink, PointTime};
 use hilrig::velodyne::Point;

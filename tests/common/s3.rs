@@ -1,0 +1,92 @@
+//! An S3-compatible server for the tests: moto's server mode (PyPI `moto[server]` in the test
+//! venv), on a free port of this machine, killed when dropped.
+
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A running server.
+pub struct Server {
+    child: Child,
+    /// Its endpoint, `http://127.0.0.1:PORT`.
+    pub endpoint: String,
+}
+
+impl Server {
+    /// Starts it and waits until it answers.
+    pub fn start() -> Server {
+        let port = super::ray::free_port();
+        let child = Command::new(super::python())
+            .args([
+                "-m",
+                "moto.server",
+                "-H",
+                "127.0.0.1",
+                "-p",
+                &port.to_string(),
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let server = Server {
+            child,
+            endpoint: format!("http://127.0.0.1:{port}"),
+        };
+        let started = Instant::now();
+        while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+            assert!(
+                started.elapsed() < Duration::from_secs(60),
+                "the S3 server did not start"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        server
+    }
+
+    /// `command` with the environment a user of this server sets: credentials (any, for moto),
+    /// the endpoint, plain HTTP allowed.
+    pub fn env<'a>(&self, command: &'a mut Command) -> &'a mut Command {
+        command
+            .env("AWS_ACCESS_KEY_ID", "hilrig-test")
+            .env("AWS_SECRET_ACCESS_KEY", "hilrig-test")
+            .env("AWS_REGION", "us-east-1")
+            .env("AWS_ENDPOINT_URL", &self.endpoint)
+            .env("AWS_ALLOW_HTTP", "true")
+    }
+
+    /// Puts the tree `dir` under `bucket/prefix` (boto3).
+    pub fn put(&self, bucket: &str, prefix: &str, dir: &std::path::Path) {
+        super::interop_script(
+            "s3_objects.py",
+            &[
+                self.endpoint.as_ref(),
+                "put".as_ref(),
+                bucket.as_ref(),
+                prefix.as_ref(),
+                dir.as_os_str(),
+            ],
+        );
+    }
+
+    /// Gets every object under `bucket/prefix` into `dir` (boto3); how many there were.
+    pub fn get(&self, bucket: &str, prefix: &str, dir: &std::path::Path) -> usize {
+        let out = super::interop_script(
+            "s3_objects.py",
+            &[
+                self.endpoint.as_ref(),
+                "get".as_ref(),
+                bucket.as_ref(),
+                prefix.as_ref(),
+                dir.as_os_str(),
+            ],
+        );
+        String::from_utf8_lossy(&out).trim().parse().unwrap()
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
