@@ -1,9 +1,8 @@
-//! `hilrig campaign` (issue 31): the parking study as a campaign gives the outputs of its
-//! commands typed one by one, a campaign killed mid-run resumes without redoing finished work,
-//! its Parquet tables read in DuckDB give the JSON's numbers, the same plan on a Ray cluster
-//! that loses a worker node gives the same files byte for byte, and a campaign that cannot run
-//! says why before anything runs. The same campaign from and into a bucket of an S3 server gives
-//! the local executor's files byte for byte.
+//! `hilrig campaign` (issue 31): the parking study as a campaign from and into a bucket of an S3
+//! server, then here killed mid-run, resumed without redoing finished work and finished on a Ray
+//! cluster that loses a worker node, gives the same files as its commands typed one by one; its
+//! Parquet tables read in DuckDB give the JSON's numbers; and a campaign that cannot run says
+//! why before anything runs.
 
 mod common;
 
@@ -20,18 +19,7 @@ const MODELS: [(&str, &str); 2] = [
 ];
 
 /// The parking campaign without the gap workflow (a minute and a half on its own, and not
-/// what these tests are about), its paths pointing into the fixture.
-fn campaign_file(dir: &Path) -> PathBuf {
-    let path = dir.join("campaign.toml");
-    let text = campaign_text(
-        &common::fixture("parking").display().to_string(),
-        &common::demo_rig().display().to_string(),
-    );
-    std::fs::write(&path, text).unwrap();
-    path
-}
-
-/// That campaign with the parking fixture at `parking` and the rig at `rig`.
+/// what these tests are about), with the parking fixture at `parking` and the rig at `rig`.
 fn campaign_text(parking: &str, rig: &str) -> String {
     format!(
         r#"name = "parking"
@@ -60,8 +48,8 @@ file = "{parking}/truth-model.toml"
 
 /// The commands a user would type for the same study, in two threads, into `dir` with the
 /// campaign's layout.
-fn one_by_one(dir: &Path) {
-    let parking = common::fixture("parking");
+fn one_by_one(dir: &Path, parking: &Path, rig: &Path) {
+    let parking = parking.to_owned();
     for d in [
         "rec",
         "sim/idealized",
@@ -83,7 +71,7 @@ fn one_by_one(dir: &Path) {
                     common::hilrig_ok(&[
                         OsStr::new("record"),
                         OsStr::new("--rig"),
-                        common::demo_rig().as_os_str(),
+                        rig.as_os_str(),
                         OsStr::new("--from"),
                         parking.join(rep).join("drive.pcapng.zst").as_os_str(),
                         OsStr::new("-o"),
@@ -168,6 +156,46 @@ fn finished(out: &Path) -> BTreeSet<String> {
     ids
 }
 
+/// Runs the campaign here until `n` tasks have finished, then kills it; asserts that its tasks
+/// died with it (they would write on into the next run's files). Its standard output.
+fn run_until_killed(file: &Path, out: &Path, n: usize) -> String {
+    let mut child = campaign(file, out)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Read as it comes, so that the pipe never fills.
+    let mut pipe = child.stdout.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut text = String::new();
+        std::io::Read::read_to_string(&mut pipe, &mut text).unwrap();
+        text
+    });
+    let started = Instant::now();
+    while finished(out).len() < n {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the campaign ended before it was killed"
+        );
+        assert!(
+            started.elapsed() < Duration::from_secs(600),
+            "no progress: {:?}",
+            finished(out)
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let stdout = reader.join().unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(
+        processes_naming(&out.display().to_string()),
+        Vec::<String>::new(),
+        "tasks outlived the campaign"
+    );
+    stdout
+}
+
 /// Processes whose command line names `needle` (a campaign's output folder).
 fn processes_naming(needle: &str) -> Vec<String> {
     let mut found = Vec::new();
@@ -193,47 +221,38 @@ fn tasks_reported(stdout: &str, word: &str) -> BTreeSet<String> {
 }
 
 #[test]
-fn a_campaign_killed_mid_run_resumes_gives_what_the_commands_give_one_by_one_and_the_same_on_ray() {
+fn a_campaign_from_a_bucket_killed_mid_run_here_resumed_on_ray_gives_the_same_files_as_one_by_one()
+{
     let dir = tempfile::tempdir().unwrap();
-    let file = campaign_file(dir.path());
-    let out = dir.path().join("out");
+    // First from and into a bucket. Then the local executor and Ray on the same files, at the
+    // paths the bucket's tasks saw (this machine's copies: a re-simulation quotes its inputs'
+    // paths), so that every executor's files compare byte for byte.
+    let server = common::s3::Server::start();
+    let from_bucket = dir.path().join("from-bucket");
+    let (file, out) = in_a_bucket(&server, dir.path(), &from_bucket);
     // 5 record + 5 check + 10 resim + 10 compare + 2 validate + 1 report, and a table task
     // for each of the 17 JSON files.
     let total = 50;
 
-    // Killed once a third of the tasks are done (records, checks and the first re-simulations).
-    let mut child = campaign(&file, &out)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let started = Instant::now();
-    while finished(&out).len() < 11 {
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "the campaign ended before it was killed"
-        );
-        assert!(
-            started.elapsed() < Duration::from_secs(600),
-            "no progress: {:?}",
-            finished(&out)
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.kill().unwrap();
-    child.wait().unwrap();
-    std::thread::sleep(Duration::from_millis(300));
-    let before = finished(&out);
-    assert!(before.len() < total, "everything finished before the kill");
-    // The tasks it was running died with it (they would write on into the next run's files).
-    let needle = out.display().to_string();
-    assert_eq!(
-        processes_naming(&needle),
-        Vec::<String>::new(),
-        "tasks outlived the campaign"
+    // Killed once a fifth of the tasks are done (records, checks, the first re-simulations).
+    run_until_killed(&file, &out, 11);
+    let first = finished(&out);
+    // The next run, here, skips every finished task (and runs none of them again); it too is
+    // killed, after eight tasks more.
+    let second = run_until_killed(&file, &out, first.len() + 8);
+    assert!(
+        tasks_reported(&second, "current").is_superset(&first),
+        "{second}"
     );
+    assert!(
+        tasks_reported(&second, "ran").is_disjoint(&first),
+        "{second}"
+    );
+    let before = finished(&out);
+    assert!(before.is_superset(&first) && before.len() >= first.len() + 8);
+    assert!(before.len() < total, "everything finished before the kill");
 
-    // The next run, on a Ray cluster that loses a worker node while it runs tasks, skips every
+    // The third run, on a Ray cluster that loses a worker node while it runs tasks, skips every
     // finished task and runs the rest.
     let ray = on_ray(&file, &out, dir.path());
     let outcomes = ray["outcomes"].as_array().unwrap();
@@ -244,7 +263,7 @@ fn a_campaign_killed_mid_run_resumes_gives_what_the_commands_give_one_by_one_and
             .map(|o| o["task"].as_str().unwrap().to_owned())
             .collect()
     };
-    // Every task the local run finished is skipped, none is run again. A task the lost worker
+    // Every task the local runs finished is skipped, none is run again. A task the lost worker
     // finished and stamped before Ray heard of it is skipped too, on its retry: so the skipped
     // may be more than those.
     let (skipped, ran) = (with("up_to_date"), with("ran"));
@@ -252,10 +271,10 @@ fn a_campaign_killed_mid_run_resumes_gives_what_the_commands_give_one_by_one_and
     assert!(ran.is_disjoint(&before), "{ray}");
     assert_eq!(skipped.len() + ran.len(), total, "{ray}");
     assert_eq!(finished(&out).len(), total);
-    // And a third, here, finds nothing to do.
-    let third = campaign(&file, &out).output().unwrap();
-    let stdout = String::from_utf8_lossy(&third.stdout);
-    assert!(third.status.success(), "{stdout}");
+    // And a fourth, here, finds nothing to do.
+    let fourth = campaign(&file, &out).output().unwrap();
+    let stdout = String::from_utf8_lossy(&fourth.stdout);
+    assert!(fourth.status.success(), "{stdout}");
     assert_eq!(tasks_reported(&stdout, "current").len(), total, "{stdout}");
     assert!(tasks_reported(&stdout, "ran").is_empty(), "{stdout}");
 
@@ -270,9 +289,26 @@ fn a_campaign_killed_mid_run_resumes_gives_what_the_commands_give_one_by_one_and
     // The commands typed one by one, into the same paths (a re-simulation and a validation
     // quote their input files' paths): every recording, re-simulation, comparison and
     // validation the campaign made, whichever executor ran it, is the same file byte for byte.
+    // The bucket's outputs are the local executor's, every one of them.
+    let (ours, theirs) = (outputs(&out), outputs(&from_bucket));
+    assert_eq!(
+        ours.keys().collect::<Vec<_>>(),
+        theirs.keys().collect::<Vec<_>>()
+    );
+    for (rel, bytes) in &ours {
+        assert!(theirs[rel] == *bytes, "{} differs", rel.display());
+    }
+    // 5 recordings, 10 re-simulations, 5 checks, 10 comparisons, 2 validations, 22 tables and
+    // the report (HTML and JSON).
+    assert_eq!(ours.len(), 5 + 10 + 5 + 10 + 2 + 22 + 2);
     let campaign_out = dir.path().join("out-campaign");
     std::fs::rename(&out, &campaign_out).unwrap();
-    one_by_one(&out);
+    let mirror = out.parent().unwrap();
+    one_by_one(
+        &out,
+        &mirror.join("fixtures/parking"),
+        &mirror.join("rigs/demo.toml"),
+    );
     let mut compared = 0;
     for (rel, bytes) in tree(&out) {
         let theirs = std::fs::read(campaign_out.join(&rel)).unwrap();
@@ -664,13 +700,13 @@ fn outputs(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
         .collect()
 }
 
-#[test]
-fn a_campaign_in_a_bucket_runs_from_it_into_it_and_gives_the_local_executors_files() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let server = common::s3::Server::start();
-    // The fixture and the rig in a bucket as in this repository, and beside them the campaign,
-    // its paths relative to itself.
+/// The parking campaign from a bucket of an S3 server into it: the fixture and the rig put there
+/// as in this repository, the campaign beside them with paths relative to itself. Asserts that
+/// it writes nothing but the bucket and `cache`, that its stamps name the objects, and that a
+/// worker with an empty cache finds every task done. Returns the campaign file and output
+/// folder in the cache (where the tasks read and wrote), after reading the bucket's outputs back
+/// into `got` with boto3 and removing the cache's copies of them.
+fn in_a_bucket(server: &common::s3::Server, d: &Path, got: &Path) -> (PathBuf, PathBuf) {
     let bucket = "hilrig-drives";
     server.put(bucket, "fixtures/parking", &common::fixture("parking"));
     server.put(bucket, "rigs", common::demo_rig().parent().unwrap());
@@ -685,10 +721,10 @@ fn a_campaign_in_a_bucket_runs_from_it_into_it_and_gives_the_local_executors_fil
     let file = format!("s3://{bucket}/fixtures/parking/campaign-test.toml");
     let out = format!("s3://{bucket}/out");
     let cache = d.join("cache");
-    // Run where nothing is on disk but the cache: whatever it writes elsewhere shows up here.
+    // Run where nothing is on disk: whatever it writes outside the cache shows up here.
     let work = d.join("work");
     std::fs::create_dir_all(&work).unwrap();
-    let in_bucket = |cache: &Path| {
+    let run = |cache: &Path| {
         let mut cmd = campaign(Path::new(&file), Path::new(&out));
         server
             .env(&mut cmd)
@@ -703,16 +739,15 @@ fn a_campaign_in_a_bucket_runs_from_it_into_it_and_gives_the_local_executors_fil
         );
         stdout
     };
-    let stdout = in_bucket(&cache);
+    let stdout = run(&cache);
     assert!(
         stdout.contains("50 ran, 0 up to date, 0 failed"),
         "{stdout}"
     );
     assert_eq!(std::fs::read_dir(&work).unwrap().count(), 0);
-
-    // Read back by another client.
-    let got = d.join("from-bucket");
-    let objects = server.get(bucket, "out", &got);
+    // Read back by another client: every output, log and stamp, and the plan.
+    let objects = server.get(bucket, "out", got);
+    assert_eq!(objects, outputs(got).len() + 50 + 50 + 1);
     // The stamps name the objects, not this machine's copies of them.
     let stamp = std::fs::read_to_string(got.join("campaign/done/check/rep-01.json")).unwrap();
     assert!(
@@ -721,34 +756,12 @@ fn a_campaign_in_a_bucket_runs_from_it_into_it_and_gives_the_local_executors_fil
         "{stamp}"
     );
     // A worker that shares no disk with this one (an empty cache) finds every task done.
-    let again = in_bucket(&d.join("another-cache"));
+    let again = run(&d.join("another-cache"));
     assert!(again.contains("0 ran, 50 up to date"), "{again}");
-
-    // The local executor on the same files, at the paths the tasks saw (this machine's copies:
-    // a re-simulation quotes its inputs' paths), with the bucket's outputs moved away.
     let mirror = cache.join("objects/s3").join(bucket);
     std::fs::remove_dir_all(mirror.join("out")).unwrap();
-    let local = campaign(
-        &mirror.join("fixtures/parking/campaign-test.toml"),
-        &mirror.join("out"),
+    (
+        mirror.join("fixtures/parking/campaign-test.toml"),
+        mirror.join("out"),
     )
-    .output()
-    .unwrap();
-    assert!(
-        local.status.success(),
-        "{}",
-        String::from_utf8_lossy(&local.stderr)
-    );
-    let (ours, theirs) = (outputs(&mirror.join("out")), outputs(&got));
-    assert_eq!(
-        ours.keys().collect::<Vec<_>>(),
-        theirs.keys().collect::<Vec<_>>()
-    );
-    for (rel, bytes) in &ours {
-        assert!(theirs[rel] == *bytes, "{} differs", rel.display());
-    }
-    // 5 recordings, 10 re-simulations, 5 checks, 10 comparisons, 2 validations, 22 tables and
-    // the report (HTML and JSON); besides them, 50 logs, 50 stamps and the plan.
-    assert_eq!(ours.len(), 5 + 10 + 5 + 10 + 2 + 22 + 2);
-    assert_eq!(objects, ours.len() + 50 + 50 + 1);
 }
