@@ -62,17 +62,9 @@ impl Staged {
             match self.store.get_bytes(&url)? {
                 Some(b) => {
                     let text = self.store.mirror.localize(&String::from_utf8_lossy(&b));
-                    write_file(&local, text.as_bytes())?;
+                    store::write_whole(&local, text.as_bytes())?;
                 }
-                None => match std::fs::remove_file(&local) {
-                    Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                        return Err(StoreError::Io {
-                            path: local,
-                            source: e,
-                        })
-                    }
-                    _ => {}
-                },
+                None => store::remove_copy(&local)?,
             }
         }
         Ok(())
@@ -123,16 +115,4 @@ impl Staged {
     pub fn named(&self, text: &str) -> String {
         self.store.mirror.globalize(text)
     }
-}
-
-fn write_file(p: &Path, bytes: &[u8]) -> Result<(), StoreError> {
-    let io = |path: &Path| {
-        let path = path.to_owned();
-        move |source| StoreError::Io { path, source }
-    };
-    let dir = p.parent().expect("under the mirror");
-    std::fs::create_dir_all(dir).map_err(io(dir))?;
-    let tmp = store::unique(p);
-    std::fs::write(&tmp, bytes).map_err(io(&tmp))?;
-    std::fs::rename(&tmp, p).map_err(io(p))
 }

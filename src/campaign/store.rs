@@ -286,17 +286,8 @@ impl Store {
             move |source| StoreError::Io { path, source }
         };
         let Some(version) = self.version(url)? else {
-            for p in [&local, &noted] {
-                match std::fs::remove_file(p) {
-                    Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                        return Err(StoreError::Io {
-                            path: p.clone(),
-                            source: e,
-                        })
-                    }
-                    _ => {}
-                }
-            }
+            remove_copy(&local)?;
+            remove_copy(&noted)?;
             return Ok(None);
         };
         if local.is_file() && std::fs::read_to_string(&noted).ok().as_deref() == Some(&version) {
@@ -342,9 +333,7 @@ impl Store {
             });
         }
         std::fs::rename(&tmp, &local).map_err(io(&local))?;
-        let note = unique(&noted);
-        std::fs::write(&note, &version).map_err(io(&note))?;
-        std::fs::rename(&note, &noted).map_err(io(&noted))?;
+        write_whole(&noted, version.as_bytes())?;
         Ok(Some(local))
     }
 
@@ -367,16 +356,7 @@ impl Store {
             },
         })?;
         if let Some(version) = self.version(url)? {
-            let noted = self.mirror.etag_path(&local);
-            let dir = noted.parent().expect("under the mirror");
-            std::fs::create_dir_all(dir).map_err(|source| StoreError::Io {
-                path: dir.to_owned(),
-                source,
-            })?;
-            std::fs::write(&noted, version).map_err(|source| StoreError::Io {
-                path: noted,
-                source,
-            })?;
+            write_whole(&self.mirror.etag_path(&local), version.as_bytes())?;
         }
         Ok(())
     }
@@ -410,8 +390,33 @@ impl Store {
     }
 }
 
+/// Writes `bytes` as the file `p` through a file renamed into place (another process on this
+/// machine may read it meanwhile), its folder made first.
+pub(super) fn write_whole(p: &Path, bytes: &[u8]) -> Result<(), StoreError> {
+    let io = |path: &Path| {
+        let path = path.to_owned();
+        move |source| StoreError::Io { path, source }
+    };
+    let dir = p.parent().expect("under the mirror");
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let tmp = unique(p);
+    std::fs::write(&tmp, bytes).map_err(io(&tmp))?;
+    std::fs::rename(&tmp, p).map_err(io(p))
+}
+
+/// Removes the copy `p`, if there is one.
+pub(super) fn remove_copy(p: &Path) -> Result<(), StoreError> {
+    match std::fs::remove_file(p) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(StoreError::Io {
+            path: p.to_owned(),
+            source: e,
+        }),
+        _ => Ok(()),
+    }
+}
+
 /// A name next to `p` no other process or thread uses.
-pub(super) fn unique(p: &Path) -> PathBuf {
+fn unique(p: &Path) -> PathBuf {
     static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let mut name = p.file_name().unwrap_or_default().to_owned();
