@@ -460,7 +460,7 @@ fn the_executors_own_tests_pass() {
     );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
-        stderr.contains("Ran 5 tests") && stderr.contains("OK"),
+        stderr.contains("Ran 6 tests") && stderr.contains("OK"),
         "{stderr}"
     );
 }
@@ -591,7 +591,7 @@ fn a_campaign_that_cannot_run_says_why_before_any_task_runs() {
 }
 
 #[test]
-fn a_drive_that_fails_its_check_gets_its_tables_but_is_not_re_simulated() {
+fn a_drive_that_fails_its_check_gets_its_tables_and_its_report_but_is_not_re_simulated() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let parking = common::fixture("parking");
@@ -618,7 +618,7 @@ fn a_drive_that_fails_its_check_gets_its_tables_but_is_not_re_simulated() {
     std::fs::write(
         &file,
         format!(
-            "name = \"x\"\nsteps = [\"check\", \"resim\", \"tables\"]\n[[drive]]\nrecordings = \"*/run.mcap\"\nscene = \"{p}/scene.toml\"\n[[model]]\nname = \"idealized\"\nfile = \"{p}/idealized.toml\"\n",
+            "name = \"x\"\nsteps = [\"check\", \"resim\", \"compare\", \"tables\", \"report\"]\n[[drive]]\nrecordings = \"*/run.mcap\"\nscene = \"{p}/scene.toml\"\n[[model]]\nname = \"idealized\"\nfile = \"{p}/idealized.toml\"\n",
             p = parking.display()
         ),
     )
@@ -642,6 +642,56 @@ fn a_drive_that_fails_its_check_gets_its_tables_but_is_not_re_simulated() {
             "{stdout}"
         );
     }
+    // So is the report: over what exists, with the comparison that could not be made named
+    // as not produced (the report's exit 1 is a result, not a failure of the task).
+    assert!(
+        !stdout.contains("not run  report") && !stdout.contains("failed   report"),
+        "{stdout}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let absent: Vec<&str> = report["absent"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p.as_str().unwrap())
+        .collect();
+    let missing = out.join("compare/idealized/rep-02.json");
+    assert_eq!(absent, [missing.to_str().unwrap()], "{report}");
+    let verdicts: Vec<(&str, &str)> = report["inputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|i| i["kind"] == "check")
+        .map(|i| {
+            (
+                i["name"].as_str().unwrap(),
+                i["value"]["verdict"].as_str().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(verdicts.len(), 2, "{verdicts:?}");
+    assert!(
+        verdicts.contains(&("check/rep-02.json", "fail")),
+        "{verdicts:?}"
+    );
+    // Named by their path below the campaign's folder, so the model stays in the name.
+    assert!(
+        report["inputs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|i| i["name"] == "compare/idealized/rep-01.json"),
+        "{report}"
+    );
+    let page = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(page.contains("Not produced"), "no absent section");
+    assert!(page.contains(missing.to_str().unwrap()));
+    // Run again: nothing changed, so nothing runs, the report with its absent input included.
+    let again = campaign(&file, &d.join("out")).output().unwrap();
+    let stdout = String::from_utf8_lossy(&again.stdout);
+    assert_eq!(again.status.code(), Some(1), "{stdout}");
+    assert!(stdout.contains(": 0 ran, "), "{stdout}");
 }
 
 #[test]

@@ -359,7 +359,7 @@ fn the_report_reads_the_demo_s_outputs_through_their_types() {
     ] {
         assert!(inputs.iter().any(|i| i.kind == kind), "no {kind:?} input");
     }
-    let page = hilrig::report::render(&inputs).html;
+    let page = hilrig::report::render(&inputs, &[]).html;
     for i in &inputs {
         // Numbers the page shows, taken from the typed outputs.
         match &i.value {

@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 PLAN_KIND = "campaign_plan"
-PLAN_SCHEMA = 2
+PLAN_SCHEMA = 3
 
 
 class PlanError(ValueError):
@@ -39,12 +39,13 @@ def load_plan(path):
     return plan
 
 
-def run_one(hilrig, plan_text, task_id, *before):
+def run_one(hilrig, plan_text, task_id, partial, *before):
     """One task on this worker; `before` are the outcomes of the tasks it waits for. The plan
     comes as text (standard input of `hilrig campaign task --plan -`), so that a worker needs
-    no disk shared with the head: a campaign whose files are in a bucket runs on any node."""
+    no disk shared with the head: a campaign whose files are in a bucket runs on any node. A
+    `partial` task (a summary: the report) runs whatever the outcomes before it."""
     for dep in before:
-        if not dep["passes"]:
+        if not dep["passes"] and not partial:
             return {
                 "task": task_id,
                 "outcome": "not_run",
@@ -92,7 +93,9 @@ def run(plan_path, hilrig="hilrig", address=None, retries=3):
         refs = {}
         for task in plan["tasks"]:
             deps = [refs[d] for d in task["after"]]
-            refs[task["id"]] = remote.remote(hilrig, plan_ref, task["id"], *deps)
+            refs[task["id"]] = remote.remote(
+                hilrig, plan_ref, task["id"], task["partial"], *deps
+            )
         return ray.get([refs[t["id"]] for t in plan["tasks"]])
     finally:
         ray.shutdown()

@@ -23,6 +23,7 @@ def task(id_, after=()):
         "after": list(after),
         "results": [0],
         "gates": [],
+        "partial": False,
         "log": "/dev/null",
     }
 
@@ -36,7 +37,7 @@ class LoadPlan(unittest.TestCase):
         return f.name
 
     def plan(self, tasks, **over):
-        p = {"kind": "campaign_plan", "schema": 2, "campaign": "c", "campaign_file": "/c.toml",
+        p = {"kind": "campaign_plan", "schema": 3, "campaign": "c", "campaign_file": "/c.toml",
              "out": "/o", "files": [], "tasks": tasks}
         p.update(over)
         return p
@@ -48,8 +49,8 @@ class LoadPlan(unittest.TestCase):
     def test_another_kind_or_schema_is_refused(self):
         with self.assertRaisesRegex(PlanError, "kind 'check'"):
             load_plan(self.write(self.plan([], kind="check")))
-        with self.assertRaisesRegex(PlanError, "schema 3"):
-            load_plan(self.write(self.plan([], schema=3)))
+        with self.assertRaisesRegex(PlanError, "schema 2"):
+            load_plan(self.write(self.plan([], schema=2)))
 
     def test_a_task_before_what_it_waits_for_is_refused(self):
         with self.assertRaisesRegex(PlanError, "waits for a"):
@@ -61,12 +62,20 @@ class LoadPlan(unittest.TestCase):
 class RunOne(unittest.TestCase):
     def test_a_predecessor_that_did_not_pass_stops_the_task_without_running_hilrig(self):
         failed = {"task": "check/r1", "outcome": "ran", "exit": 1, "passes": False}
-        out = run_one("/nonexistent/hilrig", "{}", "resim/m/r1", failed)
+        out = run_one("/nonexistent/hilrig", "{}", "resim/m/r1", False, failed)
         self.assertEqual(out["outcome"], "not_run")
         self.assertIn("check/r1", out["why"])
 
+    def test_a_summary_runs_after_a_predecessor_that_did_not_pass(self):
+        # The report is partial: its command is started (here one that is not hilrig, so it
+        # fails) instead of the task being stopped by its predecessor.
+        not_run = {"task": "resim/m/r1", "outcome": "not_run", "exit": None, "passes": False}
+        out = run_one(sys.executable, "{}", "report", True, not_run)
+        self.assertEqual(out["outcome"], "failed")
+        self.assertIn("hilrig campaign task exited", out["why"])
+
     def test_hilrig_that_cannot_run_the_task_is_a_failure_with_its_message(self):
-        out = run_one(sys.executable, "{}", "x")
+        out = run_one(sys.executable, "{}", "x", False)
         self.assertEqual(out["outcome"], "failed")
         self.assertFalse(out["passes"])
 

@@ -274,8 +274,12 @@ fn named(staged: &Option<Staged>, o: Outcome) -> Outcome {
 }
 
 /// Whether `task` may run after its predecessor `dep` ended with `exit` (`None`: it failed or
-/// did not run): any result does, except for a gate, which must have passed (exit 0).
+/// did not run): any result does, except for a gate, which must have passed (exit 0); a
+/// summary runs after any outcome.
 fn passed(task: &Task, dep: &str, exit: Option<i32>) -> bool {
+    if task.partial {
+        return true;
+    }
     match exit {
         None => false,
         Some(e) => e == 0 || !task.gates.iter().any(|g| g == dep),
@@ -344,7 +348,7 @@ fn start(
     hashes: &mut Hashes,
     tx: &mpsc::Sender<(usize, std::io::Result<std::process::ExitStatus>)>,
 ) -> Result<Vec<FileHash>, String> {
-    let inputs = match hashes.all(&task.inputs) {
+    let inputs = match hashes.inputs(task) {
         Ok(Some(h)) => h,
         Ok(None) => {
             let missing = task
@@ -477,7 +481,7 @@ pub fn run_task(plan: &Plan, id: &str, options: &Options) -> Result<Outcome, Cam
             .and_then(|b| crate::output::from_slice::<Stamp>(&p, &b).ok())
             .map(|s| s.exit);
         match exit {
-            e @ Some(_) if passed(task, dep, e) => {}
+            e if passed(task, dep, e) => {}
             Some(e) => {
                 return Ok(Outcome::NotRun {
                     because: format!("{dep}: exit {e}"),

@@ -23,7 +23,8 @@ use std::time::SystemTime;
 pub struct FileHash {
     /// The file.
     pub path: PathBuf,
-    /// SHA-256 of its bytes, lowercase hex.
+    /// SHA-256 of its bytes, lowercase hex; empty for an input of a summary task that was
+    /// absent ([`Task::partial`]).
     pub sha256: String,
 }
 
@@ -94,6 +95,23 @@ impl Hashes {
         Ok(Some(hash))
     }
 
+    /// The inputs of `task` with their hashes; `None` when one is missing, except for a
+    /// summary's ([`Task::partial`]), whose absent inputs are listed with an empty hash (so
+    /// that its stamp is out of date once a task before it writes one).
+    pub fn inputs(&mut self, task: &Task) -> Result<Option<Vec<FileHash>>, CampaignError> {
+        if !task.partial {
+            return self.all(&task.inputs);
+        }
+        let mut out = Vec::with_capacity(task.inputs.len());
+        for p in &task.inputs {
+            out.push(FileHash {
+                path: p.clone(),
+                sha256: self.of(p)?.unwrap_or_default(),
+            });
+        }
+        Ok(Some(out))
+    }
+
     /// Every file of `paths` with its hash; `None` when one is missing.
     pub fn all(&mut self, paths: &[PathBuf]) -> Result<Option<Vec<FileHash>>, CampaignError> {
         let mut out = Vec::with_capacity(paths.len());
@@ -128,7 +146,7 @@ pub fn up_to_date(
         return Ok(None);
     }
     let same = |now: Option<Vec<FileHash>>, then: &[FileHash]| now.is_some_and(|n| n == then);
-    if !same(hashes.all(&task.inputs)?, &stamp.inputs)
+    if !same(hashes.inputs(task)?, &stamp.inputs)
         || !same(hashes.all(&task.outputs)?, &stamp.outputs)
     {
         return Ok(None);

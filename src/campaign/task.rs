@@ -27,6 +27,11 @@ pub struct Task {
     /// re-simulated and studied only after it passed `check`, while the tables and the report
     /// of a failed check are still made.
     pub gates: Vec<String>,
+    /// A summary (the report): it runs after its predecessors whatever their outcome, also
+    /// when one failed or did not run, over the inputs that exist, and names those that do not
+    /// (the command is told so). Without it a fleet's report would wait for every drive to
+    /// pass, and the drive that failed is the one its readers need to see.
+    pub partial: bool,
     /// Where its standard output and error go.
     pub log: PathBuf,
 }

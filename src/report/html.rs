@@ -32,7 +32,7 @@ var k=g?g.getBoundingClientRect():r;\
 e.setAttribute('data-rendered',Math.round(k.width)+'x'+Math.round(k.height));});";
 
 /// The whole page.
-pub fn page(inputs: &[Input]) -> String {
+pub fn page(inputs: &[Input], absent: &[std::path::PathBuf]) -> String {
     let (mut recs, mut checks, mut cmps, mut vals, mut gaps) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for i in inputs {
@@ -62,6 +62,7 @@ reference supports (§5), statistical validation over repetitions (§8, Fig. 7).
         out.push_str("<h2 id=\"section-glance\">At a glance</h2>\n<p class=\"note\">One line per step of the method; the sections below hold the evidence.</p>\n");
         table(&mut out, "glance", &["step", "result"], &glance);
     }
+    absent_section(&mut out, absent);
     recording(&mut out, &recs, &checks);
     check_section(&mut out, &checks);
     compare_section(&mut out, &cmps);
@@ -364,6 +365,25 @@ fn validate_section(out: &mut String, vals: &[Named<Validation>]) {
         head.extend(metrics.iter().copied());
         table(out, &format!("traffic-light-{k}"), &head, &rows);
     }
+}
+
+/// The outputs the report was to read that were not written: first on the page, because a
+/// result that is not there (a drive whose check failed has no comparison) is the first thing
+/// a reader of a fleet's report must not overlook.
+fn absent_section(out: &mut String, absent: &[std::path::PathBuf]) {
+    if absent.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        out,
+        "<h2 id=\"section-absent\">Not produced</h2>\n<p class=\"fail\">{} of the files this report was to read do not exist: the steps that write them did not run or failed (the campaign's summary and logs say why).</p>",
+        absent.len()
+    );
+    let rows: Vec<Vec<String>> = absent
+        .iter()
+        .map(|p| vec![esc(&p.display().to_string())])
+        .collect();
+    table(out, "absent", &["file"], &rows);
 }
 
 fn inputs_section(out: &mut String, inputs: &[Input]) {

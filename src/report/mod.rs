@@ -75,6 +75,30 @@ pub enum ReportError {
 /// Reads the inputs: files as given, directories searched (sorted, recursively) for `.json`
 /// files of a known kind; a JSON file given by name must be of a known kind.
 pub fn gather(paths: &[PathBuf]) -> Result<Vec<Input>, ReportError> {
+    gather_from(paths, None)
+}
+
+/// [`gather`], where a file named that does not exist is not an error but listed in the
+/// second vector: a campaign's report over the outputs of tasks of which some did not run
+/// (a drive that failed its check is not re-simulated, so it has no comparison).
+pub fn gather_allowing_absent(
+    paths: &[PathBuf],
+) -> Result<(Vec<Input>, Vec<PathBuf>), ReportError> {
+    let mut absent = Vec::new();
+    let inputs = gather_from(paths, Some(&mut absent))?;
+    Ok((inputs, absent))
+}
+
+fn gather_from(
+    paths: &[PathBuf],
+    mut absent: Option<&mut Vec<PathBuf>>,
+) -> Result<Vec<Input>, ReportError> {
+    let named: Vec<&Path> = paths
+        .iter()
+        .filter(|p| !p.is_dir())
+        .map(PathBuf::as_path)
+        .collect();
+    let named_base = common_dir(&named);
     let mut out = Vec::new();
     for p in paths {
         if p.is_dir() {
@@ -90,10 +114,11 @@ pub fn gather(paths: &[PathBuf]) -> Result<Vec<Input>, ReportError> {
                 }
             }
         } else if p.exists() {
-            let base = p.parent().unwrap_or(Path::new(""));
-            if let Some(i) = read(p, base, true)? {
+            if let Some(i) = read(p, &named_base, true)? {
                 out.push(i);
             }
+        } else if let Some(a) = absent.as_deref_mut() {
+            a.push(p.clone());
         } else {
             return Err(ReportError::Missing { path: p.clone() });
         }
@@ -108,6 +133,27 @@ pub fn gather(paths: &[PathBuf]) -> Result<Vec<Input>, ReportError> {
         });
     }
     Ok(out)
+}
+
+/// The deepest folder that holds all of `files`: files named one by one are called by their
+/// path below it, so that a campaign's `compare/idealized/rep-01.json` and
+/// `compare/truth/rep-01.json` keep their model in their names (a single file is called by its
+/// file name).
+fn common_dir(files: &[&Path]) -> PathBuf {
+    let mut dirs = files.iter().map(|f| f.parent().unwrap_or(Path::new("")));
+    let Some(first) = dirs.next() else {
+        return PathBuf::new();
+    };
+    let mut base: Vec<_> = first.components().collect();
+    for d in dirs {
+        let same = base
+            .iter()
+            .zip(d.components())
+            .take_while(|(a, b)| *a == b)
+            .count();
+        base.truncate(same);
+    }
+    base.iter().collect()
 }
 
 fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
@@ -180,14 +226,18 @@ pub struct Rendered {
 struct ReportJson<'a> {
     hilrig_version: &'static str,
     inputs: &'a [Input],
+    /// Files named as inputs that did not exist ([`gather_allowing_absent`]).
+    absent: &'a [PathBuf],
 }
 
-/// Builds the report from the inputs.
-pub fn render(inputs: &[Input]) -> Rendered {
-    let html = html::page(inputs);
+/// Builds the report from the inputs; `absent` are files named as inputs that did not exist,
+/// listed on the page and in report.json.
+pub fn render(inputs: &[Input], absent: &[PathBuf]) -> Rendered {
+    let html = html::page(inputs, absent);
     let json = serde_json::to_string_pretty(&ReportJson {
         hilrig_version: env!("CARGO_PKG_VERSION"),
         inputs,
+        absent,
     })
     .unwrap_or_default();
     Rendered { html, json }
@@ -206,4 +256,34 @@ pub fn write(out: &Path, r: &Rendered) -> std::io::Result<PathBuf> {
     put(out, r.html.as_bytes())?;
     put(&json_path, r.json.as_bytes())?;
     Ok(json_path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::common_dir;
+    use std::path::{Path, PathBuf};
+
+    #[test]
+    fn files_named_one_by_one_are_called_by_their_path_below_their_common_folder() {
+        let files = [
+            Path::new("/out/compare/idealized/rep-01.json"),
+            Path::new("/out/compare/truth/rep-01.json"),
+            Path::new("/out/check/rep-01.json"),
+        ];
+        assert_eq!(common_dir(&files), PathBuf::from("/out"));
+        assert_eq!(
+            common_dir(&files[..2]),
+            PathBuf::from("/out/compare"),
+            "two models' comparisons keep the model"
+        );
+        assert_eq!(
+            common_dir(&files[..1]),
+            PathBuf::from("/out/compare/idealized")
+        );
+        assert_eq!(common_dir(&[]), PathBuf::new());
+        assert_eq!(
+            common_dir(&[Path::new("a.json"), Path::new("b/c.json")]),
+            PathBuf::new()
+        );
+    }
 }

@@ -11,6 +11,21 @@ pub struct Server {
     pub endpoint: String,
 }
 
+/// Whether an HTTP server answers on `port`: a response, not only a connection (a connection
+/// to a port in the ephemeral range that nothing listens on can be the socket's own, which
+/// Linux lets a loop of connects make once in a while, and which reads back the request).
+fn answers(port: u16) -> bool {
+    use std::io::{Read, Write};
+    let Ok(mut c) = std::net::TcpStream::connect(("127.0.0.1", port)) else {
+        return false;
+    };
+    let _ = c.set_read_timeout(Some(Duration::from_secs(5)));
+    let mut head = [0u8; 5];
+    c.write_all(b"GET / HTTP/1.0\r\n\r\n").is_ok()
+        && c.read_exact(&mut head).is_ok()
+        && &head == b"HTTP/"
+}
+
 impl Server {
     /// Starts it and waits until it answers.
     pub fn start() -> Server {
@@ -33,7 +48,7 @@ impl Server {
             endpoint: format!("http://127.0.0.1:{port}"),
         };
         let started = Instant::now();
-        while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        while !answers(port) {
             assert!(
                 started.elapsed() < Duration::from_secs(60),
                 "the S3 server did not start"
