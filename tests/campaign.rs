@@ -356,6 +356,27 @@ fn duckdb_agrees(out: &Path) {
         assert_eq!(row[2], ocr.len(), "{got}");
         assert_eq!(row[3], 5, "{got}");
     }
+    // The report's OCR^K over distance, pooled over all drives (from the comparisons' JSON),
+    // is what DuckDB finds in the tables, bin by bin.
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let ours = report["fleet"].as_array().unwrap();
+    let theirs = got["fleet"].as_array().unwrap();
+    assert!(theirs.len() >= 4, "{got}");
+    assert_eq!(ours.len(), theirs.len(), "{}", report["fleet"]);
+    for (o, t) in ours.iter().zip(theirs) {
+        assert_eq!(o["group"], format!("compare/{}", t[0].as_str().unwrap()));
+        assert_eq!(o["from_m"].as_f64(), Some(5.0 * t[1].as_f64().unwrap()));
+        assert_eq!(o["scans"], t[2]);
+        assert_eq!(o["drives"], t[3]);
+        assert!((o["ocr_mean"].as_f64().unwrap() - t[4].as_f64().unwrap()).abs() < 1e-12);
+        match (o["ocr_sd"].as_f64(), t[5].as_f64()) {
+            (Some(a), Some(b)) => assert!((a - b).abs() < 1e-9, "{o} {t:?}"),
+            (a, b) => assert_eq!(a, b, "{o} {t:?}"),
+        }
+    }
+    let page = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(page.contains("id=\"section-fleet\""));
 }
 
 /// The campaign's plan run on a Ray cluster of two worker nodes, one of them killed once the

@@ -248,17 +248,21 @@ pub fn run(
 }
 
 /// `o` after what the task left was put into object storage: a task whose outputs did not
-/// reach the bucket failed (its stamp is not put, so the next run does it again).
+/// reach the bucket failed (its stamp is not put, so the next run does it again); a failed
+/// task whose log did not reach it says so beside why it failed.
 fn pushed(staged: &Option<Staged>, task: &Task, o: Outcome) -> Outcome {
     let Some(s) = staged else {
         return o;
     };
-    match s.push(task, matches!(o, Outcome::Ran { .. })) {
-        Ok(()) => o,
-        Err(e) if matches!(o, Outcome::Ran { .. }) => Outcome::Failed {
+    match (s.push(task, matches!(o, Outcome::Ran { .. })), o) {
+        (Ok(()), o) => o,
+        (Err(e), Outcome::Ran { .. }) => Outcome::Failed {
             why: format!("its files were not stored: {e}"),
         },
-        Err(_) => o,
+        (Err(e), Outcome::Failed { why }) => Outcome::Failed {
+            why: format!("{why} (its log was not stored: {e})"),
+        },
+        (Err(_), o) => o,
     }
 }
 

@@ -32,7 +32,11 @@ var k=g?g.getBoundingClientRect():r;\
 e.setAttribute('data-rendered',Math.round(k.width)+'x'+Math.round(k.height));});";
 
 /// The whole page.
-pub fn page(inputs: &[Input], absent: &[std::path::PathBuf]) -> String {
+pub fn page(
+    inputs: &[Input],
+    absent: &[std::path::PathBuf],
+    fleet: &[super::fleet::FleetBin],
+) -> String {
     let (mut recs, mut checks, mut cmps, mut vals, mut gaps) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for i in inputs {
@@ -66,6 +70,7 @@ reference supports (§5), statistical validation over repetitions (§8, Fig. 7).
     recording(&mut out, &recs, &checks);
     check_section(&mut out, &checks);
     compare_section(&mut out, &cmps);
+    super::fleet::section(&mut out, cmps.len(), fleet);
     validate_section(&mut out, &vals);
     gap_section(&mut out, &gaps);
     inputs_section(&mut out, inputs);

@@ -13,6 +13,7 @@
 //! renamed in a producer breaks this module's build rather than leaving a blank in the page.
 
 mod document;
+pub mod fleet;
 pub mod gap_plots;
 mod gap_section;
 mod glance;
@@ -228,16 +229,27 @@ struct ReportJson<'a> {
     inputs: &'a [Input],
     /// Files named as inputs that did not exist ([`gather_allowing_absent`]).
     absent: &'a [PathBuf],
+    /// OCR^K over distance, pooled over all comparisons ([`fleet::bins`]).
+    fleet: &'a [fleet::FleetBin],
 }
 
 /// Builds the report from the inputs; `absent` are files named as inputs that did not exist,
 /// listed on the page and in report.json.
 pub fn render(inputs: &[Input], absent: &[PathBuf]) -> Rendered {
-    let html = html::page(inputs, absent);
+    let cmps: Vec<(&str, &crate::metrics::report::Comparison)> = inputs
+        .iter()
+        .filter_map(|i| match &i.value {
+            Document::Compare(c) => Some((i.name.as_str(), c.as_ref())),
+            _ => None,
+        })
+        .collect();
+    let fleet = fleet::bins(&cmps);
+    let html = html::page(inputs, absent, &fleet);
     let json = serde_json::to_string_pretty(&ReportJson {
         hilrig_version: env!("CARGO_PKG_VERSION"),
         inputs,
         absent,
+        fleet: &fleet,
     })
     .unwrap_or_default();
     Rendered { html, json }
