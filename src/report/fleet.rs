@@ -175,39 +175,23 @@ mod tests {
     }
 
     fn comparison(scans: &[(Option<f64>, Option<f64>)]) -> Comparison {
-        Comparison {
-            cell_m: 1.0,
-            admissible_cell_m: 1.0,
-            k: 3,
-            grid_phases: 1,
-            curve_every: 0,
-            point_metrics: false,
-            dims: crate::metrics::grid::Dims::Voxel,
-            region: String::new(),
-            damage: Vec::new(),
-            left_out: Vec::new(),
-            ground_excluded: false,
-            frame: crate::metrics::report::ComparisonFrame::Scene,
-            scans: scans
-                .iter()
-                .map(|&(d, ocr)| crate::metrics::report::ScanRow {
-                    mean_distance_m: d,
-                    grid: ocr.map(|o| crate::metrics::grid::GridScores {
-                        ocr: Some(o),
-                        precision: None,
-                        iou: None,
-                        cosine: None,
-                        real_cells: 0,
-                        sim_cells: 0,
-                        both_cells: 0,
-                    }),
-                    ..Default::default()
-                })
-                .collect(),
-            calibration: Vec::new(),
-            snapshot: None,
-            summary: Default::default(),
-        }
+        let scans = scans
+            .iter()
+            .map(|&(d, ocr)| crate::metrics::report::ScanRow {
+                mean_distance_m: d,
+                grid: ocr.map(|o| crate::metrics::grid::GridScores {
+                    ocr: Some(o),
+                    precision: None,
+                    iou: None,
+                    cosine: None,
+                    real_cells: 0,
+                    sim_cells: 0,
+                    both_cells: 0,
+                }),
+                ..Default::default()
+            })
+            .collect();
+        crate::report::plots::tests::comparison(scans, Default::default())
     }
 
     #[test]

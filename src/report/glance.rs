@@ -133,7 +133,6 @@ pub(super) fn rows(
 mod tests {
     use super::*;
     use crate::gap::report::Round;
-    use crate::metrics::report::ComparisonFrame;
     use crate::reference::check::{Fault, FaultName};
     use crate::sim::model::EffectKind;
     use crate::stats::avm::Light;
@@ -230,24 +229,7 @@ mod tests {
             ocr_mean: Some(0.8734),
             ..Default::default()
         };
-        let cmp = Comparison {
-            cell_m: 1.05,
-            admissible_cell_m: 1.05,
-            k: 3,
-            grid_phases: 1,
-            curve_every: 0,
-            point_metrics: false,
-            dims: crate::metrics::grid::Dims::Voxel,
-            region: String::new(),
-            damage: Vec::new(),
-            left_out: Vec::new(),
-            ground_excluded: false,
-            frame: ComparisonFrame::Scene,
-            scans: Vec::new(),
-            calibration: Vec::new(),
-            snapshot: None,
-            summary,
-        };
+        let cmp = crate::report::plots::tests::comparison(Vec::new(), summary);
         let esc = |s: &str| s.replace('<', "&lt;");
         let rows = rows(
             &[("check/a.json", &checks[0]), ("check/b.json", &checks[1])],

@@ -438,6 +438,31 @@ pub(crate) mod tests {
     use crate::reference::check::{Fault, FaultName, RtkEpoch, Segment};
     use hilrig_stamp::UtcNanos;
 
+    /// A comparison at a 1.05 m cell with the scans and summary given, nothing else in it.
+    pub(crate) fn comparison(
+        scans: Vec<crate::metrics::report::ScanRow>,
+        summary: crate::metrics::report::Summary,
+    ) -> Comparison {
+        Comparison {
+            cell_m: 1.05,
+            admissible_cell_m: 1.05,
+            k: 3,
+            grid_phases: 1,
+            curve_every: 0,
+            point_metrics: false,
+            dims: crate::metrics::grid::Dims::Voxel,
+            region: String::new(),
+            damage: Vec::new(),
+            left_out: Vec::new(),
+            ground_excluded: false,
+            frame: crate::metrics::report::ComparisonFrame::Scene,
+            scans,
+            calibration: Vec::new(),
+            snapshot: None,
+            summary,
+        }
+    }
+
     /// A check report as `check` builds it, with the segments, epochs and faults given.
     pub(crate) fn report(duration_s: f64, segments: &[(f64, f64, Verdict)]) -> Report {
         Report {
