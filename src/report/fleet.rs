@@ -4,9 +4,9 @@
 //! agreement holds at every distance the fleet saw, which no single drive covers.
 
 use super::markup::{esc, figure, table};
-use super::plots::{fixed, legend, svg, Named, PlotError, PASS, REAL, SIM};
+use super::plots::{fixed, ocr_lines, Named};
 use crate::metrics::report::Comparison;
-use plotters::prelude::*;
+use plotters::prelude::SeriesLabelPosition;
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
@@ -135,30 +135,15 @@ fn plot(bins: &[FleetBin]) -> Option<String> {
             .or_default()
             .push((0.5 * (b.from_m + b.to_m), b.ocr_mean));
     }
-    let colors = [REAL, SIM, PASS, BLACK];
-    svg(1000, 380, |root| -> Result<(), PlotError> {
-        let mut c = ChartBuilder::on(root)
-            .margin(10)
-            .x_label_area_size(32)
-            .y_label_area_size(55)
-            .build_cartesian_2d(0.0..x1, 0.0..1.0)?;
-        c.configure_mesh()
-            .x_desc("mean distance to the objects in view, m")
-            .y_desc("OCR^K")
-            .light_line_style(WHITE)
-            .draw()?;
-        for (k, (name, pts)) in groups.iter().enumerate() {
-            let color = colors[k % colors.len()];
-            c.draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))?
-                .label(name.to_string())
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 14, y)], color.stroke_width(2))
-                });
-            c.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
-        }
-        legend(&mut c, SeriesLabelPosition::LowerLeft)?;
-        Ok(())
-    })
+    let series: Vec<(&str, Vec<(f64, f64)>)> = groups.into_iter().collect();
+    ocr_lines(
+        None,
+        "mean distance to the objects in view, m",
+        &series,
+        x1,
+        SeriesLabelPosition::LowerLeft,
+        |_| Ok(()),
+    )
 }
 
 #[cfg(test)]
@@ -191,7 +176,7 @@ mod tests {
                 ..Default::default()
             })
             .collect();
-        crate::report::plots::tests::comparison(scans, Default::default())
+        crate::report::glance::tests::comparison(scans, Default::default())
     }
 
     #[test]

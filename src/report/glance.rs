@@ -130,13 +130,38 @@ pub(super) fn rows(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::gap::report::Round;
     use crate::reference::check::{Fault, FaultName};
     use crate::sim::model::EffectKind;
     use crate::stats::avm::Light;
     use crate::stats::validate::Cell;
+
+    /// A comparison at a 1.05 m cell with the scans and summary given, nothing else in it.
+    pub(crate) fn comparison(
+        scans: Vec<crate::metrics::report::ScanRow>,
+        summary: crate::metrics::report::Summary,
+    ) -> Comparison {
+        Comparison {
+            cell_m: 1.05,
+            admissible_cell_m: 1.05,
+            k: 3,
+            grid_phases: 1,
+            curve_every: 0,
+            point_metrics: false,
+            dims: crate::metrics::grid::Dims::Voxel,
+            region: String::new(),
+            damage: Vec::new(),
+            left_out: Vec::new(),
+            ground_excluded: false,
+            frame: crate::metrics::report::ComparisonFrame::Scene,
+            scans,
+            calibration: Vec::new(),
+            snapshot: None,
+            summary,
+        }
+    }
 
     fn check(verdict: Verdict, faults: &[FaultName], ego_m: f64, grid_cell_m: f64) -> Report {
         let mut r = crate::report::plots::tests::report(10.0, &[]);
@@ -229,7 +254,7 @@ mod tests {
             ocr_mean: Some(0.8734),
             ..Default::default()
         };
-        let cmp = crate::report::plots::tests::comparison(Vec::new(), summary);
+        let cmp = comparison(Vec::new(), summary);
         let esc = |s: &str| s.replace('<', "&lt;");
         let rows = rows(
             &[("check/a.json", &checks[0]), ("check/b.json", &checks[1])],

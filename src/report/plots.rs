@@ -392,26 +392,63 @@ pub fn calibration_curve(compares: &[(&str, &Comparison)]) -> Option<String> {
         .flat_map(|c| c.1.iter().map(|p| p.0))
         .fold(0.0, f64::max)
         * 1.05;
-    if curves.is_empty() {
+    let adm = curves.first()?.2;
+    let curves: Vec<(&str, Vec<(f64, f64)>)> = curves
+        .into_iter()
+        .map(|(name, pts, _)| (name, pts))
+        .collect();
+    ocr_lines(
+        Some("mean OCR^K over the scans against the cell size"),
+        "cell size, m",
+        &curves,
+        x1,
+        SeriesLabelPosition::LowerRight,
+        |c| {
+            c.draw_series(std::iter::once(PathElement::new(
+                vec![(adm, 0.0), (adm, 1.0)],
+                FAIL.stroke_width(2),
+            )))?
+            .label(format!("admissible cell {adm:.2} m (smaller: refused)"))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], FAIL.stroke_width(2)));
+            Ok(())
+        },
+    )
+}
+
+/// The chart an OCR^K plot is drawn on: x from 0, OCR^K from 0 to 1.
+pub(super) type OcrChart<'a, 'b> = ChartContext<
+    'a,
+    SVGBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// OCR^K against `x` (0 to `x1`), one line with its points per named series in the report's
+/// colours; `more` draws after them, before the legend. `None` without series.
+pub(super) fn ocr_lines(
+    caption: Option<&str>,
+    x_desc: &str,
+    series: &[(&str, Vec<(f64, f64)>)],
+    x1: f64,
+    legend_at: SeriesLabelPosition,
+    more: impl FnOnce(&mut OcrChart) -> Result<(), PlotError>,
+) -> Option<String> {
+    if series.is_empty() {
         return None;
     }
     let colors = [REAL, SIM, PASS, BLACK];
     svg(1000, 380, |root| {
-        let mut c = ChartBuilder::on(root)
-            .margin(10)
-            .x_label_area_size(32)
-            .y_label_area_size(55)
-            .caption(
-                "mean OCR^K over the scans against the cell size",
-                ("sans-serif", 15),
-            )
-            .build_cartesian_2d(0.0..x1, 0.0..1.0)?;
+        let mut b = ChartBuilder::on(root);
+        b.margin(10).x_label_area_size(32).y_label_area_size(55);
+        if let Some(text) = caption {
+            b.caption(text, ("sans-serif", 15));
+        }
+        let mut c = b.build_cartesian_2d(0.0..x1, 0.0..1.0)?;
         c.configure_mesh()
-            .x_desc("cell size, m")
+            .x_desc(x_desc)
             .y_desc("OCR^K")
             .light_line_style(WHITE)
             .draw()?;
-        for (k, (name, pts, _)) in curves.iter().enumerate() {
+        for (k, (name, pts)) in series.iter().enumerate() {
             let color = colors[k % colors.len()];
             c.draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))?
                 .label(*name)
@@ -420,14 +457,8 @@ pub fn calibration_curve(compares: &[(&str, &Comparison)]) -> Option<String> {
                 });
             c.draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
         }
-        let adm = curves[0].2;
-        c.draw_series(std::iter::once(PathElement::new(
-            vec![(adm, 0.0), (adm, 1.0)],
-            FAIL.stroke_width(2),
-        )))?
-        .label(format!("admissible cell {adm:.2} m (smaller: refused)"))
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], FAIL.stroke_width(2)));
-        legend(&mut c, SeriesLabelPosition::LowerRight)?;
+        more(&mut c)?;
+        legend(&mut c, legend_at)?;
         Ok(())
     })
 }
@@ -437,31 +468,6 @@ pub(crate) mod tests {
     use super::*;
     use crate::reference::check::{Fault, FaultName, RtkEpoch, Segment};
     use hilrig_stamp::UtcNanos;
-
-    /// A comparison at a 1.05 m cell with the scans and summary given, nothing else in it.
-    pub(crate) fn comparison(
-        scans: Vec<crate::metrics::report::ScanRow>,
-        summary: crate::metrics::report::Summary,
-    ) -> Comparison {
-        Comparison {
-            cell_m: 1.05,
-            admissible_cell_m: 1.05,
-            k: 3,
-            grid_phases: 1,
-            curve_every: 0,
-            point_metrics: false,
-            dims: crate::metrics::grid::Dims::Voxel,
-            region: String::new(),
-            damage: Vec::new(),
-            left_out: Vec::new(),
-            ground_excluded: false,
-            frame: crate::metrics::report::ComparisonFrame::Scene,
-            scans,
-            calibration: Vec::new(),
-            snapshot: None,
-            summary,
-        }
-    }
 
     /// A check report as `check` builds it, with the segments, epochs and faults given.
     pub(crate) fn report(duration_s: f64, segments: &[(f64, f64, Verdict)]) -> Report {
