@@ -67,7 +67,7 @@ fn interval(params: &serde_json::Value, name: &str) -> (f64, f64) {
 }
 
 /// About the VLP-16's (3.0 x 1.5 mrad), a fifth wider, and off the points of the fit's grids
-/// (their coarse points lie at a 2:1 aspect and 0.5 mrad steps): a fit that never searched
+/// (their coarse points lie at a 2:1 aspect, a factor of about 1.45 apart): a fit that never searched
 /// near the truth must not pass by landing on it.
 const DIVERGENCE: (f64, f64) = (3.7, 1.7);
 

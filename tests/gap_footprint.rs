@@ -4,8 +4,10 @@
 //!
 //! The model here is written from its physical description alone: a beam whose footprint is a
 //! cone of full angle `W` with an even (top-hat) profile; the first echo the receiver detects is
-//! the nearest surface that holds a sizeable share of the footprint (a quarter of its power), at
-//! the mean range of the part of the footprint on it; a surface with a smaller share is not seen.
+//! the nearest surface that holds a sizeable share of the footprint (a quarter of it); a surface
+//! with a smaller share is not seen. An echo carries the energy of its part of the footprint:
+//! its range is the energy's centroid (each part weighted by ρ cos θ / R²), its intensity the
+//! surface's reflectivity times the part's share.
 //! The footprint is sampled by 37 rays spread evenly over the disc (a sunflower pattern). Three
 //! drives are synthesized with the idealized model and the drive's reference errors (RTK noise,
 //! timing jitter, CAN noise, survey error); each capture's lidar packets are then measured again
@@ -43,26 +45,47 @@ fn sunflower(w_rad: f64) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// What the beam measures: the nearest surface holding a sizeable share of the footprint, at the
-/// mean range of its part, with its reflectivity; `None` when no surface holds that much.
-fn nearest_sizeable(hits: &[(u32, f64, f64)]) -> Option<(f64, f64)> {
-    // (surface, nearest range, sum of ranges, count, reflectivity)
-    let mut surfaces: Vec<(u32, f64, f64, usize, f64)> = Vec::new();
-    for &(s, r, refl) in hits {
-        match surfaces.iter_mut().find(|x| x.0 == s) {
+/// One sub-ray's hit: the surface, its range, the power it returns (ρ cos θ / R²) and the
+/// surface's reflectivity.
+#[derive(Clone, Copy)]
+struct SubHit {
+    surface: u32,
+    range: f64,
+    power: f64,
+    reflectivity: f64,
+}
+
+/// What the beam measures: the echo of the nearest surface that holds a sizeable share of the
+/// footprint. An echo carries the energy of its part of the footprint: its range is the
+/// energy's centroid, its intensity the reflectivity times the part's share. A surface with a
+/// smaller share is not seen. `None` when no surface holds that much.
+fn nearest_sizeable(hits: &[SubHit], share: f64) -> Option<(f64, f64)> {
+    // (surface, nearest range, Σ power × range, Σ power, count, Σ reflectivity)
+    let mut surfaces: Vec<(u32, f64, f64, f64, usize, f64)> = Vec::new();
+    for h in hits {
+        match surfaces.iter_mut().find(|x| x.0 == h.surface) {
             Some(x) => {
-                x.1 = x.1.min(r);
-                x.2 += r;
-                x.3 += 1;
+                x.1 = x.1.min(h.range);
+                x.2 += h.power * h.range;
+                x.3 += h.power;
+                x.4 += 1;
+                x.5 += h.reflectivity;
             }
-            None => surfaces.push((s, r, r, 1, refl)),
+            None => surfaces.push((
+                h.surface,
+                h.range,
+                h.power * h.range,
+                h.power,
+                1,
+                h.reflectivity,
+            )),
         }
     }
     surfaces.sort_by(|a, b| a.1.total_cmp(&b.1));
     surfaces
         .iter()
-        .find(|x| x.3 as f64 >= SIZEABLE * SUB_RAYS as f64)
-        .map(|x| (x.2 / x.3 as f64, x.4))
+        .find(|x| x.4 as f64 >= share * SUB_RAYS as f64 && x.3 > 0.0)
+        .map(|x| (x.2 / x.3, x.5 / SUB_RAYS as f64))
 }
 
 /// `src` with every lidar data packet measured again by the footprint model of full angle
@@ -104,16 +127,22 @@ fn remeasure(src: &Path, dst: &Path, w_mrad: f64, scene: &Scene, truth: &Traject
                 let d = f.direction;
                 let u = d.cross(&Vector3::z()).normalize();
                 let v = u.cross(&d);
-                let hits: Vec<(u32, f64, f64)> = offsets
+                let hits: Vec<SubHit> = offsets
                     .iter()
                     .filter_map(|&(a, b)| {
                         let sd = (d + u * a + v * b).normalize();
                         scene
                             .cast(&f.origin, &sd, 0.0, 200.0, &actors)
-                            .map(|h| (h.material.surface.0, h.range, h.material.reflectivity))
+                            .map(|h| SubHit {
+                                surface: h.material.surface.0,
+                                range: h.range,
+                                power: h.material.reflectivity * (-h.normal.dot(&sd)).max(0.0)
+                                    / (h.range * h.range),
+                                reflectivity: h.material.reflectivity,
+                            })
                     })
                     .collect();
-                let channel = nearest_sizeable(&hits)
+                let channel = nearest_sizeable(&hits, SIZEABLE)
                     .filter(|(r, _)| (0.5..=100.0).contains(r))
                     .and_then(|(r, refl)| {
                         Some(Channel {
@@ -185,13 +214,15 @@ fn fitted(w_mrad: f64, speed: f64, case: &str) -> (f64, f64) {
 }
 
 /// Not met yet, and so not run by default (`cargo test --test gap_footprint -- --ignored`):
-/// the workflow adds beam divergence first, but fits it as 1.9 × 2.0 mrad for the 8 mrad
-/// footprint. The fit is decided by the ranges on the ground at grazing incidence, where this
-/// model (the centroid of the footprint's part on a surface) and the simulator's (sub-ray hits
-/// merged into echoes where they lie within 0.5 m, the strongest reported) differ by
-/// decimetres at 30 m and beyond, and not by the edges the two models share.
+/// the workflow adds beam divergence first and fits the vertical divergence within 6 % (7.5
+/// mrad), from the ranges on the road at grazing incidence, where every footprint model that
+/// reports the energy's centroid agrees. The horizontal one (4.1 mrad; 4.7 with a share of a
+/// single sub-ray instead of a quarter) shows only at the sides of objects, where the echo
+/// logic decides: this model reports the nearest surface holding a quarter of the footprint,
+/// the simulator the strongest echo of any share. The simulator's beam has no parameter for
+/// that logic yet, so the fit stands in a narrower beam for it.
 #[test]
-#[ignore = "issue 33, must-hold 6 not met: 1.9 x 2.0 mrad fitted for 8 mrad"]
+#[ignore = "issue 33, must-hold 6 not met: 4.1 x 7.5 mrad fitted for 8 mrad"]
 fn an_8_mrad_footprint_of_another_model_is_found_and_fitted_within_30_percent() {
     let w = 8.0;
     let (h, v) = fitted(w, 5.0, "footprint 8 mrad");

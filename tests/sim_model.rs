@@ -684,6 +684,50 @@ fn beam_divergence_gives_edge_and_mixed_returns() {
     );
 }
 
+/// A surface at grazing incidence returns one echo however far its footprint stretches in
+/// range: the road 40 m ahead under an 8 mrad beam spans metres, which 5 sub-rays per axis
+/// sample a metre or more apart, yet the surface is continuous and so is its pulse. Split, the
+/// echo would be reported at one row's range with a fifth of the reflectivity.
+#[test]
+fn a_footprint_on_the_road_at_grazing_incidence_is_one_echo() {
+    let ground = Ground {
+        z: 0.0,
+        half_size_m: 500.0,
+        reflectivity: 0.2,
+        accuracy_m: 0.0,
+    };
+    let s = scene(vec![], Some(ground));
+    let divergence = Effect::BeamDivergence {
+        horizontal_mrad: 8.0,
+        vertical_mrad: 8.0,
+        sub_rays_per_axis: 5,
+        range_separation_m: 0.5,
+    };
+    let sim = beam_sim(&s, vec![divergence]);
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    for ahead in [20.0, 40.0, 60.0] {
+        // The footprint's range span: the rays 4 mrad below and above the centre.
+        let e = (SENSOR_Z / ahead).atan();
+        let near = SENSOR_Z / (e + 4e-3).sin();
+        let far = SENSOR_Z / (e - 4e-3).sin();
+        let r = fire_at(&sim, &s, Vector3::new(ahead, 0.0, -SENSOR_Z), &mut rng);
+        let (st, last) = (r.strongest.unwrap(), r.last.unwrap());
+        assert_eq!(st, last, "{ahead} m: two echoes {st:?} {last:?}");
+        assert!(
+            st.range > near && st.range < far,
+            "{ahead} m: {} outside [{near}, {far}]",
+            st.range
+        );
+        // The whole footprint's reflectivity: the plane's ρ, within its incidence's spread.
+        assert!(
+            (st.reflectivity - 0.2).abs() < 0.01,
+            "{ahead} m: reflectivity {} of 0.2 (span {} m)",
+            st.reflectivity,
+            far - near
+        );
+    }
+}
+
 #[test]
 fn weather_adds_near_clutter_and_shortens_range() {
     let mut rng = ChaCha8Rng::seed_from_u64(5);

@@ -192,7 +192,9 @@ pub struct LidarSim<'a> {
 #[derive(Default)]
 struct Scratch {
     hits: Vec<SubHit>,
-    echoes: Vec<Echo>,
+    /// Sub-ray contributions and the range each one's part of the footprint spans on its
+    /// surface.
+    echoes: Vec<(Echo, f64)>,
     /// Sub-ray directions and their hits, for a footprint cast in full.
     dirs: Vec<Vector3<f64>>,
     cast: Vec<Option<crate::scene::Hit>>,

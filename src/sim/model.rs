@@ -74,7 +74,10 @@ pub enum Effect {
     /// The beam is a cone, not a line: `sub_rays_per_axis²` sub-rays across the elliptical
     /// footprint share its power. Sub-ray hits within `range_separation_m` merge into one echo at
     /// their power-weighted mean range (mixed returns between a foreground edge and what lies
-    /// behind); farther apart they are separate echoes (strongest and last). A partial footprint
+    /// behind); farther apart they are separate echoes (strongest and last). A surface at
+    /// grazing incidence is one echo however much range its part spans (its sub-rays merge
+    /// across gaps up to the range a sub-ray's share spans on it, `R δ tan θ`): its pulse is
+    /// continuous, only a gap in depth separates echoes. A partial footprint
     /// gives an edge return with less power. Source: specification sheets (VLP-16: 3.0 mrad
     /// horizontal, 1.5 mrad vertical divergence); mixed pixels in Hebert & Krotkov 1992.
     ///

@@ -136,17 +136,21 @@ impl Fitting<'_> {
         };
         for n in [3u32, 5] {
             let mut f = |h: f64, v: f64| try_one(h, v, n);
-            let coarse: Vec<(f64, f64)> = (1..=8)
-                .map(|i| f64::from(i) * 0.5)
-                .map(|v| (2.0 * v, v))
+            // Steps of a factor of about 1.45 from 0.5 to 11 mrad (an 8 mrad footprint was
+            // once cut off at the grid's 4 mrad end), then ±7 %, ±14 %, ±21 % around the best:
+            // half way to the coarse neighbours.
+            let coarse: Vec<(f64, f64)> = [0.5, 0.75, 1.1, 1.6, 2.4, 3.5, 5.0, 7.5, 11.0]
+                .iter()
+                .map(|&v| (2.0 * v, v))
                 .collect();
             let (_, v0) = argmax(&coarse, &mut f)?;
             let fine: Vec<(f64, f64)> = (-3..=3)
-                .map(|i| (v0 + f64::from(i) * 0.1).max(0.1))
+                .map(|i| v0 * (1.0 + 0.07 * f64::from(i)))
                 .map(|v| (2.0 * v0, v))
                 .collect();
             let (_, v1) = argmax(&fine, &mut f)?;
-            let ratios: Vec<(f64, f64)> = [1.2, 1.6, 2.0, 2.5, 3.0]
+            // Aspects from a beam twice as tall as wide to three times as wide.
+            let ratios: Vec<(f64, f64)> = [0.5, 0.7, 1.0, 1.4, 2.0, 3.0]
                 .iter()
                 .map(|r| (r * v1, v1))
                 .collect();

@@ -13,6 +13,9 @@ pub(super) struct Divergence {
     pub(super) pattern: Pattern,
     /// Sub-ray hits closer than this merge into one echo, metres.
     pub(super) separation: f64,
+    /// The angle between neighbouring sub-rays (the larger axis), radians: the part of the
+    /// footprint each one stands for.
+    pub(super) spacing: f64,
 }
 
 /// The effects of a model, ready to apply.
@@ -86,9 +89,15 @@ impl Compiled {
                             }
                         }
                     }
+                    let spacing = if n > 1 {
+                        horizontal_mrad.max(vertical_mrad) * 1e-3 / (n - 1) as f64
+                    } else {
+                        0.0
+                    };
                     c.divergence = Some(Divergence {
                         pattern: Pattern::new(offs),
                         separation: range_separation_m,
+                        spacing,
                     });
                 }
                 Effect::MotionDistortion { enabled } => c.per_firing_pose = enabled,

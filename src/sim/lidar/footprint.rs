@@ -26,8 +26,8 @@
 //! echo differs from the centre ray's by `r · O(δ² tan² θ)` (δ the sub-ray offset, θ the
 //! incidence angle): below 0.1 mm up to 60° at 100 m, but 0.6 mm at 80° and 2.3 mm at 85°
 //! (10 m, across the beam), 15 mm at 88°; and beyond about 80° at 50 m (75° at 100 m) the
-//! footprint's range spread exceeds the 0.5 m range separation and it splits into separate
-//! echoes with a part of the power each. Intersecting per sub-ray keeps all of that.
+//! footprint's range spread exceeds the 0.5 m range separation, and the echo is the spread
+//! sub-rays' power-weighted mean (echo.rs). Intersecting per sub-ray keeps all of that.
 //!
 //! **What can still differ from the full cast** (the tolerance; measured in
 //! `tests/sim_model.rs`, stated in [`crate::sim::Effect::BeamDivergence`]): an object in front
