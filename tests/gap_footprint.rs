@@ -1,6 +1,7 @@
 //! Beam divergence from a footprint model that is not the simulator's (issue 33, must-hold 6):
-//! the gap workflow fits divergence on what every footprint model shares, not on the echo logic
-//! of `LidarSim`, which the other hidden-effect tests synthesize with.
+//! the other hidden-effect tests synthesize with `LidarSim`, whose receiver reports the
+//! strongest echo; this one reports the first echo of a sizeable share, and the gap workflow
+//! must fit the beam's width through that difference (it fits the echo logic beside it).
 //!
 //! The model here is written from its physical description alone: a beam whose footprint is a
 //! cone of full angle `W` with an even (top-hat) profile; the first echo the receiver detects is
@@ -171,7 +172,7 @@ fn remeasure(src: &Path, dst: &Path, w_mrad: f64, scene: &Scene, truth: &Traject
 /// Synthesizes the study with divergence `w_mrad` of this footprint model, runs `hilrig gap`
 /// from the idealized model and returns the fitted divergence (horizontal, vertical) of the
 /// first round, which must have added beam divergence.
-fn fitted(w_mrad: f64, speed: f64, case: &str) -> (f64, f64) {
+fn fitted(w_mrad: f64, speed: f64, survey: bool, case: &str) -> (f64, f64) {
     let dir = tempfile::tempdir().unwrap();
     let scene = Scene::load(&fixture("parking/scene.toml")).unwrap();
     let capture = |rep: &Path| -> PathBuf {
@@ -186,7 +187,15 @@ fn fitted(w_mrad: f64, speed: f64, case: &str) -> (f64, f64) {
         IDEALIZED,
         IDEALIZED,
         seed_of(case),
-        &drive_at(speed, false),
+        &|t| {
+            let t = drive_at(speed, false)(t);
+            if survey {
+                t
+            } else {
+                assert!(t.contains("[survey]\nsigma_m = 0.03 "), "{t}");
+                t.replace("[survey]\nsigma_m = 0.03 ", "[survey]\nsigma_m = 0.0 #")
+            }
+        },
         &capture,
     );
     let out = common::gap::gap(
@@ -213,19 +222,32 @@ fn fitted(w_mrad: f64, speed: f64, case: &str) -> (f64, f64) {
     )
 }
 
-/// Not met yet, and so not run by default (`cargo test --test gap_footprint -- --ignored`):
-/// the workflow adds beam divergence first and fits the vertical divergence within 6 % (7.5
-/// mrad), from the ranges on the road at grazing incidence, where every footprint model that
-/// reports the energy's centroid agrees. The horizontal one (4.1 mrad; 4.7 with a share of a
-/// single sub-ray instead of a quarter) shows only at the sides of objects, where the echo
-/// logic decides: this model reports the nearest surface holding a quarter of the footprint,
-/// the simulator the strongest echo of any share. The simulator's beam has no parameter for
-/// that logic yet, so the fit stands in a narrower beam for it.
-#[test]
-#[ignore = "issue 33, must-hold 6 not met: 4.1 x 7.5 mrad fitted for 8 mrad"]
-fn an_8_mrad_footprint_of_another_model_is_found_and_fitted_within_30_percent() {
-    let w = 8.0;
-    let (h, v) = fitted(w, 5.0, "footprint 8 mrad");
+/// Asserts both fitted axes lie within 30 % of the footprint's full angle `w`.
+fn within_30_percent((h, v): (f64, f64), w: f64) {
     assert!((h - w).abs() <= 0.3 * w, "horizontal {h} mrad for {w}");
     assert!((v - w).abs() <= 0.3 * w, "vertical {v} mrad for {w}");
+}
+
+/// The vertical divergence shows on the road at grazing incidence, one surface under the whole
+/// footprint, where every model that reports the echo energy's centroid agrees; the
+/// horizontal one at the sides of objects, where the echo logic decides how far beyond the
+/// silhouette a return stands out. The fit tries a first-echo receiver's shares beside the
+/// strongest echo, and finds this model's quarter. The objects carry the drive's 3 cm survey
+/// error, which moves a side by 3 mrad at 10 m: an 8 mrad beam still stands out of it.
+#[test]
+fn an_8_mrad_footprint_of_another_model_is_found_and_fitted_within_30_percent() {
+    within_30_percent(fitted(8.0, 5.0, true, "footprint 8 mrad"), 8.0);
+}
+
+/// A 4 mrad beam, with the objects where the scene says: its return beyond a side (a fifth of
+/// the full angle for a quarter share, 0.8 mrad, a quarter of the VLP-16's 3.5 mrad between
+/// firings) is at the limit of what these drives show. Not met, and so not run by default
+/// (`cargo test --test gap_footprint -- --ignored`): the vertical divergence is fitted as 5.0
+/// mrad (+25 %), the horizontal one as 2.75 mrad [1.90, 3.15] (−31 %) on this drive at 7 m/s;
+/// at 5 m/s (another seed) 3.5 mrad. With the drive's 3 cm survey error, which moves a side by
+/// 3 mrad at 10 m, the horizontal one was 2.0 mrad.
+#[test]
+#[ignore = "issue 33, must-hold 6 not met at 4 mrad: 2.75 x 5.0 mrad fitted"]
+fn a_4_mrad_footprint_of_another_model_is_fitted_within_30_percent_where_the_scene_is_exact() {
+    within_30_percent(fitted(4.0, 7.0, false, "footprint 4 mrad"), 4.0);
 }

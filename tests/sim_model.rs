@@ -612,6 +612,7 @@ fn beam_divergence_gives_edge_and_mixed_returns() {
         vertical_mrad: 1.5,
         sub_rays_per_axis: 7,
         range_separation_m: 0.5,
+        first_echo_share: None,
     };
     let mut rng = ChaCha8Rng::seed_from_u64(4);
     // Sweep the beam across the edge (y at 10 m from -3 cm to +3 cm).
@@ -702,6 +703,7 @@ fn a_footprint_on_the_road_at_grazing_incidence_is_one_echo() {
         vertical_mrad: 8.0,
         sub_rays_per_axis: 5,
         range_separation_m: 0.5,
+        first_echo_share: None,
     };
     let sim = beam_sim(&s, vec![divergence]);
     let mut rng = ChaCha8Rng::seed_from_u64(9);

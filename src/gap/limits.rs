@@ -304,6 +304,7 @@ fn injection(kind: EffectKind, size: f64) -> Option<Injection> {
             vertical_mrad: size / 2.0,
             sub_rays_per_axis: 5,
             range_separation_m: 0.5,
+            first_echo_share: None,
         }),
         _ => return None,
     })

@@ -154,7 +154,7 @@ pub struct Feature {
     pub rho: f32,
     /// Cosine of the incidence angle.
     pub cos: f32,
-    /// Largest range step to the beam's surroundings (±2.5 mrad across and along elevation),
+    /// Largest range step to the beam's surroundings (±5 mrad across, ±2.5 mrad along elevation),
     /// m: a depth edge inside the beam's possible footprint. Infinite when one side is sky.
     pub step: f32,
     /// Ego speed, m/s.
@@ -191,9 +191,18 @@ impl Feature {
     }
 }
 
-/// Angle of the probe rays around the beam, rad: wider than the divergence of any sensor of
-/// the catalogue (VLP-16: 3.0 × 1.5 mrad full angle).
-const PROBE_RAD: f64 = 2.5e-3;
+/// Angle of the probe rays beside the beam (across), rad: wider than the half-angle of any
+/// beam the gap workflow should fit (the catalogue's VLP-16: 3.0 mrad full angle; footprints of
+/// up to 10 mrad). A firing whose footprint reaches over an object's side is then an edge and
+/// scored as one; at 2.5 mrad, an 8 mrad beam's firings beside an edge counted as plain, and
+/// the millimetre scale of the difference term made the fit take the beam for half as wide.
+const PROBE_ACROSS_RAD: f64 = 5e-3;
+
+/// Angle of the probe rays above and below the beam, rad: as wide as the catalogue's beams
+/// (VLP-16: 1.5 mrad full angle) and no wider, since the range of the road at grazing incidence
+/// changes by `R δ tan θ` over an angle δ (1.2 m at 30 m for 2.5 mrad): wider probes would take
+/// the road for an edge where the vertical divergence shows most.
+const PROBE_ALONG_RAD: f64 = 2.5e-3;
 
 /// Whether a mark's window touches a part of a run (both closed intervals): a mark that
 /// begins before the part and reaches into it leaves the part's first scans out.
@@ -465,7 +474,8 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                     let (u, w) = beam_frame(&d);
                     let mut step = 0.0f64;
                     for (a, b) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
-                        let pd = (d + u * (a * PROBE_RAD) + w * (b * PROBE_RAD)).normalize();
+                        let pd = (d + u * (a * PROBE_ACROSS_RAD) + w * (b * PROBE_ALONG_RAD))
+                            .normalize();
                         let probe = scene.cast(&f.origin, &pd, 0.0, max, &actors);
                         step = step.max(match (&centre, probe) {
                             (Some(c), Some(p)) => (c.range - p.range).abs(),

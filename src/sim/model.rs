@@ -116,6 +116,16 @@ pub enum Effect {
         /// Echoes closer than this merge (the pulse's range resolution), metres.
         #[serde(default = "default_separation")]
         range_separation_m: f64,
+        /// A receiver that detects an echo only when it holds at least this share of the
+        /// footprint (its sub-rays), and reports the first (nearest) one detected in place of
+        /// the strongest. Unset: every echo is detected and the strongest reported, as a
+        /// Velodyne does in strongest-return mode. Where an edge crosses the footprint the two
+        /// differ: the first echo of a sizeable share stands out beyond the silhouette by a
+        /// share-dependent part of the half-angle, the strongest only where the near part
+        /// outshines what lies behind. The gap workflow fits it beside the divergence, since a
+        /// beam's width seen at edges depends on it.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        first_echo_share: Option<f64>,
     },
     /// Whether each laser fires at its own time and pose (`enabled = true`, the default of every
     /// model: a rotating sensor on a moving vehicle always sees this) or the whole rotation is
@@ -492,12 +502,19 @@ impl Effect {
                 horizontal_mrad,
                 vertical_mrad,
                 range_separation_m,
+                first_echo_share,
                 ..
-            } => vec![
-                ("horizontal_mrad", horizontal_mrad, NonNegative),
-                ("vertical_mrad", vertical_mrad, NonNegative),
-                ("range_separation_m", range_separation_m, NonNegative),
-            ],
+            } => {
+                let mut p = vec![
+                    ("horizontal_mrad", horizontal_mrad, NonNegative),
+                    ("vertical_mrad", vertical_mrad, NonNegative),
+                    ("range_separation_m", range_separation_m, NonNegative),
+                ];
+                if let Some(s) = first_echo_share {
+                    p.push(("first_echo_share", s, Probability));
+                }
+                p
+            }
             Effect::MotionDistortion { .. } => vec![],
             Effect::TimeOffset { offset_ms } => vec![("offset_ms", offset_ms, Finite)],
             Effect::MountMisalignment {

@@ -12,12 +12,43 @@ use crate::gap::GapError;
 use crate::sim::model::Effect;
 use crate::sim::model::EffectKind;
 
-/// Half the last grid steps of the divergence search (horizontal: relative; vertical: mrad).
+/// Half the last grid steps of the divergence search, relative.
 /// The bootstrap picks grid points, and a resample's own best lies up to half a step from its
 /// pick: the reported interval is padded by that much (a 5.01 mrad truth fell outside
 /// [3.0, 5.0]). Whether the value clears its floor is judged on the picks alone.
 const H_STEP: f64 = 0.05;
-const V_STEP_MRAD: f64 = 0.05;
+const V_STEP: f64 = 0.035;
+
+/// A point of the divergence search: (horizontal, vertical, sub-rays, first-echo share).
+type Key = (f64, f64, u32, Option<f64>);
+
+/// The beam divergence effect of a point of the search.
+fn divergence_effect(h: f64, v: f64, n: u32, share: Option<f64>) -> Effect {
+    Effect::BeamDivergence {
+        horizontal_mrad: h,
+        vertical_mrad: v,
+        sub_rays_per_axis: n,
+        range_separation_m: 0.5,
+        first_echo_share: share,
+    }
+}
+
+/// The index of the best-scoring point (0 when there is none).
+fn best_point(grid: &[Point]) -> usize {
+    grid.iter()
+        .enumerate()
+        .max_by(|a, b| a.1.ll.total_cmp(&b.1.ll))
+        .map_or(0, |x| x.0)
+}
+
+/// The index of the best-scoring point with `n` sub-rays per axis (0 when there is none).
+fn best_point_of(grid: &[Point], n: u32) -> usize {
+    grid.iter()
+        .enumerate()
+        .filter(|x| x.1.n == n)
+        .max_by(|a, b| a.1.ll.total_cmp(&b.1.ll))
+        .map_or(0, |x| x.0)
+}
 
 /// Rows needed before the noise is estimated from the untruncated ones alone.
 const UNTRUNCATED_ROWS: usize = 100;
@@ -69,31 +100,42 @@ fn refits_threshold(effects: &[Effect]) -> bool {
         && !effects.iter().any(|e| matches!(e, Effect::Weather { .. }))
 }
 
+/// One point of the divergence search and its score.
+struct Point {
+    h: f64,
+    v: f64,
+    n: u32,
+    share: Option<f64>,
+    ll: f64,
+    scored: Vec<Scored>,
+}
+
+/// The shares of the footprint a first-echo receiver is tried with: from any sub-ray of the
+/// finer pattern (1/13) to half the footprint.
+const FIRST_ECHO_SHARES: [f64; 5] = [0.05, 0.15, 0.25, 0.35, 0.5];
+
 impl Fitting<'_> {
     pub(super) fn divergence(&self) -> Result<Candidate, GapError> {
-        let make = |h: f64, v: f64, n: u32| Effect::BeamDivergence {
-            horizontal_mrad: h,
-            vertical_mrad: v,
-            sub_rays_per_axis: n,
-            range_separation_m: 0.5,
-        };
-        // (horizontal, vertical, sub-rays, log-likelihood, scores)
-        let mut grid: Vec<(f64, f64, u32, f64, Vec<Scored>)> = Vec::new();
+        let mut grid: Vec<Point> = Vec::new();
         let threshold = refits_threshold(&self.current.effects);
         let mut base = self.current.clone();
         if threshold {
             base.effects
                 .retain(|e| !matches!(e, Effect::DetectionThreshold { .. }));
         }
-        let mut refits: Vec<((f64, f64, u32), f64)> = Vec::new();
-        let mut try_one = |h: f64, v: f64, n: u32| -> Result<f64, GapError> {
-            if let Some(g) = grid
-                .iter()
-                .find(|g| (g.0 - h).abs() < 1e-9 && (g.1 - v).abs() < 1e-9 && g.2 == n)
-            {
-                return Ok(g.3);
+        let mut refits: Vec<(Key, f64)> = Vec::new();
+        let mut try_one = |grid: &mut Vec<Point>,
+                           h: f64,
+                           v: f64,
+                           n: u32,
+                           share: Option<f64>|
+         -> Result<f64, GapError> {
+            if let Some(g) = grid.iter().find(|g| {
+                (g.h - h).abs() < 1e-9 && (g.v - v).abs() < 1e-9 && g.n == n && g.share == share
+            }) {
+                return Ok(g.ll);
             }
-            let model = with_effect(&base, make(h, v, n));
+            let model = with_effect(&base, divergence_effect(h, v, n, share));
             let mut obs = self.cast(&model)?;
             if threshold {
                 if let Some(p_min) = self.threshold_of(&obs) {
@@ -103,23 +145,30 @@ impl Fitting<'_> {
                             o.power = NONE;
                         }
                     }
-                    refits.push(((h, v, n), p_min));
+                    refits.push(((h, v, n, share), p_min));
                 }
             }
             let scored = self.score_all(&obs, random_of(&model));
             let total = scored.iter().flat_map(|s| &s.per_scan).sum();
             let sum = |k: usize| scored.iter().map(|s| s.terms[k]).sum::<f64>();
             tracing::debug!(
-                "divergence {h:.3} x {v:.3} mrad, {n} sub-rays: log-likelihood {total:.1} (detection {:.1}, range {:.1}, difference {:.1}, intensity {:.1})",
+                "divergence {h:.3} x {v:.3} mrad, {n} sub-rays, first echo share {share:?}: log-likelihood {total:.1} (detection {:.1}, range {:.1}, difference {:.1}, intensity {:.1})",
                 sum(0), sum(1), sum(2), sum(3)
             );
-            grid.push((h, v, n, total, scored));
+            grid.push(Point {
+                h,
+                v,
+                n,
+                share,
+                ll: total,
+                scored,
+            });
             Ok(total)
         };
         // The likelihood is sharp and not smooth in the vertical divergence (sub-rays on the
-        // ground at grazing incidence separate into echoes abruptly), so the search walks
-        // grids, not a gradient: the vertical divergence at the catalogue's typical aspect
-        // (VLP-16: 3.0 × 1.5 mrad), finer around the best, then the horizontal one. The
+        // ground at grazing incidence merge into one echo or part abruptly), so the search
+        // walks grids, not a gradient: the vertical divergence at the catalogue's typical
+        // aspect (VLP-16: 3.0 × 1.5 mrad), finer around the best, then the horizontal one. The
         // footprint is sampled with 3 and with 5 sub-rays per axis (the catalogue's default):
         // how finely the sensor's beam profile is resolved is part of the fit.
         let argmax = |pts: &[(f64, f64)],
@@ -134,8 +183,24 @@ impl Fitting<'_> {
             }
             Ok(best.0)
         };
+        // The horizontal divergence at vertical `v`: aspects from a beam twice as tall as
+        // wide to three times as wide, then ±10 %, ±20 % around the best.
+        let across = |v: f64,
+                      f: &mut dyn FnMut(f64, f64) -> Result<f64, GapError>|
+         -> Result<(), GapError> {
+            let ratios: Vec<(f64, f64)> = [0.5, 0.7, 1.0, 1.4, 2.0, 3.0]
+                .iter()
+                .map(|r| (r * v, v))
+                .collect();
+            let (h1, _) = argmax(&ratios, &mut *f)?;
+            let hs: Vec<(f64, f64)> = (-2..=2)
+                .map(|i| (h1 * (1.0 + 0.1 * f64::from(i)), v))
+                .collect();
+            argmax(&hs, f)?;
+            Ok(())
+        };
         for n in [3u32, 5] {
-            let mut f = |h: f64, v: f64| try_one(h, v, n);
+            let mut f = |h: f64, v: f64| try_one(&mut grid, h, v, n, None);
             // Steps of a factor of about 1.45 from 0.5 to 11 mrad (an 8 mrad footprint was
             // once cut off at the grid's 4 mrad end), then ±7 %, ±14 %, ±21 % around the best:
             // half way to the coarse neighbours.
@@ -149,41 +214,63 @@ impl Fitting<'_> {
                 .map(|v| (2.0 * v0, v))
                 .collect();
             let (_, v1) = argmax(&fine, &mut f)?;
-            // Aspects from a beam twice as tall as wide to three times as wide.
-            let ratios: Vec<(f64, f64)> = [0.5, 0.7, 1.0, 1.4, 2.0, 3.0]
-                .iter()
-                .map(|r| (r * v1, v1))
-                .collect();
-            let (h1, _) = argmax(&ratios, &mut f)?;
-            let hs: Vec<(f64, f64)> = (-2..=2)
-                .map(|i| (h1 * (1.0 + 0.1 * f64::from(i)), v1))
-                .collect();
-            argmax(&hs, &mut f)?;
+            across(v1, &mut f)?;
         }
-        let best = |g: &[(f64, f64, u32, f64, Vec<Scored>)]| {
-            g.iter()
-                .enumerate()
-                .max_by(|a, b| a.1 .3.total_cmp(&b.1 .3))
-                .map_or(0, |x| x.0)
-        };
-        let i = best(&grid);
+        // The echo logic. The vertical divergence shows on the road, one surface under the
+        // whole footprint, where the logic does not matter; at edges, where the horizontal one
+        // shows, a receiver that reports the first echo of a sizeable share sees a beam's width
+        // differently from one that reports the strongest. With the best beam, the shares of a
+        // first-echo receiver are tried; when one explains the runs better, the horizontal
+        // divergence is searched again with it.
+        //
+        // Only for a beam the runs show: when the best beam's gain over the current model has
+        // an interval above zero. Otherwise there is no width for the logic to explain, and
+        // the search, which costs as much again, is skipped (most rounds of a study).
+        for n in [3u32, 5] {
+            let b = best_point_of(&grid, n);
+            let (bh, bv, bll) = (grid[b].h, grid[b].v, grid[b].ll);
+            let shown = self
+                .set
+                .gain(&grid[b].scored, self.scored)
+                .interval
+                .is_some_and(|(lo, _)| lo > 0.0);
+            if !shown {
+                continue;
+            }
+            let mut first: Option<(f64, f64)> = None;
+            for s in FIRST_ECHO_SHARES {
+                let ll = try_one(&mut grid, bh, bv, n, Some(s))?;
+                if ll > bll && first.is_none_or(|(_, x)| ll > x) {
+                    first = Some((s, ll));
+                }
+            }
+            if let Some((s, _)) = first {
+                across(bv, &mut |h, v| try_one(&mut grid, h, v, n, Some(s)))?;
+            }
+        }
+        Ok(self.divergence_candidate(grid, &refits))
+    }
+
+    /// The candidate of the best point of the divergence search `grid`, with the intervals of
+    /// its parameters and the threshold re-fitted with it (`refits`).
+    fn divergence_candidate(&self, mut grid: Vec<Point>, refits: &[(Key, f64)]) -> Candidate {
+        let i = best_point(&grid);
         // Interval: the grid points chosen on resampled blocks.
-        let scores: Vec<&[Scored]> = grid.iter().map(|g| g.4.as_slice()).collect();
+        let scores: Vec<&[Scored]> = grid.iter().map(|g| g.scored.as_slice()).collect();
         let chosen = self.argmax_resampled(&scores, i);
-        let mut hs: Vec<f64> = chosen.iter().map(|&j| grid[j].0).collect();
-        let mut vs: Vec<f64> = chosen.iter().map(|&j| grid[j].1).collect();
-        let (h, v, n) = (grid[i].0, grid[i].1, grid[i].2);
-        let refit =
-            refits
-                .iter()
-                .find(|(k, _)| *k == (h, v, n))
-                .map(|(_, p)| Effect::DetectionThreshold {
-                    reference_range_m: (REFERENCE_REFLECTIVITY / p).sqrt(),
-                    reference_reflectivity: REFERENCE_REFLECTIVITY,
-                });
+        let mut hs: Vec<f64> = chosen.iter().map(|&j| grid[j].h).collect();
+        let mut vs: Vec<f64> = chosen.iter().map(|&j| grid[j].v).collect();
+        let (h, v, n, share) = (grid[i].h, grid[i].v, grid[i].n, grid[i].share);
+        let refit = refits
+            .iter()
+            .find(|(k, _)| *k == (h, v, n, share))
+            .map(|(_, p)| Effect::DetectionThreshold {
+                reference_range_m: (REFERENCE_REFLECTIVITY / p).sqrt(),
+                reference_reflectivity: REFERENCE_REFLECTIVITY,
+            });
         let h_interval = bootstrap::interval(&mut hs);
         let above = clears(h, h_interval, super::floor::DIVERGENCE_MRAD);
-        let scored = grid.swap_remove(i).4;
+        let scored = grid.swap_remove(i).scored;
         let mut params = vec![
             Param {
                 name: "horizontal_mrad".into(),
@@ -194,7 +281,7 @@ impl Fitting<'_> {
                 name: "vertical_mrad".into(),
                 value: v,
                 interval: bootstrap::interval(&mut vs)
-                    .map(|(lo, hi)| ((lo - V_STEP_MRAD).max(0.0), hi + V_STEP_MRAD)),
+                    .map(|(lo, hi)| (lo * (1.0 - V_STEP), hi * (1.0 + V_STEP))),
             },
             Param {
                 name: "sub_rays_per_axis".into(),
@@ -202,16 +289,23 @@ impl Fitting<'_> {
                 interval: None,
             },
         ];
+        if let Some(s) = share {
+            params.push(Param {
+                name: "first_echo_share".into(),
+                value: s,
+                interval: None,
+            });
+        }
         params.extend(refitted_threshold(refit.as_ref()));
         let mut c = self.candidate(
             EffectKind::BeamDivergence,
-            make(h, v, n),
+            divergence_effect(h, v, n, share),
             params,
             above,
             &scored,
         );
         c.refitted.extend(refit);
-        Ok(c)
+        c
     }
 
     pub(super) fn intensity(&self) -> Result<Candidate, GapError> {

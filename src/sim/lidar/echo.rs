@@ -11,14 +11,21 @@ use rand_distr::Distribution;
 
 /// Merges sub-ray contributions `subs` (sorted by range; each with the range its part of the
 /// footprint spans on its surface) into echoes at their power-weighted range; keeps the
-/// strongest four. Returns how many `echoes` holds.
+/// strongest four, each one's share of the `total` sub-rays in `shares`. Returns how many
+/// `echoes` holds.
 ///
 /// Neighbours in range belong to one echo when the gap between them is within `separation`
 /// (the pulse's range resolution) or within the span of either one's part: a surface at
 /// grazing incidence (the road 30 m ahead: 4 m of range under an 8 mrad footprint) returns one
 /// long, continuous pulse, not the separate echoes its sparse sub-rays would make of it. Only a
 /// gap in depth (an edge, an occluder in front of a background) separates echoes.
-fn merge(subs: &[(Echo, f64)], separation: f64, echoes: &mut [Echo; 4]) -> usize {
+fn merge(
+    subs: &[(Echo, f64)],
+    separation: f64,
+    total: usize,
+    echoes: &mut [Echo; 4],
+    shares: &mut [f64; 4],
+) -> usize {
     let mut n = 0;
     let mut i = 0;
     while i < subs.len() {
@@ -39,15 +46,17 @@ fn merge(subs: &[(Echo, f64)], separation: f64, echoes: &mut [Echo; 4]) -> usize
             power: p,
             reflectivity: group().map(|e| e.reflectivity).sum(),
         };
+        let share = (j - i) as f64 / total.max(1) as f64;
         if n < echoes.len() {
             echoes[n] = e;
+            shares[n] = share;
             n += 1;
-        } else if let Some(weakest) = echoes
-            .iter_mut()
-            .min_by(|a, b| a.power.total_cmp(&b.power))
-            .filter(|w| w.power < e.power)
+        } else if let Some(weakest) = (0..echoes.len())
+            .min_by(|&a, &b| echoes[a].power.total_cmp(&echoes[b].power))
+            .filter(|&w| echoes[w].power < e.power)
         {
-            *weakest = e;
+            echoes[weakest] = e;
+            shares[weakest] = share;
         }
         i = j;
     }
@@ -125,6 +134,8 @@ impl LidarSim<'_> {
             power: 0.0,
             reflectivity: 0.0,
         }; 4];
+        // Each echo's share of the footprint (the whole of it without divergence).
+        let mut shares = [1.0f64; 4];
         let mut n = 0usize;
         match &fx.divergence {
             None => {
@@ -152,7 +163,13 @@ impl LidarSim<'_> {
                     }
                 }
                 subs.sort_by(|a, b| a.0.range.total_cmp(&b.0.range));
-                n = merge(subs, div.separation, &mut echoes);
+                n = merge(
+                    subs,
+                    div.separation,
+                    div.pattern.offsets.len(),
+                    &mut echoes,
+                    &mut shares,
+                );
             }
         }
         if let Some((_, p, rmax, refl)) = fx.weather {
@@ -160,11 +177,16 @@ impl LidarSim<'_> {
                 let lo = self.min_range.min(rmax);
                 let r = lo + rng.random::<f64>() * (rmax - lo);
                 echoes[n] = contribution(r, refl, 1.0, 1.0);
+                shares[n] = 1.0;
                 n += 1;
             }
         }
+        let first = fx.divergence.as_ref().and_then(|d| d.first_share);
         let mut out = Returns::default();
-        for e in &mut echoes[..n] {
+        for (e, &share) in echoes[..n].iter_mut().zip(&shares) {
+            if first.is_some_and(|s| share < s - 1e-9) {
+                continue;
+            }
             if let Some(min) = fx.min_power {
                 if e.power < min {
                     continue;
@@ -177,7 +199,13 @@ impl LidarSim<'_> {
             if e.range < self.min_range || e.range > self.max_range {
                 continue;
             }
-            if out.strongest.is_none_or(|s| e.power > s.power) {
+            // A first-echo receiver reports the nearest echo it detects where a Velodyne
+            // reports the strongest.
+            let better = |s: &Echo| match first {
+                Some(_) => e.range < s.range,
+                None => e.power > s.power,
+            };
+            if out.strongest.is_none_or(|s| better(&s)) {
                 out.strongest = Some(*e);
             }
             if out.last.is_none_or(|l| e.range > l.range) {

@@ -16,6 +16,9 @@ pub(super) struct Divergence {
     /// The angle between neighbouring sub-rays (the larger axis), radians: the part of the
     /// footprint each one stands for.
     pub(super) spacing: f64,
+    /// The share of the sub-rays an echo must hold to be detected, when the receiver reports
+    /// the first echo (`first_echo_share`); `None`: every echo, the strongest reported.
+    pub(super) first_share: Option<f64>,
 }
 
 /// The effects of a model, ready to apply.
@@ -64,6 +67,7 @@ impl Compiled {
                     vertical_mrad,
                     sub_rays_per_axis,
                     range_separation_m,
+                    first_echo_share,
                 } => {
                     // A grid over the footprint's bounding box, keeping points inside the
                     // ellipse (all of them when n = 1).
@@ -98,6 +102,7 @@ impl Compiled {
                         pattern: Pattern::new(offs),
                         separation: range_separation_m,
                         spacing,
+                        first_share: first_echo_share,
                     });
                 }
                 Effect::MotionDistortion { enabled } => c.per_firing_pose = enabled,
