@@ -15,7 +15,7 @@ use rand_distr::Distribution;
 /// `echoes` holds.
 ///
 /// Neighbours in range belong to one echo when the gap between them is within `separation`
-/// (the pulse's range resolution) or within the span of either one's part: a surface at
+/// (the pulse's range resolution) plus the larger span of their parts: a surface at
 /// grazing incidence (the road 30 m ahead: 4 m of range under an 8 mrad footprint) returns one
 /// long, continuous pulse, not the separate echoes its sparse sub-rays would make of it. Only a
 /// gap in depth (an edge, an occluder in front of a background) separates echoes.
