@@ -33,19 +33,12 @@ fn divergence_effect(h: f64, v: f64, n: u32, share: Option<f64>) -> Effect {
     }
 }
 
-/// The index of the best-scoring point (0 when there is none).
-fn best_point(grid: &[Point]) -> usize {
+/// The index of the best-scoring point, of those with `n` sub-rays per axis when given (0 when
+/// there is none).
+fn best_point(grid: &[Point], n: Option<u32>) -> usize {
     grid.iter()
         .enumerate()
-        .max_by(|a, b| a.1.ll.total_cmp(&b.1.ll))
-        .map_or(0, |x| x.0)
-}
-
-/// The index of the best-scoring point with `n` sub-rays per axis (0 when there is none).
-fn best_point_of(grid: &[Point], n: u32) -> usize {
-    grid.iter()
-        .enumerate()
-        .filter(|x| x.1.n == n)
+        .filter(|x| n.is_none_or(|n| x.1.n == n))
         .max_by(|a, b| a.1.ll.total_cmp(&b.1.ll))
         .map_or(0, |x| x.0)
 }
@@ -227,7 +220,7 @@ impl Fitting<'_> {
         // an interval above zero. Otherwise there is no width for the logic to explain, and
         // the search, which costs as much again, is skipped (most rounds of a study).
         for n in [3u32, 5] {
-            let b = best_point_of(&grid, n);
+            let b = best_point(&grid, Some(n));
             let (bh, bv, bll) = (grid[b].h, grid[b].v, grid[b].ll);
             let shown = self
                 .set
@@ -254,7 +247,7 @@ impl Fitting<'_> {
     /// The candidate of the best point of the divergence search `grid`, with the intervals of
     /// its parameters and the threshold re-fitted with it (`refits`).
     fn divergence_candidate(&self, mut grid: Vec<Point>, refits: &[(Key, f64)]) -> Candidate {
-        let i = best_point(&grid);
+        let i = best_point(&grid, None);
         // Interval: the grid points chosen on resampled blocks.
         let scores: Vec<&[Scored]> = grid.iter().map(|g| g.scored.as_slice()).collect();
         let chosen = self.argmax_resampled(&scores, i);
