@@ -71,8 +71,9 @@ pub enum Effect {
         /// Reflectivity of that reference target.
         reference_reflectivity: f64,
     },
-    /// The beam is a cone, not a line: `sub_rays_per_axis²` sub-rays across the elliptical
-    /// footprint share its power. Sub-ray hits within `range_separation_m` merge into one echo at
+    /// The beam is a cone, not a line: sub-rays across the elliptical footprint share its
+    /// power, the points of a `sub_rays_per_axis`² grid that lie inside the ellipse
+    /// ([`footprint_grid`]: 5 for 3 per axis, 13 for 5). Sub-ray hits within `range_separation_m` merge into one echo at
     /// their power-weighted mean range (mixed returns between a foreground edge and what lies
     /// behind); farther apart they are separate echoes (strongest and last). A surface at
     /// grazing incidence is one echo however much range its part spans (its sub-rays merge
@@ -479,6 +480,31 @@ impl Rule {
             })
         }
     }
+}
+
+/// The sub-rays of a footprint sampled with `n` per axis, as offsets in units of its half-axes
+/// (across, along elevation): the points of an `n` × `n` grid over the footprint's bounding box
+/// that lie inside its ellipse (the centre alone for `n` = 1), in the order they are cast and
+/// merged.
+pub fn footprint_grid(n: u32) -> Vec<(f64, f64)> {
+    let n = n.max(1);
+    let at = |i: u32| {
+        if n == 1 {
+            0.0
+        } else {
+            -1.0 + 2.0 * f64::from(i) / f64::from(n - 1)
+        }
+    };
+    let mut grid = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            let (u, v) = (at(i), at(j));
+            if u * u + v * v <= 1.0 + 1e-9 {
+                grid.push((u, v));
+            }
+        }
+    }
+    grid
 }
 
 impl Effect {

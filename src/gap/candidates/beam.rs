@@ -10,7 +10,7 @@ use crate::gap::likelihood::{self, Scored};
 use crate::gap::observe::NONE;
 use crate::gap::GapError;
 use crate::sim::model::Effect;
-use crate::sim::model::EffectKind;
+use crate::sim::model::{footprint_grid, EffectKind};
 
 /// Half the last grid steps of the divergence search, relative.
 /// The bootstrap picks grid points, and a resample's own best lies up to half a step from its
@@ -162,8 +162,8 @@ impl Fitting<'_> {
         // ground at grazing incidence merge into one echo or part abruptly), so the search
         // walks grids, not a gradient: the vertical divergence at the catalogue's typical
         // aspect (VLP-16: 3.0 × 1.5 mrad), finer around the best, then the horizontal one. The
-        // footprint is sampled with 3 and with 5 sub-rays per axis (the catalogue's default):
-        // how finely the sensor's beam profile is resolved is part of the fit.
+        // footprint is sampled with 3 and, where 3 show a beam, with 5 sub-rays per axis (the
+        // catalogue's default): how finely the sensor's beam profile is resolved is part of the fit.
         let argmax = |pts: &[(f64, f64)],
                       f: &mut dyn FnMut(f64, f64) -> Result<f64, GapError>|
          -> Result<(f64, f64), GapError> {
@@ -192,7 +192,26 @@ impl Fitting<'_> {
             argmax(&hs, f)?;
             Ok(())
         };
+        // Whether the runs show the best beam sampled with `n` sub-rays per axis: its gain
+        // over the current model has an interval above zero.
+        let shown = |grid: &[Point], n: u32| {
+            let b = best_point(grid, Some(n));
+            self.set
+                .gain(&grid[b].scored, self.scored)
+                .interval
+                .is_some_and(|(lo, _)| lo > 0.0)
+        };
+        let mut counts = vec![3u32];
         for n in [3u32, 5] {
+            if n == 5 {
+                // The finer sampling refines a beam the coarser one shows; where 3 sub-rays per
+                // axis show none (most rounds of a study), 5, which cost twice as much, are
+                // not searched (two thirds of such a round's casts).
+                if !shown(&grid, 3) {
+                    break;
+                }
+                counts.push(5);
+            }
             let mut f = |h: f64, v: f64| try_one(&mut grid, h, v, n, None);
             // Steps of a factor of about 1.45 from 0.5 to 11 mrad (an 8 mrad footprint was
             // once cut off at the grid's 4 mrad end), then ±7 %, ±14 %, ±21 % around the best:
@@ -216,22 +235,25 @@ impl Fitting<'_> {
         // first-echo receiver are tried; when one explains the runs better, the horizontal
         // divergence is searched again with it.
         //
-        // Only for a beam the runs show: when the best beam's gain over the current model has
-        // an interval above zero. Otherwise there is no width for the logic to explain, and
-        // the search, which costs as much again, is skipped (most rounds of a study).
-        for n in [3u32, 5] {
-            let b = best_point(&grid, Some(n));
-            let (bh, bv, bll) = (grid[b].h, grid[b].v, grid[b].ll);
-            let shown = self
-                .set
-                .gain(&grid[b].scored, self.scored)
-                .interval
-                .is_some_and(|(lo, _)| lo > 0.0);
-            if !shown {
+        // Only for a beam the runs show. Otherwise there is no width for the logic to explain,
+        // and the search, which costs as much again, is skipped (most rounds of a study).
+        for n in counts {
+            if !shown(&grid, n) {
                 continue;
             }
+            let b = best_point(&grid, Some(n));
+            let (bh, bv, bll) = (grid[b].h, grid[b].v, grid[b].ll);
+            // Shares that ask for the same number of the footprint's sub-rays are one receiver
+            // (with 3 per axis, 5 sub-rays: 5 % and 15 % both ask for one).
+            let sub_rays = footprint_grid(n).len() as f64;
+            let mut asked: Vec<f64> = Vec::new();
             let mut first: Option<(f64, f64)> = None;
             for s in FIRST_ECHO_SHARES {
+                let k = (s * sub_rays - 1e-9).ceil();
+                if asked.contains(&k) {
+                    continue;
+                }
+                asked.push(k);
                 let ll = try_one(&mut grid, bh, bv, n, Some(s))?;
                 if ll > bll && first.is_none_or(|(_, x)| ll > x) {
                     first = Some((s, ll));

@@ -272,15 +272,15 @@ impl Fitting<'_> {
     }
 
     fn bias(&self) -> Result<Candidate, GapError> {
-        let res = self.residual_blocks(self.obs);
+        let res = bootstrap::ByValue::new(self.residual_blocks(self.obs));
         let all: Vec<u32> = vec![1; self.set.blocks.len()];
-        let b = bootstrap::weighted_median(&res, &all).unwrap_or(0.0);
+        let b = res.weighted_median(&all).unwrap_or(0.0);
         // Each resample's median by itself (on every core; in order, so the same interval).
         let mut boots: Vec<f64> = self
             .set
             .resamples
             .par_iter()
-            .filter_map(|c| bootstrap::weighted_median(&res, c))
+            .filter_map(|c| res.weighted_median(c))
             .collect();
         let interval = bootstrap::interval(&mut boots);
         // The floor is tested on the lidar's own interval (it stands for the reference's

@@ -69,30 +69,11 @@ impl Compiled {
                     range_separation_m,
                     first_echo_share,
                 } => {
-                    // A grid over the footprint's bounding box, keeping points inside the
-                    // ellipse (all of them when n = 1).
                     let n = sub_rays_per_axis as usize;
-                    let mut offs = Vec::new();
-                    for i in 0..n {
-                        for j in 0..n {
-                            let u = if n == 1 {
-                                0.0
-                            } else {
-                                -1.0 + 2.0 * i as f64 / (n - 1) as f64
-                            };
-                            let v = if n == 1 {
-                                0.0
-                            } else {
-                                -1.0 + 2.0 * j as f64 / (n - 1) as f64
-                            };
-                            if u * u + v * v <= 1.0 + 1e-9 {
-                                offs.push((
-                                    u * horizontal_mrad * 0.5e-3,
-                                    v * vertical_mrad * 0.5e-3,
-                                ));
-                            }
-                        }
-                    }
+                    let offs = crate::sim::model::footprint_grid(sub_rays_per_axis)
+                        .into_iter()
+                        .map(|(u, v)| (u * horizontal_mrad * 0.5e-3, v * vertical_mrad * 0.5e-3))
+                        .collect();
                     let spacing = if n > 1 {
                         horizontal_mrad.max(vertical_mrad) * 1e-3 / (n - 1) as f64
                     } else {
