@@ -531,6 +531,12 @@ fn a_campaign_that_cannot_run_says_why_before_any_task_runs() {
         dir.path(),
     );
     assert!(e.contains("resimulate"), "{e}");
+    // A design's step in a campaign: a plan of its own.
+    let e = refused(
+        &(head("\"check\", \"efast\"") + &drive(&rep01) + &models),
+        dir.path(),
+    );
+    assert!(e.contains("\"efast\" is not a step of a campaign"), "{e}");
     // A capture without the record step.
     let e = refused(&(head("\"check\"") + &drive(&rep01)), dir.path());
     assert!(e.contains("is a capture") && e.contains("record"), "{e}");

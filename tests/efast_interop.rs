@@ -204,6 +204,11 @@ fn coverage_lists_the_one_validation_sample_in_a_parameterization_cell() {
     );
 }
 
+/// The arguments as `hilrig_ok` takes them.
+fn args(a: &[std::ffi::OsString]) -> Vec<&std::ffi::OsStr> {
+    a.iter().map(std::ffi::OsString::as_os_str).collect()
+}
+
 /// A scenario file with the fixture's files named absolutely, and the given metric and knobs.
 fn scenario(dir: &std::path::Path, metric: &str, knobs: &[(&str, &str)]) -> std::path::PathBuf {
     let fx = common::fixture("efast");
@@ -248,22 +253,20 @@ fn efast_run_ranks_rain_extinction_above_ego_speed() {
         ],
     );
     let out = dir.path().join("out");
-    let o = common::hilrig_ok(&[
-        "efast".as_ref(),
-        "run".as_ref(),
-        "--params".as_ref(),
-        params.as_os_str(),
-        "--scenario".as_ref(),
-        sc.as_os_str(),
-        "-N".as_ref(),
-        "17".as_ref(),
-        "-M".as_ref(),
-        "2".as_ref(),
-        "--seed".as_ref(),
-        "3".as_ref(),
-        "-o".as_ref(),
-        out.as_os_str(),
-    ]);
+    let design = |command: &str, out: &std::path::Path| -> Vec<std::ffi::OsString> {
+        let mut a: Vec<std::ffi::OsString> =
+            vec!["efast".into(), command.into(), "--params".into()];
+        a.push(params.clone().into());
+        a.push("--scenario".into());
+        a.push(sc.clone().into());
+        for x in ["-N", "17", "-M", "2", "--seed", "3", "-o"] {
+            a.push(x.into());
+        }
+        a.push(out.into());
+        a
+    };
+    let run = design("run", &out);
+    let o = common::hilrig_ok(&args(&run));
     let text = String::from_utf8_lossy(&o.stdout);
     let idx: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("indices.json")).unwrap()).unwrap();
@@ -309,6 +312,52 @@ fn efast_run_ranks_rain_extinction_above_ego_speed() {
         )
     });
     assert!(y[wet] > y[dry] + 0.05, "dry {} wet {}", y[dry], y[wet]);
+
+    // The drives are tasks of a plan (34 sets, 4 to a task: 9, and the analysis). A second run
+    // finds every task's outputs up to date and makes no drive again.
+    let files = |dir: &std::path::Path| -> Vec<Vec<u8>> {
+        ["samples.csv", "outputs.csv", "indices.json"]
+            .iter()
+            .map(|f| std::fs::read(dir.join(f)).unwrap())
+            .collect()
+    };
+    let first = files(&out);
+    let again = common::hilrig_ok(&args(&run));
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(err.contains("0 tasks ran, 10 up to date"), "{err}");
+    assert!(files(&out) == first);
+
+    // The same design on a Ray cluster (PyPI `ray`: a head and two worker nodes), from its
+    // plan, gives the same files byte for byte.
+    let on_ray = dir.path().join("out-ray");
+    let mut plan_args = design("plan", &on_ray);
+    plan_args.push("--json".into());
+    let plan = common::hilrig_ok(&args(&plan_args));
+    let plan_path = dir.path().join("plan.json");
+    std::fs::write(&plan_path, &plan.stdout).unwrap();
+    let cluster = common::ray::Cluster::start();
+    let exec = Command::new(common::python())
+        .args(["-m", "hilrig_ray"])
+        .arg(&plan_path)
+        .args(["--address", &cluster.address, "--hilrig"])
+        .arg(hilrig_bin())
+        .current_dir(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("python"))
+        .env("RAY_USAGE_STATS_ENABLED", "0")
+        .output()
+        .unwrap();
+    drop(cluster);
+    let stdout = String::from_utf8_lossy(&exec.stdout);
+    assert!(
+        exec.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&exec.stderr)
+    );
+    let summary: Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(summary["counts"]["ran"], 10, "{summary}");
+    assert!(
+        files(&on_ray) == first,
+        "Ray's files differ from the local executor's"
+    );
 }
 
 /// A knob for a parameter the file lacks, a misspelt key, a metric compare does not have: exit

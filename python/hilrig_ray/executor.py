@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 PLAN_KIND = "campaign_plan"
-PLAN_SCHEMA = 3
+PLAN_SCHEMA = 4
 
 
 class PlanError(ValueError):

@@ -37,7 +37,7 @@ class LoadPlan(unittest.TestCase):
         return f.name
 
     def plan(self, tasks, **over):
-        p = {"kind": "campaign_plan", "schema": 3, "campaign": "c", "campaign_file": "/c.toml",
+        p = {"kind": "campaign_plan", "schema": 4, "campaign": "c", "campaign_file": "/c.toml",
              "out": "/o", "files": [], "tasks": tasks}
         p.update(over)
         return p

@@ -57,6 +57,9 @@ pub enum Step {
     Tables,
     /// `report` over every JSON the campaign wrote.
     Report,
+    /// A task of an eFAST design (`hilrig efast plan`: its drives, then the analysis); not a
+    /// step of a campaign file.
+    Efast,
 }
 
 impl Step {
@@ -71,6 +74,7 @@ impl Step {
             Step::Gap => "gap",
             Step::Tables => "tables",
             Step::Report => "report",
+            Step::Efast => "efast",
         }
     }
 
@@ -283,6 +287,11 @@ impl Campaign {
         let r = Resolver { path, base: &base };
         if file.steps.is_empty() {
             return Err(r.invalid("`steps` is empty: name at least one step".into()));
+        }
+        if file.steps.contains(&Step::Efast) {
+            return Err(r.invalid(
+                "\"efast\" is not a step of a campaign: an eFAST design is a plan of its own (`hilrig efast plan`, `hilrig efast run`)".into(),
+            ));
         }
         let models = file
             .models

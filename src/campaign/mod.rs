@@ -8,6 +8,7 @@
 //! not: its outputs are the commands' outputs, byte for byte. Any engine that can run a command
 //! on files can run a plan (`hilrig campaign plan --json`).
 
+pub mod efast;
 pub mod file;
 mod graph;
 pub mod local;

@@ -44,7 +44,7 @@ pub struct Plan {
 
 impl Output for Plan {
     const KIND: OutputKind = OutputKind::CampaignPlan;
-    const SCHEMA: u32 = 3;
+    const SCHEMA: u32 = 4;
 }
 
 fn s(p: &Path) -> String {

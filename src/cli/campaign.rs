@@ -270,13 +270,13 @@ pub fn run(args: CampaignArgs) -> Result<ExitCode> {
 }
 
 /// One bar over the tasks, a line per task that ends.
-struct Bars {
-    bar: indicatif::ProgressBar,
+pub(super) struct Bars {
+    pub(super) bar: indicatif::ProgressBar,
     running: Mutex<Vec<String>>,
 }
 
 impl Bars {
-    fn new(n: usize) -> Bars {
+    pub(super) fn new(n: usize) -> Bars {
         let bar = indicatif::ProgressBar::new(n as u64);
         bar.set_style(
             indicatif::ProgressStyle::with_template(

@@ -193,6 +193,23 @@ fn frequencies(n: usize, m: usize, d: usize) -> (usize, Vec<usize>) {
     (omega0, others)
 }
 
+/// Sample rows as CSV: a header of the parameters' names, then one row per line, each value
+/// written so that it reads back to the same `f64`.
+pub fn samples_csv(params: &[Parameter], rows: &[Vec<f64>]) -> String {
+    use std::fmt::Write as _;
+    let mut out = params
+        .iter()
+        .map(|q| q.name.as_str())
+        .collect::<Vec<_>>()
+        .join(",");
+    out.push('\n');
+    for r in rows {
+        let line: Vec<String> = r.iter().map(|v| format!("{v:?}")).collect();
+        let _ = writeln!(out, "{}", line.join(","));
+    }
+    out
+}
+
 /// N·D sample rows (D values each), block i studying parameter i.
 pub fn sample(
     params: &[Parameter],
@@ -253,7 +270,7 @@ fn orders(y: &[f64], m: usize, omega: usize) -> (f64, f64) {
 }
 
 /// One parameter's indices.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Indices {
     /// Parameter.
     pub name: String,

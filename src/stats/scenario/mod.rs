@@ -299,6 +299,12 @@ impl Scenario {
         })
     }
 
+    /// The four documents it reads (scene, drive, reality, model): what a drive of it depends
+    /// on, besides the files they name.
+    pub fn files(&self) -> &[PathBuf] {
+        &self.paths
+    }
+
     /// The metric ranked by.
     pub fn metric(&self) -> &str {
         &self.file.metric
