@@ -6,7 +6,8 @@
 //! compiled as ignored with a reason, so `cargo test` reports them as not run instead of passed.
 //! The same holds for SocketCAN tests, which need a `vcan0` interface (a kernel module that is
 //! not available everywhere), the report's browser test (`HILRIG_CHROMIUM`, a chromium binary)
-//! and the Foxglove reader test (`HILRIG_FOXGLOVE`, the folder with Foxglove's npm packages).
+//! the Foxglove reader test (`HILRIG_FOXGLOVE`, the folder with Foxglove's npm packages) and the
+//! campaign test in Azure Blob Storage (`HILRIG_AZURITE`, the folder with the Azurite emulator).
 
 use std::env;
 use std::path::Path;
@@ -17,6 +18,7 @@ fn main() {
     println!("cargo::rustc-check-cfg=cfg(hilrig_vcan)");
     println!("cargo::rustc-check-cfg=cfg(hilrig_chromium)");
     println!("cargo::rustc-check-cfg=cfg(hilrig_foxglove)");
+    println!("cargo::rustc-check-cfg=cfg(hilrig_azurite)");
     println!("cargo:rerun-if-changed=/sys/class/net");
     // A virtual CAN interface for SocketCAN tests (.ci/run tries to create vcan0).
     if Path::new("/sys/class/net/vcan0").exists() {
@@ -26,6 +28,7 @@ fn main() {
     println!("cargo:rerun-if-env-changed=HILRIG_PYTHON");
     println!("cargo:rerun-if-env-changed=HILRIG_CHROMIUM");
     println!("cargo:rerun-if-env-changed=HILRIG_FOXGLOVE");
+    println!("cargo:rerun-if-env-changed=HILRIG_AZURITE");
     // A headless browser for the report test (Debian's chromium, installed by .ci/run).
     if let Ok(c) = env::var("HILRIG_CHROMIUM") {
         if Path::new(&c).exists() {
@@ -40,6 +43,17 @@ fn main() {
             println!("cargo:rustc-cfg=hilrig_foxglove");
         } else {
             println!("cargo:warning=HILRIG_FOXGLOVE={d} has no node_modules/@mcap/core: the Foxglove test will not run");
+        }
+    }
+    // Azurite (npm, installed by .ci/run into tests/interop/azurite).
+    if let Ok(d) = env::var("HILRIG_AZURITE") {
+        if Path::new(&d)
+            .join("node_modules/.bin/azurite-blob")
+            .exists()
+        {
+            println!("cargo:rustc-cfg=hilrig_azurite");
+        } else {
+            println!("cargo:warning=HILRIG_AZURITE={d} has no node_modules/.bin/azurite-blob: the campaign test in Azure Blob Storage will not run");
         }
     }
     if let Ok(dir) = env::var("HILRIG_REAL_DATA") {

@@ -323,6 +323,94 @@ fn a_campaign_from_a_bucket_killed_mid_run_here_resumed_on_ray_gives_the_same_fi
     assert_eq!(compared, 27);
 }
 
+/// The campaign in Azure Blob Storage (`az://`), on Microsoft's own emulator (Azurite): two
+/// drives recorded and checked from and into a container, read back with the Azure SDK for
+/// Python, equal byte for byte to the local executor's files on the same inputs; a worker with
+/// an empty cache finds every task done.
+#[test]
+#[cfg_attr(
+    not(hilrig_azurite),
+    ignore = "needs HILRIG_AZURITE (set by .ci/run): did not run"
+)]
+fn a_campaign_in_azure_blob_storage_gives_the_local_executor_s_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = common::azure::Server::start();
+    let container = "hilrig-drives";
+    server.put(container, "fixtures/parking", &common::fixture("parking"));
+    server.put(container, "rigs", common::demo_rig().parent().unwrap());
+    let upload = dir.path().join("upload");
+    std::fs::create_dir_all(&upload).unwrap();
+    std::fs::write(
+        upload.join("campaign-az.toml"),
+        "name = \"az\"\nsteps = [\"record\", \"check\"]\nrig = \"../../rigs/demo.toml\"\n\
+         [[drive]]\nrecordings = \"rep-0[12]/drive.pcapng.zst\"\nscene = \"{dir}/scene.toml\"\n\
+         scenario = \"parking\"\n[[scenario]]\nname = \"parking\"\n",
+    )
+    .unwrap();
+    server.put(container, "fixtures/parking", &upload);
+    let file = format!("az://{container}/fixtures/parking/campaign-az.toml");
+    let out = format!("az://{container}/out");
+    // Run where nothing is on disk: whatever it writes outside the cache shows up here.
+    let work = dir.path().join("work");
+    std::fs::create_dir_all(&work).unwrap();
+    let run = |cache: &Path| {
+        let mut cmd = campaign(Path::new(&file), Path::new(&out));
+        server
+            .env(&mut cmd)
+            .env("HILRIG_CACHE", cache)
+            .current_dir(&work);
+        let o = cmd.output().unwrap();
+        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(
+            o.status.success(),
+            "{stdout}\n{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        stdout
+    };
+    let cache = dir.path().join("cache");
+    let stdout = run(&cache);
+    assert!(stdout.contains("4 ran, 0 up to date, 0 failed"), "{stdout}");
+    assert_eq!(std::fs::read_dir(&work).unwrap().count(), 0);
+    // Read back by another client: two recordings and two checks, a log and a stamp per
+    // task, and the plan.
+    let got = dir.path().join("got");
+    let blobs = server.get(container, "out", &got);
+    let theirs = outputs(&got);
+    assert_eq!(theirs.len(), 4);
+    assert_eq!(blobs, 4 + 4 + 4 + 1);
+    let stamp = std::fs::read_to_string(got.join("campaign/done/check/rep-01.json")).unwrap();
+    assert!(
+        stamp.contains(&format!("\"{out}/rec/rep-01.mcap\"")),
+        "{stamp}"
+    );
+    let again = run(&dir.path().join("another-cache"));
+    assert!(again.contains("0 ran, 4 up to date"), "{again}");
+    // The local executor on the copies the container's tasks read, into the same paths (a
+    // recording quotes its capture's path): the same files.
+    let mirror = cache.join("objects/az").join(container);
+    std::fs::remove_dir_all(mirror.join("out")).unwrap();
+    let local = campaign(
+        &mirror.join("fixtures/parking/campaign-az.toml"),
+        &mirror.join("out"),
+    )
+    .output()
+    .unwrap();
+    assert!(
+        local.status.success(),
+        "{}",
+        String::from_utf8_lossy(&local.stdout)
+    );
+    let ours = outputs(&mirror.join("out"));
+    assert_eq!(
+        ours.keys().collect::<Vec<_>>(),
+        theirs.keys().collect::<Vec<_>>()
+    );
+    for (rel, bytes) in &ours {
+        assert!(theirs[rel] == *bytes, "{} differs", rel.display());
+    }
+}
+
 /// DuckDB over the campaign's Parquet tables agrees with its JSON.
 fn duckdb_agrees(out: &Path) {
     let got: serde_json::Value = serde_json::from_slice(&common::interop_script(

@@ -2,6 +2,7 @@
 //! sink that keeps decoded points.
 #![allow(dead_code)]
 
+pub mod azure;
 pub mod gap;
 pub mod ray;
 pub mod s3;
