@@ -111,7 +111,8 @@ pub enum Effect {
         horizontal_mrad: f64,
         /// Full divergence along elevation, milliradians.
         vertical_mrad: f64,
-        /// Sub-rays per axis (odd keeps one on the beam axis).
+        /// Sub-rays per axis (odd keeps one on the beam axis; 2 is refused: its grid points are
+        /// the bounding box's corners, none inside the ellipse).
         #[serde(default = "default_sub_rays")]
         sub_rays_per_axis: u32,
         /// Echoes closer than this merge (the pulse's range resolution), metres.
@@ -416,6 +417,14 @@ impl ModelFile {
                         format!("sub_rays_per_axis = {sub_rays_per_axis}: must lie in 1..=15"),
                     ));
                 }
+                // Two per axis are the bounding box's corners, all outside the ellipse: a
+                // beam of no sub-ray would return nothing.
+                if footprint_grid(*sub_rays_per_axis).is_empty() {
+                    return Err(bad(
+                        e.name(),
+                        format!("sub_rays_per_axis = {sub_rays_per_axis}: no sub-ray of its grid lies inside the footprint's ellipse (use 1, or 3 and more)"),
+                    ));
+                }
             }
             if matches!(e, Effect::Weather { .. })
                 && !self
@@ -623,6 +632,47 @@ extinction_per_m = 0.004
             .unwrap_err()
             .to_string()
             .contains("detection_threshold"));
+    }
+
+    /// The receiver's echo logic: a share of the footprint, refused outside 0 to 1, kept through
+    /// the model file's round trip; the footprint's sub-rays it counts are the grid's points
+    /// inside the ellipse.
+    #[test]
+    fn a_first_echo_share_is_a_share_of_the_footprint() {
+        let beam = |share: &str| {
+            format!("name = \"t\"\n[[effect]]\nname = \"beam_divergence\"\nhorizontal_mrad = 3.0\nvertical_mrad = 1.5\nfirst_echo_share = {share}\n")
+        };
+        for bad in ["1.5", "-0.1"] {
+            let m: ModelFile = toml::from_str(&beam(bad)).unwrap();
+            let e = m.validate().map(|_| ()).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("first_echo_share = {bad}: must be a probability")),
+                "{e}"
+            );
+        }
+        let m: ModelFile = toml::from_str(&beam("0.25")).unwrap();
+        m.validate().unwrap();
+        let back: ModelFile = toml::from_str(&m.to_toml()).unwrap();
+        assert_eq!(back, m);
+        assert!(m.to_toml().contains("first_echo_share = 0.25"));
+        assert_eq!(footprint_grid(1), vec![(0.0, 0.0)]);
+        assert_eq!(footprint_grid(3).len(), 5);
+        assert_eq!(footprint_grid(5).len(), 13);
+        // Two per axis would be the bounding box's corners alone: refused.
+        let two = beam("0.25").replace(
+            "first_echo_share",
+            "sub_rays_per_axis = 2\nfirst_echo_share",
+        );
+        let m: ModelFile = toml::from_str(&two).unwrap();
+        let e = m.validate().map(|_| ()).unwrap_err().to_string();
+        assert!(e.contains("sub_rays_per_axis = 2: no sub-ray"), "{e}");
+        for n in (1..=15).filter(|&n| n != 2) {
+            let g = footprint_grid(n);
+            assert!(!g.is_empty(), "{n}");
+            assert!(g.iter().all(|&(u, v)| u * u + v * v <= 1.0 + 1e-9));
+            // Odd counts keep one sub-ray on the beam's axis.
+            assert_eq!(g.contains(&(0.0, 0.0)), n % 2 == 1, "{n}");
+        }
     }
 
     /// NaN and infinity, which TOML reads, in every kind of key: refused, naming the key.
