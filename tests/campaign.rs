@@ -355,18 +355,8 @@ fn a_campaign_in_azure_blob_storage_gives_the_local_executor_s_files() {
     std::fs::create_dir_all(&work).unwrap();
     let run = |cache: &Path| {
         let mut cmd = campaign(Path::new(&file), Path::new(&out));
-        server
-            .env(&mut cmd)
-            .env("HILRIG_CACHE", cache)
-            .current_dir(&work);
-        let o = cmd.output().unwrap();
-        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
-        assert!(
-            o.status.success(),
-            "{stdout}\n{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        stdout
+        server.env(&mut cmd);
+        in_the_store(cmd, cache, &work)
     };
     let cache = dir.path().join("cache");
     let stdout = run(&cache);
@@ -409,6 +399,20 @@ fn a_campaign_in_azure_blob_storage_gives_the_local_executor_s_files() {
     for (rel, bytes) in &ours {
         assert!(theirs[rel] == *bytes, "{} differs", rel.display());
     }
+}
+
+/// Runs the campaign command `cmd` (its store's environment set) with `cache` as its cache and
+/// `work` as its working folder; asserts it succeeded and returns its standard output.
+fn in_the_store(mut cmd: Command, cache: &Path, work: &Path) -> String {
+    cmd.env("HILRIG_CACHE", cache).current_dir(work);
+    let o = cmd.output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        o.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    stdout
 }
 
 /// DuckDB over the campaign's Parquet tables agrees with its JSON.
@@ -891,18 +895,8 @@ fn in_a_bucket(server: &common::s3::Server, d: &Path, got: &Path) -> (PathBuf, P
     std::fs::create_dir_all(&work).unwrap();
     let run = |cache: &Path| {
         let mut cmd = campaign(Path::new(&file), Path::new(&out));
-        server
-            .env(&mut cmd)
-            .env("HILRIG_CACHE", cache)
-            .current_dir(&work);
-        let o = cmd.output().unwrap();
-        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
-        assert!(
-            o.status.success(),
-            "{stdout}\n{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        stdout
+        server.env(&mut cmd);
+        in_the_store(cmd, cache, &work)
     };
     let stdout = run(&cache);
     assert!(

@@ -18,6 +18,7 @@ pub mod plan;
 mod resolve;
 pub mod staged;
 pub mod stamp;
+mod step;
 pub mod store;
 pub mod tables;
 mod task;

@@ -53,31 +53,29 @@ impl Server {
             .env("AZURITE_BLOB_STORAGE_URL", &self.endpoint)
     }
 
-    /// Puts the tree `dir` under `container/prefix` (the Azure SDK for Python).
+    /// Puts the tree `dir` under `container/prefix` (the Azure SDK for Python; the container is
+    /// made if missing).
     pub fn put(&self, container: &str, prefix: &str, dir: &std::path::Path) {
-        super::interop_script(
+        super::objects_script(
             "azure_objects.py",
-            &[
-                self.endpoint.as_ref(),
-                "put".as_ref(),
-                container.as_ref(),
-                prefix.as_ref(),
-                dir.as_os_str(),
-            ],
+            &self.endpoint,
+            "put",
+            container,
+            prefix,
+            dir,
         );
     }
 
-    /// Gets every blob under `container/prefix` into `dir`; returns how many.
+    /// Gets everything under `container/prefix` into `dir` (the Azure SDK for Python); how many
+    /// objects there were.
     pub fn get(&self, container: &str, prefix: &str, dir: &std::path::Path) -> usize {
-        let out = super::interop_script(
+        let out = super::objects_script(
             "azure_objects.py",
-            &[
-                self.endpoint.as_ref(),
-                "get".as_ref(),
-                container.as_ref(),
-                prefix.as_ref(),
-                dir.as_os_str(),
-            ],
+            &self.endpoint,
+            "get",
+            container,
+            prefix,
+            dir,
         );
         String::from_utf8_lossy(&out).trim().parse().unwrap()
     }

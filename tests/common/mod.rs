@@ -308,6 +308,28 @@ pub fn resim(
     ]);
 }
 
+/// An object store's test client (`s3_objects.py`, `azure_objects.py`): `op` (put or get) of the
+/// tree `dir` under `bucket/prefix` on the server at `endpoint`; its standard output.
+pub fn objects_script(
+    script: &str,
+    endpoint: &str,
+    op: &str,
+    bucket: &str,
+    prefix: &str,
+    dir: &std::path::Path,
+) -> Vec<u8> {
+    interop_script(
+        script,
+        &[
+            endpoint.as_ref(),
+            op.as_ref(),
+            bucket.as_ref(),
+            prefix.as_ref(),
+            dir.as_os_str(),
+        ],
+    )
+}
+
 /// Runs `tests/interop/SCRIPT` with the reference venv's Python and `args`; asserts it
 /// succeeded and returns its standard output.
 pub fn interop_script(script: &str, args: &[&std::ffi::OsStr]) -> Vec<u8> {

@@ -69,32 +69,15 @@ impl Server {
             .env("AWS_ALLOW_HTTP", "true")
     }
 
-    /// Puts the tree `dir` under `bucket/prefix` (boto3).
+    /// Puts the tree `dir` under `bucket/prefix` (boto3; the bucket is made if missing).
     pub fn put(&self, bucket: &str, prefix: &str, dir: &std::path::Path) {
-        super::interop_script(
-            "s3_objects.py",
-            &[
-                self.endpoint.as_ref(),
-                "put".as_ref(),
-                bucket.as_ref(),
-                prefix.as_ref(),
-                dir.as_os_str(),
-            ],
-        );
+        super::objects_script("s3_objects.py", &self.endpoint, "put", bucket, prefix, dir);
     }
 
-    /// Gets every object under `bucket/prefix` into `dir` (boto3); how many there were.
+    /// Gets everything under `bucket/prefix` into `dir` (boto3); how many objects there were.
     pub fn get(&self, bucket: &str, prefix: &str, dir: &std::path::Path) -> usize {
-        let out = super::interop_script(
-            "s3_objects.py",
-            &[
-                self.endpoint.as_ref(),
-                "get".as_ref(),
-                bucket.as_ref(),
-                prefix.as_ref(),
-                dir.as_os_str(),
-            ],
-        );
+        let out =
+            super::objects_script("s3_objects.py", &self.endpoint, "get", bucket, prefix, dir);
         String::from_utf8_lossy(&out).trim().parse().unwrap()
     }
 }

@@ -6,10 +6,10 @@ usage: azure_objects.py ENDPOINT put CONTAINER PREFIX DIR   (the container is ma
        azure_objects.py ENDPOINT get CONTAINER PREFIX DIR   (prints how many blobs it got)
 """
 
-import os
 import sys
 
 from azure.storage.blob import BlobServiceClient
+from object_tree import destination, names
 
 # Azurite's development account and key (public, the same in every emulator).
 ACCOUNT = "devstoreaccount1"
@@ -25,19 +25,14 @@ def main(endpoint, op, container, prefix, local):
     if op == "put":
         if not c.exists():
             c.create_container()
-        for d, _, files in os.walk(local):
-            for f in files:
-                path = os.path.join(d, f)
-                name = f"{prefix}/{os.path.relpath(path, local)}".lstrip("/")
-                with open(path, "rb") as data:
-                    c.upload_blob(name, data, overwrite=True)
+        for path, name in names(local, prefix):
+            with open(path, "rb") as data:
+                c.upload_blob(name, data, overwrite=True)
         return 0
     if op == "get":
         n = 0
         for b in c.list_blobs(name_starts_with=prefix):
-            dest = os.path.join(local, os.path.relpath(b.name, prefix))
-            os.makedirs(os.path.dirname(dest), exist_ok=True)
-            with open(dest, "wb") as f:
+            with open(destination(local, prefix, b.name), "wb") as f:
                 f.write(c.download_blob(b.name).readall())
             n += 1
         print(n)

@@ -5,10 +5,10 @@ usage: s3_objects.py ENDPOINT put BUCKET PREFIX DIR   (the bucket is made if mis
        s3_objects.py ENDPOINT get BUCKET PREFIX DIR   (prints how many objects it got)
 """
 
-import os
 import sys
 
 import boto3
+from object_tree import destination, names
 
 
 def main(endpoint, op, bucket, prefix, local):
@@ -22,19 +22,14 @@ def main(endpoint, op, bucket, prefix, local):
     if op == "put":
         if bucket not in [b["Name"] for b in s3.list_buckets().get("Buckets", [])]:
             s3.create_bucket(Bucket=bucket)
-        for d, _, files in os.walk(local):
-            for f in files:
-                path = os.path.join(d, f)
-                key = f"{prefix}/{os.path.relpath(path, local)}".lstrip("/")
-                s3.upload_file(path, bucket, key)
+        for path, key in names(local, prefix):
+            s3.upload_file(path, bucket, key)
         return 0
     if op == "get":
         n = 0
         for page in s3.get_paginator("list_objects_v2").paginate(Bucket=bucket, Prefix=prefix):
             for o in page.get("Contents", []):
-                dest = os.path.join(local, os.path.relpath(o["Key"], prefix))
-                os.makedirs(os.path.dirname(dest), exist_ok=True)
-                s3.download_file(bucket, o["Key"], dest)
+                s3.download_file(bucket, o["Key"], destination(local, prefix, o["Key"]))
                 n += 1
         print(n)
         return 0
