@@ -308,6 +308,18 @@ pub fn resim(
     ]);
 }
 
+/// Waits until `ready` holds, at most a minute, else fails naming `what` did not start.
+pub fn wait_until(what: &str, ready: impl Fn() -> bool) {
+    let started = std::time::Instant::now();
+    while !ready() {
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(60),
+            "{what} did not start"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+}
+
 /// An object store's test client (`s3_objects.py`, `azure_objects.py`): `op` (put or get) of the
 /// tree `dir` under `bucket/prefix` on the server at `endpoint`; its standard output.
 pub fn objects_script(

@@ -2,7 +2,7 @@
 //! venv), on a free port of this machine, killed when dropped.
 
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// A running server.
 pub struct Server {
@@ -47,14 +47,7 @@ impl Server {
             child,
             endpoint: format!("http://127.0.0.1:{port}"),
         };
-        let started = Instant::now();
-        while !answers(port) {
-            assert!(
-                started.elapsed() < Duration::from_secs(60),
-                "the S3 server did not start"
-            );
-            std::thread::sleep(Duration::from_millis(100));
-        }
+        super::wait_until("the S3 server", || answers(port));
         server
     }
 
