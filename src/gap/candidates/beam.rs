@@ -201,18 +201,10 @@ impl Fitting<'_> {
                 .interval
                 .is_some_and(|(lo, _)| lo > 0.0)
         };
-        let mut counts = vec![3u32];
-        for n in [3u32, 5] {
-            if n == 5 {
-                // The finer sampling refines a beam the coarser one shows; where 3 sub-rays per
-                // axis show none (most rounds of a study), 5, which cost twice as much, are
-                // not searched (two thirds of such a round's casts).
-                if !shown(&grid, 3) {
-                    break;
-                }
-                counts.push(5);
-            }
-            let mut f = |h: f64, v: f64| try_one(&mut grid, h, v, n, None);
+        // The vertical divergence at the typical aspect, then the horizontal one, with `n`
+        // sub-rays per axis.
+        let mut walk = |grid: &mut Vec<Point>, n: u32| -> Result<(), GapError> {
+            let mut f = |h: f64, v: f64| try_one(grid, h, v, n, None);
             // Steps of a factor of about 1.45 from 0.5 to 11 mrad (an 8 mrad footprint was
             // once cut off at the grid's 4 mrad end), then ±7 %, ±14 %, ±21 % around the best:
             // half way to the coarse neighbours.
@@ -226,7 +218,19 @@ impl Fitting<'_> {
                 .map(|v| (2.0 * v0, v))
                 .collect();
             let (_, v1) = argmax(&fine, &mut f)?;
-            across(v1, &mut f)?;
+            across(v1, &mut f)
+        };
+        walk(&mut grid, 3)?;
+        // The sub-ray counts whose best beam the runs show. The finer sampling refines a beam
+        // the coarser one shows; where 3 sub-rays per axis show none (most rounds of a study),
+        // 5, which cost twice as much, are not searched (two thirds of such a round's casts).
+        let mut counts = Vec::new();
+        if shown(&grid, 3) {
+            counts.push(3u32);
+            walk(&mut grid, 5)?;
+            if shown(&grid, 5) {
+                counts.push(5);
+            }
         }
         // The echo logic. The vertical divergence shows on the road, one surface under the
         // whole footprint, where the logic does not matter; at edges, where the horizontal one
@@ -238,9 +242,6 @@ impl Fitting<'_> {
         // Only for a beam the runs show. Otherwise there is no width for the logic to explain,
         // and the search, which costs as much again, is skipped (most rounds of a study).
         for n in counts {
-            if !shown(&grid, n) {
-                continue;
-            }
             let b = best_point(&grid, Some(n));
             let (bh, bv, bll) = (grid[b].h, grid[b].v, grid[b].ll);
             // Shares that ask for the same number of the footprint's sub-rays are one receiver
