@@ -360,6 +360,60 @@ fn efast_run_ranks_rain_extinction_above_ego_speed() {
     );
 }
 
+/// An evaluation task depends on everything its drives read, not only the scenario's four
+/// documents: the scene's actor trajectory, the drive's rig and the rig's DBC. Those are its
+/// plan inputs, whose hashes decide whether a rerun may skip it (a changed mesh or DBC must
+/// make the drives again).
+#[test]
+fn an_evaluation_task_depends_on_the_files_the_scenario_s_documents_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let params = dir.path().join("p.toml");
+    std::fs::write(
+        &params,
+        "[[parameter]]\nname = \"ego_speed\"\ndistribution = \"uniform\"\nlow = 1.0\nhigh = 5.0\n",
+    )
+    .unwrap();
+    let sc = scenario(
+        dir.path(),
+        "only_sim_share",
+        &[("ego_speed", "drive.path.cruise_speed_mps")],
+    );
+    let mut a: Vec<std::ffi::OsString> = vec!["efast".into(), "plan".into(), "--params".into()];
+    a.push(params.into());
+    a.push("--scenario".into());
+    a.push(sc.into());
+    for x in ["-N", "17", "-M", "2", "--json", "-o"] {
+        a.push(x.into());
+    }
+    a.push(dir.path().join("out").into());
+    let plan: Value = serde_json::from_slice(&common::hilrig_ok(&args(&a)).stdout).unwrap();
+    let canonical = |p: std::path::PathBuf| std::fs::canonicalize(p).unwrap();
+    let wanted = [
+        canonical(common::fixture("parking").join("pedestrian.csv")),
+        canonical(common::fixture("parking").join("scene.toml")),
+        canonical(common::demo_rig()),
+        canonical(common::demo_rig().parent().unwrap().join("hilrig-ego.dbc")),
+    ];
+    let evaluations: Vec<&Value> = plan["tasks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|t| t["args"][1] == "evaluate")
+        .collect();
+    assert!(!evaluations.is_empty(), "{plan}");
+    for t in evaluations {
+        let inputs: Vec<std::path::PathBuf> = t["inputs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|i| std::path::PathBuf::from(i.as_str().unwrap()))
+            .collect();
+        for w in &wanted {
+            assert!(inputs.contains(w), "{} not among {inputs:?}", w.display());
+        }
+    }
+}
+
 /// A knob for a parameter the file lacks, a misspelt key, a metric compare does not have: exit
 /// 2 with the reason, before any drive, and no output directory.
 #[test]

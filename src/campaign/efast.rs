@@ -11,6 +11,7 @@
 
 use super::file::Step;
 use super::plan::{Plan, PlannedFile, Task};
+use super::resolve::{named_files, Names};
 use super::CampaignError;
 use crate::stats::efast::{sample, samples_csv, Parameter};
 use crate::stats::scenario::Scenario;
@@ -126,11 +127,23 @@ impl Design<'_> {
         scenario.check(&rows[0])?;
         let params = absolute(self.params)?;
         let scenario_path = absolute(self.scenario)?;
-        let documents: Vec<PathBuf> = scenario
+        // What a drive of the scenario reads: its four documents, the scene's meshes and
+        // trajectories, the drive's rig with its DBC and calibration. All of them are the
+        // evaluation tasks' inputs, so that a changed mesh or calibration makes them run again.
+        let mut documents: Vec<PathBuf> = scenario
             .files()
             .iter()
             .map(|p| absolute(p))
             .collect::<Result<_, _>>()?;
+        let scene_files = named_files(&documents[0], Names::Scene)?;
+        documents.extend(scene_files);
+        if let Some(rig) = scenario.rig() {
+            let rig = absolute(&rig)?;
+            documents.extend(named_files(&rig, Names::Rig)?);
+            documents.push(rig);
+        }
+        let mut seen = std::collections::BTreeSet::new();
+        documents.retain(|p| seen.insert(p.clone()));
         let out = absolute(out)?;
         let layout = Layout::new(&out);
         let samples = layout.samples();

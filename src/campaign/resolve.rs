@@ -1,5 +1,6 @@
 //! Where a campaign file's paths lead, files or objects (mirror.rs), and the files a
-//! configuration names besides itself (a scene's meshes, a rig's DBC): what the planner checks
+//! configuration names besides itself (a scene's meshes, a rig's DBC and lidar calibration):
+//! what the planner checks
 //! exists before any task runs and adds to the tasks' inputs.
 
 use super::{mirror, store, CampaignError};
@@ -10,7 +11,7 @@ use std::path::{Path, PathBuf};
 pub(super) enum Names {
     /// A scene: its meshes and actors' trajectories.
     Scene,
-    /// A rig: its DBC.
+    /// A rig: its DBC and its lidar's calibration file.
     Rig,
 }
 
@@ -101,7 +102,12 @@ pub(super) fn named_files(config: &Path, names: Names) -> Result<Vec<PathBuf>, C
             Err(_) => Vec::new(),
         },
         Names::Rig => match crate::rig::Rig::from_toml(&text, &config.display().to_string()) {
-            Ok(r) => r.can.map(|c| c.dbc).into_iter().collect(),
+            Ok(r) => r
+                .can
+                .map(|c| c.dbc)
+                .into_iter()
+                .chain(r.lidar.and_then(|l| l.calibration))
+                .collect(),
             Err(_) => Vec::new(),
         },
     };

@@ -300,9 +300,17 @@ impl Scenario {
     }
 
     /// The four documents it reads (scene, drive, reality, model): what a drive of it depends
-    /// on, besides the files they name.
+    /// on, besides the files they name (the scene's meshes, the drive's [`Scenario::rig`]).
     pub fn files(&self) -> &[PathBuf] {
         &self.paths
+    }
+
+    /// The rig the drive document names, resolved against the drive file's folder (`None`
+    /// when the drive does not name one: it then fails to load, and says so).
+    pub fn rig(&self) -> Option<PathBuf> {
+        let rig = self.docs[Doc::Drive as usize].get("rig")?.as_str()?;
+        let drive = &self.paths[Doc::Drive as usize];
+        Some(drive.parent().unwrap_or(Path::new(".")).join(rig))
     }
 
     /// The metric ranked by.
