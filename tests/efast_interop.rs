@@ -412,6 +412,54 @@ fn an_evaluation_task_depends_on_the_files_the_scenario_s_documents_name() {
             assert!(inputs.contains(w), "{} not among {inputs:?}", w.display());
         }
     }
+
+    // A scenario reached through a link names its documents from its own folder, as the
+    // tasks (given the file's real path) read them: the plan checks and hashes those.
+    let real = dir.path().join("real");
+    std::fs::create_dir(&real).unwrap();
+    let drive = std::fs::read_to_string(common::fixture("efast").join("drive.toml")).unwrap();
+    assert!(drive.contains("rig = \"../../rigs/demo.toml\""), "{drive}");
+    std::fs::write(
+        real.join("drive.toml"),
+        drive.replace(
+            "rig = \"../../rigs/demo.toml\"",
+            &format!("rig = {:?}", common::demo_rig()),
+        ),
+    )
+    .unwrap();
+    let own = std::fs::read_to_string(dir.path().join("scenario.toml")).unwrap();
+    let drive_line = own.lines().find(|l| l.starts_with("drive = ")).unwrap();
+    std::fs::write(
+        real.join("scenario.toml"),
+        own.replace(drive_line, "drive = \"drive.toml\""),
+    )
+    .unwrap();
+    let linked = dir.path().join("linked");
+    std::fs::create_dir(&linked).unwrap();
+    std::os::unix::fs::symlink(real.join("scenario.toml"), linked.join("scenario.toml")).unwrap();
+    let scenario_at = a.iter().position(|x| x == "--scenario").unwrap() + 1;
+    a[scenario_at] = linked.join("scenario.toml").into();
+    let plan: Value = serde_json::from_slice(&common::hilrig_ok(&args(&a)).stdout).unwrap();
+    let real_drive = canonical(real.join("drive.toml"));
+    for t in plan["tasks"].as_array().unwrap() {
+        if t["args"][1] == "evaluate" {
+            let inputs = t["inputs"].as_array().unwrap();
+            assert!(
+                inputs.iter().any(|i| i.as_str() == real_drive.to_str()),
+                "{} not among {inputs:?}",
+                real_drive.display()
+            );
+        }
+    }
+
+    // A design writes to a folder: a bucket is refused (not taken for a folder named `s3:`).
+    let last = a.len() - 1;
+    a[last] = "s3://bucket/design".into();
+    let o = Command::new(hilrig_bin()).args(&a).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("not to object storage"), "{err}");
+    assert!(!std::path::Path::new("s3:").exists());
 }
 
 /// A knob for a parameter the file lacks, a misspelt key, a metric compare does not have: exit

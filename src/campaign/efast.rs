@@ -121,12 +121,26 @@ impl Design<'_> {
     /// Everything is checked first: the parameters, N against M, the scenario, and its knobs
     /// on the first parameter set.
     pub fn plan(&self, out: &Path) -> Result<Plan, DesignError> {
+        // The outputs are files the tasks write where they run: a folder every worker sees
+        // (this machine's, or a cluster's shared file system). A bucket URL would otherwise be
+        // taken for a local folder called `s3:`.
+        if super::mirror::is_url(out) {
+            return Err(CampaignError::Invalid {
+                path: out.to_owned(),
+                what: "an eFAST design writes to a folder (local, or shared by the cluster's \
+                       nodes), not to object storage"
+                    .into(),
+            }
+            .into());
+        }
         let ps = read_params(self.params)?;
         let rows = sample(&ps, self.n, self.m, self.seed)?;
-        let scenario = Scenario::load(self.scenario, &ps)?;
-        scenario.check(&rows[0])?;
         let params = absolute(self.params)?;
+        // Loaded from where the tasks will load it: the documents it names are found from the
+        // file's own folder, also when the path given is a link to it.
         let scenario_path = absolute(self.scenario)?;
+        let scenario = Scenario::load(&scenario_path, &ps)?;
+        scenario.check(&rows[0])?;
         // What a drive of the scenario reads: its four documents, the scene's meshes and
         // trajectories, the drive's rig with its DBC and calibration. All of them are the
         // evaluation tasks' inputs, so that a changed mesh or calibration makes them run again.
