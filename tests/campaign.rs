@@ -573,7 +573,7 @@ fn the_executors_own_tests_pass() {
     );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
-        stderr.contains("Ran 6 tests") && stderr.contains("OK"),
+        stderr.contains("Ran 7 tests") && stderr.contains("OK"),
         "{stderr}"
     );
 }
@@ -811,6 +811,36 @@ fn a_drive_that_fails_its_check_gets_its_tables_and_its_report_but_is_not_re_sim
     let stdout = String::from_utf8_lossy(&again.stdout);
     assert_eq!(again.status.code(), Some(1), "{stdout}");
     assert!(stdout.contains(": 0 ran, "), "{stdout}");
+    // The first drive's recording is replaced by one that cannot be read: its check fails
+    // (exit 2, no JSON) and nothing after it runs. What they made of the earlier recording is
+    // gone, so the report lists it as not produced instead of showing it as this run's.
+    std::fs::write(d.join("rep-01/run.mcap"), b"not an MCAP file").unwrap();
+    let third = campaign(&file, &d.join("out")).output().unwrap();
+    let stdout = String::from_utf8_lossy(&third.stdout);
+    assert_eq!(third.status.code(), Some(1), "{stdout}");
+    assert!(stdout.contains("FAILED   check/rep-01: exit 2"), "{stdout}");
+    for gone in [
+        "check/rep-01.json",
+        "sim/idealized/rep-01.mcap",
+        "compare/idealized/rep-01.json",
+        "tables/check_runs/rep-01.parquet",
+    ] {
+        assert!(!out.join(gone).exists(), "{gone} left: {stdout}");
+    }
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let absent = report["absent"].to_string();
+    for name in ["check/rep-01.json", "compare/idealized/rep-01.json"] {
+        assert!(absent.contains(name), "{name} not absent: {report}");
+    }
+    assert!(
+        !report["inputs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|i| i["name"] == "compare/idealized/rep-01.json"),
+        "{report}"
+    );
 }
 
 #[test]

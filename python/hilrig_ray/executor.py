@@ -40,26 +40,32 @@ def load_plan(path):
 
 
 def run_one(hilrig, plan_text, task_id, partial, *before):
-    """One task on this worker; `before` are the outcomes of the tasks it waits for. The plan
-    comes as text (standard input of `hilrig campaign task --plan -`), so that a worker needs
-    no disk shared with the head: a campaign whose files are in a bucket runs on any node. A
-    `partial` task (a summary: the report) runs whatever the outcomes before it."""
-    for dep in before:
-        if not dep["passes"] and not partial:
-            return {
-                "task": task_id,
-                "outcome": "not_run",
-                "exit": None,
-                "passes": False,
-                "why": f"{dep['task']}: {dep['outcome']}",
-            }
-    proc = subprocess.run(
-        [hilrig, "campaign", "task", "--plan", "-", task_id],
-        input=plan_text,
-        capture_output=True,
-        text=True,
-        check=False,
-    )
+    """One task on this worker, once the tasks it waits for have ended (`before`: their
+    outcomes, passed as Ray object references for the ordering). The plan comes as text
+    (standard input of `hilrig campaign task --plan -`), so that a worker needs no disk shared
+    with the head: a campaign whose files are in a bucket runs on any node.
+
+    hilrig decides from the stamps whether the tasks before it passed (a `partial` task, the
+    report, runs whatever their outcomes), and a task that does not run removes what it left in
+    an earlier run, so that the report does not show it as this run's: it is asked even when
+    a task before it failed here."""
+    del partial, before
+    try:
+        proc = subprocess.run(
+            [hilrig, "campaign", "task", "--plan", "-", task_id],
+            input=plan_text,
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+    except OSError as e:
+        return {
+            "task": task_id,
+            "outcome": "failed",
+            "exit": None,
+            "passes": False,
+            "why": f"cannot start {hilrig}: {e}",
+        }
     lines = proc.stdout.strip().splitlines()
     if proc.returncode not in (0, 1) or not lines:
         return {

@@ -1,6 +1,6 @@
-"""The Ray executor's own tests: what it accepts as a plan, and how a task whose predecessor did
-not pass is answered without running hilrig. (The cluster itself is exercised by
-tests/campaign_ray.rs, which starts one.)"""
+"""The Ray executor's own tests: what it accepts as a plan, and that a task whose predecessor did
+not pass is still handed to hilrig, whose verdict it reports. (The cluster itself is exercised
+by tests/campaign.rs and tests/efast_interop.rs, which start one.)"""
 
 import json
 import os
@@ -60,11 +60,28 @@ class LoadPlan(unittest.TestCase):
 
 
 class RunOne(unittest.TestCase):
-    def test_a_predecessor_that_did_not_pass_stops_the_task_without_running_hilrig(self):
-        failed = {"task": "check/r1", "outcome": "ran", "exit": 1, "passes": False}
-        out = run_one("/nonexistent/hilrig", "{}", "resim/m/r1", False, failed)
+    def test_a_task_after_one_that_did_not_pass_is_still_handed_to_hilrig(self):
+        # hilrig decides from the stamps that it does not run, and removes what it left in an
+        # earlier run; its verdict is the outcome. A stand-in that answers as hilrig does.
+        with tempfile.TemporaryDirectory() as d:
+            fake = os.path.join(d, "hilrig")
+            with open(fake, "w") as f:
+                f.write(
+                    "#!/bin/sh\ncat >/dev/null\n"
+                    "echo '{\"task\": \"resim/m/r1\", \"outcome\": \"not_run\", "
+                    "\"exit\": null, \"passes\": false, \"why\": \"check/r1: exit 1\"}'\n"
+                    "exit 1\n"
+                )
+            os.chmod(fake, 0o755)
+            failed = {"task": "check/r1", "outcome": "ran", "exit": 1, "passes": False}
+            out = run_one(fake, "{}", "resim/m/r1", False, failed)
         self.assertEqual(out["outcome"], "not_run")
         self.assertIn("check/r1", out["why"])
+
+    def test_a_hilrig_that_cannot_be_started_is_a_failure(self):
+        out = run_one("/nonexistent/hilrig", "{}", "resim/m/r1", False)
+        self.assertEqual(out["outcome"], "failed")
+        self.assertIn("cannot start", out["why"])
 
     def test_a_summary_runs_after_a_predecessor_that_did_not_pass(self):
         # The report is partial: its command is started (here one that is not hilrig, so it

@@ -164,7 +164,7 @@ pub fn run(
                     }
                 }
                 if let Some(because) = blocked.filter(|_| ready) {
-                    let o = Outcome::NotRun { because };
+                    let o = not_run(plan, &staged, task, because);
                     progress.finished(task, &o);
                     states[i] = State::Done(o);
                     changed = true;
@@ -191,15 +191,20 @@ pub fn run(
             if running >= options.jobs.max(1) {
                 break;
             }
+            // Every task before it done and passed: one that failed to start a moment ago in
+            // this loop is done but did not pass, and what waits for it is settled above.
             let ready = matches!(states[i], State::Waiting)
-                && task
-                    .after
-                    .iter()
-                    .all(|d| matches!(states[index[d.as_str()]], State::Done(_)));
+                && task.after.iter().all(|d| match &states[index[d.as_str()]] {
+                    State::Done(o) => passed(task, d, o.exit()),
+                    _ => false,
+                });
             if !ready {
                 continue;
             }
-            match pull(i).and_then(|()| start(plan, task, i, options, &mut hashes, &tx)) {
+            let started = pull(i)
+                .and_then(|()| clear(plan, &staged, task))
+                .and_then(|()| start(plan, task, i, options, &mut hashes, &tx));
+            match started {
                 Ok(inputs) => {
                     progress.started(task);
                     states[i] = State::Running {
@@ -230,7 +235,10 @@ pub fn run(
             unreachable!("only running tasks are waited for");
         };
         let o = finish(plan, task, status, inputs, started.elapsed(), &mut hashes)?;
-        let o = named(&staged, pushed(&staged, task, o));
+        let o = named(
+            &staged,
+            no_result_left(plan, &staged, task, pushed(&staged, task, o)),
+        );
         progress.finished(task, &o);
         states[i] = State::Done(o);
     }
@@ -263,6 +271,51 @@ fn pushed(staged: &Option<Staged>, task: &Task, o: Outcome) -> Outcome {
             why: format!("{why} (its log was not stored: {e})"),
         },
         (Err(_), o) => o,
+    }
+}
+
+/// Removes what `task` left before, its outputs and its stamp, here and (on object storage)
+/// in the bucket: a task about to run, one that failed and one that does not run this time
+/// leave nothing that a task after them, the report or a user would take for their result. (A
+/// report runs after any outcome and says which files were not produced; a stale file would be
+/// shown as this run's.) The log stays: it says what happened.
+fn clear(plan: &Plan, staged: &Option<Staged>, task: &Task) -> Result<(), String> {
+    if let Some(s) = staged {
+        s.remove(task).map_err(|e| e.to_string())?;
+    }
+    let stamp = stamp::path(&plan.out, &task.id);
+    for p in task.outputs.iter().chain([&stamp]) {
+        match std::fs::remove_file(p) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(format!("cannot remove {}: {e}", p.display())),
+        }
+    }
+    Ok(())
+}
+
+/// `task` does not run `because` a task before it did not pass: what it left before is
+/// removed ([`clear`]).
+fn not_run(plan: &Plan, staged: &Option<Staged>, task: &Task, because: String) -> Outcome {
+    match clear(plan, staged, task) {
+        Ok(()) => Outcome::NotRun { because },
+        Err(e) => Outcome::Failed {
+            why: format!("not run ({because}), and what it left before stays: {e}"),
+        },
+    }
+}
+
+/// `o`, with what a task that failed wrote removed ([`clear`]): a failed command's files are
+/// no result.
+fn no_result_left(plan: &Plan, staged: &Option<Staged>, task: &Task, o: Outcome) -> Outcome {
+    match o {
+        Outcome::Failed { why } => match clear(plan, staged, task) {
+            Ok(()) => Outcome::Failed { why },
+            Err(e) => Outcome::Failed {
+                why: format!("{why}; {e}"),
+            },
+        },
+        o => o,
     }
 }
 
@@ -484,19 +537,12 @@ pub fn run_task(plan: &Plan, id: &str, options: &Options) -> Result<Outcome, Cam
             .ok()
             .and_then(|b| crate::output::from_slice::<Stamp>(&p, &b).ok())
             .map(|s| s.exit);
-        match exit {
-            e if passed(task, dep, e) => {}
-            Some(e) => {
-                return Ok(Outcome::NotRun {
-                    because: format!("{dep}: exit {e}"),
-                })
-            }
-            None => {
-                return Ok(Outcome::NotRun {
-                    because: format!("{dep}: not finished"),
-                })
-            }
-        }
+        let because = match exit {
+            e if passed(task, dep, e) => continue,
+            Some(e) => format!("{dep}: exit {e}"),
+            None => format!("{dep}: not finished"),
+        };
+        return Ok(named(&staged, not_run(plan, &staged, task, because)));
     }
     let mut hashes = Hashes::default();
     if !options.force {
@@ -511,11 +557,84 @@ pub fn run_task(plan: &Plan, id: &str, options: &Options) -> Result<Outcome, Cam
         .expect("found above");
     let (tx, rx) = mpsc::channel();
     let started = Instant::now();
-    let inputs = match start(plan, task, i, options, &mut hashes, &tx) {
+    let inputs = match clear(plan, &staged, task)
+        .and_then(|()| start(plan, task, i, options, &mut hashes, &tx))
+    {
         Ok(inputs) => inputs,
         Err(why) => return Ok(named(&staged, Outcome::Failed { why })),
     };
     let (_, status) = rx.recv().expect("the waiter sends once");
     let o = finish(plan, task, status, inputs, started.elapsed(), &mut hashes)?;
-    Ok(named(&staged, pushed(&staged, task, o)))
+    let o = pushed(&staged, task, o);
+    Ok(named(&staged, no_result_left(plan, &staged, task, o)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::campaign::file::Step;
+
+    struct Quiet;
+
+    impl Progress for Quiet {
+        fn started(&self, _: &Task) {}
+        fn finished(&self, _: &Task, _: &Outcome) {}
+    }
+
+    fn task(dir: &Path, id: &str, inputs: &[PathBuf], after: &[&str]) -> Task {
+        Task {
+            id: id.into(),
+            step: Step::Check,
+            args: vec!["check".into()],
+            inputs: inputs.to_vec(),
+            outputs: vec![dir.join(format!("{id}.json"))],
+            after: after.iter().map(|a| (*a).to_owned()).collect(),
+            results: vec![0],
+            gates: Vec::new(),
+            partial: false,
+            log: dir.join(format!("{id}.log")),
+        }
+    }
+
+    /// A task that cannot even start (here: no executable) fails, and a task after it does
+    /// not run: it must not be started on whatever the failed task left from an earlier run.
+    /// What both left from that run is removed, so that nothing shows it as this run's.
+    #[test]
+    fn a_task_after_one_that_failed_to_start_does_not_run_and_neither_leaves_old_outputs() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let input = d.join("run.mcap");
+        std::fs::write(&input, b"recording").unwrap();
+        let a = task(d, "a", std::slice::from_ref(&input), &[]);
+        let b = task(d, "b", &[d.join("a.json")], &["a"]);
+        for t in [&a, &b] {
+            std::fs::write(&t.outputs[0], b"an earlier run's").unwrap();
+        }
+        let plan = Plan {
+            campaign: "x".into(),
+            campaign_file: d.join("c.toml"),
+            out: d.to_owned(),
+            files: Vec::new(),
+            tasks: vec![a, b],
+        };
+        let options = Options {
+            exe: d.join("no-such-hilrig"),
+            jobs: 1,
+            force: false,
+        };
+        let summary = run(&plan, &options, &Quiet).unwrap();
+        let outcome = |id: &str| &summary.outcomes.iter().find(|o| o.0 == id).unwrap().1;
+        assert!(
+            matches!(outcome("a"), Outcome::Failed { why } if why.contains("cannot start")),
+            "{:?}",
+            outcome("a")
+        );
+        assert!(
+            matches!(outcome("b"), Outcome::NotRun { because } if because.starts_with("a: ")),
+            "{:?}",
+            outcome("b")
+        );
+        assert!(!d.join("a.json").exists() && !d.join("b.json").exists());
+        assert!(input.is_file(), "an input is never removed");
+    }
 }

@@ -103,6 +103,18 @@ impl Staged {
         Ok(())
     }
 
+    /// Deletes what `task` put before, its outputs and its stamp, from the bucket and the
+    /// mirror (see [`super::local`]'s `clear`).
+    pub fn remove(&self, task: &Task) -> Result<(), StoreError> {
+        let stamp = super::stamp::path(&self.plan.out, &task.id);
+        for p in task.outputs.iter().chain([&stamp]) {
+            if let Some(url) = self.url(p) {
+                self.store.remove(&url)?;
+            }
+        }
+        Ok(())
+    }
+
     /// Puts a file the executor wrote into the mirror (the plan itself).
     pub fn put(&self, local: &Path) -> Result<(), StoreError> {
         match self.url(local) {

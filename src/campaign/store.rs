@@ -377,6 +377,24 @@ impl Store {
         }
     }
 
+    /// Deletes the object `url` and the mirror's copy of it (one that is not there is no
+    /// error).
+    pub fn remove(&self, url: &str) -> Result<(), StoreError> {
+        let (c, key) = self.client(url)?;
+        match self.runtime.block_on(c.delete(&key)) {
+            Ok(()) | Err(object_store::Error::NotFound { .. }) => {}
+            Err(source) => {
+                return Err(StoreError::Object {
+                    url: url.into(),
+                    source,
+                })
+            }
+        }
+        let local = self.mirror.local(url);
+        remove_copy(&self.mirror.etag_path(&local))?;
+        remove_copy(&local)
+    }
+
     /// Writes `bytes` as the object `url`.
     pub fn put_bytes(&self, url: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
         let (c, key) = self.client(url)?;
