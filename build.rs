@@ -8,11 +8,63 @@
 //! not available everywhere), the report's browser test (`HILRIG_CHROMIUM`, a chromium binary)
 //! the Foxglove reader test (`HILRIG_FOXGLOVE`, the folder with Foxglove's npm packages) and the
 //! campaign test in Azure Blob Storage (`HILRIG_AZURITE`, the folder with the Azurite emulator).
+//!
+//! It also names the source the binary is built from (`HILRIG_SOURCE`: the SHA-256 of every
+//! file of the workspace's crates, their manifests and lock file, and the compiler's version),
+//! which a campaign's stamps record: a task made by another build is made again.
 
+use sha2::{Digest, Sha256};
 use std::env;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// Every file under `dir`, sorted (build output folders left out).
+fn files_under(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            if p.file_name().is_some_and(|n| n != "target") {
+                files_under(&p, out);
+            }
+        } else {
+            out.push(p);
+        }
+    }
+}
+
+/// The SHA-256 of the source the binary is built from: the crates' files (path and bytes),
+/// the manifests and lock file, and `rustc -V`.
+fn source_hash() -> String {
+    let root = PathBuf::from(env::var("CARGO_MANIFEST_DIR").expect("cargo sets it"));
+    let mut files = Vec::new();
+    for top in ["Cargo.toml", "Cargo.lock", "build.rs"] {
+        files.push(root.join(top));
+        println!("cargo:rerun-if-changed={top}");
+    }
+    for dir in ["src", "drivers"] {
+        files_under(&root.join(dir), &mut files);
+        println!("cargo:rerun-if-changed={dir}");
+    }
+    files.sort();
+    let mut h = Sha256::new();
+    for f in &files {
+        let rel = f.strip_prefix(&root).unwrap_or(f);
+        h.update(rel.to_string_lossy().as_bytes());
+        h.update([0]);
+        h.update(std::fs::read(f).unwrap_or_default());
+        h.update([0]);
+    }
+    let rustc = env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
+    if let Ok(v) = std::process::Command::new(rustc).arg("-V").output() {
+        h.update(&v.stdout);
+    }
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
 
 fn main() {
+    println!("cargo:rustc-env=HILRIG_SOURCE={}", source_hash());
     println!("cargo::rustc-check-cfg=cfg(hilrig_real_data)");
     println!("cargo::rustc-check-cfg=cfg(hilrig_python)");
     println!("cargo::rustc-check-cfg=cfg(hilrig_vcan)");

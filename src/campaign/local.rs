@@ -501,6 +501,7 @@ fn finish(
         exit: code,
         inputs,
         outputs,
+        tool: stamp::TOOL.to_owned(),
     };
     crate::output::write(&stamp::path(&plan.out, &task.id), &stamp).map_err(|e| {
         CampaignError::Invalid {

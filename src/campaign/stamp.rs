@@ -1,9 +1,10 @@
 //! What a finished task leaves behind so that the next run can skip it: the command line, the
 //! exit code, and the SHA-256 of every file it read and wrote.
 //!
-//! A task is up to date when its stamp exists, its command line is the plan's, and every input
-//! and output still has the hash the stamp gives (an output that is missing, cut short or
-//! edited makes it run again; so does an input that a task before it wrote anew). A stamp is
+//! A task is up to date when its stamp exists, this build of hilrig made it, its command line is
+//! the plan's, and every input and output still has the hash the stamp gives (an output that is
+//! missing, cut short or edited makes it run again; so does an input that a task before it
+//! wrote anew; so does a fixed hilrig). A stamp is
 //! written only after the task ended with a result, and removed before it starts: a task killed
 //! half-way has none. Content hashes, not modification times, so that a drive copied to another
 //! disk, or an output rewritten with the same bytes, does not redo the work after it.
@@ -41,12 +42,25 @@ pub struct Stamp {
     pub inputs: Vec<FileHash>,
     /// Its outputs as it left them.
     pub outputs: Vec<FileHash>,
+    /// The hilrig that ran it ([`TOOL`]): a task another build made is made again, so that a
+    /// fixed resim, compare or check does not leave the results of the build before it.
+    pub tool: String,
 }
 
 impl Output for Stamp {
     const KIND: OutputKind = OutputKind::CampaignTask;
-    const SCHEMA: u32 = 1;
+    const SCHEMA: u32 = 2;
 }
+
+/// This build of hilrig: its version and the SHA-256 of the source it was built from (the
+/// crates' files, manifests, lock file and compiler version; build.rs). The same on every
+/// node of a cluster that runs one build, whatever the path or time of its executable.
+pub const TOOL: &str = concat!(
+    "hilrig ",
+    env!("CARGO_PKG_VERSION"),
+    " source sha256:",
+    env!("HILRIG_SOURCE")
+);
 
 /// Where the stamp of task `id` lives under the output directory `out`.
 pub fn path(out: &Path, id: &str) -> PathBuf {
@@ -142,7 +156,7 @@ pub fn up_to_date(
     let Ok(stamp) = crate::output::from_slice::<Stamp>(&p, &bytes) else {
         return Ok(None);
     };
-    if stamp.args != task.args || !task.results.contains(&stamp.exit) {
+    if stamp.tool != TOOL || stamp.args != task.args || !task.results.contains(&stamp.exit) {
         return Ok(None);
     }
     let same = |now: Option<Vec<FileHash>>, then: &[FileHash]| now.is_some_and(|n| n == then);
@@ -152,4 +166,49 @@ pub fn up_to_date(
         return Ok(None);
     }
     Ok(Some(stamp.exit))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::campaign::file::Step;
+
+    /// A stamp whose files all match is up to date only when this build made it: after an
+    /// upgrade (another source, another version) the task is made again.
+    #[test]
+    fn a_stamp_of_another_build_is_out_of_date() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::write(d.join("in.mcap"), b"recording").unwrap();
+        std::fs::write(d.join("out.json"), b"{}").unwrap();
+        let task = Task {
+            id: "check/r".into(),
+            step: Step::Check,
+            args: vec!["check".into()],
+            inputs: vec![d.join("in.mcap")],
+            outputs: vec![d.join("out.json")],
+            after: Vec::new(),
+            results: vec![0, 1],
+            gates: Vec::new(),
+            partial: false,
+            log: d.join("check.log"),
+        };
+        let mut hashes = Hashes::default();
+        let stamp = |tool: &str, hashes: &mut Hashes| Stamp {
+            task: task.id.clone(),
+            args: task.args.clone(),
+            exit: 1,
+            inputs: hashes.inputs(&task).unwrap().unwrap(),
+            outputs: hashes.all(&task.outputs).unwrap().unwrap(),
+            tool: tool.into(),
+        };
+        let at = path(d, &task.id);
+        std::fs::create_dir_all(at.parent().unwrap()).unwrap();
+        crate::output::write(&at, &stamp(TOOL, &mut hashes)).unwrap();
+        assert_eq!(up_to_date(d, &task, &mut hashes).unwrap(), Some(1));
+        let other = TOOL.replace("sha256:", "sha256:0");
+        crate::output::write(&at, &stamp(&other, &mut hashes)).unwrap();
+        assert_eq!(up_to_date(d, &task, &mut hashes).unwrap(), None);
+        assert!(TOOL.starts_with("hilrig ") && TOOL.len() > 64, "{TOOL}");
+    }
 }
