@@ -573,7 +573,7 @@ fn the_executors_own_tests_pass() {
     );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
-        stderr.contains("Ran 7 tests") && stderr.contains("OK"),
+        stderr.contains("Ran 8 tests") && stderr.contains("OK"),
         "{stderr}"
     );
 }

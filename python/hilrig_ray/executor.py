@@ -115,17 +115,34 @@ def main(argv=None):
     p.add_argument("--retries", type=int, default=3, help="retries of a task whose worker was lost")
     args = p.parse_args(argv)
     try:
+        plan = load_plan(os.path.abspath(args.plan))
         outcomes = run(args.plan, args.hilrig, args.address, args.retries)
     except PlanError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    counts = {}
     for o in outcomes:
-        counts[o["outcome"]] = counts.get(o["outcome"], 0) + 1
         if o["outcome"] in ("failed", "not_run"):
             print(f"  {o['outcome']:<8} {o['task']}: {o.get('why')}")
+    counts = count(plan, outcomes)
     print(json.dumps({"outcomes": outcomes, "counts": counts}))
-    bad = counts.get("failed", 0) + counts.get("not_run", 0)
+    return exit_code(counts)
+
+
+def count(plan, outcomes):
+    """Tasks per outcome, and `checks_failed`: the drives whose check ran and failed them
+    (exit 1, a result the tasks after it may read, but one the user must see)."""
+    counts = {"checks_failed": 0}
+    for t, o in zip(plan["tasks"], outcomes):
+        counts[o["outcome"]] = counts.get(o["outcome"], 0) + 1
+        if t["step"] == "check" and o.get("exit") == 1:
+            counts["checks_failed"] += 1
+    return counts
+
+
+def exit_code(counts):
+    """0 when every task has a result that lets the tasks after it run and every drive passed
+    its check; 1 otherwise (as `hilrig campaign` exits)."""
+    bad = counts.get("failed", 0) + counts.get("not_run", 0) + counts["checks_failed"]
     return 0 if bad == 0 else 1
 
 

@@ -10,7 +10,7 @@ import unittest
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from hilrig_ray.executor import PlanError, load_plan, run_one  # noqa: E402
+from hilrig_ray.executor import PlanError, count, exit_code, load_plan, run_one  # noqa: E402
 
 
 def task(id_, after=()):
@@ -95,6 +95,19 @@ class RunOne(unittest.TestCase):
         out = run_one(sys.executable, "{}", "x", False)
         self.assertEqual(out["outcome"], "failed")
         self.assertFalse(out["passes"])
+
+
+class ExitCode(unittest.TestCase):
+    def test_a_drive_that_fails_its_check_makes_the_exit_1_as_the_local_executor_s(self):
+        plan = {"tasks": [task("check/r1"), task("check/r2"), dict(task("report"), step="report")]}
+        ran = lambda t, e: {"task": t, "outcome": "ran", "exit": e, "passes": True}  # noqa: E731
+        counts = count(plan, [ran("check/r1", 0), ran("check/r2", 1), ran("report", 1)])
+        self.assertEqual(counts["checks_failed"], 1)
+        self.assertEqual(counts["ran"], 3)
+        self.assertEqual(exit_code(counts), 1)
+        # The report's exit 1 (inputs absent) is its result, not a failed check.
+        counts = count(plan, [ran("check/r1", 0), ran("check/r2", 0), ran("report", 1)])
+        self.assertEqual(exit_code(counts), 0)
 
 
 if __name__ == "__main__":
