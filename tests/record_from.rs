@@ -1330,3 +1330,65 @@ fn foxglove_reads_the_attitude_topic() {
         assert_eq!(t["messages"].as_u64(), Some(*n as u64), "{v}");
     }
 }
+
+/// A capture taken with a snap length shorter than a lidar data packet (`tcpdump -s 1000`):
+/// every data packet is cut, the reader cannot use them, and `record` says so: the damaged
+/// records counted per reason (on stderr and in `hilrig/end`), an error that no lidar packet
+/// was recorded and why, exit 1. (They used to vanish: no lidar, nothing said, exit 0.) The
+/// position packets, shorter than the snap length, are whole and recorded.
+#[test]
+fn a_capture_cut_by_its_snap_length_is_an_error_naming_the_damaged_records() {
+    let drive = common::lidar_capture(Model::Vlp16, ReturnMode::Strongest, 50, true);
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("snapped.pcap");
+    // Classic pcap, microseconds, Ethernet, snap length 1000.
+    let snap = 1000usize;
+    let mut pcap = Vec::new();
+    pcap.extend_from_slice(&0xa1b2_c3d4u32.to_le_bytes());
+    pcap.extend_from_slice(&2u16.to_le_bytes());
+    pcap.extend_from_slice(&4u16.to_le_bytes());
+    pcap.extend_from_slice(&[0; 8]);
+    pcap.extend_from_slice(&(snap as u32).to_le_bytes());
+    pcap.extend_from_slice(&1u32.to_le_bytes());
+    let mut r = hilrig::capture::Demux::new(
+        hilrig::capture::CaptureReader::new(std::io::Cursor::new(drive.capture.clone())).unwrap(),
+    );
+    let (mut cut, mut whole) = (0u64, 0u64);
+    while let Some(item) = r.next_item() {
+        let item = item.unwrap();
+        let hilrig::capture::demux::Packet::Udp { src, dst, payload } = item.packet else {
+            panic!("only UDP in the capture");
+        };
+        let frame = udp_ethernet_frame(src, dst, payload);
+        let kept = &frame[..frame.len().min(snap)];
+        if kept.len() < frame.len() {
+            cut += 1;
+        } else {
+            whole += 1;
+        }
+        let us = item.time.0 / 1000;
+        pcap.extend_from_slice(&((us / 1_000_000) as u32).to_le_bytes());
+        pcap.extend_from_slice(&((us % 1_000_000) as u32).to_le_bytes());
+        pcap.extend_from_slice(&(kept.len() as u32).to_le_bytes());
+        pcap.extend_from_slice(&(frame.len() as u32).to_le_bytes());
+        pcap.extend_from_slice(kept);
+    }
+    assert_eq!(cut, 50);
+    assert!(whole > 0, "the position packets fit");
+    std::fs::write(&input, pcap).unwrap();
+    let out = dir.path().join("snapped.mcap");
+    let st = common::record_from(&lidar_rig(dir.path(), "vlp16"), &[&input], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{stderr}");
+    for line in [
+        "50 capture records not recorded: damaged (cut_by_snap_length)",
+        "error: no lidar data packets to port 2368 recorded; 50 capture records were damaged (cut_by_snap_length)",
+    ] {
+        assert!(stderr.contains(line), "{line:?} in {stderr}");
+    }
+    let info = hilrig::bag::info::info(&out).unwrap();
+    let end = &info.metadata["hilrig/end"];
+    assert_eq!(end["capture_damaged_records"], "50");
+    assert_eq!(end["capture_damaged_records.cut_by_snap_length"], "50");
+    assert!(common::lidar_data(&out).is_empty());
+}

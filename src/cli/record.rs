@@ -89,6 +89,27 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
     // A rig with a lidar whose ports match nothing in the captures records no lidar at all:
     // say where the captures' UDP traffic went instead of reporting nothing lost.
     // (Inputs without any UDP traffic, such as CAN and GNSS logs, have no lidar to miss.)
+    // Records the capture's reader could not use: damaged ones may have been the rig's data.
+    let skips = &summary.capture_records;
+    for (reason, n) in &skips.damaged {
+        eprintln!("error: {out}: {n} capture records not recorded: damaged ({reason})");
+    }
+    for (reason, n) in &skips.other {
+        eprintln!("note: {out}: {n} capture records of other traffic ignored ({reason})");
+    }
+    let damaged = skips.damaged_total();
+    if let Some(l) = rig
+        .lidar
+        .as_ref()
+        .filter(|_| !lidar_recorded && damaged > 0)
+    {
+        let reasons: Vec<&str> = skips.damaged.keys().copied().collect();
+        eprintln!(
+            "error: no lidar data packets to port {} recorded; {damaged} capture records were damaged ({}): a capture cut by its snap length (tcpdump -s) loses every lidar packet",
+            l.data_port,
+            reasons.join(", ")
+        );
+    }
     let no_lidar = rig
         .lidar
         .as_ref()
@@ -110,6 +131,7 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
             && no_lidar.is_none()
             && rejects.is_empty()
             && gnss_rejects.is_empty()
+            && damaged == 0
         {
             ExitCode::SUCCESS
         } else {

@@ -101,6 +101,79 @@ pub struct RecordSummary {
     /// Attitude reports not written to /gnss/attitude because they came before the stream
     /// showed its date (their raw sentences and frames are in /gnss/nmea and /gnss/ubx).
     pub attitude_untimed: u64,
+    /// Capture records the reader could not use, per reason.
+    pub capture_records: CaptureSkips,
+}
+
+/// Capture records that reached no topic, per reason (the reason's key, see [`skip_key`]).
+/// A damaged record (cut by the capture's snap length, a truncated or inconsistent header, a
+/// malformed CAN frame, a fragment whose datagram never completed) may have held the rig's
+/// data: any makes `record` exit 1, and a capture whose lidar packets were all damaged says
+/// so. Other traffic (not IPv4, not UDP, a link type the reader does not decode) is counted
+/// for the record only.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct CaptureSkips {
+    /// Damaged records.
+    pub damaged: BTreeMap<&'static str, u64>,
+    /// Other traffic.
+    pub other: BTreeMap<&'static str, u64>,
+}
+
+impl CaptureSkips {
+    /// Adds what a capture's reader skipped.
+    fn add(&mut self, stats: &hilrig_capture::demux::Stats) {
+        for (reason, n) in &stats.skipped {
+            let (key, damaged) = skip_key(*reason);
+            let to = if damaged {
+                &mut self.damaged
+            } else {
+                &mut self.other
+            };
+            *to.entry(key).or_insert(0) += n;
+        }
+        if stats.fragments_dropped > 0 {
+            *self.damaged.entry("incomplete_ipv4_fragments").or_insert(0) +=
+                stats.fragments_dropped;
+        }
+    }
+
+    /// Damaged records in all.
+    pub fn damaged_total(&self) -> u64 {
+        self.damaged.values().sum()
+    }
+
+    /// The counts as `hilrig/end` metadata: `capture_damaged_records` (total) and
+    /// `capture_damaged_records.KEY`, `capture_other_records.KEY`.
+    fn write_metadata(&self, meta: &mut BTreeMap<String, String>) {
+        meta.insert(
+            "capture_damaged_records".to_owned(),
+            self.damaged_total().to_string(),
+        );
+        for (k, n) in &self.damaged {
+            meta.insert(format!("capture_damaged_records.{k}"), n.to_string());
+        }
+        for (k, n) in &self.other {
+            meta.insert(format!("capture_other_records.{k}"), n.to_string());
+        }
+    }
+}
+
+/// A skip reason's key, and whether the record was damaged (it may have been the rig's data)
+/// rather than other traffic.
+pub fn skip_key(reason: hilrig_capture::SkipReason) -> (&'static str, bool) {
+    use hilrig_capture::SkipReason as S;
+    match reason {
+        S::CutBySnapLength => ("cut_by_snap_length", true),
+        S::TruncatedLinkHeader => ("truncated_link_header", true),
+        S::TruncatedIpv4 => ("truncated_ipv4", true),
+        S::BadIpv4Header => ("bad_ipv4_header", true),
+        S::TruncatedUdp => ("truncated_udp", true),
+        S::BadUdpLength => ("bad_udp_length", true),
+        S::BadCanFrame => ("bad_can_frame", true),
+        S::NotIpv4 => ("not_ipv4", false),
+        S::NotUdp(_) => ("not_udp", false),
+        S::UnsupportedLinkType(_) => ("unsupported_link_type", false),
+    }
 }
 
 struct Context<'a> {
@@ -342,6 +415,10 @@ impl Context<'_> {
                     }
                 }
             }
+        }
+        if out.is_some() {
+            // Counted once, in the pass that writes.
+            summary.capture_records.add(demux.stats());
         }
         if out.is_none() {
             for i in serial_seen {
@@ -916,6 +993,7 @@ pub fn record_from(
         summary.lidar_rejects.write_metadata(&mut meta);
     }
     summary.gnss_rejects.write_metadata(&mut meta);
+    summary.capture_records.write_metadata(&mut meta);
     out.bag.metadata("hilrig/end", meta)?;
     summary.counts = out.bag.finish()?;
     Ok(summary)
