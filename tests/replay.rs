@@ -647,6 +647,51 @@ fn can_frames_replayed_from_a_recording_are_the_captured_ones() {
     assert_eq!(got, frames);
 }
 
+/// A CAN FD frame in a recording (a raw packet on /can/fd_frames): the CAN sink sends classic
+/// frames only, so replay counts it, says so and exits 1 instead of passing over it.
+#[test]
+fn a_recorded_can_fd_frame_that_replay_cannot_send_is_counted_and_exit_1() {
+    use hilrig::capture::CanFrame;
+    let frames = vec![
+        CanFrame::new(0x123, false, &[1, 2, 3]).unwrap(),
+        CanFrame::new_fd(0x124, false, &[7; 24], true).unwrap(),
+        CanFrame::new(0x125, false, &[4]).unwrap(),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let cap = can_capture(dir.path(), &frames);
+    let out = dir.path().join("fd.mcap");
+    let st = common::record_from(&common::demo_rig(), &[&cap], &out);
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    // On its own topic: /can/frames holds can_msgs/msg/Frame only (it once took the FD
+    // frame's raw packet too, which every reader then decoded as a classic frame).
+    let info = hilrig::bag::info::info(&out).unwrap();
+    let channel = |topic: &str| {
+        info.channels
+            .iter()
+            .find(|c| c.topic == topic)
+            .map(|c| (c.message_type.clone(), c.count))
+    };
+    assert_eq!(
+        channel("/can/frames"),
+        Some(("can_msgs/msg/Frame".to_owned(), 2))
+    );
+    assert_eq!(
+        channel("/can/fd_frames"),
+        Some(("hilrig_msgs/msg/RawPacket".to_owned(), 1))
+    );
+    let (code, (_, _, _, stderr)) = receive_with_status(&out, &[], Duration::from_millis(200));
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("1 recorded CAN frames were not replayed (CAN FD frames"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("(2 without a destination)"), "{stderr}");
+}
+
 /// The room capture with its position frames as early VLP-16 firmware writes them: the IPv4
 /// total length of a data packet (1234) in a 554-byte frame, the UDP length right. Returns the
 /// file and the original position payloads.

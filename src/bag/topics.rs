@@ -13,8 +13,11 @@ pub const GNSS_UBX: &str = "/gnss/ubx";
 pub const GNSS_FIX: &str = "/gnss/fix";
 /// Attitude reports of the reference system (INS, dual antenna): `hilrig_msgs/msg/Attitude`.
 pub const GNSS_ATTITUDE: &str = "/gnss/attitude";
-/// CAN frames.
+/// Classic CAN frames: `can_msgs/msg/Frame`.
 pub const CAN_FRAMES: &str = "/can/frames";
+/// CAN FD frames, which `can_msgs/msg/Frame` cannot hold: `hilrig_msgs/msg/RawPacket` with
+/// the frame as a SocketCAN `canfd_frame` (its own topic: one topic has one message type).
+pub const CAN_FD_FRAMES: &str = "/can/fd_frames";
 /// Ego speed and yaw rate.
 pub const EGO_TWIST: &str = "/ego/twist";
 /// Rig extrinsics.

@@ -77,6 +77,19 @@ pub enum BagError {
         #[source]
         source: mcap::McapError,
     },
+    /// A message of another type than the topic's (its readers would decode it as the
+    /// topic's type): a program error, refused instead of written.
+    #[error("{path}: a {ty} message on {topic}, whose messages are {was}")]
+    MixedTypes {
+        /// The file.
+        path: String,
+        /// The topic.
+        topic: String,
+        /// The message's type.
+        ty: &'static str,
+        /// The topic's type.
+        was: &'static str,
+    },
 }
 
 /// Writes one MCAP file.
@@ -85,7 +98,8 @@ struct OneFile {
     active: PathBuf,
     target: PathBuf,
     schemas: HashMap<&'static str, u16>,
-    channels: HashMap<String, (u16, u32)>,
+    /// Per topic: its channel, the last sequence number, its message type.
+    channels: HashMap<String, (u16, u32, &'static str)>,
     counts: BTreeMap<String, u64>,
     chunk_started: Option<UtcNanos>,
 }
@@ -157,9 +171,17 @@ impl OneFile {
             _ => {}
         }
         let (channel, seq) = match self.channels.get_mut(topic) {
+            Some(c) if c.2 != ty.name => {
+                return Err(BagError::MixedTypes {
+                    path: self.active.display().to_string(),
+                    topic: topic.to_owned(),
+                    ty: ty.name,
+                    was: c.2,
+                })
+            }
             Some(c) => {
                 c.1 += 1;
-                *c
+                (c.0, c.1)
             }
             None => {
                 let schema = match self.schemas.get(ty.name) {
@@ -177,7 +199,7 @@ impl OneFile {
                     .writer
                     .add_channel(schema, topic, "cdr", &BTreeMap::new())
                     .map_err(|e| self.err(e))?;
-                self.channels.insert(topic.to_owned(), (c, 1));
+                self.channels.insert(topic.to_owned(), (c, 1, ty.name));
                 (c, 1)
             }
         };

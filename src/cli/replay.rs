@@ -132,6 +132,14 @@ pub fn run(args: ReplayArgs) -> Result<ExitCode> {
                 hilrig::replay::load::REORDER_HORIZON_NS / 1_000_000_000
             );
         }
+        if s.not_replayed > 0 {
+            eprintln!(
+                "error: {}: {} recorded CAN frames were not replayed (CAN FD frames, or frames that are not classic CAN frames: the CAN sink sends classic frames only)",
+                path.display(),
+                s.not_replayed
+            );
+            damaged = true;
+        }
         if let Some(e) = &s.damage {
             // What was read before the damage was replayed; the exit status says it was not all.
             eprintln!(

@@ -617,7 +617,7 @@ impl Context<'_> {
             .to_owned();
         if frame.fd {
             o.bag.write(
-                topics::CAN_FRAMES,
+                topics::CAN_FD_FRAMES,
                 &msgs::raw_packet_type(),
                 host,
                 host,

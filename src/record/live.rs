@@ -737,19 +737,24 @@ async fn can_task(
         let Ok(f) = f else { continue };
         h.received.fetch_add(1, Ordering::Relaxed);
         let host = f.host;
-        let (ty, cdr) = if f.value.fd {
+        let (topic, ty, cdr) = if f.value.fd {
             (
+                crate::bag::topics::CAN_FD_FRAMES,
                 &t["raw"],
                 msgs::raw_packet(host, &iface, &f.value.encode_socketcan()),
             )
         } else {
-            (&t["can"], msgs::can_frame(host, &iface, &f.value))
+            (
+                crate::bag::topics::CAN_FRAMES,
+                &t["can"],
+                msgs::can_frame(host, &iface, &f.value),
+            )
         };
         send(
             &tx,
             &h,
             Event {
-                topic: crate::bag::topics::CAN_FRAMES,
+                topic,
                 ty,
                 log_time: host,
                 publish_time: host,

@@ -119,6 +119,10 @@ pub struct Streamed {
     pub out_of_order: u64,
     /// Damage that ended the reading early (everything before it was handed over).
     pub damage: Option<String>,
+    /// Recorded CAN frames replay cannot send: CAN FD frames (recorded as raw packets on
+    /// /can/frames) and frames that do not make a classic CAN frame. Counted, never silently
+    /// passed over.
+    pub not_replayed: u64,
 }
 
 /// Streams a capture (in file order) or an MCAP recording (in time order, through a reorder
@@ -234,7 +238,9 @@ fn stream_mcap(
             return Ok(());
         };
         batch.clear();
-        message_into(&m, &mut batch)?;
+        if !message_into(&m, &mut batch)? {
+            out.not_replayed += 1;
+        }
         latest = latest.max(m.log_time as i64);
         for item in batch.drain(..) {
             if item.time.0 < sent_up_to {
@@ -316,7 +322,7 @@ pub fn schedule(
 fn load_mcap(bytes: &[u8]) -> (Vec<ReplayItem>, Option<Damage>) {
     let mut out = Vec::new();
     let damage = crate::bag::read::read(bytes, &mut |event| match event {
-        crate::bag::read::Event::Message(m) => message_into(&m, &mut out),
+        crate::bag::read::Event::Message(m) => message_into(&m, &mut out).map(|_| ()),
         _ => Ok(()),
     })
     .err()
@@ -328,11 +334,13 @@ fn load_mcap(bytes: &[u8]) -> (Vec<ReplayItem>, Option<Damage>) {
     (out, damage)
 }
 
-/// Schedules one message of the recorder's topics; others are passed over.
+/// Schedules one message of the recorder's topics; others (derived ones: clouds, fixes,
+/// transforms) are passed over. False for a recorded CAN frame that replay cannot send (see
+/// [`Streamed::not_replayed`]).
 fn message_into(
     m: &crate::bag::read::Message<'_>,
     out: &mut Vec<ReplayItem>,
-) -> Result<(), ReadError> {
+) -> Result<bool, ReadError> {
     let t = UtcNanos(m.log_time as i64);
     let data = m.data;
     let channel = m.channel;
@@ -392,17 +400,21 @@ fn message_into(
             } else {
                 CanFrame::new(id, ext, &data[..usize::from(dlc.min(8))])
             };
-            if let Some(mut f) = f {
-                f.error = error;
-                out.push(ReplayItem {
-                    time: t,
-                    payload: Payload::Can(f),
-                });
-            }
+            let Some(mut f) = f else {
+                return Ok(false);
+            };
+            f.error = error;
+            out.push(ReplayItem {
+                time: t,
+                payload: Payload::Can(f),
+            });
         }
+        // A CAN FD frame (or a frame of another type on the classic topic, as files of
+        // earlier builds have them): classic CAN sinks cannot send it.
+        crate::bag::topics::CAN_FRAMES | crate::bag::topics::CAN_FD_FRAMES => return Ok(false),
         _ => {}
     }
-    Ok(())
+    Ok(true)
 }
 
 /// Keeps items between `start` and `end` seconds after the first item.
