@@ -39,7 +39,7 @@ def load_plan(path):
     return plan
 
 
-def run_one(hilrig, plan_text, task_id, partial, *before):
+def run_one(hilrig, plan_text, task_id, *before):
     """One task on this worker, once the tasks it waits for have ended (`before`: their
     outcomes, passed as Ray object references for the ordering). The plan comes as text
     (standard input of `hilrig campaign task --plan -`), so that a worker needs no disk shared
@@ -49,7 +49,7 @@ def run_one(hilrig, plan_text, task_id, partial, *before):
     report, runs whatever their outcomes), and a task that does not run removes what it left in
     an earlier run, so that the report does not show it as this run's: it is asked even when
     a task before it failed here."""
-    del partial, before
+    del before
     try:
         proc = subprocess.run(
             [hilrig, "campaign", "task", "--plan", "-", task_id],
@@ -100,7 +100,7 @@ def run(plan_path, hilrig="hilrig", address=None, retries=3):
         for task in plan["tasks"]:
             deps = [refs[d] for d in task["after"]]
             refs[task["id"]] = remote.remote(
-                hilrig, plan_ref, task["id"], task["partial"], *deps
+                hilrig, plan_ref, task["id"], *deps
             )
         return ray.get([refs[t["id"]] for t in plan["tasks"]])
     finally:

@@ -74,12 +74,12 @@ class RunOne(unittest.TestCase):
                 )
             os.chmod(fake, 0o755)
             failed = {"task": "check/r1", "outcome": "ran", "exit": 1, "passes": False}
-            out = run_one(fake, "{}", "resim/m/r1", False, failed)
+            out = run_one(fake, "{}", "resim/m/r1", failed)
         self.assertEqual(out["outcome"], "not_run")
         self.assertIn("check/r1", out["why"])
 
     def test_a_hilrig_that_cannot_be_started_is_a_failure(self):
-        out = run_one("/nonexistent/hilrig", "{}", "resim/m/r1", False)
+        out = run_one("/nonexistent/hilrig", "{}", "resim/m/r1")
         self.assertEqual(out["outcome"], "failed")
         self.assertIn("cannot start", out["why"])
 
@@ -87,12 +87,12 @@ class RunOne(unittest.TestCase):
         # The report is partial: its command is started (here one that is not hilrig, so it
         # fails) instead of the task being stopped by its predecessor.
         not_run = {"task": "resim/m/r1", "outcome": "not_run", "exit": None, "passes": False}
-        out = run_one(sys.executable, "{}", "report", True, not_run)
+        out = run_one(sys.executable, "{}", "report", not_run)
         self.assertEqual(out["outcome"], "failed")
         self.assertIn("hilrig campaign task exited", out["why"])
 
     def test_hilrig_that_cannot_run_the_task_is_a_failure_with_its_message(self):
-        out = run_one(sys.executable, "{}", "x", False)
+        out = run_one(sys.executable, "{}", "x")
         self.assertEqual(out["outcome"], "failed")
         self.assertFalse(out["passes"])
 

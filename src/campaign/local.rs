@@ -203,7 +203,7 @@ pub fn run(
             }
             let started = pull(i)
                 .and_then(|()| clear(plan, &staged, task))
-                .and_then(|()| start(plan, task, i, options, &mut hashes, &tx));
+                .and_then(|()| start(task, i, options, &mut hashes, &tx));
             match started {
                 Ok(inputs) => {
                     progress.started(task);
@@ -396,9 +396,9 @@ fn prepare(plan: &Plan) -> Result<(), CampaignError> {
     Ok(())
 }
 
-/// Starts `task` with its inputs hashed; the reason when it cannot start.
+/// Starts `task` with its inputs hashed (its stamp and outputs [`clear`]ed before); the reason
+/// when it cannot start.
 fn start(
-    plan: &Plan,
     task: &super::plan::Task,
     i: usize,
     options: &Options,
@@ -418,12 +418,6 @@ fn start(
         }
         Err(e) => return Err(e.to_string()),
     };
-    let stamp_path = stamp::path(&plan.out, &task.id);
-    match std::fs::remove_file(&stamp_path) {
-        Ok(()) => {}
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-        Err(e) => return Err(format!("cannot remove {}: {e}", stamp_path.display())),
-    }
     let log = std::fs::File::create(&task.log)
         .map_err(|e| format!("cannot create {}: {e}", task.log.display()))?;
     let err = log
@@ -558,12 +552,11 @@ pub fn run_task(plan: &Plan, id: &str, options: &Options) -> Result<Outcome, Cam
         .expect("found above");
     let (tx, rx) = mpsc::channel();
     let started = Instant::now();
-    let inputs = match clear(plan, &staged, task)
-        .and_then(|()| start(plan, task, i, options, &mut hashes, &tx))
-    {
-        Ok(inputs) => inputs,
-        Err(why) => return Ok(named(&staged, Outcome::Failed { why })),
-    };
+    let inputs =
+        match clear(plan, &staged, task).and_then(|()| start(task, i, options, &mut hashes, &tx)) {
+            Ok(inputs) => inputs,
+            Err(why) => return Ok(named(&staged, Outcome::Failed { why })),
+        };
     let (_, status) = rx.recv().expect("the waiter sends once");
     let o = finish(plan, task, status, inputs, started.elapsed(), &mut hashes)?;
     let o = pushed(&staged, task, o);

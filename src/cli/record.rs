@@ -86,9 +86,6 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
             );
         }
     }
-    // A rig with a lidar whose ports match nothing in the captures records no lidar at all:
-    // say where the captures' UDP traffic went instead of reporting nothing lost.
-    // (Inputs without any UDP traffic, such as CAN and GNSS logs, have no lidar to miss.)
     // Records the capture's reader could not use: damaged ones may have been the rig's data.
     let skips = &summary.capture_records;
     for (reason, n) in &skips.damaged {
@@ -110,6 +107,9 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
             reasons.join(", ")
         );
     }
+    // A rig with a lidar whose ports match nothing in the captures records no lidar at all:
+    // say where the captures' UDP traffic went instead of reporting nothing lost.
+    // (Inputs without any UDP traffic, such as CAN and GNSS logs, have no lidar to miss.)
     let no_lidar = rig
         .lidar
         .as_ref()

@@ -419,8 +419,7 @@ impl Context<'_> {
         if out.is_some() {
             // Counted once, in the pass that writes.
             summary.capture_records.add(demux.stats());
-        }
-        if out.is_none() {
+        } else {
             for i in serial_seen {
                 let name = demux
                     .interfaces()

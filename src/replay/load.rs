@@ -119,9 +119,9 @@ pub struct Streamed {
     pub out_of_order: u64,
     /// Damage that ended the reading early (everything before it was handed over).
     pub damage: Option<String>,
-    /// Recorded CAN frames replay cannot send: CAN FD frames (recorded as raw packets on
-    /// /can/frames) and frames that do not make a classic CAN frame. Counted, never silently
-    /// passed over.
+    /// Recorded CAN frames replay cannot send: CAN FD frames (on /can/fd_frames; files of
+    /// earlier builds have them on /can/frames under another type) and frames that do not make
+    /// a classic CAN frame. Counted, never silently passed over.
     pub not_replayed: u64,
 }
 
