@@ -7,7 +7,7 @@ use hilrig::scene::pose::{PoseSample, Trajectory};
 use hilrig::scene::{Scene, Shape};
 use hilrig::sim::lidar::Returns;
 use hilrig::sim::spin::Spin;
-use hilrig::sim::{Effect, LidarSim, ModelFile, SimStats};
+use hilrig::sim::{Effect, FootprintPattern, LidarSim, ModelFile, SimStats};
 use hilrig::stamp::UtcNanos;
 use hilrig::velodyne::packet::ReturnMode;
 use hilrig::velodyne::{Calibration, Decoder, Model, Point};
@@ -613,6 +613,7 @@ fn beam_divergence_gives_edge_and_mixed_returns() {
         sub_rays_per_axis: 7,
         range_separation_m: 0.5,
         first_echo_share: None,
+        pattern: FootprintPattern::Grid,
     };
     let mut rng = ChaCha8Rng::seed_from_u64(4);
     // Sweep the beam across the edge (y at 10 m from -3 cm to +3 cm).
@@ -704,6 +705,7 @@ fn a_footprint_on_the_road_at_grazing_incidence_is_one_echo() {
         sub_rays_per_axis: 5,
         range_separation_m: 0.5,
         first_echo_share: None,
+        pattern: FootprintPattern::Grid,
     };
     let sim = beam_sim(&s, vec![divergence]);
     let mut rng = ChaCha8Rng::seed_from_u64(9);

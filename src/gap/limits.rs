@@ -43,7 +43,7 @@ use super::candidates::{floor, with_effect, Fitting};
 use super::observe::Obs;
 use super::runset::{Measured, RunSet};
 use super::GapError;
-use crate::sim::model::{Effect, EffectKind, ModelFile};
+use crate::sim::model::{Effect, EffectKind, FootprintPattern, ModelFile};
 use rand::{Rng, SeedableRng};
 use std::borrow::Cow;
 
@@ -305,6 +305,7 @@ fn injection(kind: EffectKind, size: f64) -> Option<Injection> {
             sub_rays_per_axis: 5,
             range_separation_m: 0.5,
             first_echo_share: None,
+            pattern: FootprintPattern::Grid,
         }),
         _ => return None,
     })

@@ -5,6 +5,7 @@ pub mod drivable;
 pub mod drive;
 pub mod lidar;
 pub mod model;
+pub mod pattern;
 pub mod resim;
 mod sim_file;
 pub mod spin;
@@ -12,4 +13,4 @@ mod streams;
 pub mod synth;
 
 pub use lidar::{Echo, LidarSim, PacketTime, Returns, SimStats};
-pub use model::{Effect, ModelFile};
+pub use model::{Effect, FootprintPattern, ModelFile};

@@ -21,6 +21,9 @@
 //!
 //! Each effect may appear once. Unknown names and keys are errors.
 
+pub use crate::sim::pattern::{
+    footprint_grid, footprint_stratified, FootprintPattern, STRATIFIED_MAX_PER_AXIS,
+};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -128,6 +131,10 @@ pub enum Effect {
         /// beam's width seen at edges depends on it.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         first_echo_share: Option<f64>,
+        /// How the sub-rays are laid over the footprint: the grid (the default) or as many
+        /// stratified by area ([`FootprintPattern`]).
+        #[serde(default, skip_serializing_if = "FootprintPattern::is_grid")]
+        pattern: FootprintPattern,
     },
     /// Whether each laser fires at its own time and pose (`enabled = true`, the default of every
     /// model: a rotating sensor on a moving vehicle always sees this) or the whole rotation is
@@ -408,13 +415,23 @@ impl ModelFile {
                     .map_err(|w| bad(e.name(), w.to_string()))?;
             }
             if let Effect::BeamDivergence {
-                sub_rays_per_axis, ..
+                sub_rays_per_axis,
+                pattern,
+                ..
             } = e
             {
                 if !(1..=15).contains(sub_rays_per_axis) {
                     return Err(bad(
                         e.name(),
                         format!("sub_rays_per_axis = {sub_rays_per_axis}: must lie in 1..=15"),
+                    ));
+                }
+                if *pattern == FootprintPattern::Stratified
+                    && *sub_rays_per_axis > STRATIFIED_MAX_PER_AXIS
+                {
+                    return Err(bad(
+                        e.name(),
+                        format!("sub_rays_per_axis = {sub_rays_per_axis}: a stratified footprint takes at most {STRATIFIED_MAX_PER_AXIS} (its strips would be too narrow to spread the sub-rays over the footprint)"),
                     ));
                 }
                 // Two per axis are the bounding box's corners, all outside the ellipse: a
@@ -489,31 +506,6 @@ impl Rule {
             })
         }
     }
-}
-
-/// The sub-rays of a footprint sampled with `n` per axis, as offsets in units of its half-axes
-/// (across, along elevation): the points of an `n` × `n` grid over the footprint's bounding box
-/// that lie inside its ellipse (the centre alone for `n` = 1), in the order they are cast and
-/// merged.
-pub fn footprint_grid(n: u32) -> Vec<(f64, f64)> {
-    let n = n.max(1);
-    let at = |i: u32| {
-        if n == 1 {
-            0.0
-        } else {
-            -1.0 + 2.0 * f64::from(i) / f64::from(n - 1)
-        }
-    };
-    let mut grid = Vec::new();
-    for i in 0..n {
-        for j in 0..n {
-            let (u, v) = (at(i), at(j));
-            if u * u + v * v <= 1.0 + 1e-9 {
-                grid.push((u, v));
-            }
-        }
-    }
-    grid
 }
 
 impl Effect {

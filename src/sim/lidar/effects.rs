@@ -2,7 +2,7 @@
 //! into rotations, the beam footprint into sub-ray offsets, once per simulator.
 
 use super::footprint::Pattern;
-use crate::sim::model::{Effect, ModelError, ModelFile};
+use crate::sim::model::{Effect, FootprintPattern, ModelError, ModelFile};
 use nalgebra::UnitQuaternion;
 use rand_distr::Normal;
 
@@ -68,16 +68,22 @@ impl Compiled {
                     sub_rays_per_axis,
                     range_separation_m,
                     first_echo_share,
+                    pattern,
                 } => {
                     let n = sub_rays_per_axis as usize;
-                    let offs = crate::sim::model::footprint_grid(sub_rays_per_axis)
+                    let offs: Vec<(f64, f64)> = pattern
+                        .offsets(sub_rays_per_axis)
                         .into_iter()
                         .map(|(u, v)| (u * horizontal_mrad * 0.5e-3, v * vertical_mrad * 0.5e-3))
                         .collect();
-                    let spacing = if n > 1 {
-                        horizontal_mrad.max(vertical_mrad) * 1e-3 / (n - 1) as f64
-                    } else {
-                        0.0
+                    let width = horizontal_mrad.max(vertical_mrad) * 1e-3;
+                    let spacing = match pattern {
+                        _ if n <= 1 => 0.0,
+                        FootprintPattern::Grid => width / (n - 1) as f64,
+                        // The side of the square each sub-ray stands for.
+                        FootprintPattern::Stratified => {
+                            0.5 * width * (std::f64::consts::PI / offs.len() as f64).sqrt()
+                        }
                     };
                     c.divergence = Some(Divergence {
                         pattern: Pattern::new(offs),
