@@ -1320,6 +1320,46 @@ fn adaptive_footprint_equals_the_full_cast_within_its_tolerance() {
     }
 }
 
+/// The stratified footprint the gap workflow fits with (its sub-rays off the grid's rows and
+/// columns), and a first-echo receiver: cast adaptively, the same packets as cast in full.
+#[test]
+fn a_stratified_footprint_cast_adaptively_equals_the_full_cast() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = edge_scene(dir.path(), false);
+    let effects: Vec<Effect> = truth_effects()
+        .into_iter()
+        .map(|e| match e {
+            Effect::BeamDivergence {
+                horizontal_mrad,
+                vertical_mrad,
+                range_separation_m,
+                ..
+            } => Effect::BeamDivergence {
+                horizontal_mrad,
+                vertical_mrad,
+                sub_rays_per_axis: 5,
+                range_separation_m,
+                first_echo_share: Some(0.25),
+                pattern: FootprintPattern::Stratified,
+            },
+            e => e,
+        })
+        .collect();
+    assert!(effects
+        .iter()
+        .any(|e| matches!(e, Effect::BeamDivergence { .. })));
+    for (model, mode) in [
+        (Model::Vlp16, ReturnMode::Strongest),
+        (Model::Vls128, ReturnMode::Strongest),
+    ] {
+        let (full, adaptive) = full_and_adaptive(&plain, model, mode, &effects);
+        let d = difference(&full, &adaptive);
+        eprintln!("{model} {mode:?}, stratified: {d:?}");
+        assert!(full.packets == adaptive.packets, "{model} {mode:?}: {d:?}");
+        assert!(d.channels > 10_000 && d.rays < 1.0, "{d:?}");
+    }
+}
+
 /// Footprints entirely on one plane (a wall facing the sensor, with nothing behind it) get
 /// the full cast's hits without their sub-rays being cast: only the centre rays (and, on the
 /// VLS-128, the neighbouring sequences' outside the packet, and at a packet's edges a sub-ray
