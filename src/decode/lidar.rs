@@ -307,7 +307,7 @@ pub fn decode_capture<R: Read + Send + 'static>(
         };
         check.observe(&pkt);
         if let Some(l) = loss.as_mut() {
-            l.observe(pkt.timestamp_us);
+            l.observe(pkt.timestamp_us, item.time);
         }
         points.clear();
         if let Err(e) = dec.decode_into_after(&pkt, previous.as_ref(), &mut points) {

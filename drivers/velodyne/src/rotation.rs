@@ -4,11 +4,13 @@
 //! (the packet whose first block passes the cut starts the next rotation), which is what a
 //! `VelodyneScan` message holds. Loss is counted from the sensor timestamps: every packet covers a
 //! fixed time (the firing cycle times the columns per packet), so a gap of n periods is n - 1
-//! lost packets. Time jumps (sensor re-synchronised, clock reset) are counted apart, not as loss.
+//! lost packets. Time jumps (sensor re-synchronised, clock reset) are counted apart, not as loss;
+//! an outage longer than the timestamps can bridge is told from a jump by the receive times
+//! ([`LossCounter`]).
 
 use crate::model::Model;
 use crate::packet::{DataPacket, DATA_PACKET_SIZE};
-use hilrig_stamp::Stamped;
+use hilrig_stamp::{Stamped, UtcNanos};
 
 /// What rotation assembly needs of a packet: the azimuth of its first block and its sensor
 /// timestamp. Implemented for decoded packets and for raw payloads, so that the recorder can
@@ -66,17 +68,32 @@ impl RotationPacket for RawDataPacket {
 
 /// Microseconds in an hour, where sensor timestamps wrap.
 const HOUR_US: i64 = 3_600_000_000;
-/// Gaps longer than this are a clock jump, not loss.
+/// Sensor timestamp gaps longer than this are a clock jump or an outage, not a few lost
+/// packets; the receive times tell which.
 const MAX_PLAUSIBLE_GAP_US: i64 = 2_000_000;
 
-/// Counts lost packets from consecutive sensor timestamps.
+/// Counts lost packets from consecutive sensor timestamps, and from the receive times where the
+/// sensor's clock cannot say.
+///
+/// A gap of up to two seconds in the sensor's timestamps is `n` periods, `n - 1` packets lost.
+/// Beyond that, or backwards, the sensor's clock alone cannot tell an outage (a cable pulled,
+/// a switch rebooting: the clock ran on, nothing came) from a jump of the clock itself (the
+/// sensor locked to PPS, or was reset). The receive times can: when the receiver too saw
+/// nothing for more than two seconds, it is an outage, and the packets that would have come
+/// in that time are lost (counted from the receive times, which hold whether or not the
+/// sensor's clock jumped as well). Otherwise the clock jumped, nothing is counted lost, and
+/// the jump is counted.
 #[derive(Clone, Debug)]
 pub struct LossCounter {
     period_us: f64,
-    last_us: Option<u32>,
-    /// Packets missing between received ones.
+    last: Option<(u32, UtcNanos)>,
+    /// Packets missing between received ones (outages included).
     pub lost: u64,
-    /// Timestamps that went backwards or jumped by more than two seconds.
+    /// Gaps of more than two seconds in which nothing was received, their packets counted in
+    /// `lost`.
+    pub outages: u64,
+    /// Timestamps that went backwards or jumped by more than two seconds while the packets
+    /// kept coming.
     pub time_jumps: u64,
     /// Packets seen.
     pub packets: u64,
@@ -87,32 +104,38 @@ impl LossCounter {
     pub fn new(period_us: f64) -> Self {
         LossCounter {
             period_us,
-            last_us: None,
+            last: None,
             lost: 0,
+            outages: 0,
             time_jumps: 0,
             packets: 0,
         }
     }
 
-    /// Takes the next packet's timestamp; returns how many packets were lost before it.
-    pub fn observe(&mut self, timestamp_us: u32) -> u64 {
+    /// Takes the next packet's sensor timestamp and the time it was received; returns how
+    /// many packets were lost before it.
+    pub fn observe(&mut self, timestamp_us: u32, received: UtcNanos) -> u64 {
         self.packets += 1;
-        let Some(last) = self.last_us.replace(timestamp_us) else {
+        let Some((last, last_received)) = self.last.replace((timestamp_us, received)) else {
             return 0;
         };
         let gap = (i64::from(timestamp_us) - i64::from(last)).rem_euclid(HOUR_US);
-        if gap == 0 || gap > MAX_PLAUSIBLE_GAP_US {
-            self.time_jumps += 1;
-            return 0;
-        }
-        let periods = (gap as f64 / self.period_us).round() as i64;
-        if periods >= 2 {
-            let lost = (periods - 1) as u64;
-            self.lost += lost;
-            lost
+        let periods = |gap_us: i64| (gap_us as f64 / self.period_us).round() as i64;
+        let lost = if gap == 0 || gap > MAX_PLAUSIBLE_GAP_US {
+            let silent_us = received.0.saturating_sub(last_received.0) / 1_000;
+            if silent_us > MAX_PLAUSIBLE_GAP_US {
+                self.outages += 1;
+                periods(silent_us) - 1
+            } else {
+                self.time_jumps += 1;
+                0
+            }
         } else {
-            0
-        }
+            periods(gap) - 1
+        };
+        let lost = lost.max(0) as u64;
+        self.lost += lost;
+        lost
     }
 }
 
@@ -159,7 +182,7 @@ impl<P: RotationPacket> RotationAssembler<P> {
 
     /// Adds a packet; returns the rotation it completed, if any.
     pub fn push(&mut self, pkt: Stamped<P>) -> Option<Rotation<P>> {
-        let lost = self.loss.observe(pkt.value.timestamp_us());
+        let lost = self.loss.observe(pkt.value.timestamp_us(), pkt.host);
         let az = pkt.value.first_azimuth();
         let rel = ((i32::from(az) - i32::from(self.cut)).rem_euclid(36_000)) as u16;
         let crossed = matches!(self.last_rel, Some(prev) if rel < prev);
@@ -248,11 +271,44 @@ mod tests {
     #[test]
     fn hour_wrap_is_not_loss() {
         let mut c = LossCounter::new(552.96);
-        c.observe(3_599_999_800);
-        assert_eq!(c.observe(353), 0);
+        let at = |us: i64| UtcNanos(us * 1_000);
+        c.observe(3_599_999_800, at(0));
+        assert_eq!(c.observe(353, at(553)), 0);
         assert_eq!(c.lost, 0);
         assert_eq!(c.time_jumps, 0);
-        c.observe(100); // backwards
+        c.observe(100, at(1_106)); // backwards
         assert_eq!(c.time_jumps, 1);
+        assert_eq!((c.lost, c.outages), (0, 0));
+    }
+
+    /// An outage longer than two seconds is loss, counted from the receive times; a jump of
+    /// the sensor's clock while the packets keep coming is not.
+    #[test]
+    fn an_outage_is_loss_and_a_clock_jump_is_not() {
+        let period = 552.96;
+        let at = |us: f64| UtcNanos((us * 1_000.0) as i64);
+        // Five seconds without a packet, the sensor's clock running on.
+        let mut c = LossCounter::new(period);
+        c.observe(1_000_000, at(0.0));
+        let lost = c.observe(6_000_000, at(5_000_000.0));
+        assert_eq!(lost, (5_000_000.0 / period).round() as u64 - 1);
+        assert_eq!((c.outages, c.time_jumps), (1, 0));
+        // The clock jumps by half an hour between two packets one period apart.
+        let mut c = LossCounter::new(period);
+        c.observe(1_000_000, at(0.0));
+        assert_eq!(c.observe(1_801_000_000, at(period)), 0);
+        assert_eq!((c.lost, c.outages, c.time_jumps), (0, 0, 1));
+        // An outage of three seconds during which the clock was reset (backwards): the
+        // receive times still count it.
+        let mut c = LossCounter::new(period);
+        c.observe(2_000_000_000, at(0.0));
+        let lost = c.observe(50, at(3_000_000.0));
+        assert_eq!(lost, (3_000_000.0 / period).round() as u64 - 1);
+        assert_eq!((c.outages, c.time_jumps), (1, 0));
+        // A gap within two seconds is counted from the sensor's timestamps, whatever the
+        // receive times (the network delivers in bursts).
+        let mut c = LossCounter::new(period);
+        c.observe(0, at(0.0));
+        assert_eq!(c.observe((4.0 * period) as u32, at(10.0)), 3);
     }
 }

@@ -276,7 +276,7 @@ impl LidarSource {
                         }
                     }
                     if let Some(l) = self.loss.as_mut() {
-                        l.observe(pkt.timestamp_us);
+                        l.observe(pkt.timestamp_us, d.host);
                         self.stats.lost = l.lost;
                         self.stats.time_jumps = l.time_jumps;
                     }
