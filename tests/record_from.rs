@@ -1008,6 +1008,58 @@ fn a_packet_missing_from_a_dual_return_vls128_stream_is_counted_lost() {
     assert_eq!(common::lidar_data(&out).len(), 199);
 }
 
+/// Three seconds without a lidar packet, the sensor's clock running on: an outage, whose
+/// packets are counted lost (they used to be taken for a clock jump and not counted at all);
+/// written into `hilrig/end`.
+#[test]
+fn a_lidar_outage_of_three_seconds_is_counted_lost() {
+    let drive = common::lidar_capture(Model::Vlp16, ReturnMode::Strongest, 200, true);
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("outage.pcapng");
+    let mut w = hilrig::capture::PcapngWriter::new(Vec::new(), "test").unwrap();
+    let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
+    let mut r = hilrig::capture::Demux::new(
+        hilrig::capture::CaptureReader::new(std::io::Cursor::new(drive.capture.clone())).unwrap(),
+    );
+    const OUTAGE_US: u32 = 3_000_000;
+    let mut n = 0;
+    while let Some(item) = r.next_item() {
+        let item = item.unwrap();
+        let hilrig::capture::demux::Packet::Udp { src, dst, payload } = item.packet else {
+            panic!("only UDP in the capture");
+        };
+        n += 1;
+        let (mut time, mut payload) = (item.time, payload.to_vec());
+        // Every data packet after the 100th comes three seconds later, by both clocks.
+        if n > 101 {
+            time = hilrig::stamp::UtcNanos(time.0 + i64::from(OUTAGE_US) * 1_000);
+            let ts = u32::from_le_bytes(payload[1200..1204].try_into().unwrap()) + OUTAGE_US;
+            payload[1200..1204].copy_from_slice(&ts.to_le_bytes());
+        }
+        w.write_packet(eth, time, &udp_ethernet_frame(src, dst, &payload))
+            .unwrap();
+    }
+    std::fs::write(&input, w.finish().unwrap()).unwrap();
+    let out = dir.path().join("outage.mcap");
+    let st = common::record_from(&lidar_rig(dir.path(), "vlp16"), &[&input], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(0), "{stderr}");
+    // A VLP-16 packet covers 24 firing cycles of 55.296 µs.
+    let lost = (f64::from(OUTAGE_US) / (24.0 * 55.296)).round() as u64;
+    assert!(
+        stderr.contains(&format!(
+            "lidar packets lost: {lost} (of them in 1 outages of more than 2 s)"
+        )),
+        "{stderr}"
+    );
+    assert_eq!(common::lidar_data(&out).len(), 200);
+    let info = hilrig::bag::info::info(&out).unwrap();
+    let end = &info.metadata["hilrig/end"];
+    assert_eq!(end["lidar_lost_packets"], lost.to_string());
+    assert_eq!(end["lidar_outages"], "1");
+    assert_eq!(end["lidar_time_jumps"], "0");
+}
+
 /// A VLP-16's packets on the port of a rig whose lidar is a VLS-128: an error that names what
 /// the packets' product byte says and what the rig says, exit status 2, and no output at all
 /// (neither the MCAP nor a `.active` left behind).
@@ -1391,4 +1443,134 @@ fn a_capture_cut_by_its_snap_length_is_an_error_naming_the_damaged_records() {
     assert_eq!(end["capture_damaged_records"], "50");
     assert_eq!(end["capture_damaged_records.cut_by_snap_length"], "50");
     assert!(common::lidar_data(&out).is_empty());
+}
+
+/// A serial log as a receiver writes it: `sentences` NMEA bodies framed with their checksums,
+/// with `extra` bytes after the third.
+fn serial_log(
+    dir: &std::path::Path,
+    name: &str,
+    bodies: &[String],
+    extra: &[u8],
+) -> std::path::PathBuf {
+    let mut bytes = Vec::new();
+    for (i, b) in bodies.iter().enumerate() {
+        bytes.extend(hilrig::gnss::framer::nmea_sentence(b).bytes());
+        if i == 2 {
+            bytes.extend_from_slice(extra);
+        }
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+/// Ten epochs of GGA and RMC from 12:00:00 UTC on 2025-06-01, one a second.
+fn epochs() -> Vec<String> {
+    (0..10)
+        .flat_map(|i| {
+            let t = format!("1200{i:02}.00");
+            [
+                format!("GPGGA,{t},4807.038,N,01131.000,E,4,12,0.9,545.4,M,46.9,M,1.0,0001"),
+                format!("GPRMC,{t},A,4807.038,N,01131.000,E,0.0,0.0,010625,,,D"),
+            ]
+        })
+        .collect()
+}
+
+/// RTCM3 frames in the receiver's stream (a moving base's corrections) are recorded whole on
+/// `/gnss/rtcm` and replayed as they came; they used to be framed and dropped unseen.
+#[test]
+fn rtcm3_frames_in_the_gnss_stream_are_recorded_and_replayed() {
+    let dir = tempfile::tempdir().unwrap();
+    let rtcm = hilrig::gnss::framer::rtcm3_frame(&[0x3E, 0xD0, 1, 2, 3, 4]);
+    let log = serial_log(dir.path(), "base.log", &epochs(), &rtcm);
+    let out = dir.path().join("base.mcap");
+    let st = common::record_from(&common::demo_rig(), &[&log], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("/gnss/rtcm: 1 messages"), "{stderr}");
+    assert!(stderr.contains("/gnss/fix: 10 messages"), "{stderr}");
+    let (items, err) = hilrig::replay::load(&out, 2368, 8308).unwrap();
+    assert!(err.is_none());
+    let serial: Vec<u8> = items
+        .iter()
+        .filter_map(|i| match &i.payload {
+            hilrig::replay::Payload::Serial(b) => Some(b.clone()),
+            _ => None,
+        })
+        .flatten()
+        .collect();
+    assert_eq!(
+        serial,
+        std::fs::read(&log).unwrap(),
+        "the stream replays byte for byte"
+    );
+}
+
+/// A GGA and a NAV-PVT whose checksums pass but whose fields do not read: recorded whole, but
+/// their fixes are missing, so they are counted per reason, named, written into `hilrig/end`,
+/// and the exit status is 1.
+#[test]
+fn gnss_messages_that_do_not_decode_are_counted_and_exit_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut bodies = epochs();
+    bodies[4] = "GPGGA,120002.00,48x7.038,N,01131.000,E,4,12,0.9,545.4,M,46.9,M,1.0,0001".into();
+    // NAV-PVT is 92 bytes; 40 are not a NAV-PVT.
+    let ubx = hilrig::gnss::framer::ubx_frame(0x01, 0x07, &[0u8; 40]);
+    let log = serial_log(dir.path(), "bad.log", &bodies, &ubx);
+    let out = dir.path().join("bad.mcap");
+    let st = common::record_from(&common::demo_rig(), &[&log], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{stderr}");
+    for line in [
+        "2 GNSS messages are recorded but did not decode",
+        "NMEA sentence whose fields do not read: 1 (first: serial interface",
+        "UBX message whose payload does not read: 1 (first: serial interface",
+    ] {
+        assert!(stderr.contains(line), "{line:?} in {stderr}");
+    }
+    assert!(stderr.contains("/gnss/nmea: 20 messages"), "{stderr}");
+    assert!(stderr.contains("/gnss/ubx: 1 messages"), "{stderr}");
+    let undecoded: hilrig::record::rejects::GnssUndecoded = common::recorded_rejects(&out);
+    assert_eq!(undecoded.total(), 2);
+}
+
+/// A stream that never gives a date (GGA alone) has no fix with a UTC time: an error saying
+/// why, exit 1; and a stream of another protocol, none of whose bytes frame: the same.
+#[test]
+fn a_gnss_stream_without_a_date_or_without_frames_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let gga: Vec<String> = epochs()
+        .into_iter()
+        .filter(|b| b.starts_with("GPGGA"))
+        .collect();
+    let log = serial_log(dir.path(), "gga.log", &gga, &[]);
+    let out = dir.path().join("gga.mcap");
+    let st = common::record_from(&common::demo_rig(), &[&log], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(
+            "none of 10 GNSS fixes could be written to /gnss/fix: the stream never gave a date"
+        ),
+        "{stderr}"
+    );
+    // SkyTraq-style binary (A0 A1 ... 0D 0A), which the recorder does not frame.
+    let binary: Vec<u8> = (0..50u8)
+        .flat_map(|i| [0xA0, 0xA1, 0x00, 0x02, 0x64, i, 0x64 ^ i, 0x0D, 0x0A])
+        .collect();
+    let log = dir.path().join("binary.log");
+    std::fs::write(&log, &binary).unwrap();
+    let out = dir.path().join("binary.mcap");
+    let st = common::record_from(&common::demo_rig(), &[&log], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "the GNSS serial stream's {} bytes hold no NMEA, UBX or RTCM3 frame",
+            binary.len()
+        )),
+        "{stderr}"
+    );
 }

@@ -191,6 +191,9 @@ fn live_recording_of_udp_and_pty_finishes_cleanly_on_sigint() {
     assert_eq!(packets, data, "every data packet");
     assert_eq!(v["channels"]["/velodyne_position"]["count"], position);
     assert_eq!(v["channels"]["/gnss/nmea"]["count"], sentences);
+    // Every epoch a fix, the last one too: it was complete with its last sentence, and is
+    // written when the recorder stops.
+    assert_eq!(v["channels"]["/gnss/fix"]["count"], 50);
     assert_eq!(v["channels"]["/gnss/attitude"]["count"], attitudes);
     assert_eq!(
         v["channels"]["/gnss/attitude"]["type"],
@@ -390,7 +393,13 @@ fn a_sustained_load_loses_nothing() {
         }
         (sent, t0.elapsed())
     });
-    let mut sentences = 0u64;
+    // The date first: a stream without one has no fix with a UTC time (an error).
+    r.gnss
+        .write_all(
+            nmea_sentence("GNRMC,120000.00,A,4807.038,N,01131.000,E,0.0,0.0,251126,,,R").as_bytes(),
+        )
+        .unwrap();
+    let mut sentences = 1u64;
     let t0 = Instant::now();
     let mut peak = 0;
     while t0.elapsed() < Duration::from_secs(SECONDS) {
@@ -635,6 +644,14 @@ fn gnss_frames_that_fail_their_checksum_on_the_live_port_are_counted_and_exit_1(
             good += 1;
         }
         r.gnss.write_all(line.as_bytes()).unwrap();
+        if i == 9 {
+            // A checksum that holds over a field that does not read: recorded, not decoded.
+            let bad = nmea_sentence(
+                "GNGGA,120009.50,48x7.0380000,N,01131.0000000,E,4,12,0.8,545.40,M,46.90,M,1.0,0042",
+            );
+            r.gnss.write_all(bad.as_bytes()).unwrap();
+            good += 1;
+        }
         if i == 12 {
             let mut ubx = hilrig::gnss::framer::ubx_frame(0x01, 0x05, &[0u8; 32]);
             let n = ubx.len();
@@ -649,6 +666,8 @@ fn gnss_frames_that_fail_their_checksum_on_the_live_port_are_counted_and_exit_1(
         "2 GNSS serial frames were not recorded",
         "  NMEA sentence with a wrong checksum: 1 (first: stream byte ",
         "  UBX frame with a wrong checksum: 1 (first: stream byte ",
+        "1 GNSS messages are recorded but did not decode",
+        "  NMEA sentence whose fields do not read: 1 (first: stream byte ",
     ] {
         assert!(stderr.contains(text), "{text:?} in {stderr}");
     }

@@ -9,6 +9,9 @@ pub const VELODYNE_POSITION: &str = "/velodyne_position";
 pub const GNSS_NMEA: &str = "/gnss/nmea";
 /// UBX frames.
 pub const GNSS_UBX: &str = "/gnss/ubx";
+/// RTCM3 frames the receiver sent (a moving base's corrections for its rover), whole:
+/// `hilrig_msgs/msg/RawPacket`.
+pub const GNSS_RTCM: &str = "/gnss/rtcm";
 /// Fixes.
 pub const GNSS_FIX: &str = "/gnss/fix";
 /// Attitude reports of the reference system (INS, dual antenna): `hilrig_msgs/msg/Attitude`.

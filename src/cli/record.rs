@@ -50,7 +50,17 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
     // Losses are counted among the packets that came: with none, "0 lost" would read as a
     // clean lidar recording.
     if lidar_recorded {
-        eprintln!("{out}: lidar packets lost: {}", summary.lidar_lost);
+        let outages = match summary.lidar_outages {
+            0 => String::new(),
+            n => format!(" (of them in {n} outages of more than 2 s)"),
+        };
+        eprintln!("{out}: lidar packets lost: {}{outages}", summary.lidar_lost);
+        if summary.lidar_time_jumps > 0 {
+            eprintln!(
+                "note: {out}: the lidar's clock jumped {} times (backwards, or by more than 2 s while its packets kept coming): re-synchronised or reset",
+                summary.lidar_time_jumps
+            );
+        }
     }
     for e in &summary.input_errors {
         eprintln!("error: {e} (everything before it was recorded)");
@@ -59,6 +69,20 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
     let gnss_rejects = &summary.gnss_rejects;
     print_rejects(&out.to_string(), "lidar packets", rejects);
     print_rejects(&out.to_string(), "GNSS serial frames", gnss_rejects);
+    let fixes_recorded = summary
+        .counts
+        .get(hilrig::bag::topics::GNSS_FIX)
+        .is_some_and(|&n| n > 0);
+    let gnss_failed = print_gnss_decoding(
+        &out.to_string(),
+        &summary.gnss_undecoded,
+        summary.fixes_untimed,
+        fixes_recorded,
+    ) | print_unframed(
+        &out.to_string(),
+        summary.gnss_frames,
+        summary.gnss_unframed_bytes,
+    );
     if summary.attitude_untimed > 0 {
         eprintln!(
             "note: {out}: {} attitude reports came before the GNSS stream showed its date and are not on /gnss/attitude (their raw messages are on /gnss/nmea and /gnss/ubx)",
@@ -131,6 +155,7 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
             && no_lidar.is_none()
             && rejects.is_empty()
             && gnss_rejects.is_empty()
+            && !gnss_failed
             && damaged == 0
         {
             ExitCode::SUCCESS
@@ -155,8 +180,30 @@ fn live(rig: &hilrig::rig::Rig, text: &str, output: Option<PathBuf>) -> Result<E
     let out = output.display().to_string();
     print_rejects(&out, "lidar packets", rejects);
     print_rejects(&out, "GNSS serial frames", gnss_rejects);
+    let fixes_recorded = summary
+        .counts
+        .get(hilrig::bag::topics::GNSS_FIX)
+        .is_some_and(|&n| n > 0);
+    let gnss_failed = print_gnss_decoding(
+        &out,
+        &summary.gnss_undecoded,
+        summary.gnss_fixes_untimed,
+        fixes_recorded,
+    );
+    // While the serial port was gone, its bytes were lost.
+    let reconnects = summary.health.get("gnss").map_or(0, |v| v[5]);
+    if reconnects > 0 {
+        eprintln!(
+            "error: {out}: the GNSS serial port was lost and reopened {reconnects} times; what the receiver sent meanwhile is not recorded"
+        );
+    }
     Ok(
-        if summary.dropped() == 0 && rejects.is_empty() && gnss_rejects.is_empty() {
+        if summary.dropped() == 0
+            && rejects.is_empty()
+            && gnss_rejects.is_empty()
+            && !gnss_failed
+            && reconnects == 0
+        {
             ExitCode::SUCCESS
         } else {
             ExitCode::from(1)
@@ -180,4 +227,52 @@ fn print_rejects<R: hilrig::record::rejects::Reason>(
     for line in rejects.lines() {
         eprintln!("  {line}");
     }
+}
+
+/// Says which GNSS messages were recorded but did not decode, and which fixes had no time;
+/// whether that is an error (anything undecoded, or no fix written at all for want of a date).
+fn print_gnss_decoding(
+    out: &str,
+    undecoded: &hilrig::record::rejects::GnssUndecoded,
+    fixes_untimed: u64,
+    fixes_recorded: bool,
+) -> bool {
+    if !undecoded.is_empty() {
+        eprintln!(
+            "error: {out}: {} GNSS messages are recorded but did not decode, so their fixes or attitude are missing from /gnss/fix and /gnss/attitude (counted in the file's hilrig/end metadata):",
+            undecoded.total()
+        );
+        for line in undecoded.lines() {
+            eprintln!("  {line}");
+        }
+    }
+    // Fixes before the stream's first date wait in the raw topics; a stream that never gives
+    // one (GGA without RMC or ZDA) leaves no fix at all.
+    let dateless = fixes_untimed > 0 && !fixes_recorded;
+    if dateless {
+        eprintln!(
+            "error: {out}: none of {fixes_untimed} GNSS fixes could be written to /gnss/fix: the stream never gave a date (no RMC, ZDA or UBX time); its sentences are on /gnss/nmea and /gnss/ubx"
+        );
+    } else if fixes_untimed > 0 {
+        eprintln!(
+            "note: {out}: {fixes_untimed} GNSS fixes came before the stream showed its date and are not on /gnss/fix (their raw messages are on /gnss/nmea and /gnss/ubx)"
+        );
+    }
+    !undecoded.is_empty() || dateless
+}
+
+/// Says how many bytes of the GNSS serial streams were in no frame; an error when none framed
+/// at all (another protocol, or the wrong baud rate: nothing of the stream is recorded).
+fn print_unframed(out: &str, frames: u64, unframed_bytes: u64) -> bool {
+    let unframed = frames == 0 && unframed_bytes > 0;
+    if unframed {
+        eprintln!(
+            "error: {out}: the GNSS serial stream's {unframed_bytes} bytes hold no NMEA, UBX or RTCM3 frame, so none of it is recorded: another protocol, or the wrong baud rate?"
+        );
+    } else if unframed_bytes > 0 {
+        eprintln!(
+            "note: {out}: {unframed_bytes} bytes of the GNSS serial stream were in no frame (frames cut off at the stream's start or end, rejected frames, bytes between frames)"
+        );
+    }
+    unframed
 }

@@ -18,7 +18,7 @@ use crate::bag::topics;
 use crate::bag::{BagError, BagWriter};
 use crate::record::clock::{ClockEstimator, ClockModel};
 use crate::record::messages::{cloud_cdr, nav_sat_fix};
-use crate::record::rejects::{GnssRejects, LidarRejects, RejectReason};
+use crate::record::rejects::{GnssRejects, GnssUndecoded, LidarRejects, RejectReason, Undecoded};
 use crate::rig::Rig;
 use hilrig_can::ego::{EgoSample, EgoTracker, Quantity};
 use hilrig_can::Database;
@@ -84,8 +84,14 @@ pub struct RecordSummary {
     pub counts: BTreeMap<String, u64>,
     /// Clock models per source (name, model, residual p50/p95/max in ns, pairs).
     pub clocks: Vec<(String, ClockModel, crate::record::clock::Residuals, u64)>,
-    /// Lidar packets lost (sensor timestamp gaps).
+    /// Lidar packets lost (sensor timestamp gaps, and outages of more than two seconds told
+    /// by the capture's receive times).
     pub lidar_lost: u64,
+    /// Of those gaps, outages of more than two seconds.
+    pub lidar_outages: u64,
+    /// Jumps of the lidar's clock (backwards, or by more than two seconds while its packets
+    /// kept coming): not loss, but the sensor re-synchronised or was reset.
+    pub lidar_time_jumps: u64,
     /// Inputs that ended early (truncated), with the error.
     pub input_errors: Vec<String>,
     /// Lidar packets not recorded, per reason (any makes `record` exit 1).
@@ -93,6 +99,18 @@ pub struct RecordSummary {
     /// GNSS serial frames not recorded (a checksum that fails, a malformed sentence), per
     /// reason (any makes `record` exit 1).
     pub gnss_rejects: GnssRejects,
+    /// GNSS messages recorded whole (on /gnss/nmea, /gnss/ubx) whose fields did not decode, so
+    /// that their fix or attitude is missing, per reason (any makes `record` exit 1).
+    pub gnss_undecoded: GnssUndecoded,
+    /// Bytes of the GNSS serial streams that were in no frame: a frame cut off at a stream's
+    /// start or end, bytes between frames, rejected frames (counted in `gnss_rejects` too),
+    /// or a protocol the recorder does not frame (neither NMEA, UBX nor RTCM3).
+    pub gnss_unframed_bytes: u64,
+    /// NMEA, UBX and RTCM3 frames the GNSS serial streams held.
+    pub gnss_frames: u64,
+    /// Fixes not written to /gnss/fix because they came before the stream showed its date
+    /// (their sentences and frames are in /gnss/nmea and /gnss/ubx).
+    pub fixes_untimed: u64,
     /// UDP datagrams that went to no lidar port of the rig, by destination port.
     pub other_udp_ports: BTreeMap<u16, u64>,
     /// Names of the captures' serial interfaces that carried bytes (read as the GNSS stream,
@@ -202,6 +220,8 @@ struct Sources {
     rejects: LidarRejects,
     /// GNSS frames left out, per reason.
     gnss_rejects: GnssRejects,
+    /// GNSS messages recorded whole whose fields did not decode, per reason.
+    gnss_undecoded: GnssUndecoded,
 }
 
 /// A serial interface's framer and epoch assemblers, with the receive time of the last frame:
@@ -231,6 +251,7 @@ impl Sources {
             lidar_checked: 0,
             rejects: LidarRejects::default(),
             gnss_rejects: GnssRejects::default(),
+            gnss_undecoded: GnssUndecoded::default(),
         }
     }
 }
@@ -252,6 +273,8 @@ struct Output<'a> {
     frame_gnss: String,
     /// Attitude reports without a time (see [`RecordSummary::attitude_untimed`]).
     attitude_untimed: u64,
+    /// Fixes without a time (see [`RecordSummary::fixes_untimed`]).
+    fixes_untimed: u64,
     last_speed: Option<f64>,
     last_yaw: Option<f64>,
     rig: &'a Rig,
@@ -480,8 +503,8 @@ impl Context<'_> {
         let mut fixes = Vec::new();
         let mut attitudes = Vec::new();
         while let Some(it) = entry.framer.next_frame() {
-            let frame = match it {
-                Item::Frame { frame, .. } => frame,
+            let (frame, offset) = match it {
+                Item::Frame { frame, offset } => (frame, offset),
                 Item::Rejected { offset, reason } => {
                     src.gnss_rejects.add(reason, || {
                         format!(
@@ -510,10 +533,15 @@ impl Context<'_> {
                             &msgs::nmea_sentence(t, &o.frame_gnss, &s),
                         )?;
                     }
-                    if let Ok(sentence) = hilrig_gnss::nmea::parse(&s) {
-                        let time = entry.nmea.attitude_time(&sentence);
-                        attitudes.push((hilrig_gnss::attitude::from_nmea(&sentence, time), t));
-                        fixes.extend(entry.nmea.push(&sentence).map(|f| (f, epoch_host)));
+                    match hilrig_gnss::nmea::parse(&s) {
+                        Ok(sentence) => {
+                            let time = entry.nmea.attitude_time(&sentence);
+                            attitudes.push((hilrig_gnss::attitude::from_nmea(&sentence, time), t));
+                            fixes.extend(entry.nmea.push(&sentence).map(|f| (f, epoch_host)));
+                        }
+                        Err(e) => src.gnss_undecoded.add(Undecoded::NmeaFields, || {
+                            format!("serial interface {interface}, stream byte {offset}: {e}")
+                        }),
                     }
                 }
                 Frame::Ubx { class, id, payload } => {
@@ -527,13 +555,28 @@ impl Context<'_> {
                             &msgs::raw_packet(t, &o.frame_gnss, &raw),
                         )?;
                     }
-                    if let Ok(m) = hilrig_gnss::ubx::decode(class, id, &payload) {
-                        fixes.extend(entry.ubx.push(&m).map(|f| (f, epoch_host)));
-                        let time = entry.ubx.attitude_time(&m);
-                        attitudes.push((hilrig_gnss::attitude::from_ubx(&m, time), t));
+                    match hilrig_gnss::ubx::decode(class, id, &payload) {
+                        Ok(m) => {
+                            fixes.extend(entry.ubx.push(&m).map(|f| (f, epoch_host)));
+                            let time = entry.ubx.attitude_time(&m);
+                            attitudes.push((hilrig_gnss::attitude::from_ubx(&m, time), t));
+                        }
+                        Err(e) => src.gnss_undecoded.add(Undecoded::UbxPayload, || {
+                            format!("serial interface {interface}, stream byte {offset}: {e}")
+                        }),
                     }
                 }
-                Frame::Rtcm3 { .. } => {}
+                Frame::Rtcm3 { bytes, .. } => {
+                    if let Some(o) = out.as_deref_mut() {
+                        o.bag.write(
+                            topics::GNSS_RTCM,
+                            &msgs::raw_packet_type(),
+                            t,
+                            t,
+                            &msgs::raw_packet(t, &o.frame_gnss, &bytes),
+                        )?;
+                    }
+                }
             }
             for (f, _) in &fixes {
                 if let Some(ft) = f.time {
@@ -583,7 +626,12 @@ impl Context<'_> {
         f: &Fix,
         host: UtcNanos,
     ) -> Result<(), RecordError> {
-        let Some(t) = f.time else { return Ok(()) };
+        let Some(t) = f.time else {
+            if let Some(o) = out {
+                o.fixes_untimed += 1;
+            }
+            return Ok(());
+        };
         match out {
             None => src.gnss_clock.handle(t, host),
             Some(o) => {
@@ -783,6 +831,12 @@ impl Context<'_> {
             InputKind::Serial => {
                 let iface = SERIAL_LOG_INTERFACE + src.framers.len() as u32;
                 let bytes = std::fs::read(path).map_err(err)?;
+                // A log file may be gpsd's, whose `#` lines are the log's comments, not the
+                // receiver's bytes (a receiver writes no line starting with `#`).
+                src.framers.entry(iface).or_insert_with(|| SerialState {
+                    framer: Framer::for_gpsd_log(),
+                    ..SerialState::default()
+                });
                 for chunk in bytes.chunks(4096) {
                     self.serial(src, out.as_deref_mut(), iface, chunk, None)?;
                 }
@@ -900,6 +954,7 @@ pub fn record_from(
             .as_ref()
             .map_or("gnss".into(), |g| g.frame_id.clone()),
         attitude_untimed: 0,
+        fixes_untimed: 0,
         last_speed: None,
         last_yaw: None,
         rig,
@@ -973,10 +1028,21 @@ pub fn record_from(
         if let Some(done) = rot.finish() {
             write_scan(&mut out, &done.packets)?;
         }
-        summary.lidar_lost = rot.loss().lost;
+        let loss = rot.loss();
+        summary.lidar_lost = loss.lost;
+        summary.lidar_outages = loss.outages;
+        summary.lidar_time_jumps = loss.time_jumps;
     }
     summary.lidar_rejects = std::mem::take(&mut src.rejects);
     summary.gnss_rejects = std::mem::take(&mut src.gnss_rejects);
+    summary.gnss_undecoded = std::mem::take(&mut src.gnss_undecoded);
+    summary.fixes_untimed = out.fixes_untimed;
+    for s in src.framers.values() {
+        let st = &s.framer.stats;
+        summary.gnss_unframed_bytes +=
+            st.skipped_bytes - st.comment_bytes + s.framer.pending() as u64;
+        summary.gnss_frames += st.nmea + st.ubx + st.rtcm3;
+    }
     summary.attitude_untimed = out.attitude_untimed;
     let mut meta = BTreeMap::new();
     meta.insert(
@@ -987,11 +1053,28 @@ pub fn record_from(
         "lidar_lost_packets".to_owned(),
         summary.lidar_lost.to_string(),
     );
+    meta.insert(
+        "lidar_outages".to_owned(),
+        summary.lidar_outages.to_string(),
+    );
+    meta.insert(
+        "lidar_time_jumps".to_owned(),
+        summary.lidar_time_jumps.to_string(),
+    );
     meta.insert("input_errors".to_owned(), summary.input_errors.join("; "));
     if model.is_some() {
         summary.lidar_rejects.write_metadata(&mut meta);
     }
     summary.gnss_rejects.write_metadata(&mut meta);
+    summary.gnss_undecoded.write_metadata(&mut meta);
+    meta.insert(
+        "gnss_unframed_bytes".to_owned(),
+        summary.gnss_unframed_bytes.to_string(),
+    );
+    meta.insert(
+        "gnss_fixes_untimed".to_owned(),
+        summary.fixes_untimed.to_string(),
+    );
     summary.capture_records.write_metadata(&mut meta);
     out.bag.metadata("hilrig/end", meta)?;
     summary.counts = out.bag.finish()?;

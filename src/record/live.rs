@@ -16,7 +16,7 @@
 use crate::bag::msgs::{self, MessageType};
 use crate::bag::{BagError, BagWriter};
 use crate::record::clock::ClockEstimator;
-use crate::record::rejects::{GnssRejects, LidarRejects, RejectReason};
+use crate::record::rejects::{GnssRejects, GnssUndecoded, LidarRejects, RejectReason, Undecoded};
 use crate::rig::Rig;
 use hilrig_gnss::epoch::{NmeaEpochs, UbxEpochs};
 use hilrig_gnss::framer::{Frame, Framer, Item};
@@ -96,6 +96,11 @@ pub struct LiveSummary {
     /// GNSS serial frames not recorded (a checksum that fails, a malformed sentence), per
     /// reason (any makes `record` exit 1).
     pub gnss_rejects: GnssRejects,
+    /// GNSS messages recorded whole whose fields did not decode (their fix or attitude is
+    /// missing), per reason (any makes `record` exit 1).
+    pub gnss_undecoded: GnssUndecoded,
+    /// Fixes not written to /gnss/fix because they came before the stream showed its date.
+    pub gnss_fixes_untimed: u64,
 }
 
 /// Why the recorder stopped with an error.
@@ -240,6 +245,8 @@ pub async fn record_live(
     let mut health: BTreeMap<&'static str, Arc<Health>> = BTreeMap::new();
     let rejects: Arc<Mutex<LidarRejects>> = Arc::default();
     let gnss_rejects: Arc<Mutex<GnssRejects>> = Arc::default();
+    let gnss_undecoded: Arc<Mutex<GnssUndecoded>> = Arc::default();
+    let gnss_untimed: Arc<AtomicU64> = Arc::default();
     let mut tasks = Vec::new();
 
     // Open every source before writing anything: a wrong port stops the recorder at start.
@@ -291,7 +298,11 @@ pub async fn record_live(
             tx.clone(),
             h,
             clocks.clone(),
-            gnss_rejects.clone(),
+            GnssCounts {
+                rejects: gnss_rejects.clone(),
+                undecoded: gnss_undecoded.clone(),
+                untimed: gnss_untimed.clone(),
+            },
             shutdown.clone(),
         )));
     }
@@ -382,6 +393,7 @@ pub async fn record_live(
         end.insert(format!("{name}_dropped"), v[2].to_string());
         end.insert(format!("{name}_decode_errors"), v[3].to_string());
         end.insert(format!("{name}_lost"), v[4].to_string());
+        end.insert(format!("{name}_reconnects"), v[5].to_string());
         summary.health.insert(name.to_string(), v);
     }
     summary.lidar_rejects = rejects.lock().map(|r| r.clone()).unwrap_or_default();
@@ -389,8 +401,15 @@ pub async fn record_live(
         summary.lidar_rejects.write_metadata(&mut end);
     }
     summary.gnss_rejects = gnss_rejects.lock().map(|r| r.clone()).unwrap_or_default();
+    summary.gnss_undecoded = gnss_undecoded.lock().map(|r| r.clone()).unwrap_or_default();
+    summary.gnss_fixes_untimed = gnss_untimed.load(Ordering::Relaxed);
     if rig.gnss.is_some() {
         summary.gnss_rejects.write_metadata(&mut end);
+        summary.gnss_undecoded.write_metadata(&mut end);
+        end.insert(
+            "gnss_fixes_untimed".to_owned(),
+            summary.gnss_fixes_untimed.to_string(),
+        );
     }
     bag.metadata("hilrig/end", end)?;
     print_health(&health, &rejects);
@@ -583,24 +602,82 @@ async fn lidar_task(
     }
 }
 
+/// Counts a GNSS message that framed but did not decode.
+fn undecodable(
+    h: &Health,
+    undecoded: &Mutex<GnssUndecoded>,
+    reason: Undecoded,
+    offset: u64,
+    host: UtcNanos,
+    e: &dyn std::fmt::Display,
+) {
+    h.decode_errors.fetch_add(1, Ordering::Relaxed);
+    let mut u = undecoded.lock().unwrap_or_else(|e| e.into_inner());
+    u.add(reason, || {
+        format!("stream byte {offset}, received {host}: {e}")
+    });
+}
+
+/// What the GNSS task counts beside its health: frames rejected, messages that did not
+/// decode, fixes without a time.
+struct GnssCounts {
+    rejects: Arc<Mutex<GnssRejects>>,
+    undecoded: Arc<Mutex<GnssUndecoded>>,
+    untimed: Arc<AtomicU64>,
+}
+
 async fn gnss_task(
     mut source: hilrig_gnss::serial::SerialSource,
     frame: String,
     tx: SyncSender<Event>,
     h: Arc<Health>,
     clocks: Arc<Mutex<BTreeMap<&'static str, ClockEstimator>>>,
-    rejects: Arc<Mutex<GnssRejects>>,
+    counts: GnssCounts,
     mut shutdown: tokio::sync::watch::Receiver<bool>,
 ) {
+    let GnssCounts {
+        rejects,
+        undecoded,
+        untimed,
+    } = counts;
     let mut framer = Framer::new();
     let mut nmea = NmeaEpochs::default();
     let mut ubx = UbxEpochs::default();
     let mut last_host: Option<UtcNanos> = None;
     let t = types();
+    // A fix is sent with the receive time of its epoch's last frame.
+    let send_fix = |fix: hilrig_gnss::epoch::Fix, epoch_host: UtcNanos| {
+        let Some(time) = fix.time else {
+            untimed.fetch_add(1, Ordering::Relaxed);
+            return;
+        };
+        let synced = gnss_on_host(&clocks, time, Some(epoch_host));
+        if let Some(nav) = crate::record::messages::nav_sat_fix(&fix) {
+            send(
+                &tx,
+                &h,
+                Event {
+                    topic: crate::bag::topics::GNSS_FIX,
+                    ty: &t["fix"],
+                    log_time: synced,
+                    publish_time: epoch_host,
+                    cdr: msgs::nav_sat_fix(time, &frame, &nav),
+                },
+            );
+        }
+    };
     loop {
         let chunk = tokio::select! {
             c = source.next_chunk() => c,
-            _ = shutdown.changed() => return,
+            _ = shutdown.changed() => {
+                // The epoch in progress was complete with its last frame: write it.
+                if let Some(host) = last_host {
+                    for fix in nmea.finish().into_iter().chain(ubx.finish()) {
+                        send_fix(fix, host);
+                    }
+                }
+                return;
+            }
         };
         h.reconnects
             .store(source.stats.reconnects, Ordering::Relaxed);
@@ -608,8 +685,8 @@ async fn gnss_task(
         while let Some(item) = framer.next_frame() {
             let host = chunk.host;
             let epoch_host = last_host.unwrap_or(host);
-            let f = match item {
-                Item::Frame { frame, .. } => frame,
+            let (f, offset) = match item {
+                Item::Frame { frame, offset } => (frame, offset),
                 Item::Rejected { offset, reason } => {
                     h.decode_errors.fetch_add(1, Ordering::Relaxed);
                     let mut r = rejects.lock().unwrap_or_else(|e| e.into_inner());
@@ -640,8 +717,8 @@ async fn gnss_task(
                             attitude = Some(hilrig_gnss::attitude::from_nmea(&sentence, time));
                             fixes.extend(nmea.push(&sentence));
                         }
-                        Err(_) => {
-                            h.decode_errors.fetch_add(1, Ordering::Relaxed);
+                        Err(e) => {
+                            undecodable(&h, &undecoded, Undecoded::NmeaFields, offset, host, &e)
                         }
                     }
                 }
@@ -658,13 +735,28 @@ async fn gnss_task(
                             cdr: msgs::raw_packet(host, &frame, &raw),
                         },
                     );
-                    if let Ok(m) = hilrig_gnss::ubx::decode(class, id, &payload) {
-                        fixes.extend(ubx.push(&m));
-                        let time = ubx.attitude_time(&m);
-                        attitude = Some(hilrig_gnss::attitude::from_ubx(&m, time));
+                    match hilrig_gnss::ubx::decode(class, id, &payload) {
+                        Ok(m) => {
+                            fixes.extend(ubx.push(&m));
+                            let time = ubx.attitude_time(&m);
+                            attitude = Some(hilrig_gnss::attitude::from_ubx(&m, time));
+                        }
+                        Err(e) => {
+                            undecodable(&h, &undecoded, Undecoded::UbxPayload, offset, host, &e)
+                        }
                     }
                 }
-                Frame::Rtcm3 { .. } => {}
+                Frame::Rtcm3 { bytes, .. } => send(
+                    &tx,
+                    &h,
+                    Event {
+                        topic: crate::bag::topics::GNSS_RTCM,
+                        ty: &t["raw"],
+                        log_time: host,
+                        publish_time: host,
+                        cdr: msgs::raw_packet(host, &frame, &bytes),
+                    },
+                ),
             }
             // An attitude report at its own UTC on the GNSS clock (one without a time, before
             // the stream showed its date, stays in the raw topics only).
@@ -685,21 +777,7 @@ async fn gnss_task(
                 }
             }
             for fix in fixes {
-                let Some(time) = fix.time else { continue };
-                let synced = gnss_on_host(&clocks, time, Some(epoch_host));
-                if let Some(nav) = crate::record::messages::nav_sat_fix(&fix) {
-                    send(
-                        &tx,
-                        &h,
-                        Event {
-                            topic: crate::bag::topics::GNSS_FIX,
-                            ty: &t["fix"],
-                            log_time: synced,
-                            publish_time: epoch_host,
-                            cdr: msgs::nav_sat_fix(time, &frame, &nav),
-                        },
-                    );
-                }
+                send_fix(fix, epoch_host);
             }
         }
     }

@@ -1,5 +1,6 @@
-//! Data the recorder left out, counted per reason: lidar packets, and GNSS serial frames that
-//! failed their checksum or did not frame.
+//! Data the recorder left out, counted per reason: lidar packets, GNSS serial frames that
+//! failed their checksum or did not frame, and GNSS messages recorded whole whose fields did
+//! not decode (their fix or attitude is missing).
 //!
 //! Both recorders (`--from` and live) keep one [`LidarRejects`] and one [`GnssRejects`]:
 //! printed at the end (the lidar's also in the live health lines), written into the
@@ -171,6 +172,43 @@ impl Reason for FrameReject {
     }
 }
 
+/// Why a GNSS message that framed and passed its checksum did not decode: a sentence or
+/// message of a kind the recorder reads (GGA, RMC, GST, HDT, ...; NAV-PVT, NAV-ATT, ...) whose
+/// fields do not read. It is in the recording (`/gnss/nmea`, `/gnss/ubx`), but the fix or
+/// attitude it carried is not on `/gnss/fix` or `/gnss/attitude`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Undecoded {
+    /// An NMEA sentence with a field that does not read, or too few fields.
+    NmeaFields,
+    /// A UBX message of the wrong length, an unknown version, or an angle out of range.
+    UbxPayload,
+}
+
+impl Reason for Undecoded {
+    const TOTAL: &'static str = "gnss_undecoded";
+    fn key(self) -> String {
+        match self {
+            Undecoded::NmeaFields => "nmea_fields",
+            Undecoded::UbxPayload => "ubx_payload",
+        }
+        .into()
+    }
+    fn from_key(key: &str) -> Option<Self> {
+        Some(match key {
+            "nmea_fields" => Undecoded::NmeaFields,
+            "ubx_payload" => Undecoded::UbxPayload,
+            _ => return None,
+        })
+    }
+    fn describe(self) -> String {
+        match self {
+            Undecoded::NmeaFields => "NMEA sentence whose fields do not read",
+            Undecoded::UbxPayload => "UBX message whose payload does not read",
+        }
+        .into()
+    }
+}
+
 /// What a recording left out: counts per reason and, per reason, where the first one was and
 /// what was wrong with it (for lidar packets the full error: offsets, expected and found
 /// values).
@@ -187,6 +225,9 @@ pub type LidarRejects = Rejects<RejectReason>;
 
 /// The GNSS serial frames a recording left out.
 pub type GnssRejects = Rejects<FrameReject>;
+
+/// The GNSS messages a recording holds but could not decode.
+pub type GnssUndecoded = Rejects<Undecoded>;
 
 impl<R: Reason> Default for Rejects<R> {
     fn default() -> Self {

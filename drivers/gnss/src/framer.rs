@@ -31,12 +31,13 @@ pub enum Frame {
         /// Payload bytes.
         payload: Vec<u8>,
     },
-    /// An RTCM3 frame (passed over: only its message number is kept).
+    /// An RTCM3 frame: corrections a moving-base receiver sends its rover, or that a receiver
+    /// echoes. Not decoded, but recorded and replayed as they came.
     Rtcm3 {
         /// Message number (first 12 bits of the payload), 0 when the payload is empty.
         message: u16,
-        /// Payload length.
-        len: usize,
+        /// The whole frame: preamble, length, payload and CRC.
+        bytes: Vec<u8>,
     },
 }
 
@@ -89,6 +90,8 @@ pub struct FramerStats {
     pub skipped_bytes: u64,
     /// gpsd log comment lines skipped.
     pub comment_lines: u64,
+    /// Their bytes (among `skipped_bytes`): the log's, not the receiver's.
+    pub comment_bytes: u64,
 }
 
 /// The framer.
@@ -149,6 +152,12 @@ impl Framer {
         self.finished = true;
     }
 
+    /// Bytes pushed that are not yet part of a frame or skipped: at the end of a stream, a
+    /// frame cut off there.
+    pub fn pending(&self) -> usize {
+        self.buf.len()
+    }
+
     /// Stream offset of the next unread byte.
     pub fn position(&self) -> u64 {
         self.offset
@@ -191,6 +200,7 @@ impl Framer {
                 Scan::Skip(n) => {
                     if self.at_line_start && self.gpsd_comments && self.buf.front() == Some(&b'#') {
                         self.stats.comment_lines += 1;
+                        self.stats.comment_bytes += n as u64;
                     }
                     self.stats.skipped_bytes += n as u64;
                     self.consume(n);
@@ -393,7 +403,10 @@ fn scan_rtcm3(data: &[u8], offset: u64) -> Scan {
     Scan::Item(
         Item::Frame {
             offset,
-            frame: Frame::Rtcm3 { message, len },
+            frame: Frame::Rtcm3 {
+                message,
+                bytes: data[..total].to_vec(),
+            },
         },
         total,
     )
@@ -547,6 +560,7 @@ mod tests {
             }
             assert_eq!(n, 1);
             assert_eq!(f.stats.comment_lines, comments);
+            assert_eq!(f.stats.comment_bytes, if comments > 0 { 14 } else { 0 });
             assert_eq!(f.stats.skipped_bytes, "# a comment\n#\n".len() as u64);
             assert_eq!(f.stats.rejected, 0);
         }
@@ -609,7 +623,7 @@ mod tests {
             ok[2],
             Frame::Rtcm3 {
                 message: 1005,
-                len: 4
+                bytes: rtcm3_frame(&[0x3E, 0xD0, 1, 2])
             }
         );
         assert_eq!(bad, vec![RejectReason::NmeaChecksum]);
