@@ -1393,40 +1393,8 @@ fn a_capture_cut_by_its_snap_length_is_an_error_naming_the_damaged_records() {
     let drive = common::lidar_capture(Model::Vlp16, ReturnMode::Strongest, 50, true);
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("snapped.pcap");
-    // Classic pcap, microseconds, Ethernet, snap length 1000.
-    let snap = 1000usize;
-    let mut pcap = Vec::new();
-    pcap.extend_from_slice(&0xa1b2_c3d4u32.to_le_bytes());
-    pcap.extend_from_slice(&2u16.to_le_bytes());
-    pcap.extend_from_slice(&4u16.to_le_bytes());
-    pcap.extend_from_slice(&[0; 8]);
-    pcap.extend_from_slice(&(snap as u32).to_le_bytes());
-    pcap.extend_from_slice(&1u32.to_le_bytes());
-    let mut r = hilrig::capture::Demux::new(
-        hilrig::capture::CaptureReader::new(std::io::Cursor::new(drive.capture.clone())).unwrap(),
-    );
-    let (mut cut, mut whole) = (0u64, 0u64);
-    while let Some(item) = r.next_item() {
-        let item = item.unwrap();
-        let hilrig::capture::demux::Packet::Udp { src, dst, payload } = item.packet else {
-            panic!("only UDP in the capture");
-        };
-        let frame = udp_ethernet_frame(src, dst, payload);
-        let kept = &frame[..frame.len().min(snap)];
-        if kept.len() < frame.len() {
-            cut += 1;
-        } else {
-            whole += 1;
-        }
-        let us = item.time.0 / 1000;
-        pcap.extend_from_slice(&((us / 1_000_000) as u32).to_le_bytes());
-        pcap.extend_from_slice(&((us % 1_000_000) as u32).to_le_bytes());
-        pcap.extend_from_slice(&(kept.len() as u32).to_le_bytes());
-        pcap.extend_from_slice(&(frame.len() as u32).to_le_bytes());
-        pcap.extend_from_slice(kept);
-    }
+    let (pcap, cut) = common::snapped_pcap(&drive.capture, 1000);
     assert_eq!(cut, 50);
-    assert!(whole > 0, "the position packets fit");
     std::fs::write(&input, pcap).unwrap();
     let out = dir.path().join("snapped.mcap");
     let st = common::record_from(&lidar_rig(dir.path(), "vlp16"), &[&input], &out);
@@ -1552,14 +1520,16 @@ fn a_gnss_stream_without_a_date_or_without_frames_is_an_error() {
     assert_eq!(st.status.code(), Some(1), "{stderr}");
     assert!(
         stderr.contains(
-            "none of 10 GNSS fixes could be written to /gnss/fix: the stream never gave a date"
+            "gga.log: none of its 10 fixes could be written to /gnss/fix: it never gave a date"
         ),
         "{stderr}"
     );
-    // SkyTraq-style binary (A0 A1 ... 0D 0A), which the recorder does not frame.
-    let binary: Vec<u8> = (0..50u8)
+    // SkyTraq-style binary (A0 A1 ... 0D 0A), which the recorder does not frame; none of its
+    // bytes starts a frame (`$`, `!`, UBX's B5, RTCM3's D3), so nothing is rejected either.
+    let binary: Vec<u8> = (0x80..0xB0u8)
         .flat_map(|i| [0xA0, 0xA1, 0x00, 0x02, 0x64, i, 0x64 ^ i, 0x0D, 0x0A])
         .collect();
+    assert!(!binary.iter().any(|b| [b'$', b'!', 0xB5, 0xD3].contains(b)));
     let log = dir.path().join("binary.log");
     std::fs::write(&log, &binary).unwrap();
     let out = dir.path().join("binary.mcap");
@@ -1568,9 +1538,20 @@ fn a_gnss_stream_without_a_date_or_without_frames_is_an_error() {
     assert_eq!(st.status.code(), Some(1), "{stderr}");
     assert!(
         stderr.contains(&format!(
-            "the GNSS serial stream's {} bytes hold no NMEA, UBX or RTCM3 frame",
+            "binary.log: its {} bytes hold no NMEA, UBX or RTCM3 frame",
             binary.len()
         )),
         "{stderr}"
     );
+    assert!(
+        !stderr.contains("were not recorded"),
+        "nothing rejected: {stderr}"
+    );
+    // Beside a good stream, the bad one is still named.
+    let good = serial_log(dir.path(), "good.log", &epochs(), &[]);
+    let st = common::record_from(&common::demo_rig(), &[&good, &log], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("binary.log: its "), "{stderr}");
+    assert!(stderr.contains("/gnss/fix: 10 messages"), "{stderr}");
 }

@@ -685,3 +685,36 @@ fn gnss_frames_that_fail_their_checksum_on_the_live_port_are_counted_and_exit_1(
         [(F::NmeaChecksum, 1), (F::UbxChecksum, 1)]
     );
 }
+
+/// The GNSS port goes away mid-recording (the receiver's cable pulled: the pseudo-terminal's
+/// other end closed) and does not come back: what it would have sent is lost, so the recorder
+/// says so and exits 1, with the count in `hilrig/end`; what came before is recorded.
+#[test]
+fn a_gnss_port_that_goes_away_is_counted_and_exit_1() {
+    let mut r = rig();
+    let child = start_with(&r, std::process::Stdio::piped());
+    std::thread::sleep(Duration::from_millis(300));
+    let mut gnss = std::mem::replace(&mut r.gnss, std::fs::File::open("/dev/null").unwrap());
+    gnss.write_all(
+        nmea_sentence("GNRMC,120000.00,A,4807.038,N,01131.000,E,0.0,0.0,251126,,,R").as_bytes(),
+    )
+    .unwrap();
+    gnss.flush().unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    drop(gnss);
+    std::thread::sleep(Duration::from_millis(500));
+    let (code, stderr) = stop(child);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("the GNSS serial port was lost 1 times (0 reopened)"),
+        "{stderr}"
+    );
+    let info = hilrig::bag::info::info(&r.out).unwrap();
+    assert_eq!(info.metadata["hilrig/end"]["gnss_disconnects"], "1");
+    let nmea = info.channels.iter().find(|c| c.topic == "/gnss/nmea");
+    assert_eq!(
+        nmea.map(|c| c.count),
+        Some(1),
+        "what came before is recorded"
+    );
+}

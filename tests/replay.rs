@@ -831,3 +831,54 @@ fn two_captures_are_merged_by_time() {
         "{stderr}"
     );
 }
+
+/// A capture cut by its snap length (`tcpdump -s 1000`): its lidar data packets cannot be
+/// replayed, and replay says so per reason and exits 1 instead of sending the position
+/// packets alone; a datagram to the lidar's port of another size is counted the same way.
+#[test]
+fn a_capture_s_damaged_records_are_named_and_exit_1() {
+    use hilrig::velodyne::{Model, ReturnMode};
+    let drive = common::lidar_capture(Model::Vlp16, ReturnMode::Strongest, 50, true);
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("snapped.pcap");
+    let (pcap, cut) = common::snapped_pcap(&drive.capture, 1000);
+    std::fs::write(&input, pcap).unwrap();
+    let s = hilrig::replay::stream(&input, 2368, 8308, &mut |_| true).unwrap();
+    assert_eq!(
+        s.capture_records.damaged.get("cut_by_snap_length"),
+        Some(&cut)
+    );
+    let (code, (_, _, _, stderr)) = receive_with_status(&input, &[], Duration::from_millis(200));
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "{cut} capture records were damaged (cut_by_snap_length) and not replayed"
+        )),
+        "{stderr}"
+    );
+    // A 100-byte datagram to the data port among whole packets.
+    let mut w = hilrig::capture::PcapngWriter::new(Vec::new(), "test").unwrap();
+    let eth = w
+        .add_interface(hilrig::capture::LinkType::ETHERNET, "eth0")
+        .unwrap();
+    let ep = |port| std::net::SocketAddrV4::new(std::net::Ipv4Addr::new(192, 168, 1, 201), port);
+    let mut r = hilrig::capture::Demux::new(
+        hilrig::capture::CaptureReader::new(std::io::Cursor::new(drive.capture.clone())).unwrap(),
+    );
+    while let Some(item) = r.next_item() {
+        let item = item.unwrap();
+        let hilrig::capture::demux::Packet::Udp { src, dst, payload } = item.packet else {
+            continue;
+        };
+        let frame = hilrig::capture::writer::udp_ethernet_frame(src, dst, payload);
+        w.write_packet(eth, item.time, &frame).unwrap();
+    }
+    let stray = hilrig::capture::writer::udp_ethernet_frame(ep(2368), ep(2368), &[0u8; 100]);
+    w.write_packet(eth, hilrig::stamp::UtcNanos(1), &stray)
+        .unwrap();
+    let odd = dir.path().join("odd.pcapng");
+    std::fs::write(&odd, w.finish().unwrap()).unwrap();
+    let s = hilrig::replay::stream(&odd, 2368, 8308, &mut |_| true).unwrap();
+    assert_eq!(s.lidar_wrong_size, 1);
+    assert!(s.capture_records.damaged.is_empty());
+}

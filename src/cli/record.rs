@@ -69,20 +69,8 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
     let gnss_rejects = &summary.gnss_rejects;
     print_rejects(&out.to_string(), "lidar packets", rejects);
     print_rejects(&out.to_string(), "GNSS serial frames", gnss_rejects);
-    let fixes_recorded = summary
-        .counts
-        .get(hilrig::bag::topics::GNSS_FIX)
-        .is_some_and(|&n| n > 0);
-    let gnss_failed = print_gnss_decoding(
-        &out.to_string(),
-        &summary.gnss_undecoded,
-        summary.fixes_untimed,
-        fixes_recorded,
-    ) | print_unframed(
-        &out.to_string(),
-        summary.gnss_frames,
-        summary.gnss_unframed_bytes,
-    );
+    let gnss_failed = print_undecoded(&out.to_string(), &summary.gnss_undecoded)
+        | print_gnss_streams(&out.to_string(), &summary.gnss_streams);
     if summary.attitude_untimed > 0 {
         eprintln!(
             "note: {out}: {} attitude reports came before the GNSS stream showed its date and are not on /gnss/attitude (their raw messages are on /gnss/nmea and /gnss/ubx)",
@@ -180,21 +168,14 @@ fn live(rig: &hilrig::rig::Rig, text: &str, output: Option<PathBuf>) -> Result<E
     let out = output.display().to_string();
     print_rejects(&out, "lidar packets", rejects);
     print_rejects(&out, "GNSS serial frames", gnss_rejects);
-    let fixes_recorded = summary
-        .counts
-        .get(hilrig::bag::topics::GNSS_FIX)
-        .is_some_and(|&n| n > 0);
-    let gnss_failed = print_gnss_decoding(
-        &out,
-        &summary.gnss_undecoded,
-        summary.gnss_fixes_untimed,
-        fixes_recorded,
-    );
+    let gnss_failed = print_undecoded(&out, &summary.gnss_undecoded)
+        | print_gnss_streams(&out, summary.gnss_stream.as_slice());
     // While the serial port was gone, its bytes were lost.
-    let reconnects = summary.health.get("gnss").map_or(0, |v| v[5]);
-    if reconnects > 0 {
+    let disconnects = summary.gnss_disconnects;
+    if disconnects > 0 {
         eprintln!(
-            "error: {out}: the GNSS serial port was lost and reopened {reconnects} times; what the receiver sent meanwhile is not recorded"
+            "error: {out}: the GNSS serial port was lost {disconnects} times ({} reopened); what the receiver sent meanwhile is not recorded",
+            summary.health.get("gnss").map_or(0, |v| v[5])
         );
     }
     Ok(
@@ -202,7 +183,7 @@ fn live(rig: &hilrig::rig::Rig, text: &str, output: Option<PathBuf>) -> Result<E
             && rejects.is_empty()
             && gnss_rejects.is_empty()
             && !gnss_failed
-            && reconnects == 0
+            && disconnects == 0
         {
             ExitCode::SUCCESS
         } else {
@@ -229,14 +210,9 @@ fn print_rejects<R: hilrig::record::rejects::Reason>(
     }
 }
 
-/// Says which GNSS messages were recorded but did not decode, and which fixes had no time;
-/// whether that is an error (anything undecoded, or no fix written at all for want of a date).
-fn print_gnss_decoding(
-    out: &str,
-    undecoded: &hilrig::record::rejects::GnssUndecoded,
-    fixes_untimed: u64,
-    fixes_recorded: bool,
-) -> bool {
+/// Says which GNSS messages were recorded but did not decode; whether there were any (an
+/// error: their fixes or attitude are missing).
+fn print_undecoded(out: &str, undecoded: &hilrig::record::rejects::GnssUndecoded) -> bool {
     if !undecoded.is_empty() {
         eprintln!(
             "error: {out}: {} GNSS messages are recorded but did not decode, so their fixes or attitude are missing from /gnss/fix and /gnss/attitude (counted in the file's hilrig/end metadata):",
@@ -246,33 +222,40 @@ fn print_gnss_decoding(
             eprintln!("  {line}");
         }
     }
-    // Fixes before the stream's first date wait in the raw topics; a stream that never gives
-    // one (GGA without RMC or ZDA) leaves no fix at all.
-    let dateless = fixes_untimed > 0 && !fixes_recorded;
-    if dateless {
-        eprintln!(
-            "error: {out}: none of {fixes_untimed} GNSS fixes could be written to /gnss/fix: the stream never gave a date (no RMC, ZDA or UBX time); its sentences are on /gnss/nmea and /gnss/ubx"
-        );
-    } else if fixes_untimed > 0 {
-        eprintln!(
-            "note: {out}: {fixes_untimed} GNSS fixes came before the stream showed its date and are not on /gnss/fix (their raw messages are on /gnss/nmea and /gnss/ubx)"
-        );
-    }
-    !undecoded.is_empty() || dateless
+    !undecoded.is_empty()
 }
 
-/// Says how many bytes of the GNSS serial streams were in no frame; an error when none framed
-/// at all (another protocol, or the wrong baud rate: nothing of the stream is recorded).
-fn print_unframed(out: &str, frames: u64, unframed_bytes: u64) -> bool {
-    let unframed = frames == 0 && unframed_bytes > 0;
-    if unframed {
-        eprintln!(
-            "error: {out}: the GNSS serial stream's {unframed_bytes} bytes hold no NMEA, UBX or RTCM3 frame, so none of it is recorded: another protocol, or the wrong baud rate?"
-        );
-    } else if unframed_bytes > 0 {
-        eprintln!(
-            "note: {out}: {unframed_bytes} bytes of the GNSS serial stream were in no frame (frames cut off at the stream's start or end, rejected frames, bytes between frames)"
-        );
+/// Says, per GNSS serial stream, what did not become a frame or a fix; whether one stream
+/// failed: none of its bytes framed (another protocol, a wrong baud rate: nothing of it is
+/// recorded), or it gave positions but never a date (none of its fixes is on /gnss/fix).
+fn print_gnss_streams(out: &str, streams: &[hilrig::record::gnss_stream::GnssStream]) -> bool {
+    let mut failed = false;
+    for s in streams {
+        let name = &s.name;
+        if s.unframed() {
+            eprintln!(
+                "error: {out}: GNSS stream {name}: its {} bytes hold no NMEA, UBX or RTCM3 frame ({} gpsd comment lines), so none of it is recorded: another protocol, or the wrong baud rate?",
+                s.unframed_bytes, s.comment_lines
+            );
+            failed = true;
+        } else if s.unframed_bytes > 0 {
+            eprintln!(
+                "note: {out}: GNSS stream {name}: {} bytes were in no frame (frames cut off at the stream's start or end, rejected frames, bytes between frames)",
+                s.unframed_bytes
+            );
+        }
+        if s.dateless() {
+            eprintln!(
+                "error: {out}: GNSS stream {name}: none of its {} fixes could be written to /gnss/fix: it never gave a date (no RMC, ZDA or UBX time); its messages are on /gnss/nmea and /gnss/ubx",
+                s.fixes_untimed
+            );
+            failed = true;
+        } else if s.fixes_untimed > 0 {
+            eprintln!(
+                "note: {out}: GNSS stream {name}: {} fixes came before it showed its date and are not on /gnss/fix (their messages are on /gnss/nmea and /gnss/ubx)",
+                s.fixes_untimed
+            );
+        }
     }
-    unframed
+    failed
 }

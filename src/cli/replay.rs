@@ -122,6 +122,14 @@ pub fn run(args: ReplayArgs) -> Result<ExitCode> {
         "replayed {} items ({} without a destination); lag p50 {:.1} us, p99 {:.1} us, max {:.1} us",
         p.sent, played.without_destination, p.p50_us, p.p99_us, p.max_us
     );
+    // The line's baud rate, not the recording, set the serial pace: say how far behind.
+    if played.serial_behind > std::time::Duration::from_millis(100) {
+        eprintln!(
+            "warning: the serial line at {} baud carried the GNSS stream up to {:.1} s behind its recorded pace (a faster --baud keeps up)",
+            args.baud,
+            played.serial_behind.as_secs_f64()
+        );
+    }
     let mut damaged = false;
     for (path, s) in &streamed {
         if s.out_of_order > 0 {
@@ -137,6 +145,21 @@ pub fn run(args: ReplayArgs) -> Result<ExitCode> {
                 "error: {}: {} recorded CAN frames were not replayed (CAN FD frames, or frames that are not classic CAN frames: the CAN sink sends classic frames only)",
                 path.display(),
                 s.not_replayed
+            );
+            damaged = true;
+        }
+        for (reason, n) in &s.capture_records.damaged {
+            eprintln!(
+                "error: {}: {n} capture records were damaged ({reason}) and not replayed",
+                path.display()
+            );
+            damaged = true;
+        }
+        if s.lidar_wrong_size > 0 {
+            eprintln!(
+                "error: {}: {} datagrams to the lidar's ports were not the size of a data or position packet and were not replayed",
+                path.display(),
+                s.lidar_wrong_size
             );
             damaged = true;
         }

@@ -128,7 +128,8 @@ pub struct LidarSummary {
     pub rejected: BTreeMap<String, u64>,
     /// The first few rejected packets with their offsets.
     pub first_problems: Vec<PacketProblem>,
-    /// Packets lost (sensor timestamp gaps).
+    /// Packets lost: sensor timestamp gaps, and outages of more than two seconds told by the
+    /// capture times.
     pub lost_packets: u64,
     /// Sensor time jumps.
     pub time_jumps: u64,

@@ -17,6 +17,7 @@ use crate::bag::msgs;
 use crate::bag::topics;
 use crate::bag::{BagError, BagWriter};
 use crate::record::clock::{ClockEstimator, ClockModel};
+use crate::record::gnss_stream::GnssStream;
 use crate::record::messages::{cloud_cdr, nav_sat_fix};
 use crate::record::rejects::{GnssRejects, GnssUndecoded, LidarRejects, RejectReason, Undecoded};
 use crate::rig::Rig;
@@ -102,15 +103,9 @@ pub struct RecordSummary {
     /// GNSS messages recorded whole (on /gnss/nmea, /gnss/ubx) whose fields did not decode, so
     /// that their fix or attitude is missing, per reason (any makes `record` exit 1).
     pub gnss_undecoded: GnssUndecoded,
-    /// Bytes of the GNSS serial streams that were in no frame: a frame cut off at a stream's
-    /// start or end, bytes between frames, rejected frames (counted in `gnss_rejects` too),
-    /// or a protocol the recorder does not frame (neither NMEA, UBX nor RTCM3).
-    pub gnss_unframed_bytes: u64,
-    /// NMEA, UBX and RTCM3 frames the GNSS serial streams held.
-    pub gnss_frames: u64,
-    /// Fixes not written to /gnss/fix because they came before the stream showed its date
-    /// (their sentences and frames are in /gnss/nmea and /gnss/ubx).
-    pub fixes_untimed: u64,
+    /// What each GNSS serial stream (a capture's serial interface, a log) held: frames, bytes
+    /// outside them, fixes with and without a date.
+    pub gnss_streams: Vec<GnssStream>,
     /// UDP datagrams that went to no lidar port of the rig, by destination port.
     pub other_udp_ports: BTreeMap<u16, u64>,
     /// Names of the captures' serial interfaces that carried bytes (read as the GNSS stream,
@@ -139,7 +134,7 @@ pub struct CaptureSkips {
 
 impl CaptureSkips {
     /// Adds what a capture's reader skipped.
-    fn add(&mut self, stats: &hilrig_capture::demux::Stats) {
+    pub fn add(&mut self, stats: &hilrig_capture::demux::Stats) {
         for (reason, n) in &stats.skipped {
             let (key, damaged) = skip_key(*reason);
             let to = if damaged {
@@ -236,6 +231,8 @@ struct SerialState {
     last_fix: Option<UtcNanos>,
     /// The stream has no receive times (a raw serial log).
     timeless: bool,
+    /// What the stream held (counted in the pass that writes).
+    stream: GnssStream,
 }
 
 impl Sources {
@@ -273,8 +270,6 @@ struct Output<'a> {
     frame_gnss: String,
     /// Attitude reports without a time (see [`RecordSummary::attitude_untimed`]).
     attitude_untimed: u64,
-    /// Fixes without a time (see [`RecordSummary::fixes_untimed`]).
-    fixes_untimed: u64,
     last_speed: Option<f64>,
     last_yaw: Option<f64>,
     rig: &'a Rig,
@@ -447,10 +442,14 @@ impl Context<'_> {
                 let name = demux
                     .interfaces()
                     .get(i as usize)
-                    .and_then(|f| f.name.clone());
-                summary
-                    .serial_interfaces
-                    .insert(name.unwrap_or_else(|| format!("interface {i}")));
+                    .and_then(|f| f.name.clone())
+                    .unwrap_or_else(|| format!("interface {i}"));
+                if let Some(s) = src.framers.get_mut(&i) {
+                    if s.stream.name.is_empty() {
+                        s.stream.name = format!("{} ({name})", path.display());
+                    }
+                }
+                summary.serial_interfaces.insert(name);
             }
         }
         self.finish_serial(src, out)
@@ -463,23 +462,19 @@ impl Context<'_> {
         mut out: Option<&mut Output<'_>>,
     ) -> Result<(), RecordError> {
         // Epochs still open at the end of the input, received with the interface's last frame.
-        let open: Vec<(Fix, UtcNanos)> = src
-            .framers
-            .values_mut()
-            .filter_map(|s| s.last_host.map(|h| (s, h)))
-            .flat_map(|(s, h)| {
-                let timeless = s.timeless;
-                s.nmea
-                    .finish()
-                    .into_iter()
-                    .chain(s.ubx.finish())
-                    .map(move |f| {
-                        // A log without receive times: the fix's own UTC is its host time.
-                        let h = if timeless { f.time.unwrap_or(h) } else { h };
-                        (f, h)
-                    })
-            })
-            .collect();
+        let mut open: Vec<(Fix, UtcNanos)> = Vec::new();
+        for s in src.framers.values_mut() {
+            let Some(h) = s.last_host else { continue };
+            let timeless = s.timeless;
+            for f in s.nmea.finish().into_iter().chain(s.ubx.finish()) {
+                // A log without receive times: the fix's own UTC is its host time.
+                let h = if timeless { f.time.unwrap_or(h) } else { h };
+                if out.is_some() {
+                    s.stream.count(&f);
+                }
+                open.push((f, h));
+            }
+        }
         for (f, h) in open {
             self.fix(src, out.as_deref_mut(), &f, h)?;
         }
@@ -584,6 +579,11 @@ impl Context<'_> {
                 }
             }
         }
+        if out.is_some() {
+            for (f, _) in &fixes {
+                entry.stream.count(f);
+            }
+        }
         if let Some(o) = out.as_deref_mut() {
             for (r, host) in attitudes {
                 let hilrig_gnss::attitude::Reading::Attitude(a) = r else {
@@ -626,12 +626,7 @@ impl Context<'_> {
         f: &Fix,
         host: UtcNanos,
     ) -> Result<(), RecordError> {
-        let Some(t) = f.time else {
-            if let Some(o) = out {
-                o.fixes_untimed += 1;
-            }
-            return Ok(());
-        };
+        let Some(t) = f.time else { return Ok(()) };
         match out {
             None => src.gnss_clock.handle(t, host),
             Some(o) => {
@@ -761,6 +756,13 @@ enum InputKind {
     Serial,
 }
 
+/// Whether a serial log is one of gpsd's: it begins with a comment line (`#` then a space or
+/// the line's end), as gpsd's test logs do (`# Name: ...`). A receiver's own ASCII log whose
+/// lines begin with `#` (NovAtel's `#BESTPOSA,...`) does not.
+fn looks_like_gpsd_log(bytes: &[u8]) -> bool {
+    matches!(bytes, [b'#', b' ' | b'\r' | b'\n', ..])
+}
+
 fn input_kind(p: &Path) -> Result<InputKind, RecordError> {
     let err = |e| RecordError::Input {
         path: p.display().to_string(),
@@ -831,10 +833,15 @@ impl Context<'_> {
             InputKind::Serial => {
                 let iface = SERIAL_LOG_INTERFACE + src.framers.len() as u32;
                 let bytes = std::fs::read(path).map_err(err)?;
-                // A log file may be gpsd's, whose `#` lines are the log's comments, not the
-                // receiver's bytes (a receiver writes no line starting with `#`).
+                // A gpsd log's `#` lines are the log's comments, not the receiver's bytes; in
+                // other logs they may be the receiver's (NovAtel ASCII logs begin with `#`).
                 src.framers.entry(iface).or_insert_with(|| SerialState {
-                    framer: Framer::for_gpsd_log(),
+                    framer: if looks_like_gpsd_log(&bytes) {
+                        Framer::for_gpsd_log()
+                    } else {
+                        Framer::new()
+                    },
+                    stream: GnssStream::named(path.display().to_string()),
                     ..SerialState::default()
                 });
                 for chunk in bytes.chunks(4096) {
@@ -954,7 +961,6 @@ pub fn record_from(
             .as_ref()
             .map_or("gnss".into(), |g| g.frame_id.clone()),
         attitude_untimed: 0,
-        fixes_untimed: 0,
         last_speed: None,
         last_yaw: None,
         rig,
@@ -1036,13 +1042,14 @@ pub fn record_from(
     summary.lidar_rejects = std::mem::take(&mut src.rejects);
     summary.gnss_rejects = std::mem::take(&mut src.gnss_rejects);
     summary.gnss_undecoded = std::mem::take(&mut src.gnss_undecoded);
-    summary.fixes_untimed = out.fixes_untimed;
-    for s in src.framers.values() {
-        let st = &s.framer.stats;
-        summary.gnss_unframed_bytes +=
-            st.skipped_bytes - st.comment_bytes + s.framer.pending() as u64;
-        summary.gnss_frames += st.nmea + st.ubx + st.rtcm3;
-    }
+    summary.gnss_streams = src
+        .framers
+        .values_mut()
+        .map(|s| {
+            s.stream.framed_by(&s.framer);
+            std::mem::take(&mut s.stream)
+        })
+        .collect();
     summary.attitude_untimed = out.attitude_untimed;
     let mut meta = BTreeMap::new();
     meta.insert(
@@ -1067,13 +1074,22 @@ pub fn record_from(
     }
     summary.gnss_rejects.write_metadata(&mut meta);
     summary.gnss_undecoded.write_metadata(&mut meta);
+    let streams = &summary.gnss_streams;
     meta.insert(
         "gnss_unframed_bytes".to_owned(),
-        summary.gnss_unframed_bytes.to_string(),
+        streams
+            .iter()
+            .map(|s| s.unframed_bytes)
+            .sum::<u64>()
+            .to_string(),
     );
     meta.insert(
         "gnss_fixes_untimed".to_owned(),
-        summary.fixes_untimed.to_string(),
+        streams
+            .iter()
+            .map(|s| s.fixes_untimed)
+            .sum::<u64>()
+            .to_string(),
     );
     summary.capture_records.write_metadata(&mut meta);
     out.bag.metadata("hilrig/end", meta)?;

@@ -16,6 +16,7 @@
 use crate::bag::msgs::{self, MessageType};
 use crate::bag::{BagError, BagWriter};
 use crate::record::clock::ClockEstimator;
+use crate::record::gnss_stream::GnssStream;
 use crate::record::rejects::{GnssRejects, GnssUndecoded, LidarRejects, RejectReason, Undecoded};
 use crate::rig::Rig;
 use hilrig_gnss::epoch::{NmeaEpochs, UbxEpochs};
@@ -56,6 +57,12 @@ pub struct Health {
     pub lost: AtomicU64,
     /// Reconnects (serial).
     pub reconnects: AtomicU64,
+    /// Times the port went away (serial), whether or not it came back.
+    pub disconnects: AtomicU64,
+    /// Of the lost packets, outages of more than two seconds (lidar).
+    pub outages: AtomicU64,
+    /// Jumps of the sensor's clock while its packets kept coming (lidar).
+    pub time_jumps: AtomicU64,
 }
 
 fn types() -> &'static BTreeMap<&'static str, MessageType> {
@@ -99,8 +106,11 @@ pub struct LiveSummary {
     /// GNSS messages recorded whole whose fields did not decode (their fix or attitude is
     /// missing), per reason (any makes `record` exit 1).
     pub gnss_undecoded: GnssUndecoded,
-    /// Fixes not written to /gnss/fix because they came before the stream showed its date.
-    pub gnss_fixes_untimed: u64,
+    /// What the GNSS stream held: frames, bytes outside them, fixes with and without a date.
+    pub gnss_stream: Option<GnssStream>,
+    /// Times the GNSS serial port went away (any makes `record` exit 1: what the receiver
+    /// sent meanwhile is lost).
+    pub gnss_disconnects: u64,
 }
 
 /// Why the recorder stopped with an error.
@@ -246,7 +256,7 @@ pub async fn record_live(
     let rejects: Arc<Mutex<LidarRejects>> = Arc::default();
     let gnss_rejects: Arc<Mutex<GnssRejects>> = Arc::default();
     let gnss_undecoded: Arc<Mutex<GnssUndecoded>> = Arc::default();
-    let gnss_untimed: Arc<AtomicU64> = Arc::default();
+    let gnss_stream: Arc<Mutex<GnssStream>> = Arc::default();
     let mut tasks = Vec::new();
 
     // Open every source before writing anything: a wrong port stops the recorder at start.
@@ -301,7 +311,7 @@ pub async fn record_live(
             GnssCounts {
                 rejects: gnss_rejects.clone(),
                 undecoded: gnss_undecoded.clone(),
-                untimed: gnss_untimed.clone(),
+                stream: gnss_stream.clone(),
             },
             shutdown.clone(),
         )));
@@ -394,6 +404,14 @@ pub async fn record_live(
         end.insert(format!("{name}_decode_errors"), v[3].to_string());
         end.insert(format!("{name}_lost"), v[4].to_string());
         end.insert(format!("{name}_reconnects"), v[5].to_string());
+        if *name == "lidar" {
+            for (key, n) in [("outages", &h.outages), ("time_jumps", &h.time_jumps)] {
+                end.insert(
+                    format!("lidar_{key}"),
+                    n.load(Ordering::Relaxed).to_string(),
+                );
+            }
+        }
         summary.health.insert(name.to_string(), v);
     }
     summary.lidar_rejects = rejects.lock().map(|r| r.clone()).unwrap_or_default();
@@ -402,13 +420,29 @@ pub async fn record_live(
     }
     summary.gnss_rejects = gnss_rejects.lock().map(|r| r.clone()).unwrap_or_default();
     summary.gnss_undecoded = gnss_undecoded.lock().map(|r| r.clone()).unwrap_or_default();
-    summary.gnss_fixes_untimed = gnss_untimed.load(Ordering::Relaxed);
+    if let Some(g) = &rig.gnss {
+        let mut stream = gnss_stream.lock().map(|s| s.clone()).unwrap_or_default();
+        stream.name.clone_from(&g.port);
+        summary.gnss_stream = Some(stream);
+    }
+    summary.gnss_disconnects = health
+        .get("gnss")
+        .map_or(0, |h| h.disconnects.load(Ordering::Relaxed));
     if rig.gnss.is_some() {
         summary.gnss_rejects.write_metadata(&mut end);
         summary.gnss_undecoded.write_metadata(&mut end);
+        let stream = summary.gnss_stream.clone().unwrap_or_default();
         end.insert(
             "gnss_fixes_untimed".to_owned(),
-            summary.gnss_fixes_untimed.to_string(),
+            stream.fixes_untimed.to_string(),
+        );
+        end.insert(
+            "gnss_unframed_bytes".to_owned(),
+            stream.unframed_bytes.to_string(),
+        );
+        end.insert(
+            "gnss_disconnects".to_owned(),
+            summary.gnss_disconnects.to_string(),
         );
     }
     bag.metadata("hilrig/end", end)?;
@@ -530,7 +564,7 @@ async fn lidar_task(
                     if let Some(done) = rotation.finish() {
                         send_scan(&tx, h, &frame, points.as_ref(), &done.packets);
                     }
-                    h.lost.store(rotation.loss().lost, Ordering::Relaxed);
+                    store_loss(h, rotation.loss());
                 }
                 return;
             }
@@ -582,7 +616,7 @@ async fn lidar_task(
                     sensor: Some(synced),
                     value: d.value,
                 }) {
-                    h.lost.store(rotation.loss().lost, Ordering::Relaxed);
+                    store_loss(h, rotation.loss());
                     send_scan(&tx, h, &frame, points.as_ref(), &done.packets);
                 }
             }
@@ -618,12 +652,30 @@ fn undecodable(
     });
 }
 
+/// The counts behind `m`, also after a task holding them panicked (counts stay counts).
+fn locked<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// The serial port's disconnects and reconnects into its health counters.
+fn store_serial(h: &Health, stats: &hilrig_gnss::serial::SerialStats) {
+    h.reconnects.store(stats.reconnects, Ordering::Relaxed);
+    h.disconnects.store(stats.disconnects, Ordering::Relaxed);
+}
+
+/// The lidar's loss counts into its health counters.
+fn store_loss(h: &Health, loss: &hilrig_velodyne::LossCounter) {
+    h.lost.store(loss.lost, Ordering::Relaxed);
+    h.outages.store(loss.outages, Ordering::Relaxed);
+    h.time_jumps.store(loss.time_jumps, Ordering::Relaxed);
+}
+
 /// What the GNSS task counts beside its health: frames rejected, messages that did not
 /// decode, fixes without a time.
 struct GnssCounts {
     rejects: Arc<Mutex<GnssRejects>>,
     undecoded: Arc<Mutex<GnssUndecoded>>,
-    untimed: Arc<AtomicU64>,
+    stream: Arc<Mutex<GnssStream>>,
 }
 
 async fn gnss_task(
@@ -638,7 +690,7 @@ async fn gnss_task(
     let GnssCounts {
         rejects,
         undecoded,
-        untimed,
+        stream,
     } = counts;
     let mut framer = Framer::new();
     let mut nmea = NmeaEpochs::default();
@@ -647,8 +699,8 @@ async fn gnss_task(
     let t = types();
     // A fix is sent with the receive time of its epoch's last frame.
     let send_fix = |fix: hilrig_gnss::epoch::Fix, epoch_host: UtcNanos| {
+        locked(&stream).count(&fix);
         let Some(time) = fix.time else {
-            untimed.fetch_add(1, Ordering::Relaxed);
             return;
         };
         let synced = gnss_on_host(&clocks, time, Some(epoch_host));
@@ -670,17 +722,18 @@ async fn gnss_task(
         let chunk = tokio::select! {
             c = source.next_chunk() => c,
             _ = shutdown.changed() => {
-                // The epoch in progress was complete with its last frame: write it.
+                // The epoch in progress, as far as it came: written, not dropped.
                 if let Some(host) = last_host {
                     for fix in nmea.finish().into_iter().chain(ubx.finish()) {
                         send_fix(fix, host);
                     }
                 }
+                store_serial(&h, &source.stats);
+                locked(&stream).framed_by(&framer);
                 return;
             }
         };
-        h.reconnects
-            .store(source.stats.reconnects, Ordering::Relaxed);
+        store_serial(&h, &source.stats);
         framer.push(&chunk.bytes);
         while let Some(item) = framer.next_frame() {
             let host = chunk.host;

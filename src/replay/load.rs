@@ -123,6 +123,13 @@ pub struct Streamed {
     /// earlier builds have them on /can/frames under another type) and frames that do not make
     /// a classic CAN frame. Counted, never silently passed over.
     pub not_replayed: u64,
+    /// Capture records the reader skipped, by reason: damaged ones (cut by the snap length, a
+    /// truncated header, a malformed CAN frame, an unfinished IPv4 datagram) may have held the
+    /// rig's data and were not replayed; other traffic is not the rig's.
+    pub capture_records: crate::record::CaptureSkips,
+    /// Datagrams to the lidar's data or position port whose size is not a data or position
+    /// packet's: not replayed.
+    pub lidar_wrong_size: u64,
 }
 
 /// Streams a capture (in file order) or an MCAP recording (in time order, through a reorder
@@ -168,7 +175,10 @@ pub fn stream(
                 break;
             }
         };
+        let to_lidar = matches!(item.packet, Packet::Udp { dst, .. }
+            if dst.port() == data_port || dst.port() == position_port);
         let Some(payload) = capture_payload(item.packet, data_port, position_port) else {
+            out.lidar_wrong_size += u64::from(to_lidar);
             continue;
         };
         out.items += 1;
@@ -179,6 +189,7 @@ pub fn stream(
             break;
         }
     }
+    out.capture_records.add(d.stats());
     Ok(out)
 }
 

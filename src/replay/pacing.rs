@@ -33,6 +33,10 @@ pub struct Played {
     pub pacing: Pacing,
     /// Items that had no destination.
     pub without_destination: u64,
+    /// How far the serial line's baud rate held the GNSS stream back behind its recorded
+    /// pace, at most (zero when the line kept up). The send lags are measured against the
+    /// time the line was free, so this is where a baud rate too low for the recording shows.
+    pub serial_behind: Duration,
 }
 
 /// Plays `items` (in time order) to `dest` until done, or forever with `repeat`, until `stop`.
@@ -57,6 +61,7 @@ pub fn play_stream<I: Iterator<Item = ReplayItem>>(
     let mut lags = LagHistogram::default();
     let byte_time = Duration::from_secs_f64(10.0 / f64::from(options.baud));
     let mut skipped = 0u64;
+    let mut serial_behind = Duration::ZERO;
     'outer: loop {
         let mut items = pass().peekable();
         let Some(first) = items.peek().map(|i| i.time) else {
@@ -74,6 +79,7 @@ pub fn play_stream<I: Iterator<Item = ReplayItem>>(
             );
             let mut deadline = wall0 + offset;
             if let Payload::Serial(b) = &item.payload {
+                serial_behind = serial_behind.max(serial_free.saturating_duration_since(deadline));
                 deadline = deadline.max(serial_free);
                 serial_free = deadline + byte_time * b.len() as u32;
             }
@@ -99,6 +105,7 @@ pub fn play_stream<I: Iterator<Item = ReplayItem>>(
     Ok(Played {
         pacing: lags.pacing(),
         without_destination: skipped,
+        serial_behind,
     })
 }
 
@@ -325,10 +332,18 @@ mod tests {
         };
         let options = at_1x(false, 1200);
         let start = Instant::now();
-        play(&items(), &mut dest, &options, &AtomicBool::new(false)).unwrap();
+        let played = play(&items(), &mut dest, &options, &AtomicBool::new(false)).unwrap();
+        let piece = Duration::from_secs_f64(10.0 * 10.0 / 1200.0);
+        // The last piece was due 90 ms after the first and waited for the line until 9 pieces
+        // had left: 750 ms - 90 ms behind its recorded pace (whatever the machine's own lag).
+        let behind = piece * 9 - Duration::from_millis(90);
+        assert!(
+            played.serial_behind.abs_diff(behind) < Duration::from_micros(10),
+            "{:?} for {behind:?}",
+            played.serial_behind
+        );
         let got = got.lock().unwrap();
         assert_eq!(got.len(), 10);
-        let piece = Duration::from_secs_f64(10.0 * 10.0 / 1200.0);
         for (k, (at, _)) in got.iter().enumerate() {
             let due = Duration::from_millis(5) + piece * k as u32;
             assert!(

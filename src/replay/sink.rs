@@ -191,8 +191,75 @@ impl CanSink {
 impl Sink for CanSink {
     fn send(&mut self, payload: &Payload) -> Result<(), SinkError> {
         if let Payload::Can(f) = payload {
-            self.rt.block_on(self.socket.send(f))?;
+            let (rt, socket) = (&self.rt, &self.socket);
+            send_while_queue_full(|| rt.block_on(socket.send(f)), CAN_QUEUE_PATIENCE)?;
         }
         Ok(())
+    }
+}
+
+/// How long a frame is retried while the interface's transmit queue is full.
+const CAN_QUEUE_PATIENCE: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// Sends with `send`, retrying while it fails with ENOBUFS, for at most `patience`; returns
+/// how many times it retried.
+///
+/// Why: SocketCAN answers a full transmit queue (a burst of frames recorded within
+/// microseconds, a slow bus, a short `txqueuelen`) with ENOBUFS at once instead of blocking,
+/// and the socket polls writable all the same. The queue drains at the bus's pace, so the frame
+/// is sent a little late (the pacing's lag shows it) rather than ending the replay. A queue
+/// that does not drain within `patience` (the bus off or unplugged) is an error.
+fn send_while_queue_full(
+    mut send: impl FnMut() -> io::Result<()>,
+    patience: std::time::Duration,
+) -> io::Result<u32> {
+    let start = std::time::Instant::now();
+    let mut retries = 0u32;
+    loop {
+        match send() {
+            Err(e)
+                if e.raw_os_error() == Some(nix::libc::ENOBUFS) && start.elapsed() < patience =>
+            {
+                retries += 1;
+                std::thread::sleep(std::time::Duration::from_micros(100));
+            }
+            other => return other.map(|()| retries),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A full queue is waited out; one that stays full, and any other error, end the send.
+    #[test]
+    fn a_full_can_queue_is_retried_until_it_drains_or_patience_runs_out() {
+        let full = || io::Error::from_raw_os_error(nix::libc::ENOBUFS);
+        let mut left = 3;
+        let sent = send_while_queue_full(
+            || {
+                if left > 0 {
+                    left -= 1;
+                    Err(full())
+                } else {
+                    Ok(())
+                }
+            },
+            std::time::Duration::from_secs(5),
+        );
+        assert_eq!(sent.unwrap(), 3);
+        let stuck = send_while_queue_full(|| Err(full()), std::time::Duration::from_millis(20));
+        assert_eq!(stuck.unwrap_err().raw_os_error(), Some(nix::libc::ENOBUFS));
+        let mut calls = 0;
+        let other = send_while_queue_full(
+            || {
+                calls += 1;
+                Err(io::Error::from_raw_os_error(nix::libc::ENETDOWN))
+            },
+            std::time::Duration::from_secs(5),
+        );
+        assert_eq!(other.unwrap_err().raw_os_error(), Some(nix::libc::ENETDOWN));
+        assert_eq!(calls, 1);
     }
 }

@@ -25,8 +25,9 @@ pub enum FootprintPattern {
     /// the echo's edge only at its columns: a quarter of its 13 sub-rays (four) is reached
     /// half a half-axis beyond the silhouette, where a quarter of the beam's area lies 0.40
     /// half-axes beyond it (a 4 mrad beam of a first echo at a quarter share was fitted as
-    /// 2.75 mrad with the grid). Up to 6 per axis (16 sub-rays): beyond, the strips are too
-    /// narrow for their sub-rays to spread over the footprint and stay inside it.
+    /// 2.75 mrad with the grid). Up to 6 per axis (16 sub-rays): for some larger counts no
+    /// pairing of the strips keeps every sub-ray inside the footprint (9, 11, 13 and 15 per
+    /// axis), and for the others the sub-rays crowd along a diagonal.
     Stratified,
 }
 
@@ -40,7 +41,11 @@ impl FootprintPattern {
     pub fn offsets(self, n: u32) -> Vec<(f64, f64)> {
         match self {
             FootprintPattern::Grid => footprint_grid(n),
-            FootprintPattern::Stratified => footprint_stratified(footprint_grid(n).len()),
+            // Counts no pairing fits are refused by the model's validation; were one asked
+            // for, the grid is the pattern of that many sub-rays.
+            FootprintPattern::Stratified => {
+                footprint_stratified(footprint_grid(n).len()).unwrap_or_else(|| footprint_grid(n))
+            }
         }
     }
 }
@@ -71,10 +76,10 @@ fn area_quantile(p: f64) -> f64 {
 /// sub-ray inside the disc and the pattern point-symmetric (its centroid on the beam axis,
 /// where the echo's range on a surface at grazing incidence wants it; with an odd count the
 /// centre is one of them), the one whose closest two sub-rays lie farthest apart. The centre
-/// alone for one.
-pub fn footprint_stratified(count: usize) -> Vec<(f64, f64)> {
+/// alone for one; `None` when no pairing keeps every sub-ray inside.
+pub fn footprint_stratified(count: usize) -> Option<Vec<(f64, f64)>> {
     if count <= 1 {
-        return vec![(0.0, 0.0); count];
+        return Some(vec![(0.0, 0.0); count]);
     }
     let mut q = vec![0.0; count];
     for i in 0..count / 2 {
@@ -112,9 +117,7 @@ pub fn footprint_stratified(count: usize) -> Vec<(f64, f64)> {
             }
         }
     }
-    // Some pairing always fits for the counts allowed (up to 6 per axis, checked in a test);
-    // the centre alone would be the beam without divergence.
-    best.map_or_else(|| vec![(0.0, 0.0)], |(_, p)| p)
+    best.map(|(_, p)| p)
 }
 
 /// The sub-rays of a footprint sampled with `n` per axis, as offsets in units of its half-axes
@@ -162,6 +165,7 @@ mod tests {
         for n in [1, 3, 4, 5, 6] {
             let strat = FootprintPattern::Stratified.offsets(n);
             let grid = FootprintPattern::Grid.offsets(n);
+            assert_eq!(footprint_stratified(grid.len()), Some(strat.clone()));
             assert_eq!(strat.len(), grid.len());
             assert!(
                 strat.iter().all(|(u, v)| u * u + v * v < 1.0),

@@ -88,6 +88,13 @@ pub fn pty() -> (std::fs::File, String) {
     nix::sys::termios::cfmakeraw(&mut t);
     nix::sys::termios::tcsetattr(p.slave.as_fd(), nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
     drop(p.slave);
+    // openpty(3) leaves the master open across exec: a recorder (or any child another test
+    // starts meanwhile) would hold it, and closing it here would not hang up the terminal.
+    nix::fcntl::fcntl(
+        &p.master,
+        nix::fcntl::FcntlArg::F_SETFD(nix::fcntl::FdFlag::FD_CLOEXEC),
+    )
+    .expect("FD_CLOEXEC");
     (std::fs::File::from(p.master), name)
 }
 
@@ -490,4 +497,43 @@ pub fn recorded_rejects<R: hilrig::record::rejects::Reason>(
     hilrig::record::rejects::Rejects::from_metadata(end)
         .unwrap()
         .expect("reject counts in hilrig/end")
+}
+
+/// `capture` (UDP only) rewritten as a classic pcap whose snap length is `snap`, as `tcpdump
+/// -s SNAP` writes it: frames longer than that cut. Returns the file and how many were cut
+/// (panics when none stayed whole).
+pub fn snapped_pcap(capture: &[u8], snap: usize) -> (Vec<u8>, u64) {
+    // Classic pcap, microseconds, Ethernet.
+    let mut pcap = Vec::new();
+    pcap.extend_from_slice(&0xa1b2_c3d4u32.to_le_bytes());
+    pcap.extend_from_slice(&2u16.to_le_bytes());
+    pcap.extend_from_slice(&4u16.to_le_bytes());
+    pcap.extend_from_slice(&[0; 8]);
+    pcap.extend_from_slice(&(snap as u32).to_le_bytes());
+    pcap.extend_from_slice(&1u32.to_le_bytes());
+    let mut r = hilrig::capture::Demux::new(
+        hilrig::capture::CaptureReader::new(std::io::Cursor::new(capture.to_vec())).unwrap(),
+    );
+    let (mut cut, mut whole) = (0u64, 0u64);
+    while let Some(item) = r.next_item() {
+        let item = item.unwrap();
+        let hilrig::capture::demux::Packet::Udp { src, dst, payload } = item.packet else {
+            panic!("only UDP in the capture");
+        };
+        let frame = hilrig::capture::writer::udp_ethernet_frame(src, dst, payload);
+        let kept = &frame[..frame.len().min(snap)];
+        if kept.len() < frame.len() {
+            cut += 1;
+        } else {
+            whole += 1;
+        }
+        let us = item.time.0 / 1000;
+        pcap.extend_from_slice(&((us / 1_000_000) as u32).to_le_bytes());
+        pcap.extend_from_slice(&((us % 1_000_000) as u32).to_le_bytes());
+        pcap.extend_from_slice(&(kept.len() as u32).to_le_bytes());
+        pcap.extend_from_slice(&(frame.len() as u32).to_le_bytes());
+        pcap.extend_from_slice(kept);
+    }
+    assert!(whole > 0, "some frames fit");
+    (pcap, cut)
 }

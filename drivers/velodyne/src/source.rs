@@ -183,7 +183,8 @@ pub struct LidarStats {
     pub position_packets: u64,
     /// Datagrams rejected.
     pub rejected: u64,
-    /// Data packets lost (sensor timestamp gaps).
+    /// Data packets lost: sensor timestamp gaps, and outages of more than two seconds told by
+    /// the receive times ([`crate::rotation::LossCounter`]).
     pub lost: u64,
     /// Sensor timestamp jumps.
     pub time_jumps: u64,

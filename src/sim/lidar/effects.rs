@@ -86,7 +86,10 @@ impl Compiled {
                         }
                     };
                     c.divergence = Some(Divergence {
-                        pattern: Pattern::new(offs),
+                        pattern: Pattern::new(
+                            offs,
+                            (horizontal_mrad * 0.5e-3, vertical_mrad * 0.5e-3),
+                        ),
                         separation: range_separation_m,
                         spacing,
                         first_share: first_echo_share,

@@ -122,13 +122,13 @@ pub(super) struct Pattern {
 }
 
 impl Pattern {
-    /// The pattern of these offsets.
-    pub(super) fn new(offsets: Vec<(f64, f64)>) -> Pattern {
-        let half_axes = offsets
-            .iter()
-            .fold((1e-12f64, 1e-12f64), |(h, v), &(a, b)| {
-                (h.max(a.abs()), v.max(b.abs()))
-            });
+    /// The pattern of these offsets over a footprint of these half-axes (radians). The
+    /// half-axes are the footprint's own, not the outermost sub-rays': the vouching distances
+    /// are calibrated against the spacing of the firings in footprint half-axes, and a pattern
+    /// whose outermost sub-rays lie inside the rim (a stratified one, an even grid) must not
+    /// shrink them.
+    pub(super) fn new(offsets: Vec<(f64, f64)>, half_axes: (f64, f64)) -> Pattern {
+        let half_axes = (half_axes.0.max(1e-12), half_axes.1.max(1e-12));
         let radius = |&(a, b): &(f64, f64)| (a / half_axes.0).hypot(b / half_axes.1);
         let mut outer_first: Vec<usize> = (0..offsets.len()).collect();
         outer_first.sort_by(|&i, &j| radius(&offsets[j]).total_cmp(&radius(&offsets[i])));
