@@ -78,24 +78,32 @@ pub fn hilrig_decode(args: &[&str]) -> (Option<i32>, String, String) {
 /// A pseudo-terminal pair in raw mode: the master as a file, and the slave's path (what a
 /// serial source opens).
 pub fn pty() -> (std::fs::File, String) {
+    use nix::fcntl::OFlag;
     use std::os::fd::AsFd;
-    let p = nix::pty::openpty(None, None).expect("openpty");
-    let name = nix::unistd::ttyname(p.slave.as_fd())
-        .expect("ttyname")
-        .display()
-        .to_string();
-    let mut t = nix::sys::termios::tcgetattr(p.slave.as_fd()).unwrap();
+    use std::os::unix::fs::OpenOptionsExt;
+    // Opened close-on-exec in the same call (openpty(3) cannot): a recorder, or any child
+    // another test starts meanwhile, would otherwise hold the master, and closing it here
+    // would not hang up the terminal.
+    let master = nix::pty::posix_openpt(OFlag::O_RDWR | OFlag::O_NOCTTY | OFlag::O_CLOEXEC)
+        .expect("posix_openpt");
+    nix::pty::grantpt(&master).expect("grantpt");
+    nix::pty::unlockpt(&master).expect("unlockpt");
+    let name = nix::pty::ptsname_r(&master).expect("ptsname");
+    // Raw mode is the terminal's, set through the slave side once (std opens close-on-exec).
+    let slave = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .custom_flags(nix::libc::O_NOCTTY)
+        .open(&name)
+        .expect("open the slave");
+    let mut t = nix::sys::termios::tcgetattr(slave.as_fd()).unwrap();
     nix::sys::termios::cfmakeraw(&mut t);
-    nix::sys::termios::tcsetattr(p.slave.as_fd(), nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
-    drop(p.slave);
-    // openpty(3) leaves the master open across exec: a recorder (or any child another test
-    // starts meanwhile) would hold it, and closing it here would not hang up the terminal.
-    nix::fcntl::fcntl(
-        &p.master,
-        nix::fcntl::FcntlArg::F_SETFD(nix::fcntl::FdFlag::FD_CLOEXEC),
+    nix::sys::termios::tcsetattr(slave.as_fd(), nix::sys::termios::SetArg::TCSANOW, &t).unwrap();
+    drop(slave);
+    (
+        std::fs::File::from(std::os::fd::OwnedFd::from(master)),
+        name,
     )
-    .expect("FD_CLOEXEC");
-    (std::fs::File::from(p.master), name)
 }
 
 /// Reads an MCAP with the Python `mcap` reader (CRC validation on) and `rosbags`
