@@ -27,7 +27,8 @@ const V_STEP: f64 = 0.035;
 /// depends on where its sub-rays lie. The same 4 mrad beam of 37 rays spread evenly over the
 /// disc was fitted as 3.75 mrad vertical with the grid of 5 per axis and as 3.99 with the
 /// stratified pattern; a beam of the simulator's own grid (1.7 mrad) as 1.26 with the
-/// stratified pattern. The data choose.
+/// stratified pattern. The data choose (the stratified one is walked where a first-echo
+/// receiver explains the runs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Sampling {
     n: u32,
@@ -39,16 +40,14 @@ impl Sampling {
         n: 3,
         pattern: FootprintPattern::Grid,
     };
-    const FINE: [Sampling; 2] = [
-        Sampling {
-            n: 5,
-            pattern: FootprintPattern::Grid,
-        },
-        Sampling {
-            n: 5,
-            pattern: FootprintPattern::Stratified,
-        },
-    ];
+    const FINE: Sampling = Sampling {
+        n: 5,
+        pattern: FootprintPattern::Grid,
+    };
+    const STRATIFIED: Sampling = Sampling {
+        n: 5,
+        pattern: FootprintPattern::Stratified,
+    };
 }
 
 /// A point of the divergence search: (horizontal, vertical, sampling, first-echo share).
@@ -198,7 +197,8 @@ impl Fitting<'_> {
         // walks grids, not a gradient: the vertical divergence at the catalogue's typical
         // aspect (VLP-16: 3.0 × 1.5 mrad), finer around the best, then the horizontal one. The
         // footprint is sampled with 3 sub-rays per axis on the grid and, where they show a beam,
-        // with 5 (the catalogue's default) on the grid and stratified ([`Sampling`]).
+        // with 5 (the catalogue's default); stratified where a first-echo receiver explains the
+        // runs better ([`Sampling`]).
         let argmax = |pts: &[(f64, f64)],
                       f: &mut dyn FnMut(f64, f64) -> Result<f64, GapError>|
          -> Result<(f64, f64), GapError> {
@@ -238,8 +238,7 @@ impl Fitting<'_> {
         };
         // The vertical divergence at the typical aspect, then the horizontal one, with `n`
         // sub-rays per axis.
-        let mut walk = |grid: &mut Vec<Point>, n: Sampling| -> Result<(), GapError> {
-            let mut f = |h: f64, v: f64| try_one(grid, h, v, n, None);
+        let walk = |f: &mut dyn FnMut(f64, f64) -> Result<f64, GapError>| -> Result<(), GapError> {
             // Steps of a factor of about 1.45 from 0.5 to 11 mrad (an 8 mrad footprint was
             // once cut off at the grid's 4 mrad end), then ±7 %, ±14 %, ±21 % around the best:
             // half way to the coarse neighbours.
@@ -247,15 +246,15 @@ impl Fitting<'_> {
                 .iter()
                 .map(|&v| (2.0 * v, v))
                 .collect();
-            let (_, v0) = argmax(&coarse, &mut f)?;
+            let (_, v0) = argmax(&coarse, &mut *f)?;
             let fine: Vec<(f64, f64)> = (-3..=3)
                 .map(|i| v0 * (1.0 + 0.07 * f64::from(i)))
                 .map(|v| (2.0 * v0, v))
                 .collect();
-            let (_, v1) = argmax(&fine, &mut f)?;
-            across(v1, &mut f)
+            let (_, v1) = argmax(&fine, &mut *f)?;
+            across(v1, f)
         };
-        walk(&mut grid, Sampling::COARSE)?;
+        walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::COARSE, None))?;
         // The samplings whose best beam the runs show. The finer ones refine a beam the
         // coarse one shows; where 3 sub-rays per axis show none (most rounds of a study), the
         // 13 of the finer ones, which cost twice as much each, are not searched (four fifths
@@ -263,11 +262,9 @@ impl Fitting<'_> {
         let mut counts = Vec::new();
         if shown(&grid, Sampling::COARSE) {
             counts.push(Sampling::COARSE);
-            for fine in Sampling::FINE {
-                walk(&mut grid, fine)?;
-                if shown(&grid, fine) {
-                    counts.push(fine);
-                }
+            walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::FINE, None))?;
+            if shown(&grid, Sampling::FINE) {
+                counts.push(Sampling::FINE);
             }
         }
         // The echo logic. The vertical divergence shows on the road, one surface under the
@@ -279,6 +276,7 @@ impl Fitting<'_> {
         //
         // Only for a beam the runs show. Otherwise there is no width for the logic to explain,
         // and the search, which costs as much again, is skipped (most rounds of a study).
+        let mut best_share: Option<(f64, f64)> = None;
         for n in counts {
             let b = best_point(&grid, Some(n));
             let (bh, bv, bll) = (grid[b].h, grid[b].v, grid[b].ll);
@@ -298,9 +296,21 @@ impl Fitting<'_> {
                     first = Some((s, ll));
                 }
             }
-            if let Some((s, _)) = first {
+            if let Some((s, ll)) = first {
                 across(bv, &mut |h, v| try_one(&mut grid, h, v, n, Some(s)))?;
+                if best_share.is_none_or(|(_, x)| ll > x) {
+                    best_share = Some((s, ll));
+                }
             }
+        }
+        // A first-echo receiver detects an echo by its share of the footprint: the
+        // stratified sampling places the echo's edge where that share of the beam's area lies
+        // (the grid only at its columns), and it samples the road's grazing footprint as a
+        // top-hat beam does. Walked again with it, with the best share; a receiver that
+        // reports the strongest echo (no share wins) is not walked again, which keeps such a
+        // round's cost.
+        if let Some((s, _)) = best_share {
+            walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::STRATIFIED, Some(s)))?;
         }
         Ok(self.divergence_candidate(grid, &refits))
     }
