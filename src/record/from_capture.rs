@@ -1074,23 +1074,7 @@ pub fn record_from(
     }
     summary.gnss_rejects.write_metadata(&mut meta);
     summary.gnss_undecoded.write_metadata(&mut meta);
-    let streams = &summary.gnss_streams;
-    meta.insert(
-        "gnss_unframed_bytes".to_owned(),
-        streams
-            .iter()
-            .map(|s| s.unframed_bytes)
-            .sum::<u64>()
-            .to_string(),
-    );
-    meta.insert(
-        "gnss_fixes_untimed".to_owned(),
-        streams
-            .iter()
-            .map(|s| s.fixes_untimed)
-            .sum::<u64>()
-            .to_string(),
-    );
+    GnssStream::write_metadata(&summary.gnss_streams, &mut meta);
     summary.capture_records.write_metadata(&mut meta);
     out.bag.metadata("hilrig/end", meta)?;
     summary.counts = out.bag.finish()?;

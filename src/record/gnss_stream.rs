@@ -60,6 +60,20 @@ impl GnssStream {
         self.frames == 0 && (self.unframed_bytes > 0 || self.comment_lines > 0)
     }
 
+    /// Writes the totals over `streams` into `meta` (the `hilrig/end` metadata): bytes in no
+    /// frame and fixes without a date.
+    pub fn write_metadata(
+        streams: &[GnssStream],
+        meta: &mut std::collections::BTreeMap<String, String>,
+    ) {
+        let total = |f: fn(&GnssStream) -> u64| streams.iter().map(f).sum::<u64>().to_string();
+        meta.insert(
+            "gnss_unframed_bytes".to_owned(),
+            total(|s| s.unframed_bytes),
+        );
+        meta.insert("gnss_fixes_untimed".to_owned(), total(|s| s.fixes_untimed));
+    }
+
     /// Positions came, but never a date (GGA without RMC or ZDA): no fix is on /gnss/fix.
     pub fn dateless(&self) -> bool {
         self.fixes_untimed > 0 && self.fixes_dated == 0

@@ -431,15 +431,7 @@ pub async fn record_live(
     if rig.gnss.is_some() {
         summary.gnss_rejects.write_metadata(&mut end);
         summary.gnss_undecoded.write_metadata(&mut end);
-        let stream = summary.gnss_stream.clone().unwrap_or_default();
-        end.insert(
-            "gnss_fixes_untimed".to_owned(),
-            stream.fixes_untimed.to_string(),
-        );
-        end.insert(
-            "gnss_unframed_bytes".to_owned(),
-            stream.unframed_bytes.to_string(),
-        );
+        GnssStream::write_metadata(summary.gnss_stream.as_slice(), &mut end);
         end.insert(
             "gnss_disconnects".to_owned(),
             summary.gnss_disconnects.to_string(),
