@@ -981,25 +981,14 @@ fn a_packet_missing_from_a_dual_return_vls128_stream_is_counted_lost() {
     let dir = tempfile::tempdir().unwrap();
     // The same capture without its 101st data packet (the position packet is record 0).
     let input = dir.path().join("gap.pcapng");
-    let mut w = hilrig::capture::PcapngWriter::new(Vec::new(), "test").unwrap();
-    let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
-    let mut r = hilrig::capture::Demux::new(
-        hilrig::capture::CaptureReader::new(std::io::Cursor::new(drive.capture.clone())).unwrap(),
-    );
-    let mut n = 0;
-    while let Some(item) = r.next_item() {
-        let item = item.unwrap();
-        let hilrig::capture::demux::Packet::Udp { src, dst, payload } = item.packet else {
-            panic!("only UDP in the capture");
-        };
-        n += 1;
+    let rewritten = rewrite_capture(&drive.capture, |n, time, payload| {
         if n == 102 {
-            continue;
+            vec![]
+        } else {
+            vec![(time, payload.to_vec())]
         }
-        w.write_packet(eth, item.time, &udp_ethernet_frame(src, dst, payload))
-            .unwrap();
-    }
-    std::fs::write(&input, w.finish().unwrap()).unwrap();
+    });
+    std::fs::write(&input, rewritten).unwrap();
     let out = dir.path().join("gap.mcap");
     let st = common::record_from(&lidar_rig(dir.path(), "vls128"), &[&input], &out);
     let stderr = String::from_utf8_lossy(&st.stderr);
@@ -1016,30 +1005,16 @@ fn a_lidar_outage_of_three_seconds_is_counted_lost() {
     let drive = common::lidar_capture(Model::Vlp16, ReturnMode::Strongest, 200, true);
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("outage.pcapng");
-    let mut w = hilrig::capture::PcapngWriter::new(Vec::new(), "test").unwrap();
-    let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
-    let mut r = hilrig::capture::Demux::new(
-        hilrig::capture::CaptureReader::new(std::io::Cursor::new(drive.capture.clone())).unwrap(),
-    );
     const OUTAGE_US: u32 = 3_000_000;
-    let mut n = 0;
-    while let Some(item) = r.next_item() {
-        let item = item.unwrap();
-        let hilrig::capture::demux::Packet::Udp { src, dst, payload } = item.packet else {
-            panic!("only UDP in the capture");
-        };
-        n += 1;
-        let (mut time, mut payload) = (item.time, payload.to_vec());
+    let rewritten = rewrite_capture(&drive.capture, |n, time, payload| {
         // Every data packet after the 100th comes three seconds later, by both clocks.
         if n > 101 {
-            time = hilrig::stamp::UtcNanos(time.0 + i64::from(OUTAGE_US) * 1_000);
-            let ts = u32::from_le_bytes(payload[1200..1204].try_into().unwrap()) + OUTAGE_US;
-            payload[1200..1204].copy_from_slice(&ts.to_le_bytes());
+            vec![later(time, payload, OUTAGE_US)]
+        } else {
+            vec![(time, payload.to_vec())]
         }
-        w.write_packet(eth, time, &udp_ethernet_frame(src, dst, &payload))
-            .unwrap();
-    }
-    std::fs::write(&input, w.finish().unwrap()).unwrap();
+    });
+    std::fs::write(&input, rewritten).unwrap();
     let out = dir.path().join("outage.mcap");
     let st = common::record_from(&lidar_rig(dir.path(), "vlp16"), &[&input], &out);
     let stderr = String::from_utf8_lossy(&st.stderr);
@@ -1058,6 +1033,154 @@ fn a_lidar_outage_of_three_seconds_is_counted_lost() {
     assert_eq!(end["lidar_lost_packets"], lost.to_string());
     assert_eq!(end["lidar_outages"], "1");
     assert_eq!(end["lidar_time_jumps"], "0");
+}
+
+/// `capture` (UDP only) written again, each datagram's record `n` (1-based) replaced by what
+/// `each(n, time, payload)` gives: none, itself, or several.
+fn rewrite_capture(
+    capture: &[u8],
+    mut each: impl FnMut(usize, UtcNanos, &[u8]) -> Vec<(UtcNanos, Vec<u8>)>,
+) -> Vec<u8> {
+    let mut w = PcapngWriter::new(Vec::new(), "test").unwrap();
+    let eth = w.add_interface(LinkType::ETHERNET, "eth0").unwrap();
+    let mut r = hilrig::capture::Demux::new(
+        hilrig::capture::CaptureReader::new(std::io::Cursor::new(capture.to_vec())).unwrap(),
+    );
+    let mut n = 0;
+    while let Some(item) = r.next_item() {
+        let item = item.unwrap();
+        let hilrig::capture::demux::Packet::Udp { src, dst, payload } = item.packet else {
+            panic!("only UDP in the capture");
+        };
+        n += 1;
+        for (time, payload) in each(n, item.time, payload) {
+            w.write_packet(eth, time, &udp_ethernet_frame(src, dst, &payload))
+                .unwrap();
+        }
+    }
+    w.finish().unwrap()
+}
+
+/// A data packet `by_us` later by both clocks (its timestamp wrapping at the hour).
+fn later(time: UtcNanos, payload: &[u8], by_us: u32) -> (UtcNanos, Vec<u8>) {
+    let mut payload = payload.to_vec();
+    let ts = u32::from_le_bytes(payload[1200..1204].try_into().unwrap());
+    let ts = ((u64::from(ts) + u64::from(by_us)) % 3_600_000_000) as u32;
+    payload[1200..1204].copy_from_slice(&ts.to_le_bytes());
+    (UtcNanos(time.0 + i64::from(by_us) * 1_000), payload)
+}
+
+/// Three seconds of damaged data packets (their block flags zeroed) amid good ones: every one
+/// is counted among the rejects (exit 1), and none of them again as lost or as an outage. A
+/// packet missing outright in the run still counts.
+#[test]
+fn three_seconds_of_rejected_packets_are_rejects_not_loss() {
+    let drive = common::lidar_capture(Model::Vlp16, ReturnMode::Strongest, 200, true);
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("damaged.pcapng");
+    // A VLP-16 packet covers 24 firing cycles of 55.296 µs.
+    let period_us = 24.0 * 55.296;
+    let damaged = (3_000_000.0 / period_us) as u32;
+    let rewritten = rewrite_capture(&drive.capture, |n, time, payload| match n {
+        // After the 100th data packet, `damaged` packets whose flags read as nothing, one
+        // of them missing; then the rest, later by as much.
+        101 => {
+            let mut out = vec![(time, payload.to_vec())];
+            for k in (1..=damaged).filter(|&k| k != 700) {
+                let (t, mut p) = later(time, payload, (f64::from(k) * period_us) as u32);
+                p[0..2].copy_from_slice(&[0, 0]);
+                out.push((t, p));
+            }
+            out
+        }
+        n if n > 101 => vec![later(
+            time,
+            payload,
+            (f64::from(damaged) * period_us) as u32,
+        )],
+        _ => vec![(time, payload.to_vec())],
+    });
+    std::fs::write(&input, rewritten).unwrap();
+    let out = dir.path().join("damaged.mcap");
+    let st = common::record_from(&lidar_rig(dir.path(), "vlp16"), &[&input], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("lidar packets lost: 1\n"), "{stderr}");
+    assert_eq!(common::lidar_data(&out).len(), 200);
+    let info = hilrig::bag::info::info(&out).unwrap();
+    let end = &info.metadata["hilrig/end"];
+    assert_eq!(end["lidar_rejected"], (damaged - 1).to_string(), "{end:?}");
+    assert_eq!(
+        (
+            end["lidar_lost_packets"].as_str(),
+            end["lidar_outages"].as_str(),
+            end["lidar_time_jumps"].as_str()
+        ),
+        ("1", "0", "0")
+    );
+}
+
+/// One capture of a session and one of another, 40 minutes later, recorded together: the
+/// pause between them is a pause, not an outage, and nothing is lost; the same two halves of
+/// one session (a rotating capture's files) with a packet missing at the cut lose that one.
+#[test]
+fn the_pause_between_two_captures_is_not_an_outage() {
+    let drive = common::lidar_capture(Model::Vlp16, ReturnMode::Strongest, 200, false);
+    let dir = tempfile::tempdir().unwrap();
+    let first = dir.path().join("first.pcapng");
+    let half = |n: usize| n <= 100;
+    std::fs::write(
+        &first,
+        rewrite_capture(&drive.capture, |n, t, p| {
+            if half(n) {
+                vec![(t, p.to_vec())]
+            } else {
+                vec![]
+            }
+        }),
+    )
+    .unwrap();
+    for (name, pause_us, drop_at_cut, lost, pauses) in [
+        ("separate", 2_400_000_000u32, false, "0", "1"),
+        ("rotating", 0, true, "1", "0"),
+    ] {
+        let second = dir.path().join(format!("{name}.pcapng"));
+        std::fs::write(
+            &second,
+            rewrite_capture(&drive.capture, |n, t, p| {
+                if half(n) || (drop_at_cut && n == 101) {
+                    vec![]
+                } else {
+                    vec![later(t, p, pause_us)]
+                }
+            }),
+        )
+        .unwrap();
+        let out = dir.path().join(format!("{name}.mcap"));
+        let st = common::record_from(&lidar_rig(dir.path(), "vlp16"), &[&first, &second], &out);
+        let stderr = String::from_utf8_lossy(&st.stderr);
+        assert_eq!(st.status.code(), Some(0), "{name}: {stderr}");
+        assert!(
+            stderr.contains(&format!("lidar packets lost: {lost}\n")),
+            "{name}: {stderr}"
+        );
+        let info = hilrig::bag::info::info(&out).unwrap();
+        let end = &info.metadata["hilrig/end"];
+        assert_eq!(
+            (
+                end["lidar_lost_packets"].as_str(),
+                end["lidar_outages"].as_str(),
+                end["lidar_input_pauses"].as_str()
+            ),
+            (lost, "0", pauses),
+            "{name}"
+        );
+        assert_eq!(
+            common::lidar_data(&out).len(),
+            200 - usize::from(drop_at_cut),
+            "{name}"
+        );
+    }
 }
 
 /// A VLP-16's packets on the port of a rig whose lidar is a VLS-128: an error that names what

@@ -55,6 +55,12 @@ pub fn run(args: RecordArgs) -> Result<ExitCode> {
             n => format!(" (of them in {n} outages of more than 2 s)"),
         };
         eprintln!("{out}: lidar packets lost: {}{outages}", summary.lidar_lost);
+        if summary.lidar_input_pauses > 0 {
+            eprintln!(
+                "note: {out}: {} pauses of more than 2 s between the inputs (captures of separate sessions): not counted lost",
+                summary.lidar_input_pauses
+            );
+        }
         if summary.lidar_time_jumps > 0 {
             eprintln!(
                 "note: {out}: the lidar's clock jumped {} times (backwards, or by more than 2 s while its packets kept coming): re-synchronised or reset",

@@ -237,6 +237,11 @@ pub fn decode_capture<R: Read + Send + 'static>(
                 POSITION_PACKET_SIZE
             };
             let got = payload.len();
+            if on_data_port {
+                if let Some(l) = loss.as_mut() {
+                    l.rejected(item.time);
+                }
+            }
             note_problem(
                 &mut summary,
                 item.offset,
@@ -265,6 +270,10 @@ pub fn decode_capture<R: Read + Send + 'static>(
             Ok(p) => p,
             Err(e) => {
                 note_problem(&mut summary, item.offset, e);
+                // Counted as a problem, not lost as well.
+                if let Some(l) = loss.as_mut() {
+                    l.rejected(item.time);
+                }
                 continue;
             }
         };

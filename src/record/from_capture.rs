@@ -93,6 +93,9 @@ pub struct RecordSummary {
     /// Jumps of the lidar's clock (backwards, or by more than two seconds while its packets
     /// kept coming): not loss, but the sensor re-synchronised or was reset.
     pub lidar_time_jumps: u64,
+    /// Pauses of more than two seconds between inputs (captures of separate sessions): not
+    /// loss, nothing was capturing.
+    pub lidar_input_pauses: u64,
     /// Inputs that ended early (truncated), with the error.
     pub input_errors: Vec<String>,
     /// Lidar packets not recorded, per reason (any makes `record` exit 1).
@@ -295,6 +298,14 @@ impl Output<'_> {
     }
 }
 
+/// A data packet received at `host` and rejected (counted among the rejects): the loss count
+/// leaves it out.
+fn rejected_data(out: Option<&mut Output<'_>>, host: UtcNanos) {
+    if let Some(r) = out.and_then(|o| o.rotation.as_mut()) {
+        r.loss_mut().rejected(host);
+    }
+}
+
 fn sync(model: Option<ClockModel>, sensor: UtcNanos) -> UtcNanos {
     model.map_or(sensor, |m| m.to_host(sensor))
 }
@@ -379,6 +390,7 @@ impl Context<'_> {
                                 src.rejects.add(RejectReason::of(PacketPort::Data, &e), || {
                                     format!("{}: {e}", at())
                                 });
+                                rejected_data(out.as_deref_mut(), host);
                                 continue;
                             }
                         };
@@ -392,6 +404,7 @@ impl Context<'_> {
                                     hilrig_stamp::civil::iso8601_millis(host)
                                 )
                             });
+                            rejected_data(out.as_deref_mut(), host);
                             continue;
                         };
                         // The hour moving from the host clock to the RMC can shift sensor times
@@ -1028,6 +1041,9 @@ pub fn record_from(
     src.hours = pass1_hours;
     src.first_fix = first_fix;
     for (p, k) in inputs.iter().zip(&kinds) {
+        if let Some(r) = out.rotation.as_mut() {
+            r.loss_mut().next_input();
+        }
         ctx.run_input(p, *k, &mut src, Some(&mut out), &mut summary)?;
     }
     if let Some(mut rot) = out.rotation.take() {
@@ -1038,6 +1054,7 @@ pub fn record_from(
         summary.lidar_lost = loss.lost;
         summary.lidar_outages = loss.outages;
         summary.lidar_time_jumps = loss.time_jumps;
+        summary.lidar_input_pauses = loss.input_pauses;
     }
     summary.lidar_rejects = std::mem::take(&mut src.rejects);
     summary.gnss_rejects = std::mem::take(&mut src.gnss_rejects);
@@ -1067,6 +1084,10 @@ pub fn record_from(
     meta.insert(
         "lidar_time_jumps".to_owned(),
         summary.lidar_time_jumps.to_string(),
+    );
+    meta.insert(
+        "lidar_input_pauses".to_owned(),
+        summary.lidar_input_pauses.to_string(),
     );
     meta.insert("input_errors".to_owned(), summary.input_errors.join("; "));
     if model.is_some() {

@@ -614,6 +614,12 @@ async fn lidar_task(
             }
             LidarItem::Rejected { host, port, error } => {
                 h.decode_errors.fetch_add(1, Ordering::Relaxed);
+                // Counted among the rejects, not lost as well.
+                if port == hilrig_velodyne::source::PacketPort::Data {
+                    if let Some(r) = rotation.as_mut() {
+                        r.loss_mut().rejected(host);
+                    }
+                }
                 let reason = RejectReason::of(port, &error);
                 let mut r = shared.rejects.lock().unwrap_or_else(|e| e.into_inner());
                 let at = hilrig_stamp::civil::iso8601_millis(host);

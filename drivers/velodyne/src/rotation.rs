@@ -83,10 +83,24 @@ const MAX_PLAUSIBLE_GAP_US: i64 = 2_000_000;
 /// in that time are lost (counted from the receive times, which hold whether or not the
 /// sensor's clock jumped as well). Otherwise the clock jumped, nothing is counted lost, and
 /// the jump is counted.
+///
+/// Two things the receiver saw are not loss. A packet that arrived but was rejected (counted
+/// by the caller, per reason, through [`LossCounter::rejected`]) is not counted lost again: a
+/// second of damaged packets would otherwise read as a second of rejects *and* an outage. And
+/// the pause between two inputs (captures of separate sessions, [`LossCounter::next_input`])
+/// is not an outage: nothing was listening then. Captures cut from one session (a rotating
+/// capture) follow each other within a packet period, and a packet missing at the cut still
+/// counts.
 #[derive(Clone, Debug)]
 pub struct LossCounter {
     period_us: f64,
     last: Option<(u32, UtcNanos)>,
+    /// When the receiver last heard a packet of the stream, accepted or rejected.
+    last_heard: Option<UtcNanos>,
+    /// Packets rejected since the last one observed.
+    rejected_since: u64,
+    /// The next packet observed begins another input.
+    input_begins: bool,
     /// Packets missing between received ones (outages included).
     pub lost: u64,
     /// Gaps of more than two seconds in which nothing was received, their packets counted in
@@ -97,6 +111,8 @@ pub struct LossCounter {
     pub time_jumps: u64,
     /// Packets seen.
     pub packets: u64,
+    /// Pauses of more than two seconds between inputs (not counted lost).
+    pub input_pauses: u64,
 }
 
 impl LossCounter {
@@ -105,33 +121,64 @@ impl LossCounter {
         LossCounter {
             period_us,
             last: None,
+            last_heard: None,
+            rejected_since: 0,
+            input_begins: false,
             lost: 0,
             outages: 0,
             time_jumps: 0,
             packets: 0,
+            input_pauses: 0,
         }
+    }
+
+    /// A packet of the stream arrived at `received` but was not accepted (the caller counts
+    /// it, by reason): not lost, and the receiver was not silent.
+    pub fn rejected(&mut self, received: UtcNanos) {
+        self.rejected_since += 1;
+        self.last_heard = Some(self.last_heard.map_or(received, |h| h.max(received)));
+    }
+
+    /// The packets that follow come from another input (the next capture file).
+    pub fn next_input(&mut self) {
+        self.input_begins = true;
     }
 
     /// Takes the next packet's sensor timestamp and the time it was received; returns how
     /// many packets were lost before it.
     pub fn observe(&mut self, timestamp_us: u32, received: UtcNanos) -> u64 {
         self.packets += 1;
+        let rejected = i64::try_from(std::mem::take(&mut self.rejected_since)).unwrap_or(i64::MAX);
+        let input_begins = std::mem::take(&mut self.input_begins);
+        let heard = self.last_heard.replace(received);
         let Some((last, last_received)) = self.last.replace((timestamp_us, received)) else {
             return 0;
         };
+        let heard = heard.map_or(last_received, |h| h.max(last_received));
         let gap = (i64::from(timestamp_us) - i64::from(last)).rem_euclid(HOUR_US);
         let periods = |gap_us: i64| (gap_us as f64 / self.period_us).round() as i64;
-        let lost = if gap == 0 || gap > MAX_PLAUSIBLE_GAP_US {
-            let silent_us = received.0.saturating_sub(last_received.0) / 1_000;
+        // Since the last accepted packet, µs.
+        let since_us = received.0.saturating_sub(last_received.0) / 1_000;
+        let silent_us = received.0.saturating_sub(heard.0) / 1_000;
+        let lost = if input_begins && silent_us > MAX_PLAUSIBLE_GAP_US {
+            // Between the inputs' sessions, whatever the sensor's clock did (a pause of a
+            // whole number of hours leaves its timestamps near where they were).
+            self.input_pauses += 1;
+            0
+        } else if gap == 0 || gap > MAX_PLAUSIBLE_GAP_US {
             if silent_us > MAX_PLAUSIBLE_GAP_US {
                 self.outages += 1;
-                periods(silent_us) - 1
+                periods(since_us) - 1 - rejected
+            } else if rejected > 0 && gap > 0 && (gap - since_us).abs() <= MAX_PLAUSIBLE_GAP_US {
+                // Packets kept coming but were rejected, and the sensor's clock moved on with
+                // the receiver's: a run of rejected packets, not a jump.
+                periods(gap) - 1 - rejected
             } else {
                 self.time_jumps += 1;
                 0
             }
         } else {
-            periods(gap) - 1
+            periods(gap) - 1 - rejected
         };
         let lost = lost.max(0) as u64;
         self.lost += lost;
@@ -178,6 +225,12 @@ impl<P: RotationPacket> RotationAssembler<P> {
     /// Loss and time-jump totals.
     pub fn loss(&self) -> &LossCounter {
         &self.loss
+    }
+
+    /// The loss counter, to tell it of packets rejected ([`LossCounter::rejected`]) and of
+    /// the next input ([`LossCounter::next_input`]).
+    pub fn loss_mut(&mut self) -> &mut LossCounter {
+        &mut self.loss
     }
 
     /// Adds a packet; returns the rotation it completed, if any.
@@ -310,5 +363,63 @@ mod tests {
         let mut c = LossCounter::new(period);
         c.observe(0, at(0.0));
         assert_eq!(c.observe((4.0 * period) as u32, at(10.0)), 3);
+    }
+
+    /// Packets that arrived but were rejected are not lost as well, whether one or three
+    /// seconds of them; a pause between two inputs is not an outage, but a packet missing
+    /// where one capture of a session ends and the next begins is lost.
+    #[test]
+    fn rejected_packets_and_pauses_between_inputs_are_not_loss() {
+        let period = 552.96;
+        let at = |us: f64| UtcNanos((us * 1_000.0) as i64);
+        let ts = |k: u32| (f64::from(k) * period) as u32;
+        // One packet rejected between two accepted ones; then one missing outright.
+        let mut c = LossCounter::new(period);
+        c.observe(ts(0), at(0.0));
+        c.rejected(at(period));
+        assert_eq!(c.observe(ts(2), at(2.0 * period)), 0);
+        assert_eq!(c.observe(ts(4), at(4.0 * period)), 1);
+        assert_eq!((c.lost, c.outages, c.time_jumps), (1, 0, 0));
+        // Three seconds of rejected packets (every one of them), then good ones again.
+        let mut c = LossCounter::new(period);
+        c.observe(ts(0), at(0.0));
+        let run = (3_000_000.0 / period) as u32;
+        for k in 1..=run {
+            c.rejected(at(f64::from(k) * period));
+        }
+        assert_eq!(c.observe(ts(run + 1), at(f64::from(run + 1) * period)), 0);
+        assert_eq!((c.lost, c.outages, c.time_jumps), (0, 0, 0));
+        // The same run with three packets missing among the rejected ones: three lost.
+        let mut c = LossCounter::new(period);
+        c.observe(ts(0), at(0.0));
+        for k in (1..=run).filter(|k| ![10, 500, 4000].contains(k)) {
+            c.rejected(at(f64::from(k) * period));
+        }
+        assert_eq!(c.observe(ts(run + 1), at(f64::from(run + 1) * period)), 3);
+        assert_eq!((c.outages, c.time_jumps), (0, 0));
+        // A second capture of another session, 40 min or exactly an hour later (its
+        // timestamps then near the first's): a pause, nothing lost.
+        for (pause_us, ts_after) in [(2_400_000_000.0, 2_400_000_000), (3_600_000_000.0, ts(7))] {
+            let mut c = LossCounter::new(period);
+            c.observe(ts(0), at(0.0));
+            c.next_input();
+            assert_eq!(c.observe(ts_after, at(pause_us + 7.0 * period)), 0);
+            assert_eq!(
+                (c.lost, c.outages, c.time_jumps, c.input_pauses),
+                (0, 0, 0, 1)
+            );
+        }
+        // Without the second input, the same silence is an outage.
+        let mut c = LossCounter::new(period);
+        c.observe(ts(0), at(0.0));
+        assert!(c.observe(3_000_000 + ts(7), at(3_000_000.0 + 7.0 * period)) > 5000);
+        assert_eq!((c.outages, c.input_pauses), (1, 0));
+        // The next capture of a rotating capture: one packet missing at the cut is lost.
+        let mut c = LossCounter::new(period);
+        c.observe(ts(0), at(0.0));
+        c.observe(ts(1), at(period));
+        c.next_input();
+        assert_eq!(c.observe(ts(3), at(3.0 * period)), 1);
+        assert_eq!((c.lost, c.input_pauses), (1, 0));
     }
 }
