@@ -261,6 +261,7 @@ impl RecordingConfig {
             chunk_size: self.chunk_size_mib * 1024 * 1024,
             split_size: self.split_size_mib.map(|m| m * 1024 * 1024),
             split_duration_ns: self.split_duration_s.map(|s| (s * 1e9) as i64),
+            durable: false,
         }
     }
 }

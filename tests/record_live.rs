@@ -274,8 +274,8 @@ fn kill_9_mid_recording_is_recovered_losing_at_most_one_and_a_half_seconds() {
 }
 
 /// A full disk, made real with a file-size limit on the recorder process (the kernel then fails
-/// writes with EFBIG, as with ENOSPC): the recorder stops with a clear error, and everything it
-/// wrote before is recovered. Needs only `prlimit` (util-linux, part of every Debian system).
+/// writes with EFBIG, as with ENOSPC): the recorder stops with a clear error and its sources'
+/// final counts, and everything it wrote before is recovered. Needs only `prlimit` (util-linux, part of every Debian system).
 #[test]
 fn a_full_disk_stops_the_recorder_with_a_clear_error_and_keeps_what_was_written() {
     let r = rig();
@@ -328,6 +328,9 @@ fn a_full_disk_stops_the_recorder_with_a_clear_error_and_keeps_what_was_written(
         "{stderr}"
     );
     assert!(stderr.contains("run `hilrig recover`"), "{stderr}");
+    // The sources' final counts are printed although the writer failed (they used to be
+    // lost with the error: the disk fills long before the first periodic health line).
+    assert!(stderr.contains("lidar: received "), "{stderr}");
     let recovered = r.out.with_extension("recovered.mcap");
     common::recover(&active, &recovered);
     // Read back with the replay's checked reader (the independent readers are tested on whole

@@ -218,7 +218,11 @@ pub async fn record_live(
     stop: impl std::future::Future<Output = ()>,
 ) -> Result<LiveSummary, LiveError> {
     let rec = &rig.recording;
-    let options = rec.bag_options();
+    // On the vehicle the power can go at any moment: each second's chunk goes to the disk.
+    let options = crate::bag::BagOptions {
+        durable: true,
+        ..rec.bag_options()
+    };
     let mut bag = BagWriter::create(output, &options).map_err(LiveError::Create)?;
     let mut meta = BTreeMap::new();
     meta.insert("rig".to_owned(), rig.name.clone());
@@ -366,6 +370,9 @@ pub async fn record_live(
         let _ = tokio::time::timeout(Duration::from_secs(2), t).await;
     }
     printer.abort();
+    // The sources' last word before anything else can fail (a full disk fails the writer's
+    // join and the metadata below): the counts are final once the sources have stopped.
+    print_health(&health, &rejects);
     let mut bag = writer.join().map_err(|_| BagError::Io {
         path: output.display().to_string(),
         source: std::io::Error::other("writer thread panicked"),
@@ -438,7 +445,6 @@ pub async fn record_live(
         );
     }
     bag.metadata("hilrig/end", end)?;
-    print_health(&health, &rejects);
     summary.counts = bag.finish()?;
     Ok(summary)
 }
