@@ -1320,6 +1320,85 @@ fn adaptive_footprint_equals_the_full_cast_within_its_tolerance() {
     }
 }
 
+/// A model and its deterministic part simulated together from one cast of each beam
+/// ([`LidarSim::simulate_pair`], what the gap workflow's full re-simulations use) give bit for
+/// bit the packets each gives alone: on every layout, with the truth model plus weather
+/// clutter (a divergent beam cast adaptively, every kind of random draw), and with range noise
+/// on the idealized beam; and no pair with a model that is not deterministic.
+#[test]
+fn a_model_and_its_deterministic_part_cast_together_equal_each_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = edge_scene(dir.path(), false);
+    let weather = |p: f64| Effect::Weather {
+        extinction_per_m: 0.002,
+        clutter_probability: p,
+        clutter_max_range_m: 20.0,
+        clutter_reflectivity: 0.2,
+    };
+    let truth: Vec<Effect> = truth_effects().into_iter().chain([weather(0.02)]).collect();
+    let truth_det: Vec<Effect> = truth_deterministic()
+        .into_iter()
+        .chain([weather(0.0)])
+        .collect();
+    let noisy = vec![Effect::RangeNoise { sigma_m: 0.02 }];
+    let ego = ctrv(3.0, 0.2, 1.0);
+    for (model, mode) in LAYOUTS {
+        for (trial, det) in [(&truth, &truth_det), (&noisy, &Vec::new())] {
+            let sim = |effects: &Vec<Effect>| {
+                LidarSim::new(
+                    &s,
+                    model,
+                    Calibration::builtin(model),
+                    &mounting(),
+                    &model_of(effects.clone()),
+                )
+                .unwrap()
+            };
+            let (full, part) = (sim(trial), sim(det));
+            assert!(part.is_deterministic() && !full.is_deterministic());
+            assert!(full
+                .simulate_pair(
+                    &full,
+                    &spin(model).packet(0, |t| t).packet,
+                    spin(model).packet(0, |t| t).time,
+                    &ego,
+                    0,
+                    &mut SimStats::default()
+                )
+                .is_none());
+            let sp = Spin {
+                mode,
+                ..spin(model)
+            };
+            let (mut returns, mut differ) = (0usize, 0usize);
+            for k in 0..sp.packets_in(0.1) {
+                let sk = sp.packet(k, |t| t);
+                let mut st = SimStats::default();
+                let alone = (
+                    full.simulate(&sk.packet, sk.time, &ego, k, &mut st),
+                    part.simulate(&sk.packet, sk.time, &ego, k, &mut st),
+                );
+                let pair = full
+                    .simulate_pair(&part, &sk.packet, sk.time, &ego, k, &mut st)
+                    .expect("a deterministic part");
+                assert!(pair == alone, "{model} {mode:?}, packet {k}");
+                for (a, b) in alone.0.blocks.iter().zip(&alone.1.blocks) {
+                    for (ca, cb) in a.channels.iter().zip(&b.channels) {
+                        returns += usize::from(ca.distance > 0);
+                        differ += usize::from(ca != cb);
+                    }
+                }
+            }
+            // The two models' packets do differ (the test would not see a pair that wrote
+            // one model's packets twice).
+            assert!(
+                returns > 1000 && differ > returns / 10,
+                "{model} {mode:?}: {differ} of {returns}"
+            );
+        }
+    }
+}
+
 /// The stratified footprint the gap workflow fits with (its sub-rays off the grid's rows and
 /// columns), and a first-echo receiver: cast adaptively, the same packets as cast in full.
 #[test]

@@ -24,16 +24,22 @@ use std::path::{Path, PathBuf};
 /// 2019, Fig. 7) of the simulated runs against the measured ones. The simulations are written
 /// to `dir` (their VelodyneScans) for the user to open.
 ///
+/// With `det` (the model's deterministic part, [`keep::deterministic_part`]), the same casts
+/// give its simulation too ([`Resimulator::cast_pair`]), compared on a second thread as the
+/// batches come, not written: what the keep rule judges a trial's grid metrics on, for the
+/// price of one cast of the runs instead of two.
+///
 /// `measured` holds the measured runs' features once a first call has found them (the same
 /// scans are compared in every round; only the simulation changes). With `keep_files` false
 /// the simulations are removed once measured. Returns the metrics and, per scan, what the
-/// keep rule judges.
+/// keep rule judges, of the model and of its deterministic part.
 fn run_metrics(
     val: &[RunData],
     model: &ModelFile,
+    det: Option<&ModelFile>,
     (dir, tag, keep_files): (&Path, &str, bool),
     measured: &mut Vec<RunFeatures>,
-) -> Result<(RunMetrics, Samples), GapError> {
+) -> Result<(RunMetrics, Samples, Option<Samples>), GapError> {
     std::fs::create_dir_all(dir).map_err(|source| GapError::Output {
         path: dir.to_owned(),
         source,
@@ -45,6 +51,7 @@ fn run_metrics(
     }
     let mut sim_features = Vec::new();
     let mut samples = Samples::default();
+    let mut det_samples = det.map(|_| Samples::default());
     let (mut ocr, mut precision, mut iou) = (Vec::new(), Vec::new(), Vec::new());
     for (i, r) in val.iter().enumerate() {
         let sim_path = dir.join(format!("{tag}-validation-{:02}.mcap", i + 1));
@@ -53,6 +60,10 @@ fn run_metrics(
             source,
         })?;
         let decoder = hilrig_velodyne::Decoder::with_calibration(sensor, calibration);
+        let resim_error = |source| GapError::Resim {
+            run: r.name.clone(),
+            source,
+        };
         let mut resim = Resimulator::new(
             &r.path,
             &r.rig,
@@ -63,64 +74,93 @@ fn run_metrics(
             &sim_path,
             r.trajectory.span().0,
         )
-        .map_err(|source| GapError::Resim {
-            run: r.name.clone(),
-            source,
-        })?;
+        .map_err(resim_error)?;
+        if let Some(det) = det {
+            resim = resim
+                .with_deterministic_part(&r.rig, &r.scene, det)
+                .map_err(resim_error)?;
+        }
         let (mut real_scans, mut sim_scans) = (Vec::new(), Vec::new());
+        let compare_error = |source| GapError::Compare {
+            run: r.name.clone(),
+            source: std::sync::Arc::new(source),
+        };
         let checked = r.checked.clone().map_err(|source| GapError::Compare {
             run: r.name.clone(),
             source,
         })?;
-        let c = compare_simulated(
-            &r.path,
-            checked,
-            &mut |t: ToSimulate<'_>| {
-                let sims = resim.cast(t.trajectory, t.pps_locked, t.scans)?;
-                if !known {
-                    real_scans.extend(scan_features(t.scans, &decoder));
-                }
-                sim_scans.extend(scan_features(&sims, &decoder));
-                Ok(sims)
-            },
-            Some(&r.scene),
-            CompareOptions {
-                cell_m: None,
-                k: 1,
-                dims: Dims::Voxel,
-                region: Region::All,
-                exclude_ground: true,
-                allow_small_cell: false,
-                trajectory: None,
-                sensor_frame: false,
-                grid_phases: crate::metrics::compare::DEFAULT_GRID_PHASES,
-                // The rounds report OCR, precision and IoU: no curve, no point metrics.
-                curve_every: 0,
-                point_metrics: false,
-            },
-            &quiet,
-        )
-        .map_err(|source| GapError::Compare {
-            run: r.name.clone(),
-            source: std::sync::Arc::new(source),
-        })?;
-        resim.finish().map_err(|source| GapError::Resim {
-            run: r.name.clone(),
-            source,
-        })?;
+        let (c, det_c) = std::thread::scope(|scope| {
+            // The deterministic part's twins, a batch at a time, to its own comparison: at
+            // most one batch waits (memory stays a batch's, whatever the run's length).
+            let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<crate::bag::scans::Scan>>(1);
+            let det_thread = det.map(|_| {
+                let checked = checked.clone();
+                let decoder = decoder.clone();
+                scope.spawn(move || {
+                    let mut features = Vec::new();
+                    let c = compare_simulated(
+                        &r.path,
+                        checked,
+                        &mut |t: ToSimulate<'_>| {
+                            let sims = rx
+                                .recv()
+                                .map_err(|_| "the model's own comparison stopped")?;
+                            if sims.len() != t.scans.len() {
+                                return Err("the twins of another batch".into());
+                            }
+                            features.extend(scan_features(&sims, &decoder));
+                            Ok(sims)
+                        },
+                        Some(&r.scene),
+                        options(),
+                        &quiet,
+                    );
+                    (c, features)
+                })
+            });
+            let c = compare_simulated(
+                &r.path,
+                checked,
+                &mut |t: ToSimulate<'_>| {
+                    let sims = if det.is_some() {
+                        let (sims, part) = resim.cast_pair(t.trajectory, t.pps_locked, t.scans)?;
+                        tx.send(part)
+                            .map_err(|_| "the deterministic part's comparison stopped")?;
+                        sims
+                    } else {
+                        resim.cast(t.trajectory, t.pps_locked, t.scans)?
+                    };
+                    if !known {
+                        real_scans.extend(scan_features(t.scans, &decoder));
+                    }
+                    sim_scans.extend(scan_features(&sims, &decoder));
+                    Ok(sims)
+                },
+                Some(&r.scene),
+                options(),
+                &quiet,
+            );
+            // No more twins: the deterministic part's comparison ends with the run (or learns
+            // that this one stopped).
+            drop(tx);
+            let det_c = det_thread.map(|t| t.join().expect("the comparison thread does not panic"));
+            (c, det_c)
+        });
+        // The model's own error first: the other side's is then only that it stopped.
+        let c = c.map_err(compare_error)?;
+        let det_c = match det_c {
+            Some((c, features)) => Some((c.map_err(compare_error)?, features)),
+            None => None,
+        };
+        resim.finish().map_err(resim_error)?;
         if !keep_files {
             // A scratch simulation: nothing a user opens. Failing to remove it loses nothing.
             let _ = std::fs::remove_file(&sim_path);
         }
-        let mut per_scan: BTreeMap<i64, ScanSample> = BTreeMap::new();
-        for row in &c.scans {
-            per_scan.entry(row.stamp_ns).or_default().grid =
-                row.grid.map(|g| [g.ocr, g.precision, g.iou]);
+        samples.runs.push(per_scan(&c, &sim_scans));
+        if let (Some(d), Some((c, features))) = (det_samples.as_mut(), &det_c) {
+            d.runs.push(per_scan(c, features));
         }
-        for f in &sim_scans {
-            per_scan.entry(f.stamp.0).or_default().features = Some(f.values());
-        }
-        samples.runs.push(per_scan);
         ocr.extend(c.summary.ocr_mean);
         precision.extend(c.summary.precision_mean);
         iou.extend(c.summary.iou_mean);
@@ -138,11 +178,41 @@ fn run_metrics(
         });
     }
     let v = crate::stats::repetitions::validate_features(measured, &sim_features, &[])?;
+    Ok((
+        metrics_of(&v, [&ocr, &precision, &iou]),
+        samples,
+        det_samples,
+    ))
+}
+
+/// The comparison the rounds make: OCR, precision and IoU at the admissible cell.
+fn options() -> CompareOptions {
+    CompareOptions {
+        cell_m: None,
+        k: 1,
+        dims: Dims::Voxel,
+        region: Region::All,
+        exclude_ground: true,
+        allow_small_cell: false,
+        trajectory: None,
+        sensor_frame: false,
+        grid_phases: crate::metrics::compare::DEFAULT_GRID_PHASES,
+        // The rounds report OCR, precision and IoU: no curve, no point metrics.
+        curve_every: 0,
+        point_metrics: false,
+    }
+}
+
+/// The round's metrics: the runs' mean OCR, precision and IoU, and the validation's cells.
+fn metrics_of(
+    v: &crate::stats::repetitions::Validation,
+    [ocr, precision, iou]: [&[f64]; 3],
+) -> RunMetrics {
     let mean = |v: &[f64]| (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64);
-    let metrics = RunMetrics {
-        ocr: mean(&ocr),
-        precision: mean(&precision),
-        iou: mean(&iou),
+    RunMetrics {
+        ocr: mean(ocr),
+        precision: mean(precision),
+        iou: mean(iou),
         avm: v
             .cells
             .iter()
@@ -160,8 +230,24 @@ fn run_metrics(
             })
             .collect(),
         verdict: v.verdict,
-    };
-    Ok((metrics, samples))
+    }
+}
+
+/// Per scan of a comparison, what the keep rule judges: its grid metrics and the simulated
+/// scan's features.
+fn per_scan(
+    c: &crate::metrics::compare::Comparison,
+    features: &[crate::metrics::features::ScanFeatures],
+) -> BTreeMap<i64, ScanSample> {
+    let mut per_scan: BTreeMap<i64, ScanSample> = BTreeMap::new();
+    for row in &c.scans {
+        per_scan.entry(row.stamp_ns).or_default().grid =
+            row.grid.map(|g| [g.ocr, g.precision, g.iou]);
+    }
+    for f in features {
+        per_scan.entry(f.stamp.0).or_default().features = Some(f.values());
+    }
+    per_scan
 }
 
 /// A model's full re-simulation of the validation runs: its metrics and its scans.
@@ -196,7 +282,8 @@ impl<'a> Watch<'a> {
     /// Re-simulates the validation runs with the start model (the round-0 simulations).
     pub fn start(val: &'a [RunData], model: &ModelFile, dir: PathBuf) -> Result<Self, GapError> {
         let mut measured = Vec::new();
-        let (metrics, samples) = run_metrics(val, model, (&dir, "round-0", true), &mut measured)?;
+        let (metrics, samples, _) =
+            run_metrics(val, model, None, (&dir, "round-0", true), &mut measured)?;
         Ok(Watch {
             val,
             dir,
@@ -217,20 +304,20 @@ impl<'a> Watch<'a> {
 
     fn scratch(&mut self, model: &ModelFile, tag: &str) -> Result<Samples, GapError> {
         let dir = self.dir.clone();
-        Ok(run_metrics(self.val, model, (&dir, tag, false), &mut self.measured)?.1)
+        Ok(run_metrics(
+            self.val,
+            model,
+            None,
+            (&dir, tag, false),
+            &mut self.measured,
+        )?
+        .1)
     }
 
     /// Re-simulates the validation runs with `trial` (written as `tag`) and judges it against
     /// the current model ([`keep::judge`]); the grid metrics on the deterministic parts.
     pub fn judge(&mut self, trial: &ModelFile, tag: &str) -> Result<Judged, GapError> {
         let dir = self.dir.clone();
-        let (metrics, samples) =
-            run_metrics(self.val, trial, (&dir, tag, true), &mut self.measured)?;
-        let full = Full {
-            model: trial.clone(),
-            metrics,
-            samples,
-        };
         let (det_now, det_trial) = (
             keep::deterministic_part(&self.now.model),
             keep::deterministic_part(trial),
@@ -244,14 +331,19 @@ impl<'a> Watch<'a> {
         } else {
             GridBasis::Models
         };
+        // The trial's deterministic part, where the grid is judged on it, from the trial's
+        // own casts.
+        let det = (basis != GridBasis::Unchanged && random_trial).then_some(&det_trial);
+        let (metrics, samples, deterministic) =
+            run_metrics(self.val, trial, det, (&dir, tag, true), &mut self.measured)?;
+        let full = Full {
+            model: trial.clone(),
+            metrics,
+            samples,
+        };
         if basis != GridBasis::Unchanged {
             self.simulate_deterministic_now(&format!("{tag}-current-deterministic"))?;
         }
-        let deterministic = match basis {
-            GridBasis::Unchanged => None,
-            _ if random_trial => Some(self.scratch(&det_trial, &format!("{tag}-deterministic"))?),
-            _ => None,
-        };
         let grid = match basis {
             GridBasis::Unchanged => None,
             _ => Some((
@@ -285,22 +377,16 @@ impl<'a> Watch<'a> {
         path: &Path,
     ) -> Result<ReferenceCheck, GapError> {
         let dir = self.dir.clone();
-        let (metrics, samples) = run_metrics(
+        let random_ref = keep::has_random_effects(reference);
+        let random_now = keep::has_random_effects(&self.now.model);
+        let det_ref = keep::deterministic_part(reference);
+        let (metrics, samples, grid_ref) = run_metrics(
             self.val,
             reference,
+            random_ref.then_some(&det_ref),
             (&dir, "reference", true),
             &mut self.measured,
         )?;
-        let random_ref = keep::has_random_effects(reference);
-        let random_now = keep::has_random_effects(&self.now.model);
-        let grid_ref = if random_ref {
-            Some(self.scratch(
-                &keep::deterministic_part(reference),
-                "reference-deterministic",
-            )?)
-        } else {
-            None
-        };
         self.simulate_deterministic_now("fitted-deterministic")?;
         let measured = self.measured_by_stamp();
         let j = keep::judge(

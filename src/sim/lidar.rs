@@ -188,6 +188,13 @@ pub struct LidarSim<'a> {
     elevation: footprint::Elevation,
 }
 
+/// The deterministic part of the model being simulated, written from the same casts
+/// ([`LidarSim::simulate_pair`]): its simulator and its packet.
+struct Twin<'t, 's> {
+    sim: &'t LidarSim<'s>,
+    pkt: DataPacket,
+}
+
 /// Buffers of one firing's footprint, reused from firing to firing.
 #[derive(Default)]
 struct Scratch {
@@ -354,9 +361,75 @@ impl<'a> LidarSim<'a> {
         stats: &mut SimStats,
         observe: &mut dyn FnMut(&Firing),
     ) -> DataPacket {
+        self.simulate_with(skeleton, time, ego, seed, stats, observe, None)
+    }
+
+    /// Whether the model has no random effect (range noise, dropout, weather clutter,
+    /// intensity noise): its packets then do not depend on the seed.
+    pub fn is_deterministic(&self) -> bool {
+        let fx = &self.fx;
+        fx.noise.is_none()
+            && fx.dropout == 0.0
+            && fx.weather.is_none_or(|w| w.1 == 0.0)
+            && fx.intensity.is_none_or(|i| i.1 == 0.0)
+    }
+
+    /// [`LidarSim::simulate`] of this model and of `det`, its deterministic part (this model
+    /// without its random effects, in the same scene with the same sensor), from one cast of
+    /// every beam: the two packets are bit for bit what each simulator makes alone, at the
+    /// cost of one. `None` when `det` is not deterministic
+    /// ([`LidarSim::is_deterministic`]). That `det` is this model's deterministic part is the
+    /// caller's to know: the cast is this model's.
+    pub fn simulate_pair(
+        &self,
+        det: &LidarSim<'_>,
+        skeleton: &DataPacket,
+        time: PacketTime,
+        ego: &Trajectory,
+        seed: u64,
+        stats: &mut SimStats,
+    ) -> Option<(DataPacket, DataPacket)> {
+        if !det.is_deterministic() {
+            return None;
+        }
+        let mut twin = Twin {
+            sim: det,
+            pkt: skeleton.clone(),
+        };
+        for b in twin.pkt.blocks.iter_mut() {
+            b.channels = [Channel::default(); CHANNELS];
+        }
+        let full = self.simulate_with(
+            skeleton,
+            time,
+            ego,
+            seed,
+            stats,
+            &mut |_| {},
+            Some(&mut twin),
+        );
+        Some((full, twin.pkt))
+    }
+
+    /// [`LidarSim::simulate_observed`], with the deterministic `twin`'s packet written from
+    /// the same casts.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "simulate_observed's and the twin"
+    )]
+    fn simulate_with(
+        &self,
+        skeleton: &DataPacket,
+        time: PacketTime,
+        ego: &Trajectory,
+        seed: u64,
+        stats: &mut SimStats,
+        observe: &mut dyn FnMut(&Firing),
+        twin: Option<&mut Twin<'_, '_>>,
+    ) -> DataPacket {
         let model = self.decoder.model();
         if model == hilrig_velodyne::Model::Vls128 || model.is_hdl64e() {
-            return self.simulate_banked(skeleton, time, ego, seed, stats, observe);
+            return self.simulate_banked(skeleton, time, ego, seed, stats, observe, twin);
         }
         // Every channel is written below; none keeps what the skeleton carried (a recording's).
         let mut pkt = skeleton.clone();
@@ -473,7 +546,7 @@ impl<'a> LidarSim<'a> {
                 });
             }
         }
-        self.cast_planned(&mut plan, stats, observe, &mut pkt, &mut rng);
+        self.cast_planned(&mut plan, stats, observe, &mut pkt, &mut rng, twin);
         pkt
     }
 }

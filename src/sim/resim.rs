@@ -9,6 +9,11 @@
 //! trajectory file), the mounting from the rig. The output is an MCAP with the simulated
 //! VelodyneScans (same stamps, so the same decoder and replay apply), `/sim/points` clouds for
 //! viewing, and the model, scene and trajectory source in its metadata.
+//!
+//! Long file: one caster (packets of a batch cast on every core, their messages made) behind
+//! both ways of re-simulating a run, whole to a file (`resim`) and batch by batch for a caller
+//! that compares as it goes (`Resimulator`, with a model's deterministic part from the same
+//! casts); split, the caster would be shared across files for no reader's gain.
 
 use super::lidar::{LidarSim, SimStats};
 use super::model::ModelFile;
@@ -268,6 +273,15 @@ pub fn resim_recording(
     Ok(summary)
 }
 
+/// A packet to cast: its scan, its index there, its firings' time (`None`: it does not
+/// decode), and its number in the run.
+type Job = (
+    usize,
+    usize,
+    Option<crate::bag::packet_times::PacketTime>,
+    u64,
+);
+
 /// Packets cast per batch: a few VLP-16 rotations, half a VLS-128 rotation; tens of
 /// megabytes of scans and messages at most.
 const BATCH_PACKETS: usize = 256;
@@ -320,19 +334,7 @@ impl Caster<'_> {
         state: &mut CastState,
         stats: &mut SimStats,
     ) -> Vec<[u8; DATA_PACKET_SIZE]> {
-        // All packets of the batch at once: both cores busy whatever the scan size. A packet
-        // that does not decode is kept as it was (no time).
-        let mut jobs = Vec::new();
-        for (k, scan) in scans.iter().enumerate() {
-            for timed in state.times.of(scan) {
-                let (i, time) = match timed {
-                    Timed::Packet { index, time, .. } => (index, Some(time)),
-                    Timed::Undecodable { index } => (index, None),
-                };
-                jobs.push((k, i, time, state.packets));
-                state.packets += 1;
-            }
-        }
+        let jobs = Caster::jobs(scans, state);
         let simulated: Vec<([u8; DATA_PACKET_SIZE], SimStats)> = jobs
             .par_iter()
             .map(|&(k, i, time, n)| {
@@ -354,6 +356,59 @@ impl Caster<'_> {
             out.push(b);
         }
         out
+    }
+
+    /// Every packet of `scans` (scan, packet, its firings' time, the packet's number in the
+    /// run: its seed), in order. A packet that does not decode has no time.
+    fn jobs(scans: &[Scan], state: &mut CastState) -> Vec<Job> {
+        let mut jobs = Vec::new();
+        for (k, scan) in scans.iter().enumerate() {
+            for timed in state.times.of(scan) {
+                let (i, time) = match timed {
+                    Timed::Packet { index, time, .. } => (index, Some(time)),
+                    Timed::Undecodable { index } => (index, None),
+                };
+                jobs.push((k, i, time, state.packets));
+                state.packets += 1;
+            }
+        }
+        jobs
+    }
+
+    /// [`Caster::simulate`] of this caster's model and of `det`, its deterministic part, from
+    /// one cast ([`LidarSim::simulate_pair`]); `None` when `det` is not deterministic.
+    fn simulate_pair(
+        &self,
+        det: &LidarSim<'_>,
+        scans: &[Scan],
+        state: &mut CastState,
+        stats: &mut SimStats,
+    ) -> Option<Vec<[[u8; DATA_PACKET_SIZE]; 2]>> {
+        if !det.is_deterministic() {
+            return None;
+        }
+        let jobs = Caster::jobs(scans, state);
+        let simulated: Vec<([[u8; DATA_PACKET_SIZE]; 2], SimStats)> = jobs
+            .par_iter()
+            .map(|&(k, i, time, n)| {
+                let b = &scans[k].packets[i].1;
+                let mut st = SimStats::default();
+                let pair = match (DataPacket::decode(&b[..]), time) {
+                    (Ok(p), Some(time)) => self
+                        .sim
+                        .simulate_pair(det, &p, time, self.trajectory, self.seed ^ n, &mut st)
+                        .map(|(a, d)| [a.encode(), d.encode()]),
+                    _ => None,
+                };
+                (pair.unwrap_or([*b, *b]), st)
+            })
+            .collect();
+        let mut out = Vec::with_capacity(simulated.len());
+        for (b, st) in simulated {
+            *stats += st;
+            out.push(b);
+        }
+        Some(out)
     }
 
     /// The messages of `scans` with their simulated packets (`simulated`, in order), the
@@ -399,6 +454,8 @@ impl Caster<'_> {
 /// simulation's file (its VelodyneScans; no viewing clouds).
 pub struct Resimulator<'a> {
     sim: LidarSim<'a>,
+    /// The model's deterministic part, simulated from the same casts ([`Resimulator::cast_pair`]).
+    det: Option<LidarSim<'a>>,
     decoder: Decoder,
     frame_id: String,
     seed: u64,
@@ -434,6 +491,7 @@ impl<'a> Resimulator<'a> {
         );
         Ok(Resimulator {
             sim,
+            det: None,
             decoder: Decoder::with_calibration(sensor, calibration),
             frame_id: lidar.frame_id.clone(),
             seed,
@@ -465,21 +523,61 @@ impl<'a> Resimulator<'a> {
         for m in caster.messages(scans, &simulated) {
             self.writer.send(m)?;
         }
-        let mut packets = simulated.into_iter();
-        Ok(scans
-            .iter()
-            .map(|scan| Scan {
-                log_time: scan.log_time,
-                publish_time: scan.publish_time,
-                stamp: scan.stamp,
-                packets: scan
-                    .packets
-                    .iter()
-                    .zip(packets.by_ref())
-                    .map(|((t, _), b)| (*t, b))
-                    .collect(),
-            })
-            .collect())
+        Ok(twins_of(scans, simulated))
+    }
+
+    /// This re-simulation casting `det` as well, the model's deterministic part (its random
+    /// effects left out), for [`Resimulator::cast_pair`]; an error when `det` has a random
+    /// effect. (That it is the model's deterministic part is the caller's to know.)
+    pub fn with_deterministic_part(
+        mut self,
+        rig: &Rig,
+        scene: &'a Scene,
+        det: &ModelFile,
+    ) -> Result<Resimulator<'a>, ResimError> {
+        let (lidar, sensor, calibration) = rig.lidar_sensor()?;
+        let sim = LidarSim::new(scene, sensor, calibration.clone(), &lidar.mounting, det)?;
+        if !sim.is_deterministic() {
+            return Err(ResimError::Model(crate::sim::model::ModelError::Invalid {
+                model: det.name.clone(),
+                effect: "(all)".to_owned(),
+                what: "a model's deterministic part has no random effect".to_owned(),
+            }));
+        }
+        self.det = Some(sim);
+        Ok(self)
+    }
+
+    /// [`Resimulator::cast`], and the twins the deterministic part
+    /// ([`Resimulator::with_deterministic_part`]) makes from the same casts (not written to
+    /// the file): one cast of every beam for both, each bit for bit what it makes alone.
+    pub fn cast_pair(
+        &mut self,
+        trajectory: &Trajectory,
+        pps_locked: bool,
+        scans: &[Scan],
+    ) -> Result<(Vec<Scan>, Vec<Scan>), ResimError> {
+        let Some(det) = &self.det else {
+            let sims = self.cast(trajectory, pps_locked, scans)?;
+            return Ok((sims.clone(), sims));
+        };
+        let caster = Caster {
+            clouds: false,
+            sim: &self.sim,
+            trajectory,
+            decoder: &self.decoder,
+            frame_id: &self.frame_id,
+            seed: self.seed,
+        };
+        let state = self.state.get_or_insert_with(|| CastState::new(pps_locked));
+        let pairs = caster
+            .simulate_pair(det, scans, state, &mut self.stats)
+            .expect("checked deterministic when it was set");
+        let (full, part): (Vec<_>, Vec<_>) = pairs.into_iter().map(|[a, b]| (a, b)).unzip();
+        for m in caster.messages(scans, &full) {
+            self.writer.send(m)?;
+        }
+        Ok((twins_of(scans, full), twins_of(scans, part)))
     }
 
     /// Closes the simulation's file; the firings cast.
@@ -487,6 +585,25 @@ impl<'a> Resimulator<'a> {
         self.writer.finish()?;
         Ok(self.stats)
     }
+}
+
+/// `scans` with their packets replaced by `simulated` (in order), stamps kept.
+fn twins_of(scans: &[Scan], simulated: Vec<[u8; DATA_PACKET_SIZE]>) -> Vec<Scan> {
+    let mut packets = simulated.into_iter();
+    scans
+        .iter()
+        .map(|scan| Scan {
+            log_time: scan.log_time,
+            publish_time: scan.publish_time,
+            stamp: scan.stamp,
+            packets: scan
+                .packets
+                .iter()
+                .zip(packets.by_ref())
+                .map(|((t, _), b)| (*t, b))
+                .collect(),
+        })
+        .collect()
 }
 
 /// What a simulation's file says of itself (its `sim` metadata): the model, the scene, the run,

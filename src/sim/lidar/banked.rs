@@ -3,7 +3,7 @@
 //! slot of the model's firing table.
 
 use super::footprint::CentreRay;
-use super::{Firing, LidarSim, PacketPlan, PacketTime, Planned, SimStats};
+use super::{Firing, LidarSim, PacketPlan, PacketTime, Planned, SimStats, Twin};
 use crate::scene::pose::Trajectory;
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::packet::CHANNELS;
@@ -18,6 +18,7 @@ impl LidarSim<'_> {
     /// is cast at its own azimuth and time from the firing table
     /// (`hilrig_velodyne::decode::{vls128_firing, hdl64e_firing}`), at the pose interpolated
     /// within its sequence.
+    #[allow(clippy::too_many_arguments, reason = "simulate_with's, handed on")]
     pub(super) fn simulate_banked(
         &self,
         skeleton: &DataPacket,
@@ -26,6 +27,7 @@ impl LidarSim<'_> {
         seed: u64,
         stats: &mut SimStats,
         observe: &mut dyn FnMut(&Firing),
+        twin: Option<&mut Twin<'_, '_>>,
     ) -> DataPacket {
         use hilrig_velodyne::decode::{
             hdl64e_dual, hdl64e_firing, hdl64e_offset_us, hdl64e_rate, vls128_firing,
@@ -188,7 +190,7 @@ impl LidarSim<'_> {
                 });
             }
         }
-        self.cast_planned(&mut plan, stats, observe, &mut pkt, &mut rng);
+        self.cast_planned(&mut plan, stats, observe, &mut pkt, &mut rng, twin);
         pkt
     }
 }

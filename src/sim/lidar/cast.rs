@@ -10,7 +10,7 @@
 //! changes no draw.
 
 use super::footprint::Witnesses;
-use super::{Firing, LidarSim, PacketPlan, Planned, Scratch, SimStats};
+use super::{Firing, LidarSim, PacketPlan, Planned, Scratch, SimStats, Twin};
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::{DataPacket, ReturnMode};
 use nalgebra::{Point3, Vector3};
@@ -39,6 +39,7 @@ impl LidarSim<'_> {
         observe: &mut dyn FnMut(&Firing),
         pkt: &mut DataPacket,
         rng: &mut ChaCha8Rng,
+        mut twin: Option<&mut Twin<'_, '_>>,
     ) {
         let adaptive = plan.adaptive;
         let has_actors = !self.scene.actors.is_empty();
@@ -104,15 +105,34 @@ impl LidarSim<'_> {
                 firing_at(after, below),
             ];
             let c = &p.centre;
-            let r = self.fire_with(
-                &c.origin,
-                &c.direction,
-                &actors,
-                rng,
-                precast.then_some((c, &witnesses)),
-                &mut scratch,
-                stats,
-            );
+            let neighbourhood = precast.then_some((c, &witnesses));
+            let (r, r_twin) = match twin.as_deref() {
+                None => (
+                    self.fire_with(
+                        &c.origin,
+                        &c.direction,
+                        &actors,
+                        rng,
+                        neighbourhood,
+                        &mut scratch,
+                        stats,
+                    ),
+                    None,
+                ),
+                Some(t) => {
+                    let (r, d) = self.fire_pair(
+                        t.sim,
+                        &c.origin,
+                        &c.direction,
+                        &actors,
+                        rng,
+                        neighbourhood,
+                        &mut scratch,
+                        stats,
+                    );
+                    (r, Some(d))
+                }
+            };
             if r.strongest.is_some() {
                 stats.returns += 1;
             }
@@ -130,17 +150,35 @@ impl LidarSim<'_> {
                     r.strongest
                 },
             });
-            let (block, ch) = (usize::from(p.block), usize::from(p.channel));
-            let strongest = self.channel(laser, r.strongest, rng);
-            if plan.dual {
-                pkt.blocks[block].channels[ch] = strongest;
-                pkt.blocks[usize::from(p.last_block)].channels[ch] =
-                    self.channel(laser, r.last, rng);
-            } else if mode == ReturnMode::Last {
-                pkt.blocks[block].channels[ch] = self.channel(laser, r.last, rng);
-            } else {
-                pkt.blocks[block].channels[ch] = strongest;
+            let (block, last_block) = (usize::from(p.block), usize::from(p.last_block));
+            let ch = usize::from(p.channel);
+            self.write_returns(&r, (block, last_block, ch, laser), plan, pkt, rng);
+            if let (Some(t), Some(r)) = (twin.as_deref_mut(), r_twin) {
+                // The deterministic twin draws nothing from `rng`.
+                t.sim
+                    .write_returns(&r, (block, last_block, ch, laser), plan, &mut t.pkt, rng);
             }
+        }
+    }
+
+    /// Writes a firing's returns into its channel of `pkt`: the strongest (or last) echo, and
+    /// in dual mode the last one into the block that carries the last returns.
+    fn write_returns(
+        &self,
+        r: &super::Returns,
+        (block, last_block, ch, laser): (usize, usize, usize, usize),
+        plan: &PacketPlan,
+        pkt: &mut DataPacket,
+        rng: &mut ChaCha8Rng,
+    ) {
+        let strongest = self.channel(laser, r.strongest, rng);
+        if plan.dual {
+            pkt.blocks[block].channels[ch] = strongest;
+            pkt.blocks[last_block].channels[ch] = self.channel(laser, r.last, rng);
+        } else if plan.mode == ReturnMode::Last {
+            pkt.blocks[block].channels[ch] = self.channel(laser, r.last, rng);
+        } else {
+            pkt.blocks[block].channels[ch] = strongest;
         }
     }
 

@@ -63,6 +63,15 @@ fn merge(
     n
 }
 
+/// What a beam's cast found before the model's randomness: its echoes (at most four, at their
+/// power-weighted ranges) and each one's share of the footprint.
+#[derive(Clone, Copy)]
+pub(super) struct Cast {
+    echoes: [Echo; 4],
+    shares: [f64; 4],
+    n: usize,
+}
+
 impl LidarSim<'_> {
     /// [`LidarSim::fire`]; with `neighbourhood` (the beam's centre ray as cast already, and its
     /// witnesses), a divergent beam's sub-rays are cast only where the witnesses do not show
@@ -83,18 +92,9 @@ impl LidarSim<'_> {
         if fx.dropout > 0.0 && rng.random::<f64>() < fx.dropout {
             return Returns::default();
         }
-        let tmax = self.casting_range();
-        // A beam without divergence is its centre ray: cast already when the caller has it.
-        let mut centre_ray = || match neighbourhood {
-            Some((c, _)) => c.hit,
-            None => {
-                stats.rays += 1;
-                self.scene.cast(o, d, 0.0, tmax, actors)
-            }
-        };
         if self.ideal_echo {
             // The idealized beam: one ray, one echo, no power model.
-            let Some(h) = centre_ray() else {
+            let Some(h) = self.centre_hit(o, d, actors, neighbourhood, stats) else {
                 return Returns::default();
             };
             if h.range < self.min_range || h.range > self.max_range {
@@ -110,9 +110,63 @@ impl LidarSim<'_> {
                 last: Some(e),
             };
         }
-        let alpha = fx.weather.map_or(0.0, |w| w.0);
-        let k = fx.intensity.map(|i| i.0);
-        let contribution = |range: f64, refl: f64, cos: f64, share: f64| Echo {
+        let cast = self.cast_beam(o, d, actors, neighbourhood, scratch, stats);
+        self.returns(cast, rng)
+    }
+
+    /// What this model and `det`, its deterministic part (the same model without its random
+    /// effects, [`LidarSim::is_deterministic`]), each report of one beam: [`LidarSim::fire_with`]
+    /// of both from one cast. This model's draws from `rng` are the ones it makes alone (the
+    /// dropout's first, then the clutter's and the noise's), and `det` draws none, so that each
+    /// reports bit for bit what it reports alone; the gap workflow judges a trial model's grid
+    /// metrics on its deterministic part ([`crate::gap`]), and the two casts were twice the work.
+    #[allow(clippy::too_many_arguments, reason = "the ray loop's state, handed on")]
+    pub(super) fn fire_pair(
+        &self,
+        det: &LidarSim<'_>,
+        o: &Point3<f64>,
+        d: &Vector3<f64>,
+        actors: &ActorPoses,
+        rng: &mut impl Rng,
+        neighbourhood: Option<(&CentreRay, &Witnesses)>,
+        scratch: &mut Scratch,
+        stats: &mut SimStats,
+    ) -> (Returns, Returns) {
+        let dropped = self.fx.dropout > 0.0 && rng.random::<f64>() < self.fx.dropout;
+        let cast = self.cast_beam(o, d, actors, neighbourhood, scratch, stats);
+        let full = if dropped {
+            Returns::default()
+        } else {
+            self.returns(cast, rng)
+        };
+        (full, det.returns(cast, rng))
+    }
+
+    /// A beam's centre ray's hit: cast already when the caller has it.
+    fn centre_hit(
+        &self,
+        o: &Point3<f64>,
+        d: &Vector3<f64>,
+        actors: &ActorPoses,
+        neighbourhood: Option<(&CentreRay, &Witnesses)>,
+        stats: &mut SimStats,
+    ) -> Option<crate::scene::Hit> {
+        match neighbourhood {
+            Some((c, _)) => c.hit,
+            None => {
+                stats.rays += 1;
+                self.scene.cast(o, d, 0.0, self.casting_range(), actors)
+            }
+        }
+    }
+
+    /// An echo of `share` of the footprint from a surface of reflectivity `refl` at `range`,
+    /// met at incidence `cos`: its power by the lidar equation (with the weather's
+    /// extinction), its apparent reflectivity (with the incidence exponent).
+    fn contribution(&self, range: f64, refl: f64, cos: f64, share: f64) -> Echo {
+        let alpha = self.fx.weather.map_or(0.0, |w| w.0);
+        let k = self.fx.intensity.map(|i| i.0);
+        Echo {
             range,
             power: share * refl * cos / (range * range)
                 * if alpha > 0.0 {
@@ -128,7 +182,20 @@ impl LidarSim<'_> {
                     Some(1.0) => cos.max(0.0),
                     Some(k) => cos.max(0.0).powf(k),
                 },
-        };
+        }
+    }
+
+    /// The beam cast: its centre ray, or its footprint's sub-rays merged into echoes.
+    fn cast_beam(
+        &self,
+        o: &Point3<f64>,
+        d: &Vector3<f64>,
+        actors: &ActorPoses,
+        neighbourhood: Option<(&CentreRay, &Witnesses)>,
+        scratch: &mut Scratch,
+        stats: &mut SimStats,
+    ) -> Cast {
+        let fx = &self.fx;
         let mut echoes: [Echo; 4] = [Echo {
             range: 0.0,
             power: 0.0,
@@ -139,9 +206,9 @@ impl LidarSim<'_> {
         let mut n = 0usize;
         match &fx.divergence {
             None => {
-                if let Some(h) = centre_ray() {
+                if let Some(h) = self.centre_hit(o, d, actors, neighbourhood, stats) {
                     let cos = -h.normal.dot(d);
-                    echoes[0] = contribution(h.range, h.material.reflectivity, cos, 1.0);
+                    echoes[0] = self.contribution(h.range, h.material.reflectivity, cos, 1.0);
                     n = 1;
                 }
             }
@@ -157,7 +224,7 @@ impl LidarSim<'_> {
                         let c = cos.abs().max(0.01);
                         let span = h.range * div.spacing * (1.0 - c * c).sqrt() / c;
                         subs.push((
-                            contribution(h.range, h.material.reflectivity, cos, share),
+                            self.contribution(h.range, h.material.reflectivity, cos, share),
                             span,
                         ));
                     }
@@ -172,11 +239,24 @@ impl LidarSim<'_> {
                 );
             }
         }
+        Cast { echoes, shares, n }
+    }
+
+    /// What the receiver reports of `cast`: the weather's clutter added, the echoes below the
+    /// threshold or outside the range limits dropped, bias and noise applied, the strongest
+    /// (or, for a first-echo receiver, the nearest) and the last.
+    fn returns(&self, cast: Cast, rng: &mut impl Rng) -> Returns {
+        let fx = &self.fx;
+        let Cast {
+            mut echoes,
+            mut shares,
+            mut n,
+        } = cast;
         if let Some((_, p, rmax, refl)) = fx.weather {
             if p > 0.0 && rng.random::<f64>() < p && n < echoes.len() {
                 let lo = self.min_range.min(rmax);
                 let r = lo + rng.random::<f64>() * (rmax - lo);
-                echoes[n] = contribution(r, refl, 1.0, 1.0);
+                echoes[n] = self.contribution(r, refl, 1.0, 1.0);
                 shares[n] = 1.0;
                 n += 1;
             }
