@@ -268,8 +268,10 @@ pub fn survey_sigma<'a>(runs: impl IntoIterator<Item = (&'a [Obs], &'a [Feature]
     let (Some(s), Some(m)) = (robust_sigma(&e), median(&mut e)) else {
         return 0.0;
     };
-    // (survey, surface) -> (accuracy, sum of 1 / cos θ about the median)
-    let mut surfaces: std::collections::HashMap<(usize, u32), (f64, f64)> = Default::default();
+    // (survey, surface) -> (accuracy, sum of 1 / cos θ about the median). Ordered: summed in
+    // a hash map's order, the result changed in its last bits from one run of `gap` to the next
+    // (its seed is the process's), and with it the intervals in `gap.json`.
+    let mut surfaces: std::collections::BTreeMap<(usize, u32), (f64, f64)> = Default::default();
     let mut near = 0usize;
     for &(survey, surface, accuracy, w, r) in &rows {
         if (r - m).abs() <= s {
@@ -491,6 +493,34 @@ mod tests {
         let two = survey_sigma([(obs.as_slice(), feat.as_slice(), 0), (&obs, &feat, 1)]);
         assert!((two - want / 2f64.sqrt()).abs() < 1e-3 * want, "{two}");
         assert_eq!(survey_sigma([]), 0.0);
+    }
+
+    /// The same residuals give the same survey error to the last bit, however many surfaces
+    /// they lie on: `gap` reports the same intervals run after run (a map summed in its hash
+    /// order gave the last bits of each process's own order).
+    #[test]
+    fn the_survey_error_is_the_same_to_the_last_bit_every_time() {
+        let (mut obs, mut feat) = (Vec::new(), Vec::new());
+        for i in 0..4000u32 {
+            obs.push(Obs {
+                measured: 10.0 + 1e-3 * (i % 7) as f32,
+                predicted: 10.0,
+                ..Obs::default()
+            });
+            feat.push(Feature {
+                range: 10.0,
+                surface: i % 400,
+                cos: 0.3 + 0.7 * (i % 13) as f32 / 13.0,
+                accuracy: 0.001 * (1 + i % 37) as f32,
+                ..Feature::default()
+            });
+        }
+        let first = survey_sigma([(obs.as_slice(), feat.as_slice(), 0)]);
+        assert!(first > 0.0);
+        for _ in 0..50 {
+            let again = survey_sigma([(obs.as_slice(), feat.as_slice(), 0)]);
+            assert_eq!(again.to_bits(), first.to_bits());
+        }
     }
 
     /// Droplet echoes in 10 % of the firings, from 0.5 to 3 m, of a 5 % target's brightness.
