@@ -454,6 +454,13 @@ pub(super) fn summary_line(
         &round.parameters
     };
     let mut parts = vec![format!("found: {} {}", c.effect, values_text(params))];
+    // The footprint's sampling is no number among the parameters: named where it is not the
+    // default grid.
+    if let Some(crate::sim::model::Effect::BeamDivergence { pattern, .. }) = &c.fitted {
+        if !pattern.is_grid() {
+            parts[0].push_str(&format!(", pattern = {}", pattern.name()));
+        }
+    }
     // Re-fits that changed nothing to the printed digits are in gap.json, not in the line.
     for r in round
         .refits

@@ -36,6 +36,14 @@ impl FootprintPattern {
         *self == FootprintPattern::Grid
     }
 
+    /// Its name in a model file (`pattern = "..."`).
+    pub fn name(self) -> &'static str {
+        match self {
+            FootprintPattern::Grid => "grid",
+            FootprintPattern::Stratified => "stratified",
+        }
+    }
+
     /// The sub-rays of a footprint sampled with `n` per axis in this pattern, as offsets in
     /// units of its half-axes (across, along elevation), in the order they are cast and merged.
     pub fn offsets(self, n: u32) -> Vec<(f64, f64)> {
@@ -148,6 +156,15 @@ pub fn footprint_grid(n: u32) -> Vec<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The name a report prints is the one a model file reads.
+    #[test]
+    fn a_patterns_name_is_its_model_file_spelling() {
+        for p in [FootprintPattern::Grid, FootprintPattern::Stratified] {
+            let json = serde_json::to_string(&p).unwrap();
+            assert_eq!(json, format!("\"{}\"", p.name()));
+        }
+    }
 
     /// The share of a top-hat beam's area beyond a straight edge at `d` half-axes from the
     /// centre: the circular segment's area over the disc's.

@@ -78,8 +78,10 @@ pub struct Param {
 pub struct Candidate {
     /// The effect's name.
     pub effect: EffectKind,
-    /// The effect as it would be added (`None` when it could not be fitted).
-    #[serde(skip)]
+    /// The effect as it would be added, every field of it as `model.fitted.toml` would hold
+    /// it (the beam's footprint pattern and echo logic too, which `params` do not name);
+    /// `None` when it could not be fitted.
+    #[serde(default)]
     pub fitted: Option<Effect>,
     /// Effects of the current model re-fitted with it (a detection threshold re-fitted with
     /// beam divergence, which changes the received power).
