@@ -1538,6 +1538,55 @@ fn a_capture_cut_by_its_snap_length_is_an_error_naming_the_damaged_records() {
 
 /// A serial log as a receiver writes it: `sentences` NMEA bodies framed with their checksums,
 /// with `extra` bytes after the third.
+/// The bytes a replay of `recording` sends to the GNSS serial port, in order.
+fn replayed_serial(recording: &std::path::Path) -> Vec<u8> {
+    let (items, damage) = hilrig::replay::load(recording, 2368, 8308).unwrap();
+    assert!(damage.is_none(), "{damage:?}");
+    items
+        .into_iter()
+        .filter_map(|i| match i.payload {
+            hilrig::replay::Payload::Serial(b) => Some(b),
+            _ => None,
+        })
+        .flatten()
+        .collect()
+}
+
+/// A receiver that interleaves a binary protocol the recorder does not frame (SkyTraq's)
+/// with its NMEA, in a log that begins mid-sentence and ends in a cut-off one: the fixes are
+/// recorded, the bytes in no frame are counted, and recorded as they came, so that a replay
+/// sends the log again byte for byte; exit 0, since nothing was lost.
+#[test]
+fn bytes_in_no_frame_are_recorded_and_replayed_as_they_came() {
+    let dir = tempfile::tempdir().unwrap();
+    let skytraq: Vec<u8> = [0xA0, 0xA1, 0x00, 0x02, 0x64, 0x8B, 0x64 ^ 0x8B, 0x0D, 0x0A].into();
+    let good = serial_log(dir.path(), "good.log", &epochs(), &skytraq);
+    let mut log = b"12.5,M,0.0,M,,*47\r\n".to_vec();
+    let head = log.len();
+    log.extend(std::fs::read(&good).unwrap());
+    log.extend_from_slice(b"$GPGGA,0630");
+    let path = dir.path().join("mixed.log");
+    std::fs::write(&path, &log).unwrap();
+    let out = dir.path().join("mixed.mcap");
+    let st = common::record_from(&common::demo_rig(), &[&path], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(0), "{stderr}");
+    let unframed = head + skytraq.len() + b"$GPGGA,0630".len();
+    assert!(
+        stderr.contains(&format!(
+            "mixed.log: {unframed} bytes were in no frame (frames cut off at the stream's start or end, rejected frames, bytes between frames), recorded as they came on /gnss/unframed"
+        )),
+        "{stderr}"
+    );
+    assert!(stderr.contains("/gnss/fix: 10 messages"), "{stderr}");
+    assert_eq!(replayed_serial(&out), log);
+    let info = hilrig::bag::info::info(&out).unwrap();
+    assert_eq!(
+        info.metadata["hilrig/end"]["gnss_unframed_bytes"],
+        unframed.to_string()
+    );
+}
+
 fn serial_log(
     dir: &std::path::Path,
     name: &str,
@@ -1670,6 +1719,8 @@ fn a_gnss_stream_without_a_date_or_without_frames_is_an_error() {
         !stderr.contains("were not recorded"),
         "nothing rejected: {stderr}"
     );
+    // Nothing of it is lost: its bytes are on /gnss/unframed, as they came.
+    assert_eq!(replayed_serial(&out), binary);
     // Beside a good stream, the bad one is still named.
     let good = serial_log(dir.path(), "good.log", &epochs(), &[]);
     let st = common::record_from(&common::demo_rig(), &[&good, &log], &out);

@@ -12,6 +12,11 @@ pub const GNSS_UBX: &str = "/gnss/ubx";
 /// RTCM3 frames the receiver sent (a moving base's corrections for its rover), whole:
 /// `hilrig_msgs/msg/RawPacket`.
 pub const GNSS_RTCM: &str = "/gnss/rtcm";
+/// Bytes of the GNSS serial stream that belonged to no NMEA, UBX or RTCM3 frame (another
+/// protocol the receiver interleaves, a frame cut off at the start, a rejected frame's bytes),
+/// each run as it came: `hilrig_msgs/msg/RawPacket`. With the frames, the stream again, byte
+/// for byte; replay sends them too.
+pub const GNSS_UNFRAMED: &str = "/gnss/unframed";
 /// Fixes.
 pub const GNSS_FIX: &str = "/gnss/fix";
 /// Attitude reports of the reference system (INS, dual antenna): `hilrig_msgs/msg/Attitude`.

@@ -232,21 +232,22 @@ fn print_undecoded(out: &str, undecoded: &hilrig::record::rejects::GnssUndecoded
 }
 
 /// Says, per GNSS serial stream, what did not become a frame or a fix; whether one stream
-/// failed: none of its bytes framed (another protocol, a wrong baud rate: nothing of it is
-/// recorded), or it gave positions but never a date (none of its fixes is on /gnss/fix).
+/// failed: none of its bytes framed (another protocol, a wrong baud rate: its bytes are
+/// recorded raw, but no fix comes of them), or it gave positions but never a date (none of
+/// its fixes is on /gnss/fix).
 fn print_gnss_streams(out: &str, streams: &[hilrig::record::gnss_stream::GnssStream]) -> bool {
     let mut failed = false;
     for s in streams {
         let name = &s.name;
         if s.unframed() {
             eprintln!(
-                "error: {out}: GNSS stream {name}: its {} bytes hold no NMEA, UBX or RTCM3 frame ({} gpsd comment lines), so none of it is recorded: another protocol, or the wrong baud rate?",
+                "error: {out}: GNSS stream {name}: its {} bytes hold no NMEA, UBX or RTCM3 frame ({} gpsd comment lines): recorded raw on /gnss/unframed, but no fix comes of them: another protocol, or the wrong baud rate?",
                 s.unframed_bytes, s.comment_lines
             );
             failed = true;
         } else if s.unframed_bytes > 0 {
             eprintln!(
-                "note: {out}: GNSS stream {name}: {} bytes were in no frame (frames cut off at the stream's start or end, rejected frames, bytes between frames)",
+                "note: {out}: GNSS stream {name}: {} bytes were in no frame (frames cut off at the stream's start or end, rejected frames, bytes between frames), recorded as they came on /gnss/unframed",
                 s.unframed_bytes
             );
         }

@@ -225,8 +225,8 @@ struct Sources {
 /// A serial interface's framer and epoch assemblers, with the receive time of the last frame:
 /// an epoch is complete when the next one starts, but it was *received* with its own last
 /// sentence, and that is its host time.
-#[derive(Default)]
 struct SerialState {
+    /// Keeping what it skips: bytes in no frame are recorded too (`/gnss/unframed`).
     framer: Framer,
     nmea: NmeaEpochs,
     ubx: UbxEpochs,
@@ -236,6 +236,27 @@ struct SerialState {
     timeless: bool,
     /// What the stream held (counted in the pass that writes).
     stream: GnssStream,
+}
+
+impl Default for SerialState {
+    fn default() -> Self {
+        SerialState::with(Framer::new())
+    }
+}
+
+impl SerialState {
+    /// A stream read by `framer` (which is made to keep the bytes it skips).
+    fn with(framer: Framer) -> SerialState {
+        SerialState {
+            framer: framer.keeping_unframed(),
+            nmea: NmeaEpochs::default(),
+            ubx: UbxEpochs::default(),
+            last_host: None,
+            last_fix: None,
+            timeless: false,
+            stream: GnssStream::default(),
+        }
+    }
 }
 
 impl Sources {
@@ -510,7 +531,27 @@ impl Context<'_> {
         entry.framer.push(bytes);
         let mut fixes = Vec::new();
         let mut attitudes = Vec::new();
-        while let Some(it) = entry.framer.next_frame() {
+        let time_of = |entry: &SerialState| {
+            host.or(entry.last_fix)
+                .or(first_fix)
+                .unwrap_or(UtcNanos::EPOCH)
+        };
+        loop {
+            let item = entry.framer.next_frame();
+            // The bytes in no frame before the item (or at the end of what came), as they came.
+            while let Some(run) = entry.framer.take_unframed() {
+                if let Some(o) = out.as_deref_mut() {
+                    let t = time_of(entry);
+                    o.bag.write(
+                        topics::GNSS_UNFRAMED,
+                        &msgs::raw_packet_type(),
+                        t,
+                        t,
+                        &msgs::raw_packet(t, &o.frame_gnss, &run.bytes),
+                    )?;
+                }
+            }
+            let Some(it) = item else { break };
             let (frame, offset) = match it {
                 Item::Frame { frame, offset } => (frame, offset),
                 Item::Rejected { offset, reason } => {
@@ -523,10 +564,7 @@ impl Context<'_> {
                     continue;
                 }
             };
-            let t = host
-                .or(entry.last_fix)
-                .or(first_fix)
-                .unwrap_or(UtcNanos::EPOCH);
+            let t = time_of(entry);
             // A fix completed by this frame was received with the previous one.
             let epoch_host = entry.last_host.unwrap_or(t);
             entry.last_host = Some(t);
@@ -849,13 +887,12 @@ impl Context<'_> {
                 // A gpsd log's `#` lines are the log's comments, not the receiver's bytes; in
                 // other logs they may be the receiver's (NovAtel ASCII logs begin with `#`).
                 src.framers.entry(iface).or_insert_with(|| SerialState {
-                    framer: if looks_like_gpsd_log(&bytes) {
+                    stream: GnssStream::named(path.display().to_string()),
+                    ..SerialState::with(if looks_like_gpsd_log(&bytes) {
                         Framer::for_gpsd_log()
                     } else {
                         Framer::new()
-                    },
-                    stream: GnssStream::named(path.display().to_string()),
-                    ..SerialState::default()
+                    })
                 });
                 for chunk in bytes.chunks(4096) {
                     self.serial(src, out.as_deref_mut(), iface, chunk, None)?;
@@ -1055,6 +1092,19 @@ pub fn record_from(
         summary.lidar_outages = loss.outages;
         summary.lidar_time_jumps = loss.time_jumps;
         summary.lidar_input_pauses = loss.input_pauses;
+    }
+    // The serial streams' ends: a frame cut off there is bytes in no frame, recorded as they
+    // came (and a valid frame its bogus length had swallowed is found).
+    let ends: Vec<(u32, Option<UtcNanos>)> = src
+        .framers
+        .iter_mut()
+        .map(|(i, s)| {
+            s.framer.finish();
+            (*i, if s.timeless { None } else { s.last_host })
+        })
+        .collect();
+    for (iface, host) in ends {
+        ctx.serial(&mut src, Some(&mut out), iface, &[], host)?;
     }
     summary.lidar_rejects = std::mem::take(&mut src.rejects);
     summary.gnss_rejects = std::mem::take(&mut src.gnss_rejects);

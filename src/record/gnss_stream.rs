@@ -13,8 +13,9 @@ pub struct GnssStream {
     /// NMEA, UBX and RTCM3 frames.
     pub frames: u64,
     /// Bytes in no frame: a frame cut off at the stream's start or end, rejected frames, bytes
-    /// between frames, or a protocol the recorder does not frame. A gpsd log's comment lines
-    /// are the log's, not the receiver's, and not counted here.
+    /// between frames, or a protocol the recorder does not frame (recorded as they came, on
+    /// `/gnss/unframed`). A gpsd log's comment lines are the log's, not the receiver's, and not
+    /// counted here.
     pub unframed_bytes: u64,
     /// A gpsd log's comment lines, skipped.
     pub comment_lines: u64,
@@ -55,7 +56,7 @@ impl GnssStream {
     }
 
     /// Bytes came but none framed: another protocol, the wrong baud rate, or a gpsd log of
-    /// comments only. Nothing of it is recorded.
+    /// comments only. Its bytes are recorded raw, but no fix comes of them.
     pub fn unframed(&self) -> bool {
         self.frames == 0 && (self.unframed_bytes > 0 || self.comment_lines > 0)
     }

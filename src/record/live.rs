@@ -682,6 +682,10 @@ struct GnssCounts {
     stream: Arc<Mutex<GnssStream>>,
 }
 
+#[allow(
+    clippy::too_many_lines,
+    reason = "one task's loop: each chunk's frames, the bytes between them, fixes and attitude in the stream's order, and the stop"
+)]
 async fn gnss_task(
     mut source: hilrig_gnss::serial::SerialSource,
     frame: String,
@@ -696,7 +700,8 @@ async fn gnss_task(
         undecoded,
         stream,
     } = counts;
-    let mut framer = Framer::new();
+    // Bytes in no frame are recorded too (`/gnss/unframed`): nothing the receiver sent is lost.
+    let mut framer = Framer::new().keeping_unframed();
     let mut nmea = NmeaEpochs::default();
     let mut ubx = UbxEpochs::default();
     let mut last_host: Option<UtcNanos> = None;
@@ -722,6 +727,22 @@ async fn gnss_task(
             );
         }
     };
+    // The bytes in no frame the framer has kept, received at `host`, as they came.
+    let send_unframed = |framer: &mut Framer, host: UtcNanos| {
+        while let Some(run) = framer.take_unframed() {
+            send(
+                &tx,
+                &h,
+                Event {
+                    topic: crate::bag::topics::GNSS_UNFRAMED,
+                    ty: &t["raw"],
+                    log_time: host,
+                    publish_time: host,
+                    cdr: msgs::raw_packet(host, &frame, &run.bytes),
+                },
+            );
+        }
+    };
     loop {
         let chunk = tokio::select! {
             c = source.next_chunk() => c,
@@ -733,14 +754,22 @@ async fn gnss_task(
                     }
                 }
                 store_serial(&h, &source.stats);
+                // A frame cut off by the stop: its bytes, as they came.
+                framer.close();
+                let host = last_host.unwrap_or_else(UtcNanos::now);
+                send_unframed(&mut framer, host);
                 locked(&stream).framed_by(&framer);
                 return;
             }
         };
         store_serial(&h, &source.stats);
         framer.push(&chunk.bytes);
-        while let Some(item) = framer.next_frame() {
+        loop {
+            let item = framer.next_frame();
             let host = chunk.host;
+            // The bytes in no frame before the item (or at the end of the chunk), as they came.
+            send_unframed(&mut framer, host);
+            let Some(item) = item else { break };
             let epoch_host = last_host.unwrap_or(host);
             let (f, offset) = match item {
                 Item::Frame { frame, offset } => (frame, offset),

@@ -374,7 +374,8 @@ fn message_into(
         }
         crate::bag::topics::VELODYNE_POSITION
         | crate::bag::topics::GNSS_UBX
-        | crate::bag::topics::GNSS_RTCM => {
+        | crate::bag::topics::GNSS_RTCM
+        | crate::bag::topics::GNSS_UNFRAMED => {
             let mut c = CdrReader::new(data).ok_or_else(bad)?;
             c.header().ok_or_else(bad)?;
             let n = c.u32().ok_or_else(bad)? as usize;

@@ -94,6 +94,17 @@ pub struct FramerStats {
     pub comment_bytes: u64,
 }
 
+/// A run of the stream's bytes that belonged to no frame: what a recorder keeps so that
+/// nothing the receiver sent is lost (a protocol the framer does not know, a frame cut off at
+/// the stream's start, a rejected candidate's bytes).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Unframed {
+    /// Stream offset of the first byte.
+    pub offset: u64,
+    /// The bytes, as they came.
+    pub bytes: Vec<u8>,
+}
+
 /// The framer.
 #[derive(Debug)]
 pub struct Framer {
@@ -103,6 +114,11 @@ pub struct Framer {
     at_line_start: bool,
     gpsd_comments: bool,
     finished: bool,
+    /// With [`Framer::keeping_unframed`]: the runs of bytes skipped, oldest first; the last
+    /// one grows while no frame follows it.
+    unframed: Option<VecDeque<Unframed>>,
+    /// A frame (or nothing yet) came after the last run: the next skipped byte starts a new one.
+    run_closed: bool,
     /// Counters.
     pub stats: FramerStats,
 }
@@ -128,8 +144,63 @@ impl Framer {
             at_line_start: true,
             gpsd_comments: false,
             finished: false,
+            unframed: None,
+            run_closed: true,
             stats: FramerStats::default(),
         }
+    }
+
+    /// This framer keeping the bytes it skips (outside any frame; a gpsd log's comment lines
+    /// are the log's, not the stream's, and not kept), for [`Framer::take_unframed`]. A caller
+    /// that takes them after each item keeps the stream's order: frames and the runs between
+    /// them, every byte once.
+    #[must_use]
+    pub fn keeping_unframed(mut self) -> Framer {
+        self.unframed = Some(VecDeque::new());
+        self
+    }
+
+    /// The next run of skipped bytes, oldest first, when the framer keeps them: all runs that
+    /// came before the item [`Framer::next_frame`] returned last (a run still growing at the
+    /// end of what was pushed too).
+    pub fn take_unframed(&mut self) -> Option<Unframed> {
+        let run = self.unframed.as_mut()?.pop_front();
+        if self.unframed.as_ref().is_some_and(VecDeque::is_empty) {
+            self.run_closed = true;
+        }
+        run
+    }
+
+    /// At the end of a stream cut off by the reader (a recorder stopping): the bytes pushed
+    /// but not yet framed (a frame cut off there) as one run, counted as skipped; with the
+    /// runs before them, when the framer keeps them. Returns how many bytes that was.
+    pub fn close(&mut self) -> usize {
+        let n = self.buf.len();
+        self.stats.skipped_bytes += n as u64;
+        self.skip(n, false);
+        n
+    }
+
+    /// Skips `n` bytes that belong to no frame (kept when the framer keeps them, unless they
+    /// are a gpsd log's comment).
+    fn skip(&mut self, n: usize, comment: bool) {
+        let n = n.min(self.buf.len());
+        if !comment {
+            if let Some(runs) = self.unframed.as_mut() {
+                let bytes = self.buf.range(..n).copied();
+                match runs.back_mut() {
+                    Some(run) if !self.run_closed => run.bytes.extend(bytes),
+                    _ => {
+                        runs.push_back(Unframed {
+                            offset: self.offset,
+                            bytes: bytes.collect(),
+                        });
+                        self.run_closed = false;
+                    }
+                }
+            }
+        }
+        self.consume(n);
     }
 
     /// A framer that also skips gpsd log comment lines (`#` at the start of a line, outside any
@@ -194,16 +265,23 @@ impl Framer {
                             self.stats.skipped_bytes += len as u64;
                         }
                     }
-                    self.consume(len);
+                    if matches!(item, Item::Rejected { .. }) {
+                        self.skip(len, false);
+                    } else {
+                        self.consume(len);
+                        self.run_closed = true;
+                    }
                     return Some(item);
                 }
                 Scan::Skip(n) => {
-                    if self.at_line_start && self.gpsd_comments && self.buf.front() == Some(&b'#') {
+                    let comment =
+                        self.at_line_start && self.gpsd_comments && self.buf.front() == Some(&b'#');
+                    if comment {
                         self.stats.comment_lines += 1;
                         self.stats.comment_bytes += n as u64;
                     }
                     self.stats.skipped_bytes += n as u64;
-                    self.consume(n);
+                    self.skip(n, comment);
                 }
                 Scan::NeedMore => {
                     if !self.finished {
@@ -212,7 +290,7 @@ impl Framer {
                     // At the end a candidate can no longer complete: drop its first byte only,
                     // since a corrupted length may have made it swallow valid frames behind it.
                     self.stats.skipped_bytes += 1;
-                    self.consume(1);
+                    self.skip(1, false);
                 }
             }
         }
@@ -745,6 +823,76 @@ mod tests {
                     None => prop_assert!(forged > 0, "untouched frame {k} lost without a forged frame: {e:?}"),
                 }
             }
+        }
+
+        /// A framer that keeps what it skips loses no byte: the frames (their bytes as the
+        /// recorder writes them, an NMEA sentence with the line end it came with) and the runs
+        /// between them, taken after each item, are the stream again, in order, whatever
+        /// junk lies between the frames and however the stream is cut into chunks. A gpsd
+        /// log's comment lines are the only bytes not kept.
+        #[test]
+        fn kept_runs_and_frames_are_the_stream_again(
+            parts in proptest::collection::vec(
+                prop_oneof![
+                    arb_frame(),
+                    // Junk without `#`, which at a line's start in a gpsd log begins one of
+                    // the log's comments.
+                    proptest::collection::vec(any::<u8>().prop_map(|b| if b == b'#' { b'+' } else { b }), 1..40),
+                ],
+                1..30,
+            ),
+            chunk in 1usize..100,
+            gpsd in any::<bool>(),
+        ) {
+            let mut stream = if gpsd { b"# a gpsd log's comment\n".to_vec() } else { Vec::new() };
+            let comment = stream.len();
+            stream.extend(parts.concat());
+            let mut f = if gpsd { Framer::for_gpsd_log() } else { Framer::new() }.keeping_unframed();
+            let mut again: Vec<u8> = Vec::new();
+            let take = |f: &mut Framer, again: &mut Vec<u8>| -> Result<(), TestCaseError> {
+                while let Some(run) = f.take_unframed() {
+                    prop_assert!(!run.bytes.is_empty());
+                    let at = run.offset as usize;
+                    prop_assert_eq!(&stream[at..at + run.bytes.len()], run.bytes.as_slice());
+                    again.extend(run.bytes);
+                }
+                Ok(())
+            };
+            let drain = |f: &mut Framer, again: &mut Vec<u8>| -> Result<(), TestCaseError> {
+                loop {
+                    let before = f.position() as usize;
+                    let item = f.next_frame();
+                    take(f, again)?;
+                    match item {
+                        Some(Item::Frame { offset, frame }) => {
+                            let end = f.position() as usize;
+                            let bytes = &stream[offset as usize..end];
+                            match frame {
+                                Frame::Nmea(text) => prop_assert!(bytes.starts_with(text.as_bytes())),
+                                Frame::Ubx { class, id, payload } => {
+                                    let want = ubx_frame(class, id, &payload);
+                                    prop_assert_eq!(bytes, want.as_slice());
+                                }
+                                Frame::Rtcm3 { bytes: b, .. } => prop_assert_eq!(bytes, b.as_slice()),
+                            }
+                            again.extend_from_slice(bytes);
+                        }
+                        Some(Item::Rejected { .. }) => {}
+                        None => {
+                            prop_assert!(f.position() as usize >= before);
+                            return Ok(());
+                        }
+                    }
+                }
+            };
+            for c in stream.chunks(chunk) {
+                f.push(c);
+                drain(&mut f, &mut again)?;
+            }
+            f.finish();
+            drain(&mut f, &mut again)?;
+            let kept = if gpsd { &stream[comment..] } else { &stream[..] };
+            prop_assert_eq!(again.as_slice(), kept);
         }
 
         #[test]
