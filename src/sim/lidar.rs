@@ -313,7 +313,9 @@ impl<'a> LidarSim<'a> {
         rng: &mut impl Rng,
     ) -> Returns {
         let mut stats = SimStats::default();
-        self.fire_with(o, d, actors, rng, None, &mut Scratch::default(), &mut stats)
+        let scratch = &mut Scratch::default();
+        self.fire_with(None, o, d, actors, rng, None, scratch, &mut stats)
+            .0
     }
 
     fn channel(&self, laser: usize, e: Option<Echo>, rng: &mut impl Rng) -> Channel {

@@ -510,20 +510,7 @@ impl<'a> Resimulator<'a> {
         pps_locked: bool,
         scans: &[Scan],
     ) -> Result<Vec<Scan>, ResimError> {
-        let caster = Caster {
-            clouds: false,
-            sim: &self.sim,
-            trajectory,
-            decoder: &self.decoder,
-            frame_id: &self.frame_id,
-            seed: self.seed,
-        };
-        let state = self.state.get_or_insert_with(|| CastState::new(pps_locked));
-        let simulated = caster.simulate(scans, state, &mut self.stats);
-        for m in caster.messages(scans, &simulated) {
-            self.writer.send(m)?;
-        }
-        Ok(twins_of(scans, simulated))
+        Ok(self.cast_with(trajectory, pps_locked, scans, false)?.0)
     }
 
     /// This re-simulation casting `det` as well, the model's deterministic part (its random
@@ -551,16 +538,27 @@ impl<'a> Resimulator<'a> {
     /// [`Resimulator::cast`], and the twins the deterministic part
     /// ([`Resimulator::with_deterministic_part`]) makes from the same casts (not written to
     /// the file): one cast of every beam for both, each bit for bit what it makes alone.
+    /// Without a deterministic part, the model's twins twice.
     pub fn cast_pair(
         &mut self,
         trajectory: &Trajectory,
         pps_locked: bool,
         scans: &[Scan],
     ) -> Result<(Vec<Scan>, Vec<Scan>), ResimError> {
-        let Some(det) = &self.det else {
-            let sims = self.cast(trajectory, pps_locked, scans)?;
-            return Ok((sims.clone(), sims));
-        };
+        let (full, part) = self.cast_with(trajectory, pps_locked, scans, true)?;
+        let part = part.unwrap_or_else(|| full.clone());
+        Ok((full, part))
+    }
+
+    /// The model's twins of `scans` (written to the file), and with `pair` the deterministic
+    /// part's, when there is one.
+    fn cast_with(
+        &mut self,
+        trajectory: &Trajectory,
+        pps_locked: bool,
+        scans: &[Scan],
+        pair: bool,
+    ) -> Result<(Vec<Scan>, Option<Vec<Scan>>), ResimError> {
         let caster = Caster {
             clouds: false,
             sim: &self.sim,
@@ -570,14 +568,20 @@ impl<'a> Resimulator<'a> {
             seed: self.seed,
         };
         let state = self.state.get_or_insert_with(|| CastState::new(pps_locked));
-        let pairs = caster
-            .simulate_pair(det, scans, state, &mut self.stats)
-            .expect("checked deterministic when it was set");
-        let (full, part): (Vec<_>, Vec<_>) = pairs.into_iter().map(|[a, b]| (a, b)).unzip();
+        let (full, part) = match self.det.as_ref().filter(|_| pair) {
+            Some(det) => {
+                let pairs = caster
+                    .simulate_pair(det, scans, state, &mut self.stats)
+                    .expect("checked deterministic when it was set");
+                let (full, part): (Vec<_>, Vec<_>) = pairs.into_iter().map(|[a, b]| (a, b)).unzip();
+                (full, Some(part))
+            }
+            None => (caster.simulate(scans, state, &mut self.stats), None),
+        };
         for m in caster.messages(scans, &full) {
             self.writer.send(m)?;
         }
-        Ok((twins_of(scans, full), twins_of(scans, part)))
+        Ok((twins_of(scans, full), part.map(|p| twins_of(scans, p))))
     }
 
     /// Closes the simulation's file; the firings cast.

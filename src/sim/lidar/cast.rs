@@ -106,33 +106,16 @@ impl LidarSim<'_> {
             ];
             let c = &p.centre;
             let neighbourhood = precast.then_some((c, &witnesses));
-            let (r, r_twin) = match twin.as_deref() {
-                None => (
-                    self.fire_with(
-                        &c.origin,
-                        &c.direction,
-                        &actors,
-                        rng,
-                        neighbourhood,
-                        &mut scratch,
-                        stats,
-                    ),
-                    None,
-                ),
-                Some(t) => {
-                    let (r, d) = self.fire_pair(
-                        t.sim,
-                        &c.origin,
-                        &c.direction,
-                        &actors,
-                        rng,
-                        neighbourhood,
-                        &mut scratch,
-                        stats,
-                    );
-                    (r, Some(d))
-                }
-            };
+            let (r, r_twin) = self.fire_with(
+                twin.as_deref().map(|t| t.sim),
+                &c.origin,
+                &c.direction,
+                &actors,
+                rng,
+                neighbourhood,
+                &mut scratch,
+                stats,
+            );
             if r.strongest.is_some() {
                 stats.returns += 1;
             }

@@ -77,9 +77,17 @@ impl LidarSim<'_> {
     /// witnesses), a divergent beam's sub-rays are cast only where the witnesses do not show
     /// the footprint to lie on the centre hit's plane (footprint.rs), and a beam without
     /// divergence is not cast again.
+    ///
+    /// With `det`, this model's deterministic part (the same model without its random
+    /// effects, [`LidarSim::is_deterministic`]), what it reports of the beam too, from the
+    /// same cast. This model's draws from `rng` are the ones it makes alone (the dropout's
+    /// first, then the clutter's and the noise's), and `det` draws none, so that each reports
+    /// bit for bit what it reports alone; the gap workflow judges a trial model's grid
+    /// metrics on its deterministic part ([`crate::gap`]), and two casts were twice the work.
     #[allow(clippy::too_many_arguments, reason = "the ray loop's state, handed on")]
     pub(super) fn fire_with(
         &self,
+        det: Option<&LidarSim<'_>>,
         o: &Point3<f64>,
         d: &Vector3<f64>,
         actors: &ActorPoses,
@@ -87,59 +95,50 @@ impl LidarSim<'_> {
         neighbourhood: Option<(&CentreRay, &Witnesses)>,
         scratch: &mut Scratch,
         stats: &mut SimStats,
-    ) -> Returns {
+    ) -> (Returns, Option<Returns>) {
         let fx = &self.fx;
-        if fx.dropout > 0.0 && rng.random::<f64>() < fx.dropout {
-            return Returns::default();
-        }
-        if self.ideal_echo {
-            // The idealized beam: one ray, one echo, no power model.
-            let Some(h) = self.centre_hit(o, d, actors, neighbourhood, stats) else {
-                return Returns::default();
-            };
-            if h.range < self.min_range || h.range > self.max_range {
-                return Returns::default();
+        let dropped = fx.dropout > 0.0 && rng.random::<f64>() < fx.dropout;
+        if det.is_none() {
+            if dropped {
+                return (Returns::default(), None);
             }
-            let e = Echo {
-                range: h.range,
-                power: h.material.reflectivity * -h.normal.dot(d) / (h.range * h.range),
-                reflectivity: h.material.reflectivity,
-            };
-            return Returns {
-                strongest: Some(e),
-                last: Some(e),
-            };
+            if self.ideal_echo {
+                return (self.ideal_returns(o, d, actors, neighbourhood, stats), None);
+            }
         }
-        let cast = self.cast_beam(o, d, actors, neighbourhood, scratch, stats);
-        self.returns(cast, rng)
-    }
-
-    /// What this model and `det`, its deterministic part (the same model without its random
-    /// effects, [`LidarSim::is_deterministic`]), each report of one beam: [`LidarSim::fire_with`]
-    /// of both from one cast. This model's draws from `rng` are the ones it makes alone (the
-    /// dropout's first, then the clutter's and the noise's), and `det` draws none, so that each
-    /// reports bit for bit what it reports alone; the gap workflow judges a trial model's grid
-    /// metrics on its deterministic part ([`crate::gap`]), and the two casts were twice the work.
-    #[allow(clippy::too_many_arguments, reason = "the ray loop's state, handed on")]
-    pub(super) fn fire_pair(
-        &self,
-        det: &LidarSim<'_>,
-        o: &Point3<f64>,
-        d: &Vector3<f64>,
-        actors: &ActorPoses,
-        rng: &mut impl Rng,
-        neighbourhood: Option<(&CentreRay, &Witnesses)>,
-        scratch: &mut Scratch,
-        stats: &mut SimStats,
-    ) -> (Returns, Returns) {
-        let dropped = self.fx.dropout > 0.0 && rng.random::<f64>() < self.fx.dropout;
         let cast = self.cast_beam(o, d, actors, neighbourhood, scratch, stats);
         let full = if dropped {
             Returns::default()
         } else {
             self.returns(cast, rng)
         };
-        (full, det.returns(cast, rng))
+        (full, det.map(|det| det.returns(cast, rng)))
+    }
+
+    /// The idealized beam: one ray, one echo, no power model.
+    fn ideal_returns(
+        &self,
+        o: &Point3<f64>,
+        d: &Vector3<f64>,
+        actors: &ActorPoses,
+        neighbourhood: Option<(&CentreRay, &Witnesses)>,
+        stats: &mut SimStats,
+    ) -> Returns {
+        let Some(h) = self.centre_hit(o, d, actors, neighbourhood, stats) else {
+            return Returns::default();
+        };
+        if h.range < self.min_range || h.range > self.max_range {
+            return Returns::default();
+        }
+        let e = Echo {
+            range: h.range,
+            power: h.material.reflectivity * -h.normal.dot(d) / (h.range * h.range),
+            reflectivity: h.material.reflectivity,
+        };
+        Returns {
+            strongest: Some(e),
+            last: Some(e),
+        }
     }
 
     /// A beam's centre ray's hit: cast already when the caller has it.
