@@ -110,11 +110,28 @@ struct OneFile {
     counts: BTreeMap<String, u64>,
     chunk_started: Option<UtcNanos>,
     /// With [`BagOptions::durable`]: the file, to sync what the writer has handed the kernel
-    /// (a second handle: the `mcap` writer owns the first), and the syncs made.
-    sync: Option<(File, u64)>,
+    /// (a second handle: the `mcap` writer owns the first), the syncs made, and when the last
+    /// one was.
+    sync: Option<(File, u64, std::time::Instant)>,
 }
 
 const CHUNK_MAX_SPAN_NS: i64 = 1_000_000_000;
+
+/// Syncs the directory of `file`, so that its name (created or renamed) survives a power cut.
+/// A file system that cannot sync a directory (EINVAL) has nothing to sync.
+fn sync_directory(file: &Path) -> Result<(), BagError> {
+    let dir = match file.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    match File::open(dir).and_then(|d| d.sync_all()) {
+        Err(e) if e.raw_os_error() != Some(22) => Err(BagError::Io {
+            path: dir.display().to_string(),
+            source: e,
+        }),
+        _ => Ok(()),
+    }
+}
 
 impl OneFile {
     /// Creates `TARGET.active` (e.g. `drive.mcap.active`) for writing; [`BagWriter::finish`]
@@ -132,7 +149,9 @@ impl OneFile {
                 path: active.display().to_string(),
                 source: e,
             })?;
-            Some((handle, 0))
+            // The new name reaches the disk with its directory.
+            sync_directory(&active)?;
+            Some((handle, 0, std::time::Instant::now()))
         } else {
             None
         };
@@ -187,15 +206,22 @@ impl OneFile {
     ) -> Result<(), BagError> {
         // Close the chunk once it spans a second of log time, so a cut-off file loses at most
         // that much.
+        // Durable, a second of the clock closes the chunk too: one message stamped in the
+        // future must not hold the drive back in memory until log time catches up.
+        let wall_due = self
+            .sync
+            .as_ref()
+            .is_some_and(|s| s.2.elapsed().as_nanos() >= CHUNK_MAX_SPAN_NS as u128);
         match self.chunk_started {
-            Some(start) if log_time.0 - start.0 >= CHUNK_MAX_SPAN_NS => {
+            Some(start) if log_time.0 - start.0 >= CHUNK_MAX_SPAN_NS || wall_due => {
                 self.writer.flush().map_err(|e| self.err(e))?;
-                if let Some((file, syncs)) = self.sync.as_mut() {
+                if let Some((file, syncs, last)) = self.sync.as_mut() {
                     file.sync_data().map_err(|source| BagError::Io {
                         path: self.active.display().to_string(),
                         source,
                     })?;
                     *syncs += 1;
+                    *last = std::time::Instant::now();
                 }
                 self.chunk_started = Some(log_time);
             }
@@ -297,21 +323,8 @@ impl OneFile {
             source: e,
         })?;
         if self.sync.is_some() {
-            // The rename reaches the disk with its directory. A file system that cannot sync a
-            // directory (EINVAL) has nothing to sync.
-            let dir = match self.target.parent() {
-                Some(p) if !p.as_os_str().is_empty() => p,
-                _ => Path::new("."),
-            };
-            let synced = File::open(dir).and_then(|d| d.sync_all());
-            if let Err(e) = synced {
-                if e.raw_os_error() != Some(22) {
-                    return Err(BagError::Io {
-                        path: dir.display().to_string(),
-                        source: e,
-                    });
-                }
-            }
+            // The rename reaches the disk with its directory.
+            sync_directory(&self.target)?;
         }
         Ok(self.counts)
     }

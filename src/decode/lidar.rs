@@ -237,11 +237,6 @@ pub fn decode_capture<R: Read + Send + 'static>(
                 POSITION_PACKET_SIZE
             };
             let got = payload.len();
-            if on_data_port {
-                if let Some(l) = loss.as_mut() {
-                    l.rejected(item.time);
-                }
-            }
             note_problem(
                 &mut summary,
                 item.offset,
@@ -269,11 +264,17 @@ pub fn decode_capture<R: Read + Send + 'static>(
         let pkt = match DataPacket::decode(payload) {
             Ok(p) => p,
             Err(e) => {
-                note_problem(&mut summary, item.offset, e);
-                // Counted as a problem, not lost as well.
-                if let Some(l) = loss.as_mut() {
-                    l.rejected(item.time);
+                // Counted as a problem, not lost as well (when it may be the sensor's own:
+                // another sensor's packets would hide this one's losses).
+                if !matches!(
+                    e,
+                    DecodeError::OtherSensor { .. } | DecodeError::ForeignBankFlag { .. }
+                ) {
+                    if let Some(l) = loss.as_mut() {
+                        l.rejected(item.time);
+                    }
                 }
+                note_problem(&mut summary, item.offset, e);
                 continue;
             }
         };

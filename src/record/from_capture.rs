@@ -232,6 +232,8 @@ struct SerialState {
     ubx: UbxEpochs,
     last_host: Option<UtcNanos>,
     last_fix: Option<UtcNanos>,
+    /// When the stream's last bytes were received (of a frame or not).
+    last_receive: Option<UtcNanos>,
     /// The stream has no receive times (a raw serial log).
     timeless: bool,
     /// What the stream held (counted in the pass that writes).
@@ -253,6 +255,7 @@ impl SerialState {
             ubx: UbxEpochs::default(),
             last_host: None,
             last_fix: None,
+            last_receive: None,
             timeless: false,
             stream: GnssStream::default(),
         }
@@ -319,11 +322,13 @@ impl Output<'_> {
     }
 }
 
-/// A data packet received at `host` and rejected (counted among the rejects): the loss count
-/// leaves it out.
-fn rejected_data(out: Option<&mut Output<'_>>, host: UtcNanos) {
+/// A data packet received at `host` and rejected for `reason` (counted among the rejects):
+/// the loss count leaves it out when it may be the sensor's own.
+fn rejected_data(out: Option<&mut Output<'_>>, host: UtcNanos, reason: RejectReason) {
     if let Some(r) = out.and_then(|o| o.rotation.as_mut()) {
-        r.loss_mut().rejected(host);
+        if reason.may_be_own() {
+            r.loss_mut().rejected(host);
+        }
     }
 }
 
@@ -408,10 +413,9 @@ impl Context<'_> {
                         let raw = match RawDataPacket::check(payload, model) {
                             Ok(raw) => raw,
                             Err(e) => {
-                                src.rejects.add(RejectReason::of(PacketPort::Data, &e), || {
-                                    format!("{}: {e}", at())
-                                });
-                                rejected_data(out.as_deref_mut(), host);
+                                let reason = RejectReason::of(PacketPort::Data, &e);
+                                src.rejects.add(reason, || format!("{}: {e}", at()));
+                                rejected_data(out.as_deref_mut(), host, reason);
                                 continue;
                             }
                         };
@@ -425,7 +429,7 @@ impl Context<'_> {
                                     hilrig_stamp::civil::iso8601_millis(host)
                                 )
                             });
-                            rejected_data(out.as_deref_mut(), host);
+                            rejected_data(out.as_deref_mut(), host, RejectReason::NoHour);
                             continue;
                         };
                         // The hour moving from the host clock to the RMC can shift sensor times
@@ -528,6 +532,7 @@ impl Context<'_> {
         let first_fix = src.first_fix;
         let entry = src.framers.entry(interface).or_default();
         entry.timeless = host.is_none();
+        entry.last_receive = host.or(entry.last_receive);
         entry.framer.push(bytes);
         let mut fixes = Vec::new();
         let mut attitudes = Vec::new();
@@ -1100,7 +1105,7 @@ pub fn record_from(
         .iter_mut()
         .map(|(i, s)| {
             s.framer.finish();
-            (*i, if s.timeless { None } else { s.last_host })
+            (*i, if s.timeless { None } else { s.last_receive })
         })
         .collect();
     for (iface, host) in ends {

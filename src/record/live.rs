@@ -620,13 +620,13 @@ async fn lidar_task(
             }
             LidarItem::Rejected { host, port, error } => {
                 h.decode_errors.fetch_add(1, Ordering::Relaxed);
-                // Counted among the rejects, not lost as well.
-                if port == hilrig_velodyne::source::PacketPort::Data {
+                let reason = RejectReason::of(port, &error);
+                // Counted among the rejects, not lost as well (when it may be the sensor's).
+                if port == hilrig_velodyne::source::PacketPort::Data && reason.may_be_own() {
                     if let Some(r) = rotation.as_mut() {
                         r.loss_mut().rejected(host);
                     }
                 }
-                let reason = RejectReason::of(port, &error);
                 let mut r = shared.rejects.lock().unwrap_or_else(|e| e.into_inner());
                 let at = hilrig_stamp::civil::iso8601_millis(host);
                 if !r.counts.contains_key(&reason) {
@@ -705,6 +705,8 @@ async fn gnss_task(
     let mut nmea = NmeaEpochs::default();
     let mut ubx = UbxEpochs::default();
     let mut last_host: Option<UtcNanos> = None;
+    // When the last bytes came (of a frame or not).
+    let mut last_chunk: Option<UtcNanos> = None;
     let t = types();
     // A fix is sent with the receive time of its epoch's last frame.
     let send_fix = |fix: hilrig_gnss::epoch::Fix, epoch_host: UtcNanos| {
@@ -756,13 +758,14 @@ async fn gnss_task(
                 store_serial(&h, &source.stats);
                 // A frame cut off by the stop: its bytes, as they came.
                 framer.close();
-                let host = last_host.unwrap_or_else(UtcNanos::now);
+                let host = last_chunk.unwrap_or_else(UtcNanos::now);
                 send_unframed(&mut framer, host);
                 locked(&stream).framed_by(&framer);
                 return;
             }
         };
         store_serial(&h, &source.stats);
+        last_chunk = Some(chunk.host);
         framer.push(&chunk.bytes);
         loop {
             let item = framer.next_frame();

@@ -56,6 +56,22 @@ impl RejectReason {
         }
     }
 
+    /// Whether a data packet refused for this reason may be the rig's own sensor's (damaged,
+    /// or its hour unknown) rather than other traffic on its port (another sensor, another
+    /// model's banks, a datagram of the wrong size): only those stand for packets of the
+    /// stream that came ([`hilrig_velodyne::LossCounter::rejected`]); another sensor's would
+    /// hide this one's losses.
+    pub fn may_be_own(self) -> bool {
+        matches!(
+            self,
+            RejectReason::BadBlockFlag
+                | RejectReason::AzimuthOutOfRange
+                | RejectReason::UnsupportedReturnMode
+                | RejectReason::NoHour
+                | RejectReason::Other
+        )
+    }
+
     /// The name in the metadata (`wrong_size`, `other_sensor_0x22`, ...).
     pub fn key(self) -> String {
         match self {

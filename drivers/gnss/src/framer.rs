@@ -185,18 +185,19 @@ impl Framer {
     /// are a gpsd log's comment).
     fn skip(&mut self, n: usize, comment: bool) {
         let n = n.min(self.buf.len());
-        if !comment {
-            if let Some(runs) = self.unframed.as_mut() {
-                let bytes = self.buf.range(..n).copied();
-                match runs.back_mut() {
-                    Some(run) if !self.run_closed => run.bytes.extend(bytes),
-                    _ => {
-                        runs.push_back(Unframed {
-                            offset: self.offset,
-                            bytes: bytes.collect(),
-                        });
-                        self.run_closed = false;
-                    }
+        if comment {
+            // The log's line, not the stream's: the runs on either side are two.
+            self.run_closed = true;
+        } else if let Some(runs) = self.unframed.as_mut() {
+            let bytes = self.buf.range(..n).copied();
+            match runs.back_mut() {
+                Some(run) if !self.run_closed => run.bytes.extend(bytes),
+                _ => {
+                    runs.push_back(Unframed {
+                        offset: self.offset,
+                        bytes: bytes.collect(),
+                    });
+                    self.run_closed = false;
                 }
             }
         }
@@ -243,7 +244,12 @@ impl Framer {
             self.buf.make_contiguous();
             let scan = {
                 let (data, _) = self.buf.as_slices();
-                scan(data, self.offset, self.at_line_start && self.gpsd_comments)
+                scan(
+                    data,
+                    self.offset,
+                    self.at_line_start && self.gpsd_comments,
+                    self.finished,
+                )
             };
             match scan {
                 Scan::Item(item, len) => {
@@ -311,7 +317,7 @@ impl Framer {
     }
 }
 
-fn scan(data: &[u8], offset: u64, comment_possible: bool) -> Scan {
+fn scan(data: &[u8], offset: u64, comment_possible: bool, finished: bool) -> Scan {
     if comment_possible && data[0] == b'#' {
         return match data.iter().position(|&b| b == b'\n') {
             Some(i) => Scan::Skip(i + 1),
@@ -320,7 +326,7 @@ fn scan(data: &[u8], offset: u64, comment_possible: bool) -> Scan {
         };
     }
     match data[0] {
-        b'$' | b'!' => scan_nmea(data, offset),
+        b'$' | b'!' => scan_nmea(data, offset, finished),
         0xB5 => scan_ubx(data, offset),
         0xD3 => scan_rtcm3(data, offset),
         _ => {
@@ -342,7 +348,7 @@ fn reject(offset: u64, reason: RejectReason) -> Scan {
     Scan::Item(Item::Rejected { offset, reason }, 1)
 }
 
-fn scan_nmea(data: &[u8], offset: u64) -> Scan {
+fn scan_nmea(data: &[u8], offset: u64, finished: bool) -> Scan {
     // The sentence ends at the first CR or LF; any byte that cannot be in a sentence ends the
     // candidate early (so that a frame starting inside it is not swallowed).
     let limit = data.len().min(MAX_NMEA);
@@ -378,7 +384,11 @@ fn scan_nmea(data: &[u8], offset: u64) -> Scan {
     if expected != computed {
         return reject(offset, RejectReason::NmeaChecksum);
     }
-    // Consume the line end too (CR, LF or CRLF).
+    // Consume the line end too (CR, LF or CRLF). A CR that ends what came may be followed by
+    // its LF in the next read: wait for it (kept apart, the LF would be a byte in no frame).
+    if data[end] == b'\r' && end + 1 == data.len() && !finished {
+        return Scan::NeedMore;
+    }
     let mut len = end + 1;
     if data[end] == b'\r' && data.get(end + 1) == Some(&b'\n') {
         len += 1;
@@ -867,6 +877,9 @@ mod tests {
                         Some(Item::Frame { offset, frame }) => {
                             let end = f.position() as usize;
                             let bytes = &stream[offset as usize..end];
+                            // A CR and the LF after it are never parted (replay writes a
+                            // sentence with CRLF: the LF alone would be written again).
+                            prop_assert!(!(bytes.ends_with(b"\r") && stream.get(end) == Some(&b'\n')));
                             match frame {
                                 Frame::Nmea(text) => prop_assert!(bytes.starts_with(text.as_bytes())),
                                 Frame::Ubx { class, id, payload } => {

@@ -90,13 +90,23 @@ const MAX_PLAUSIBLE_GAP_US: i64 = 2_000_000;
 /// the pause between two inputs (captures of separate sessions, [`LossCounter::next_input`])
 /// is not an outage: nothing was listening then. Captures cut from one session (a rotating
 /// capture) follow each other within a packet period, and a packet missing at the cut still
-/// counts.
+/// counts; but an outage that spans a time-rotated capture's cut (`tcpdump -G` opens the next
+/// file at the first packet after it) ends at the cut, and is taken for a pause.
+///
+/// Whether the receiver was silent is told by every packet heard, accepted or rejected: the
+/// longest silence between them counts, so that one rejected packet after an outage does not
+/// hide it (and at an input's start, the silence before its first packet heard).
 #[derive(Clone, Debug)]
 pub struct LossCounter {
     period_us: f64,
     last: Option<(u32, UtcNanos)>,
     /// When the receiver last heard a packet of the stream, accepted or rejected.
     last_heard: Option<UtcNanos>,
+    /// The longest silence between packets heard since the last one observed, µs.
+    longest_silence_us: i64,
+    /// After [`LossCounter::next_input`], the silence before the input's first packet heard,
+    /// µs (`None` until one is).
+    boundary_silence_us: Option<i64>,
     /// Packets rejected since the last one observed.
     rejected_since: u64,
     /// The next packet observed begins another input.
@@ -122,6 +132,8 @@ impl LossCounter {
             period_us,
             last: None,
             last_heard: None,
+            longest_silence_us: 0,
+            boundary_silence_us: None,
             rejected_since: 0,
             input_begins: false,
             lost: 0,
@@ -133,10 +145,26 @@ impl LossCounter {
     }
 
     /// A packet of the stream arrived at `received` but was not accepted (the caller counts
-    /// it, by reason): not lost, and the receiver was not silent.
+    /// it, by reason): not lost, and the receiver was not silent. Only a packet that may be
+    /// this sensor's (damaged, its hour unknown), not another sensor's traffic on the port,
+    /// whose packets would stand in for this one's lost ones.
     pub fn rejected(&mut self, received: UtcNanos) {
         self.rejected_since += 1;
+        let silent = self.heard(received);
+        if self.input_begins && self.boundary_silence_us.is_none() {
+            self.boundary_silence_us = Some(silent);
+        } else {
+            self.longest_silence_us = self.longest_silence_us.max(silent);
+        }
+    }
+
+    /// A packet heard at `received`: the silence before it, µs.
+    fn heard(&mut self, received: UtcNanos) -> i64 {
+        let silent = self
+            .last_heard
+            .map_or(0, |h| received.0.saturating_sub(h.0) / 1_000);
         self.last_heard = Some(self.last_heard.map_or(received, |h| h.max(received)));
+        silent
     }
 
     /// The packets that follow come from another input (the next capture file).
@@ -150,17 +178,19 @@ impl LossCounter {
         self.packets += 1;
         let rejected = i64::try_from(std::mem::take(&mut self.rejected_since)).unwrap_or(i64::MAX);
         let input_begins = std::mem::take(&mut self.input_begins);
-        let heard = self.last_heard.replace(received);
+        let now = self.heard(received);
+        let boundary_us = self.boundary_silence_us.take().unwrap_or(now);
+        let silent_us = std::mem::take(&mut self.longest_silence_us)
+            .max(now)
+            .max(boundary_us);
         let Some((last, last_received)) = self.last.replace((timestamp_us, received)) else {
             return 0;
         };
-        let heard = heard.map_or(last_received, |h| h.max(last_received));
         let gap = (i64::from(timestamp_us) - i64::from(last)).rem_euclid(HOUR_US);
         let periods = |gap_us: i64| (gap_us as f64 / self.period_us).round() as i64;
         // Since the last accepted packet, µs.
         let since_us = received.0.saturating_sub(last_received.0) / 1_000;
-        let silent_us = received.0.saturating_sub(heard.0) / 1_000;
-        let lost = if input_begins && silent_us > MAX_PLAUSIBLE_GAP_US {
+        let lost = if input_begins && boundary_us > MAX_PLAUSIBLE_GAP_US {
             // Between the inputs' sessions, whatever the sensor's clock did (a pause of a
             // whole number of hours leaves its timestamps near where they were).
             self.input_pauses += 1;
@@ -414,6 +444,28 @@ mod tests {
         c.observe(ts(0), at(0.0));
         assert!(c.observe(3_000_000 + ts(7), at(3_000_000.0 + 7.0 * period)) > 5000);
         assert_eq!((c.outages, c.input_pauses), (1, 0));
+        // The next session's first packet is rejected: still a pause, nothing lost.
+        let mut c = LossCounter::new(period);
+        c.observe(ts(0), at(0.0));
+        c.next_input();
+        c.rejected(at(2_400_000_000.0));
+        assert_eq!(
+            c.observe(2_400_000_000 + ts(1), at(2_400_000_000.0 + period)),
+            0
+        );
+        assert_eq!(
+            (c.lost, c.outages, c.time_jumps, c.input_pauses),
+            (0, 0, 0, 1)
+        );
+        // Five seconds of silence ended by a rejected packet: an outage all the same, whether
+        // the sensor's clock ran on or was reset.
+        for after in [2_005_000_000 + ts(2), 50] {
+            let mut c = LossCounter::new(period);
+            c.observe(2_000_000_000, at(0.0));
+            c.rejected(at(5_000_000.0 + period));
+            assert!(c.observe(after, at(5_000_000.0 + 2.0 * period)) > 3000);
+            assert_eq!((c.outages, c.time_jumps), (1, 0), "{after}");
+        }
         // The next capture of a rotating capture: one packet missing at the cut is lost.
         let mut c = LossCounter::new(period);
         c.observe(ts(0), at(0.0));
