@@ -19,7 +19,7 @@ use super::lidar::{LidarSim, SimStats};
 use super::model::ModelFile;
 use super::sim_file::{ScanMessages, Writer};
 use crate::bag::msgs;
-use crate::bag::packet_times::{PacketTimes, Timed};
+use crate::bag::packet_times::{PacketTime, PacketTimes, Timed};
 use crate::bag::scans::{Scan, ScanStream};
 use crate::reference::check::{check_with_trajectory, Report, Verdict};
 use crate::rig::Rig;
@@ -275,12 +275,7 @@ pub fn resim_recording(
 
 /// A packet to cast: its scan, its index there, its firings' time (`None`: it does not
 /// decode), and its number in the run.
-type Job = (
-    usize,
-    usize,
-    Option<crate::bag::packet_times::PacketTime>,
-    u64,
-);
+type Job = (usize, usize, Option<PacketTime>, u64);
 
 /// Packets cast per batch: a few VLP-16 rotations, half a VLS-128 rotation; tens of
 /// megabytes of scans and messages at most.
@@ -334,18 +329,37 @@ impl Caster<'_> {
         state: &mut CastState,
         stats: &mut SimStats,
     ) -> Vec<[u8; DATA_PACKET_SIZE]> {
+        self.each_packet(
+            scans,
+            (state, stats),
+            |p, time, seed, st| {
+                self.sim
+                    .simulate(p, time, self.trajectory, seed, st)
+                    .encode()
+            },
+            |b| *b,
+        )
+    }
+
+    /// `cast(packet, time, seed, stats)` of every packet of `scans`, in order, all of the
+    /// batch at once (both cores busy whatever the scan size); `kept(bytes)` of a packet that
+    /// does not decode (it is kept as it was); the firing counts added to `stats`.
+    fn each_packet<T: Send>(
+        &self,
+        scans: &[Scan],
+        (state, stats): (&mut CastState, &mut SimStats),
+        cast: impl Fn(&DataPacket, PacketTime, u64, &mut SimStats) -> T + Sync,
+        kept: impl Fn(&[u8; DATA_PACKET_SIZE]) -> T + Sync,
+    ) -> Vec<T> {
         let jobs = Caster::jobs(scans, state);
-        let simulated: Vec<([u8; DATA_PACKET_SIZE], SimStats)> = jobs
+        let simulated: Vec<(T, SimStats)> = jobs
             .par_iter()
             .map(|&(k, i, time, n)| {
                 let b = &scans[k].packets[i].1;
                 let mut st = SimStats::default();
                 let out = match (DataPacket::decode(&b[..]), time) {
-                    (Ok(p), Some(time)) => self
-                        .sim
-                        .simulate(&p, time, self.trajectory, self.seed ^ n, &mut st)
-                        .encode(),
-                    _ => *b,
+                    (Ok(p), Some(time)) => cast(&p, time, self.seed ^ n, &mut st),
+                    _ => kept(b),
                 };
                 (out, st)
             })
@@ -376,39 +390,27 @@ impl Caster<'_> {
     }
 
     /// [`Caster::simulate`] of this caster's model and of `det`, its deterministic part, from
-    /// one cast ([`LidarSim::simulate_pair`]); `None` when `det` is not deterministic.
+    /// one cast ([`LidarSim::simulate_pair`]; `det` was checked deterministic when it was set,
+    /// [`Resimulator::with_deterministic_part`]).
     fn simulate_pair(
         &self,
         det: &LidarSim<'_>,
         scans: &[Scan],
         state: &mut CastState,
         stats: &mut SimStats,
-    ) -> Option<Vec<[[u8; DATA_PACKET_SIZE]; 2]>> {
-        if !det.is_deterministic() {
-            return None;
-        }
-        let jobs = Caster::jobs(scans, state);
-        let simulated: Vec<([[u8; DATA_PACKET_SIZE]; 2], SimStats)> = jobs
-            .par_iter()
-            .map(|&(k, i, time, n)| {
-                let b = &scans[k].packets[i].1;
-                let mut st = SimStats::default();
-                let pair = match (DataPacket::decode(&b[..]), time) {
-                    (Ok(p), Some(time)) => self
-                        .sim
-                        .simulate_pair(det, &p, time, self.trajectory, self.seed ^ n, &mut st)
-                        .map(|(a, d)| [a.encode(), d.encode()]),
-                    _ => None,
-                };
-                (pair.unwrap_or([*b, *b]), st)
-            })
-            .collect();
-        let mut out = Vec::with_capacity(simulated.len());
-        for (b, st) in simulated {
-            *stats += st;
-            out.push(b);
-        }
-        Some(out)
+    ) -> Vec<[[u8; DATA_PACKET_SIZE]; 2]> {
+        self.each_packet(
+            scans,
+            (state, stats),
+            |p, time, seed, st| {
+                let (a, d) = self
+                    .sim
+                    .simulate_pair(det, p, time, self.trajectory, seed, st)
+                    .expect("a deterministic part, checked when it was set");
+                [a.encode(), d.encode()]
+            },
+            |b| [*b, *b],
+        )
     }
 
     /// The messages of `scans` with their simulated packets (`simulated`, in order), the
@@ -570,9 +572,7 @@ impl<'a> Resimulator<'a> {
         let state = self.state.get_or_insert_with(|| CastState::new(pps_locked));
         let (full, part) = match self.det.as_ref().filter(|_| pair) {
             Some(det) => {
-                let pairs = caster
-                    .simulate_pair(det, scans, state, &mut self.stats)
-                    .expect("checked deterministic when it was set");
+                let pairs = caster.simulate_pair(det, scans, state, &mut self.stats);
                 let (full, part): (Vec<_>, Vec<_>) = pairs.into_iter().map(|[a, b]| (a, b)).unzip();
                 (full, Some(part))
             }
