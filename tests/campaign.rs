@@ -471,8 +471,9 @@ fn duckdb_agrees(out: &Path) {
     assert!(page.contains("id=\"section-fleet\""));
 }
 
-/// The campaign's plan run on a Ray cluster of two worker nodes, one of them killed once the
-/// run has finished three more tasks; the executor's summary (every task's outcome).
+/// The campaign's plan run on a Ray cluster of two worker nodes; once the run has finished three
+/// more tasks, the node running a task then is killed. The executor's summary (every task's
+/// outcome).
 fn on_ray(file: &Path, out: &Path, dir: &Path) -> serde_json::Value {
     let plan_path = dir.join("plan.json");
     let plan = Command::new(common::hilrig_bin())
@@ -515,7 +516,7 @@ fn on_ray(file: &Path, out: &Path, dir: &Path) -> serde_json::Value {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
-    cluster.kill_a_worker_node();
+    cluster.kill_a_busy_worker_node(&common::hilrig_bin());
     let result = exec.wait_with_output().unwrap();
     let stdout = String::from_utf8_lossy(&result.stdout);
     assert!(

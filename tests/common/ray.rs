@@ -78,22 +78,33 @@ impl Cluster {
         found
     }
 
-    /// Kills one worker node: its raylet and every process it started.
-    pub fn kill_a_worker_node(&self) -> i32 {
-        let raylet = self
-            .processes()
-            .into_iter()
-            .find(|(_, c)| c.contains("raylet/raylet") && !c.contains(" --head"))
-            .expect("a worker node's raylet")
-            .0;
-        let children = children_of(raylet);
-        let _ = nix::sys::signal::kill(
-            nix::unistd::Pid::from_raw(raylet),
-            nix::sys::signal::Signal::SIGKILL,
-        );
-        for c in children {
+    /// Kills a worker node that is running a task of `program` at this moment (waiting up to
+    /// ten minutes for one to be): its raylet and every process it started. Killing a busy
+    /// node, not whichever raylet comes first, is what makes the loss real: an idle node's
+    /// death costs the run nothing, and the tasks left over must then run on the other node.
+    /// Returns the raylet's pid.
+    pub fn kill_a_busy_worker_node(&self, program: &std::path::Path) -> i32 {
+        let program = program.display().to_string();
+        let started = std::time::Instant::now();
+        let (raylet, tree) = loop {
+            let busy = self
+                .processes()
+                .into_iter()
+                .filter(|(_, c)| c.contains("raylet/raylet") && !c.contains(" --head"))
+                .map(|(pid, _)| (pid, descendants_of(pid)))
+                .find(|(_, tree)| tree.iter().any(|&p| cmdline(p).starts_with(&program)));
+            if let Some(found) = busy {
+                break found;
+            }
+            assert!(
+                started.elapsed() < std::time::Duration::from_secs(600),
+                "no worker node ran {program}"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        };
+        for pid in std::iter::once(raylet).chain(tree) {
             let _ = nix::sys::signal::kill(
-                nix::unistd::Pid::from_raw(c),
+                nix::unistd::Pid::from_raw(pid),
                 nix::sys::signal::Signal::SIGKILL,
             );
         }
@@ -118,6 +129,25 @@ pub fn free_port() -> u16 {
         .local_addr()
         .unwrap()
         .port()
+}
+
+/// The command line of `pid` (arguments joined by spaces; empty when it is gone).
+fn cmdline(pid: i32) -> String {
+    std::fs::read(format!("/proc/{pid}/cmdline"))
+        .map(|b| String::from_utf8_lossy(&b).replace('\0', " "))
+        .unwrap_or_default()
+}
+
+/// Every process below `pid`: its children, theirs, and so on.
+pub fn descendants_of(pid: i32) -> Vec<i32> {
+    let mut out = children_of(pid);
+    let mut k = 0;
+    while k < out.len() {
+        let next = children_of(out[k]);
+        out.extend(next);
+        k += 1;
+    }
+    out
 }
 
 /// Direct children of `pid`.
