@@ -2,6 +2,7 @@
 //! and two worker nodes, started with `ray start`; its processes are found by its own temp dir
 //! in their command lines, so that dropping it stops this cluster and no other.
 
+use std::collections::BTreeSet;
 use std::path::PathBuf;
 use std::process::Command;
 
@@ -114,7 +115,15 @@ impl Cluster {
 
 impl Drop for Cluster {
     fn drop(&mut self) {
+        // Ray's agents rename themselves (`ray::DashboardAgent`), so their command lines no
+        // longer name the temp dir: they are found as descendants, before their parents die
+        // and leave them to init.
+        let mut all: BTreeSet<i32> = BTreeSet::new();
         for (pid, _) in self.processes() {
+            all.insert(pid);
+            all.extend(descendants_of(pid));
+        }
+        for pid in all {
             let _ = nix::sys::signal::kill(
                 nix::unistd::Pid::from_raw(pid),
                 nix::sys::signal::Signal::SIGKILL,
