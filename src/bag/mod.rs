@@ -10,6 +10,7 @@ pub mod packet_times;
 pub mod read;
 pub mod recover;
 pub mod scans;
+mod sync;
 pub mod topics;
 pub mod writer;
 

@@ -1,6 +1,7 @@
 //! The MCAP writer of the recorder.
 
 use super::msgs::MessageType;
+use super::sync::Syncer;
 use hilrig_stamp::UtcNanos;
 use std::collections::{BTreeMap, HashMap};
 use std::fs::File;
@@ -109,10 +110,9 @@ struct OneFile {
     channels: HashMap<String, (u16, u32, &'static str)>,
     counts: BTreeMap<String, u64>,
     chunk_started: Option<UtcNanos>,
-    /// With [`BagOptions::durable`]: the file, to sync what the writer has handed the kernel
-    /// (a second handle: the `mcap` writer owns the first), the syncs made, and when the last
-    /// one was.
-    sync: Option<(File, u64, std::time::Instant)>,
+    /// With [`BagOptions::durable`]: the thread that syncs what the writer has handed the
+    /// kernel (through a second handle: the `mcap` writer owns the first).
+    sync: Option<Syncer>,
 }
 
 const CHUNK_MAX_SPAN_NS: i64 = 1_000_000_000;
@@ -151,7 +151,11 @@ impl OneFile {
             })?;
             // The new name reaches the disk with its directory.
             sync_directory(&active)?;
-            Some((handle, 0, std::time::Instant::now()))
+            let syncer = Syncer::start(Box::new(move || handle.sync_data()));
+            Some(syncer.map_err(|e| BagError::Create {
+                path: active.display().to_string(),
+                source: e,
+            })?)
         } else {
             None
         };
@@ -183,9 +187,16 @@ impl OneFile {
         })
     }
 
-    /// Chunks synced to the disk so far ([`BagOptions::durable`]).
+    /// Chunks closed for the disk so far ([`BagOptions::durable`]).
     fn syncs(&self) -> u64 {
-        self.sync.as_ref().map_or(0, |s| s.1)
+        self.sync.as_ref().map_or(0, |s| s.asked)
+    }
+
+    fn sync_error(&self, source: std::io::Error) -> BagError {
+        BagError::Io {
+            path: self.active.display().to_string(),
+            source,
+        }
     }
 
     fn err(&self, e: mcap::McapError) -> BagError {
@@ -208,20 +219,18 @@ impl OneFile {
         // that much.
         // Durable, a second of the clock closes the chunk too: one message stamped in the
         // future must not hold the drive back in memory until log time catches up.
+        if let Some(e) = self.sync.as_ref().and_then(Syncer::failure) {
+            return Err(self.sync_error(e));
+        }
         let wall_due = self
             .sync
             .as_ref()
-            .is_some_and(|s| s.2.elapsed().as_nanos() >= CHUNK_MAX_SPAN_NS as u128);
+            .is_some_and(|s| s.last.elapsed().as_nanos() >= CHUNK_MAX_SPAN_NS as u128);
         match self.chunk_started {
             Some(start) if log_time.0 - start.0 >= CHUNK_MAX_SPAN_NS || wall_due => {
                 self.writer.flush().map_err(|e| self.err(e))?;
-                if let Some((file, syncs, last)) = self.sync.as_mut() {
-                    file.sync_data().map_err(|source| BagError::Io {
-                        path: self.active.display().to_string(),
-                        source,
-                    })?;
-                    *syncs += 1;
-                    *last = std::time::Instant::now();
+                if let Some(s) = self.sync.as_mut() {
+                    s.request();
                 }
                 self.chunk_started = Some(log_time);
             }
@@ -307,6 +316,12 @@ impl OneFile {
 
     /// Writes the summary and renames `.active` to the target name.
     pub fn finish(mut self) -> Result<BTreeMap<String, u64>, BagError> {
+        let durable = self.sync.is_some();
+        if let Some(mut s) = self.sync.take() {
+            // A sync that failed is the disk's error, reported as such (the sync_all below
+            // might pass where the card lost what the failed one held).
+            s.finish().map_err(|e| self.sync_error(e))?;
+        }
         self.writer.finish().map_err(|e| self.err(e))?;
         let mut inner = self.writer.into_inner();
         use std::io::Write;
@@ -322,7 +337,7 @@ impl OneFile {
             path: self.target.display().to_string(),
             source: e,
         })?;
-        if self.sync.is_some() {
+        if durable {
             // The rename reaches the disk with its directory.
             sync_directory(&self.target)?;
         }
@@ -507,7 +522,8 @@ impl BagWriter {
         &self.files
     }
 
-    /// Times the recording's data was forced onto the disk so far ([`BagOptions::durable`]).
+    /// Chunks closed for the disk so far ([`BagOptions::durable`]): each is on the disk once
+    /// the sync thread's next `fdatasync` has ended.
     pub fn syncs(&self) -> u64 {
         self.syncs_before + self.current.as_ref().map_or(0, OneFile::syncs)
     }
@@ -553,6 +569,101 @@ mod tests {
             }
             assert_eq!(bag.syncs(), want, "durable {durable}, split {split:?}");
             bag.finish().unwrap();
+        }
+    }
+
+    /// A durable bag whose syncs run `sync` instead of `fdatasync`.
+    fn with_sync(path: &std::path::Path, sync: super::super::sync::SyncFn) -> BagWriter {
+        let options = BagOptions {
+            durable: true,
+            ..BagOptions::default()
+        };
+        let mut bag = BagWriter::create(path, &options).unwrap();
+        bag.current.as_mut().unwrap().sync = Some(super::Syncer::start(sync).unwrap());
+        bag
+    }
+
+    /// Writes `seconds` of messages, ten a second.
+    fn write_seconds(bag: &mut BagWriter, seconds: i64) -> Result<(), super::BagError> {
+        let ty = msgs::raw_packet_type();
+        for i in 0..seconds * 10 {
+            let t = UtcNanos(1_700_000_000_000_000_000 + i * 100_000_000);
+            bag.write("/x", &ty, t, t, &msgs::raw_packet(t, "x", &[1, 2, 3]))?;
+        }
+        Ok(())
+    }
+
+    /// A disk whose sync hangs does not hold the writer: every message of ten seconds is
+    /// written while the first sync has not returned, the syncs asked meanwhile wait as one,
+    /// and the file is whole once the disk answers.
+    #[test]
+    fn a_sync_that_hangs_does_not_hold_the_writer() {
+        let dir = tempfile::tempdir().unwrap();
+        let (gate, wait) = std::sync::mpsc::channel::<()>();
+        let calls = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+        let c = calls.clone();
+        let path = dir.path().join("slow.mcap");
+        let mut bag = with_sync(
+            &path,
+            Box::new(move || {
+                c.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                wait.recv().map_err(std::io::Error::other)
+            }),
+        );
+        write_seconds(&mut bag, 10).unwrap();
+        assert_eq!(bag.syncs(), 9);
+        // One sync has begun and not returned (its gate is shut); the rest wait as one.
+        while calls.load(std::sync::atomic::Ordering::SeqCst) == 0 {
+            std::thread::yield_now();
+        }
+        assert_eq!(calls.load(std::sync::atomic::Ordering::SeqCst), 1);
+        // The disk answers: the sync under way, then the one that waited for it.
+        for _ in 0..2 {
+            gate.send(()).unwrap();
+        }
+        let counts = bag.finish().unwrap();
+        assert_eq!(counts["/x"], 100);
+        assert_eq!(calls.load(std::sync::atomic::Ordering::SeqCst), 2);
+        let bytes = std::fs::read(&path).unwrap();
+        let n = mcap::MessageStream::new(&bytes).unwrap().count();
+        assert_eq!(n, 100);
+    }
+
+    /// A sync that fails is the disk's error: a later write reports it with the file's name,
+    /// and so does finishing, which does not rename the file as if it were whole.
+    #[test]
+    fn a_sync_that_fails_is_reported_by_a_later_write_and_by_finish() {
+        let dir = tempfile::tempdir().unwrap();
+        for finish in [false, true] {
+            let path = dir.path().join(format!("failing-{finish}.mcap"));
+            // Finishing: the sync fails once the writes are done.
+            let (gate, wait) = std::sync::mpsc::channel::<()>();
+            if !finish {
+                gate.send(()).unwrap();
+            }
+            let mut bag = with_sync(
+                &path,
+                Box::new(move || {
+                    let _ = wait.recv();
+                    Err(std::io::Error::other("the card was removed"))
+                }),
+            );
+            let e = if finish {
+                write_seconds(&mut bag, 2).unwrap();
+                gate.send(()).unwrap();
+                bag.finish().unwrap_err()
+            } else {
+                // Past the first second a sync is asked for; its failure reaches a write after.
+                loop {
+                    if let Err(e) = write_seconds(&mut bag, 2) {
+                        break e;
+                    }
+                }
+            };
+            let text = e.to_string();
+            assert!(text.contains("the card was removed"), "{text}");
+            assert!(text.contains("failing-"), "{text}");
+            assert!(!path.exists(), "{text}");
         }
     }
 }
