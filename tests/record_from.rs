@@ -1622,6 +1622,41 @@ fn epochs() -> Vec<String> {
         .collect()
 }
 
+/// A UBX header whose length is bogus swallows the log's last epoch: the framer waits for a
+/// payload that never comes. At the stream's end the header is bytes in no frame, the
+/// sentences after it are found, and their epoch is recorded like every other (it was opened
+/// and never closed, and its fix lost).
+#[test]
+fn the_epoch_a_bogus_length_swallowed_at_the_end_is_recorded() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = serial_log(dir.path(), "good.log", &epochs(), &[]);
+    let mut log = std::fs::read(&good).unwrap();
+    let header = [0xB5, 0x62, 0x01, 0x07, 0xE8, 0x03];
+    log.extend_from_slice(&header);
+    let t = "120010.00";
+    for b in [
+        format!("GPGGA,{t},4807.038,N,01131.000,E,4,12,0.9,545.4,M,46.9,M,1.0,0001"),
+        format!("GPRMC,{t},A,4807.038,N,01131.000,E,0.0,0.0,010625,,,D"),
+    ] {
+        log.extend(hilrig::gnss::framer::nmea_sentence(&b).bytes());
+    }
+    let path = dir.path().join("swallowed.log");
+    std::fs::write(&path, &log).unwrap();
+    let out = dir.path().join("swallowed.mcap");
+    let st = common::record_from(&common::demo_rig(), &[&path], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("/gnss/fix: 11 messages"), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "swallowed.log: {} bytes were in no frame",
+            header.len()
+        )),
+        "{stderr}"
+    );
+    assert_eq!(replayed_serial(&out), log);
+}
+
 /// RTCM3 frames in the receiver's stream (a moving base's corrections) are recorded whole on
 /// `/gnss/rtcm` and replayed as they came; they used to be framed and dropped unseen.
 #[test]

@@ -1111,6 +1111,8 @@ pub fn record_from(
     for (iface, host) in ends {
         ctx.serial(&mut src, Some(&mut out), iface, &[], host)?;
     }
+    // The frames found there may open an epoch: it ends with the stream.
+    ctx.finish_serial(&mut src, Some(&mut out))?;
     summary.lidar_rejects = std::mem::take(&mut src.rejects);
     summary.gnss_rejects = std::mem::take(&mut src.gnss_rejects);
     summary.gnss_undecoded = std::mem::take(&mut src.gnss_undecoded);
