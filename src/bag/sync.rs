@@ -16,7 +16,8 @@ pub(super) type SyncFn = Box<dyn FnMut() -> std::io::Result<()> + Send>;
 pub(super) struct Syncer {
     requests: Option<std::sync::mpsc::SyncSender<()>>,
     thread: Option<std::thread::JoinHandle<()>>,
-    failed: std::sync::Arc<std::sync::Mutex<Option<std::io::Error>>>,
+    /// The failed sync's error (its kind and message: every later call reports it again).
+    failed: std::sync::Arc<std::sync::Mutex<Option<(std::io::ErrorKind, String)>>>,
     /// Requests made (chunks closed for the disk), and when the last one was.
     pub(super) asked: u64,
     pub(super) last: std::time::Instant,
@@ -34,7 +35,8 @@ impl Syncer {
             .spawn(move || {
                 for () in rx {
                     if let Err(e) = sync() {
-                        *f.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(e);
+                        *f.lock().unwrap_or_else(std::sync::PoisonError::into_inner) =
+                            Some((e.kind(), e.to_string()));
                         return;
                     }
                 }
@@ -58,19 +60,23 @@ impl Syncer {
         }
     }
 
-    /// The error of a sync that failed, once.
+    /// The error of a sync that failed: from then on, on every call (the thread has stopped,
+    /// and nothing written after it is safe).
     pub(super) fn failure(&self) -> Option<std::io::Error> {
         self.failed
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .take()
+            .as_ref()
+            .map(|(kind, text)| std::io::Error::new(*kind, text.clone()))
     }
 
     /// Waits for the syncs asked for, and reports one that failed.
     pub(super) fn finish(&mut self) -> Result<(), std::io::Error> {
         self.requests = None;
         if let Some(t) = self.thread.take() {
-            let _ = t.join();
+            if t.join().is_err() {
+                return Err(std::io::Error::other("the thread syncing the file stopped"));
+            }
         }
         self.failure().map_or(Ok(()), Err)
     }
