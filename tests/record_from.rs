@@ -1657,6 +1657,31 @@ fn the_epoch_a_bogus_length_swallowed_at_the_end_is_recorded() {
     assert_eq!(replayed_serial(&out), log);
 }
 
+/// The same with the bogus header inside the log's last epoch, between its GGA and its RMC:
+/// the epoch is one fix, not two of the same time (closed at the log's end from the GGA
+/// alone, then opened again by the RMC found behind the header).
+#[test]
+fn an_epoch_a_bogus_length_cut_in_two_is_one_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut log = Vec::new();
+    let header = [0xB5, 0x62, 0x01, 0x07, 0xE8, 0x03];
+    let bodies = epochs();
+    for (i, b) in bodies.iter().enumerate() {
+        if i == bodies.len() - 1 {
+            log.extend_from_slice(&header);
+        }
+        log.extend(hilrig::gnss::framer::nmea_sentence(b).bytes());
+    }
+    let path = dir.path().join("cut.log");
+    std::fs::write(&path, &log).unwrap();
+    let out = dir.path().join("cut.mcap");
+    let st = common::record_from(&common::demo_rig(), &[&path], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("/gnss/fix: 10 messages"), "{stderr}");
+    assert_eq!(replayed_serial(&out), log);
+}
+
 /// RTCM3 frames in the receiver's stream (a moving base's corrections) are recorded whole on
 /// `/gnss/rtcm` and replayed as they came; they used to be framed and dropped unseen.
 #[test]

@@ -500,9 +500,15 @@ impl Context<'_> {
         mut out: Option<&mut Output<'_>>,
     ) -> Result<(), RecordError> {
         // Epochs still open at the end of the input, received with the interface's last frame.
+        // Not while the framer holds bytes of a frame not yet complete: they may belong to the
+        // epoch (a frame cut by the capture's end continues in the next input; a bogus length
+        // may have swallowed the rest of the epoch, found when the stream ends).
         let mut open: Vec<(Fix, UtcNanos)> = Vec::new();
         for s in src.framers.values_mut() {
             let Some(h) = s.last_host else { continue };
+            if s.framer.pending() > 0 {
+                continue;
+            }
             let timeless = s.timeless;
             for f in s.nmea.finish().into_iter().chain(s.ubx.finish()) {
                 // A log without receive times: the fix's own UTC is its host time.
