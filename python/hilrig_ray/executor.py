@@ -1,6 +1,7 @@
 """The Ray executor: a plan's tasks as Ray tasks, each one `hilrig campaign task` on a worker.
 
 usage: python -m hilrig_ray PLAN.json [--address ADDRESS] [--hilrig PATH] [--retries N]
+                              [--cpus-per-task N]
 """
 
 import argparse
@@ -19,8 +20,14 @@ class PlanError(ValueError):
 
 def load_plan(path):
     """The plan at `path`, checked: its kind and schema, and every task after those it waits for."""
+    return read_plan(path)[0]
+
+
+def read_plan(path):
+    """The plan at `path`, checked (see `load_plan`), and its text as the tasks are given it."""
     with open(path, encoding="utf-8") as f:
-        plan = json.load(f)
+        text = f.read()
+    plan = json.loads(text)
     if plan.get("kind") != PLAN_KIND:
         raise PlanError(f"{path}: kind {plan.get('kind')!r}, not {PLAN_KIND!r}")
     if plan.get("schema") != PLAN_SCHEMA:
@@ -36,10 +43,10 @@ def load_plan(path):
         if task["id"] in seen:
             raise PlanError(f"{path}: task {task['id']} twice")
         seen.add(task["id"])
-    return plan
+    return plan, text
 
 
-def run_one(hilrig, plan_text, task_id, *before):
+def run_one(hilrig, plan_text, task_id, *before, threads=None):
     """One task on this worker, once the tasks it waits for have ended (`before`: their
     outcomes, passed as Ray object references for the ordering). The plan comes as text
     (standard input of `hilrig campaign task --plan -`), so that a worker needs no disk shared
@@ -48,8 +55,17 @@ def run_one(hilrig, plan_text, task_id, *before):
     hilrig decides from the stamps whether the tasks before it passed (a `partial` task, the
     report, runs whatever their outcomes), and a task that does not run removes what it left in
     an earlier run, so that the report does not show it as this run's: it is asked even when
-    a task before it failed here."""
+    a task before it failed here.
+
+    `threads`: the CPUs Ray gave the task. hilrig's own work runs on a pool of one thread per
+    core unless `RAYON_NUM_THREADS` says otherwise; on a node of 32 cores that would be 32
+    threads for each of the 32 tasks Ray places there, so the pool is sized to the task's
+    share (as Ray sizes `OMP_NUM_THREADS`), unless the worker's environment sets it."""
     del before
+    env = None
+    if threads is not None:
+        env = dict(os.environ)
+        env.setdefault("RAYON_NUM_THREADS", str(max(1, int(threads))))
     try:
         proc = subprocess.run(
             [hilrig, "campaign", "task", "--plan", "-", task_id],
@@ -57,6 +73,7 @@ def run_one(hilrig, plan_text, task_id, *before):
             capture_output=True,
             text=True,
             check=False,
+            env=env,
         )
     except OSError as e:
         return {
@@ -80,27 +97,31 @@ def run_one(hilrig, plan_text, task_id, *before):
     return outcome
 
 
-def run(plan_path, hilrig="hilrig", address=None, retries=3):
-    """Runs every task of the plan on the cluster at `address` (None: start a local one);
-    returns their outcomes in the plan's order."""
+def run(plan_path, hilrig="hilrig", address=None, retries=3, cpus_per_task=1):
+    """Runs every task of the plan on the cluster at `address` (None: start a local one),
+    each with `cpus_per_task` CPUs; returns their outcomes in the plan's order."""
+    plan, plan_text = read_plan(os.path.abspath(plan_path))
+    return run_plan(plan, plan_text, hilrig, address, retries, cpus_per_task)
+
+
+def run_plan(plan, plan_text, hilrig="hilrig", address=None, retries=3, cpus_per_task=1):
+    """`run` of a plan already read (`read_plan`)."""
     import ray
 
-    plan_path = os.path.abspath(plan_path)
-    plan = load_plan(plan_path)
-    with open(plan_path, encoding="utf-8") as f:
-        plan_text = f.read()
     package = os.path.dirname(os.path.abspath(__file__))
     ray.init(address=address, runtime_env={"py_modules": [package]}, log_to_driver=False)
     try:
         # Retried on system failures only (a worker or node lost): a task that fails in
         # hilrig fails the same way on any node, and says so in its outcome.
-        remote = ray.remote(max_retries=retries, retry_exceptions=False, num_cpus=1)(run_one)
+        remote = ray.remote(
+            max_retries=retries, retry_exceptions=False, num_cpus=cpus_per_task
+        )(run_one)
         plan_ref = ray.put(plan_text)
         refs = {}
         for task in plan["tasks"]:
             deps = [refs[d] for d in task["after"]]
             refs[task["id"]] = remote.remote(
-                hilrig, plan_ref, task["id"], *deps
+                hilrig, plan_ref, task["id"], *deps, threads=cpus_per_task
             )
         return ray.get([refs[t["id"]] for t in plan["tasks"]])
     finally:
@@ -113,10 +134,19 @@ def main(argv=None):
     p.add_argument("--address", default=None, help="the cluster (auto, or HOST:PORT); default: a new local one")
     p.add_argument("--hilrig", default="hilrig", help="the hilrig executable on the workers")
     p.add_argument("--retries", type=int, default=3, help="retries of a task whose worker was lost")
+    p.add_argument(
+        "--cpus-per-task",
+        type=int,
+        default=1,
+        help="CPUs Ray reserves for each task, and the threads hilrig uses in it",
+    )
     args = p.parse_args(argv)
+    if args.cpus_per_task < 1:
+        print(f"error: --cpus-per-task {args.cpus_per_task}: at least 1", file=sys.stderr)
+        return 2
     try:
-        plan = load_plan(os.path.abspath(args.plan))
-        outcomes = run(args.plan, args.hilrig, args.address, args.retries)
+        plan, text = read_plan(os.path.abspath(args.plan))
+        outcomes = run_plan(plan, text, args.hilrig, args.address, args.retries, args.cpus_per_task)
     except PlanError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

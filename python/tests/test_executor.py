@@ -7,6 +7,7 @@ import os
 import sys
 import tempfile
 import unittest
+from unittest import mock
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
@@ -77,6 +78,24 @@ class RunOne(unittest.TestCase):
             out = run_one(fake, "{}", "resim/m/r1", failed)
         self.assertEqual(out["outcome"], "not_run")
         self.assertIn("check/r1", out["why"])
+
+    def test_hilrig_s_threads_are_the_task_s_cpus_unless_the_worker_sets_them(self):
+        # A stand-in that answers with the pool size it was given.
+        with tempfile.TemporaryDirectory() as d:
+            fake = os.path.join(d, "hilrig")
+            with open(fake, "w") as f:
+                f.write(
+                    "#!/bin/sh\ncat >/dev/null\n"
+                    "echo '{\"task\": \"x\", \"outcome\": \"ran\", \"exit\": 0, "
+                    "\"passes\": true, \"why\": \"'\"${RAYON_NUM_THREADS:-unset}\"'\"}'\n"
+                )
+            os.chmod(fake, 0o755)
+            with mock.patch.dict(os.environ):
+                os.environ.pop("RAYON_NUM_THREADS", None)
+                self.assertEqual(run_one(fake, "{}", "x", threads=3)["why"], "3")
+                self.assertEqual(run_one(fake, "{}", "x")["why"], "unset")
+                os.environ["RAYON_NUM_THREADS"] = "7"
+                self.assertEqual(run_one(fake, "{}", "x", threads=3)["why"], "7")
 
     def test_a_hilrig_that_cannot_be_started_is_a_failure(self):
         out = run_one("/nonexistent/hilrig", "{}", "resim/m/r1")

@@ -79,27 +79,49 @@ impl Cluster {
         found
     }
 
-    /// Kills a worker node that is running a task of `program` at this moment (waiting up to
-    /// ten minutes for one to be): its raylet and every process it started. Killing a busy
-    /// node, not whichever raylet comes first, is what makes the loss real: an idle node's
-    /// death costs the run nothing, and the tasks left over must then run on the other node.
-    /// Returns the raylet's pid.
-    pub fn kill_a_busy_worker_node(&self, program: &std::path::Path) -> i32 {
+    /// Kills a worker node that has finished a task of `program` and is running another (its
+    /// raylet and every process it started), waiting up to ten minutes for one while `running`
+    /// says the work goes on. A busy node, not whichever raylet comes first, makes the loss
+    /// real (an idle node's death costs the run nothing); one that has finished a task makes
+    /// both nodes' work show in the outcomes, whatever Ray's placement (a node killed during
+    /// its first task leaves only the other's). Returns the raylet's pid.
+    pub fn kill_a_worker_node_mid_task(
+        &self,
+        program: &std::path::Path,
+        running: &mut dyn FnMut() -> bool,
+    ) -> i32 {
         let program = program.display().to_string();
         let started = std::time::Instant::now();
-        let (raylet, tree) = loop {
-            let busy = self
+        // Per worker raylet, the task processes seen under it.
+        let mut seen: std::collections::BTreeMap<i32, BTreeSet<i32>> = Default::default();
+        let (raylet, tree) = 'found: loop {
+            let raylets: Vec<i32> = self
                 .processes()
                 .into_iter()
                 .filter(|(_, c)| c.contains("raylet/raylet") && !c.contains(" --head"))
-                .map(|(pid, _)| (pid, descendants_of(pid)))
-                .find(|(_, tree)| tree.iter().any(|&p| cmdline(p).starts_with(&program)));
-            if let Some(found) = busy {
-                break found;
+                .map(|(pid, _)| pid)
+                .collect();
+            for raylet in raylets {
+                let tree = descendants_of(raylet);
+                let now: BTreeSet<i32> = tree
+                    .iter()
+                    .copied()
+                    .filter(|&p| cmdline(p).starts_with(&program))
+                    .collect();
+                let before = seen.entry(raylet).or_default();
+                let finished_one = before.iter().any(|p| !now.contains(p));
+                if finished_one && !now.is_empty() {
+                    break 'found (raylet, tree);
+                }
+                before.extend(now);
             }
             assert!(
+                running(),
+                "the run ended before a worker node had finished a task and begun another"
+            );
+            assert!(
                 started.elapsed() < std::time::Duration::from_secs(600),
-                "no worker node ran {program}"
+                "no worker node finished a task of {program} and began another"
             );
             std::thread::sleep(std::time::Duration::from_millis(10));
         };
