@@ -457,7 +457,9 @@ fn print_health(health: &BTreeMap<&'static str, Arc<Health>>, rejects: &Mutex<Li
             _ => String::new(),
         };
         eprintln!(
-            "{name}: received {}, written {}, dropped {}, decode errors {}{why}, lost {}, reconnects {}",
+            // "queued": handed to the writer (messages, a scan for many lidar packets); what
+            // reached the file is the per-topic count printed when the recording ends.
+            "{name}: received {}, queued {}, dropped {}, decode errors {}{why}, lost {}, reconnects {}",
             h.received.load(Ordering::Relaxed),
             h.queued.load(Ordering::Relaxed),
             h.dropped.load(Ordering::Relaxed),
