@@ -689,6 +689,49 @@ fn gnss_frames_that_fail_their_checksum_on_the_live_port_are_counted_and_exit_1(
     );
 }
 
+/// A UBX header whose length is bogus swallows the last epoch the receiver sent before the
+/// recorder stops: at the stop the header is bytes in no frame, and the epoch behind it is
+/// read and recorded (it was written as unframed bytes, its fix lost).
+#[test]
+fn the_epoch_a_bogus_length_swallowed_before_the_stop_is_recorded() {
+    let mut r = rig();
+    let child = start_with(&r, std::process::Stdio::piped());
+    std::thread::sleep(Duration::from_millis(300));
+    let epoch = |i: u32| {
+        let t = format!("1200{i:02}.00");
+        [
+            format!("GNGGA,{t},4807.0380000,N,01131.0000000,E,4,12,0.8,545.40,M,46.90,M,1.0,0042"),
+            format!("GNRMC,{t},A,4807.038,N,01131.000,E,0.0,0.0,251126,,,R"),
+        ]
+        .map(|b| nmea_sentence(&b))
+        .concat()
+    };
+    for i in 0..5 {
+        r.gnss.write_all(epoch(i).as_bytes()).unwrap();
+    }
+    let header = [0xB5, 0x62, 0x01, 0x07, 0xE8, 0x03];
+    r.gnss.write_all(&header).unwrap();
+    r.gnss.write_all(epoch(5).as_bytes()).unwrap();
+    r.gnss.flush().unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    let (code, stderr) = stop(child);
+    assert_eq!(code, Some(0), "{stderr}");
+    let info = hilrig::bag::info::info(&r.out).unwrap();
+    let count = |topic: &str| {
+        info.channels
+            .iter()
+            .find(|c| c.topic == topic)
+            .map_or(0, |c| c.count)
+    };
+    assert_eq!(count("/gnss/fix"), 6, "{stderr}");
+    assert_eq!(count("/gnss/nmea"), 12, "{stderr}");
+    assert_eq!(
+        info.metadata["hilrig/end"]["gnss_unframed_bytes"],
+        header.len().to_string(),
+        "{stderr}"
+    );
+}
+
 /// The GNSS port goes away mid-recording (the receiver's cable pulled: the pseudo-terminal's
 /// other end closed) and does not come back: what it would have sent is lost, so the recorder
 /// says so and exits 1, with the count in `hilrig/end`; what came before is recorded.

@@ -748,26 +748,21 @@ async fn gnss_task(
         }
     };
     loop {
-        let chunk = tokio::select! {
-            c = source.next_chunk() => c,
+        let (chunk, stopping) = tokio::select! {
+            c = source.next_chunk() => (c, false),
             _ = shutdown.changed() => {
-                // The epoch in progress, as far as it came: written, not dropped.
-                if let Some(host) = last_host {
-                    for fix in nmea.finish().into_iter().chain(ubx.finish()) {
-                        send_fix(fix, host);
-                    }
-                }
-                store_serial(&h, &source.stats);
-                // A frame cut off by the stop: its bytes, as they came.
-                framer.close();
+                // The stream ends here: a frame cut off by the stop is bytes in no frame, as
+                // they came, and the frames a bogus length had swallowed behind it are read
+                // below like any others (as `record --from` reads a stream's end).
+                framer.finish();
                 let host = last_chunk.unwrap_or_else(UtcNanos::now);
-                send_unframed(&mut framer, host);
-                locked(&stream).framed_by(&framer);
-                return;
+                (hilrig_gnss::serial::Chunk { host, bytes: Vec::new() }, true)
             }
         };
         store_serial(&h, &source.stats);
-        last_chunk = Some(chunk.host);
+        if !stopping {
+            last_chunk = Some(chunk.host);
+        }
         framer.push(&chunk.bytes);
         loop {
             let item = framer.next_frame();
@@ -870,6 +865,16 @@ async fn gnss_task(
             for fix in fixes {
                 send_fix(fix, epoch_host);
             }
+        }
+        if stopping {
+            // The epoch in progress, as far as it came: written, not dropped.
+            if let Some(host) = last_host {
+                for fix in nmea.finish().into_iter().chain(ubx.finish()) {
+                    send_fix(fix, host);
+                }
+            }
+            locked(&stream).framed_by(&framer);
+            return;
         }
     }
 }
