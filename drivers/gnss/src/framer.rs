@@ -171,16 +171,6 @@ impl Framer {
         run
     }
 
-    /// At the end of a stream cut off by the reader (a recorder stopping): the bytes pushed
-    /// but not yet framed (a frame cut off there) as one run, counted as skipped; with the
-    /// runs before them, when the framer keeps them. Returns how many bytes that was.
-    pub fn close(&mut self) -> usize {
-        let n = self.buf.len();
-        self.stats.skipped_bytes += n as u64;
-        self.skip(n, false);
-        n
-    }
-
     /// Skips `n` bytes that belong to no frame (kept when the framer keeps them, unless they
     /// are a gpsd log's comment).
     fn skip(&mut self, n: usize, comment: bool) {
