@@ -1622,64 +1622,54 @@ fn epochs() -> Vec<String> {
         .collect()
 }
 
-/// A UBX header whose length is bogus swallows the log's last epoch: the framer waits for a
-/// payload that never comes. At the stream's end the header is bytes in no frame, the
-/// sentences after it are found, and their epoch is recorded like every other (it was opened
-/// and never closed, and its fix lost).
+/// A UBX header whose length is bogus swallows the end of a log: the framer waits for a
+/// payload that never comes. At the stream's end the header is bytes in no frame, and the
+/// sentences after it are found and recorded like every other:
+/// - behind the last epoch, a new one: its fix is recorded (it was opened and never closed);
+/// - inside the last epoch, between its GGA and its RMC: the epoch is one fix, not two of the
+///   same time (closed at the log's end from the GGA alone, then opened again by the RMC).
 #[test]
-fn the_epoch_a_bogus_length_swallowed_at_the_end_is_recorded() {
+fn the_sentences_a_bogus_length_swallowed_at_the_end_are_recorded_in_their_epoch() {
     let dir = tempfile::tempdir().unwrap();
-    let good = serial_log(dir.path(), "good.log", &epochs(), &[]);
-    let mut log = std::fs::read(&good).unwrap();
     let header = [0xB5, 0x62, 0x01, 0x07, 0xE8, 0x03];
-    log.extend_from_slice(&header);
     let t = "120010.00";
-    for b in [
+    let eleventh = [
         format!("GPGGA,{t},4807.038,N,01131.000,E,4,12,0.9,545.4,M,46.9,M,1.0,0001"),
         format!("GPRMC,{t},A,4807.038,N,01131.000,E,0.0,0.0,010625,,,D"),
+    ];
+    let ten = epochs();
+    // (name, sentences, where the header goes, fixes)
+    let behind: Vec<String> = ten.iter().chain(&eleventh).cloned().collect();
+    for (name, bodies, at, fixes) in [
+        ("behind", behind, ten.len(), 11),
+        ("inside", ten.clone(), ten.len() - 1, 10),
     ] {
-        log.extend(hilrig::gnss::framer::nmea_sentence(&b).bytes());
-    }
-    let path = dir.path().join("swallowed.log");
-    std::fs::write(&path, &log).unwrap();
-    let out = dir.path().join("swallowed.mcap");
-    let st = common::record_from(&common::demo_rig(), &[&path], &out);
-    let stderr = String::from_utf8_lossy(&st.stderr);
-    assert_eq!(st.status.code(), Some(0), "{stderr}");
-    assert!(stderr.contains("/gnss/fix: 11 messages"), "{stderr}");
-    assert!(
-        stderr.contains(&format!(
-            "swallowed.log: {} bytes were in no frame",
-            header.len()
-        )),
-        "{stderr}"
-    );
-    assert_eq!(replayed_serial(&out), log);
-}
-
-/// The same with the bogus header inside the log's last epoch, between its GGA and its RMC:
-/// the epoch is one fix, not two of the same time (closed at the log's end from the GGA
-/// alone, then opened again by the RMC found behind the header).
-#[test]
-fn an_epoch_a_bogus_length_cut_in_two_is_one_fix() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut log = Vec::new();
-    let header = [0xB5, 0x62, 0x01, 0x07, 0xE8, 0x03];
-    let bodies = epochs();
-    for (i, b) in bodies.iter().enumerate() {
-        if i == bodies.len() - 1 {
-            log.extend_from_slice(&header);
+        let mut log = Vec::new();
+        for (i, b) in bodies.iter().enumerate() {
+            if i == at {
+                log.extend_from_slice(&header);
+            }
+            log.extend(hilrig::gnss::framer::nmea_sentence(b).bytes());
         }
-        log.extend(hilrig::gnss::framer::nmea_sentence(b).bytes());
+        let path = dir.path().join(format!("{name}.log"));
+        std::fs::write(&path, &log).unwrap();
+        let out = dir.path().join(format!("{name}.mcap"));
+        let st = common::record_from(&common::demo_rig(), &[&path], &out);
+        let stderr = String::from_utf8_lossy(&st.stderr);
+        assert_eq!(st.status.code(), Some(0), "{name}: {stderr}");
+        assert!(
+            stderr.contains(&format!("/gnss/fix: {fixes} messages")),
+            "{name}: {stderr}"
+        );
+        assert!(
+            stderr.contains(&format!(
+                "{name}.log: {} bytes were in no frame",
+                header.len()
+            )),
+            "{name}: {stderr}"
+        );
+        assert_eq!(replayed_serial(&out), log, "{name}");
     }
-    let path = dir.path().join("cut.log");
-    std::fs::write(&path, &log).unwrap();
-    let out = dir.path().join("cut.mcap");
-    let st = common::record_from(&common::demo_rig(), &[&path], &out);
-    let stderr = String::from_utf8_lossy(&st.stderr);
-    assert_eq!(st.status.code(), Some(0), "{stderr}");
-    assert!(stderr.contains("/gnss/fix: 10 messages"), "{stderr}");
-    assert_eq!(replayed_serial(&out), log);
 }
 
 /// RTCM3 frames in the receiver's stream (a moving base's corrections) are recorded whole on

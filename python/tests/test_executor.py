@@ -61,41 +61,42 @@ class LoadPlan(unittest.TestCase):
 
 
 class RunOne(unittest.TestCase):
+    def stand_in(self, script):
+        """A stand-in for hilrig that reads the plan from its standard input and runs `script`
+        (sh), as hilrig answers a task."""
+        d = tempfile.TemporaryDirectory()
+        self.addCleanup(d.cleanup)
+        fake = os.path.join(d.name, "hilrig")
+        with open(fake, "w") as f:
+            f.write("#!/bin/sh\ncat >/dev/null\n" + script)
+        os.chmod(fake, 0o755)
+        return fake
+
     def test_a_task_after_one_that_did_not_pass_is_still_handed_to_hilrig(self):
         # hilrig decides from the stamps that it does not run, and removes what it left in an
         # earlier run; its verdict is the outcome. A stand-in that answers as hilrig does.
-        with tempfile.TemporaryDirectory() as d:
-            fake = os.path.join(d, "hilrig")
-            with open(fake, "w") as f:
-                f.write(
-                    "#!/bin/sh\ncat >/dev/null\n"
-                    "echo '{\"task\": \"resim/m/r1\", \"outcome\": \"not_run\", "
-                    "\"exit\": null, \"passes\": false, \"why\": \"check/r1: exit 1\"}'\n"
-                    "exit 1\n"
-                )
-            os.chmod(fake, 0o755)
-            failed = {"task": "check/r1", "outcome": "ran", "exit": 1, "passes": False}
-            out = run_one(fake, "{}", "resim/m/r1", failed)
+        fake = self.stand_in(
+            "echo '{\"task\": \"resim/m/r1\", \"outcome\": \"not_run\", "
+            "\"exit\": null, \"passes\": false, \"why\": \"check/r1: exit 1\"}'\n"
+            "exit 1\n"
+        )
+        failed = {"task": "check/r1", "outcome": "ran", "exit": 1, "passes": False}
+        out = run_one(fake, "{}", "resim/m/r1", failed)
         self.assertEqual(out["outcome"], "not_run")
         self.assertIn("check/r1", out["why"])
 
     def test_hilrig_s_threads_are_the_task_s_cpus_unless_the_worker_sets_them(self):
         # A stand-in that answers with the pool size it was given.
-        with tempfile.TemporaryDirectory() as d:
-            fake = os.path.join(d, "hilrig")
-            with open(fake, "w") as f:
-                f.write(
-                    "#!/bin/sh\ncat >/dev/null\n"
-                    "echo '{\"task\": \"x\", \"outcome\": \"ran\", \"exit\": 0, "
-                    "\"passes\": true, \"why\": \"'\"${RAYON_NUM_THREADS:-unset}\"'\"}'\n"
-                )
-            os.chmod(fake, 0o755)
-            with mock.patch.dict(os.environ):
-                os.environ.pop("RAYON_NUM_THREADS", None)
-                self.assertEqual(run_one(fake, "{}", "x", threads=3)["why"], "3")
-                self.assertEqual(run_one(fake, "{}", "x")["why"], "unset")
-                os.environ["RAYON_NUM_THREADS"] = "7"
-                self.assertEqual(run_one(fake, "{}", "x", threads=3)["why"], "7")
+        fake = self.stand_in(
+            "echo '{\"task\": \"x\", \"outcome\": \"ran\", \"exit\": 0, "
+            "\"passes\": true, \"why\": \"'\"${RAYON_NUM_THREADS:-unset}\"'\"}'\n"
+        )
+        with mock.patch.dict(os.environ):
+            os.environ.pop("RAYON_NUM_THREADS", None)
+            self.assertEqual(run_one(fake, "{}", "x", threads=3)["why"], "3")
+            self.assertEqual(run_one(fake, "{}", "x")["why"], "unset")
+            os.environ["RAYON_NUM_THREADS"] = "7"
+            self.assertEqual(run_one(fake, "{}", "x", threads=3)["why"], "7")
 
     def test_a_hilrig_that_cannot_be_started_is_a_failure(self):
         out = run_one("/nonexistent/hilrig", "{}", "resim/m/r1")
