@@ -1569,12 +1569,8 @@ fn bytes_in_no_frame_are_recorded_and_replayed_as_they_came() {
     let head = log.len();
     log.extend(std::fs::read(&good).unwrap());
     log.extend_from_slice(b"$GPGGA,0630");
-    let path = dir.path().join("mixed.log");
-    std::fs::write(&path, &log).unwrap();
-    let out = dir.path().join("mixed.mcap");
-    let st = common::record_from(&common::demo_rig(), &[&path], &out);
-    let stderr = String::from_utf8_lossy(&st.stderr);
-    assert_eq!(st.status.code(), Some(0), "{stderr}");
+    let (out, code, stderr) = record_log(dir.path(), "mixed", &log);
+    assert_eq!(code, Some(0), "{stderr}");
     let unframed = head + skytraq.len() + b"$GPGGA,0630".len();
     assert!(
         stderr.contains(&format!(
@@ -1589,6 +1585,21 @@ fn bytes_in_no_frame_are_recorded_and_replayed_as_they_came() {
         info.metadata["hilrig/end"]["gnss_unframed_bytes"],
         unframed.to_string()
     );
+}
+
+/// `bytes` written as the serial log `DIR/NAME.log` and recorded alone with the demo rig
+/// into `DIR/NAME.mcap`: the recording, the exit code and the standard error.
+fn record_log(
+    dir: &std::path::Path,
+    name: &str,
+    bytes: &[u8],
+) -> (std::path::PathBuf, Option<i32>, String) {
+    let path = dir.join(format!("{name}.log"));
+    std::fs::write(&path, bytes).unwrap();
+    let out = dir.join(format!("{name}.mcap"));
+    let st = common::record_from(&common::demo_rig(), &[&path], &out);
+    let stderr = String::from_utf8_lossy(&st.stderr).into_owned();
+    (out, st.status.code(), stderr)
 }
 
 fn serial_log(
@@ -1651,12 +1662,8 @@ fn the_sentences_a_bogus_length_swallowed_at_the_end_are_recorded_in_their_epoch
             }
             log.extend(hilrig::gnss::framer::nmea_sentence(b).bytes());
         }
-        let path = dir.path().join(format!("{name}.log"));
-        std::fs::write(&path, &log).unwrap();
-        let out = dir.path().join(format!("{name}.mcap"));
-        let st = common::record_from(&common::demo_rig(), &[&path], &out);
-        let stderr = String::from_utf8_lossy(&st.stderr);
-        assert_eq!(st.status.code(), Some(0), "{name}: {stderr}");
+        let (out, code, stderr) = record_log(dir.path(), name, &log);
+        assert_eq!(code, Some(0), "{name}: {stderr}");
         assert!(
             stderr.contains(&format!("/gnss/fix: {fixes} messages")),
             "{name}: {stderr}"
@@ -1756,12 +1763,9 @@ fn a_gnss_stream_without_a_date_or_without_frames_is_an_error() {
         .flat_map(|i| [0xA0, 0xA1, 0x00, 0x02, 0x64, i, 0x64 ^ i, 0x0D, 0x0A])
         .collect();
     assert!(!binary.iter().any(|b| [b'$', b'!', 0xB5, 0xD3].contains(b)));
+    let (out, code, stderr) = record_log(dir.path(), "binary", &binary);
+    assert_eq!(code, Some(1), "{stderr}");
     let log = dir.path().join("binary.log");
-    std::fs::write(&log, &binary).unwrap();
-    let out = dir.path().join("binary.mcap");
-    let st = common::record_from(&common::demo_rig(), &[&log], &out);
-    let stderr = String::from_utf8_lossy(&st.stderr);
-    assert_eq!(st.status.code(), Some(1), "{stderr}");
     assert!(
         stderr.contains(&format!(
             "binary.log: its {} bytes hold no NMEA, UBX or RTCM3 frame",

@@ -215,13 +215,13 @@ impl OneFile {
         publish_time: UtcNanos,
         cdr: &[u8],
     ) -> Result<(), BagError> {
+        if let Some(e) = self.sync.as_ref().and_then(Syncer::failure) {
+            return Err(self.sync_error(e));
+        }
         // Close the chunk once it spans a second of log time, so a cut-off file loses at most
         // that much.
         // Durable, a second of the clock closes the chunk too: one message stamped in the
         // future must not hold the drive back in memory until log time catches up.
-        if let Some(e) = self.sync.as_ref().and_then(Syncer::failure) {
-            return Err(self.sync_error(e));
-        }
         let wall_due = self
             .sync
             .as_ref()

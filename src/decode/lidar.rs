@@ -4,12 +4,14 @@
 //! pipeline is sans-IO apart from the byte source: packets go in with their capture times,
 //! points come out through a [`PointSink`] with absolute UTC times where the hour is resolvable.
 
+use crate::record::rejects::RejectReason;
 use hilrig_capture::demux::{Demux, Packet};
 use hilrig_capture::{CaptureError, CaptureReader, Stats as CaptureStats};
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::clock::{HourResolver, HourSource};
 use hilrig_velodyne::plausibility::{Mismatch, ModelCheck};
 use hilrig_velodyne::rotation::LossCounter;
+use hilrig_velodyne::source::PacketPort;
 use hilrig_velodyne::{
     Calibration, DataPacket, DecodeError, Decoder, Model, Point, PositionPacket, PpsStatus,
     ProductId, Rmc, DATA_PACKET_SIZE, POSITION_PACKET_SIZE,
@@ -265,11 +267,8 @@ pub fn decode_capture<R: Read + Send + 'static>(
             Ok(p) => p,
             Err(e) => {
                 // Counted as a problem, not lost as well (when it may be the sensor's own:
-                // another sensor's packets would hide this one's losses).
-                if !matches!(
-                    e,
-                    DecodeError::OtherSensor { .. } | DecodeError::ForeignBankFlag { .. }
-                ) {
+                // another sensor's packets would hide this one's losses), by the recorder's rule.
+                if RejectReason::of(PacketPort::Data, &e).may_be_own() {
                     if let Some(l) = loss.as_mut() {
                         l.rejected(item.time);
                     }

@@ -760,9 +760,7 @@ async fn gnss_task(
             }
         };
         store_serial(&h, &source.stats);
-        if !stopping {
-            last_chunk = Some(chunk.host);
-        }
+        last_chunk = Some(chunk.host);
         framer.push(&chunk.bytes);
         loop {
             let item = framer.next_frame();
