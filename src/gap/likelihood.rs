@@ -93,6 +93,15 @@ fn both(o: &Obs) -> bool {
 pub struct Scored {
     /// Total per scan.
     pub per_scan: Vec<f64>,
+    /// Per scan, the part of the total that shows a beam's width whatever its footprint
+    /// model: the detection of every firing (returns beyond an object's silhouette, which
+    /// grow with the beam) and the range terms of firings whose footprint mixes depths
+    /// ([`Feature::is_mixed`]: the mixed ranges there). A beam's width is fitted on this part
+    /// alone: on one plane, two footprint models of the same beam place the echo differently
+    /// by tenths of millimetres (how they sample and weight the footprint), thousands of
+    /// times over, which is one implementation's echo logic and not the beam (a 4 mrad beam
+    /// of another footprint model was fitted as 1.5 mrad through them).
+    pub at_edges: Vec<f64>,
     /// Sums of the terms: detection, range, difference, intensity.
     pub terms: [f64; 4],
     /// Firings counted.
@@ -153,6 +162,7 @@ pub fn score(
     let s_edge = (s_edge * s_edge + random.sigma_m.powi(2)).sqrt();
     let mut out = Scored {
         per_scan: vec![0.0; scans],
+        at_edges: vec![0.0; scans],
         ..Scored::default()
     };
     let keep = 1.0 - random.dropout;
@@ -219,6 +229,21 @@ pub fn score(
         }
         if let Some(s) = out.per_scan.get_mut(f.scan as usize) {
             *s += terms.iter().sum::<f64>();
+        }
+        if let Some(s) = out.at_edges.get_mut(f.scan as usize) {
+            *s += terms[0];
+            if both(o) && f.is_mixed() {
+                // Where the footprint mixes depths, the echo lies anywhere among them
+                // (how a receiver groups and weighs the parts is its own): the range is
+                // scored within the depth the probes found, with the edges' outlier share.
+                let e = f64::from(o.measured - o.predicted);
+                let scale = if edge {
+                    s_edge
+                } else {
+                    s_plain.hypot(f64::from(f.off_plane))
+                };
+                *s += ln_gauss_mix(e, scale, OUTLIER_EDGE, WINDOW_M);
+            }
         }
     }
     out
@@ -794,6 +819,60 @@ mod tests {
         let s = score1(&[firing(2.0, f32::NAN)], &[plain()], rain);
         let want = (1.0 - (1.0 - 1e-3) * (1.0 - 0.1f64)).ln();
         assert!((s.terms[0] - want).abs() < 1e-12, "{:?}", s.terms);
+    }
+
+    /// The part at edges: the detection of every firing, and the range of a firing whose
+    /// footprint mixes depths scored within the depth its probes found (with the edges'
+    /// outlier share); a plain firing's range, differences and intensity are not in it.
+    #[test]
+    fn the_part_at_edges_is_detection_and_the_ranges_of_mixed_footprints() {
+        let on_plane = plain();
+        let step = Feature {
+            off_plane: 0.04,
+            ..plain()
+        };
+        assert!(!on_plane.is_mixed() && step.is_mixed() && !step.is_edge());
+        let edge = Feature {
+            step: 9.0,
+            ..plain()
+        };
+        assert!(edge.is_mixed());
+        // A residual of 3 cm on each: the plain one is all but an outlier at 1/64 m.
+        let obs = [firing(8.03, 8.0), firing(8.03, 8.0), firing(8.03, 8.0)];
+        let s = score(
+            &obs,
+            &[on_plane, step, edge],
+            Random::default(),
+            &SCALES,
+            0.002,
+            3,
+        );
+        let scan = |k: u32| {
+            let mut f = [on_plane, step, edge];
+            for x in &mut f {
+                x.scan = 1;
+            }
+            f[k as usize].scan = 0;
+            let t = score(&obs, &f, Random::default(), &SCALES, 0.002, 2);
+            (t.per_scan[0], t.at_edges[0])
+        };
+        let e = f64::from(8.03f32 - 8.0);
+        let det = (1.0 - 1e-3f64).ln();
+        let det_edge = (1.0 - 0.05f64).ln();
+        // Plain: all of it in the total, only its detection at edges.
+        let (total, at) = scan(0);
+        assert!((at - det).abs() < 1e-12, "{at}");
+        assert!((total - det - ln_mixture(e, SCALES.plain, 0.02, 10.0)).abs() < 1e-9);
+        // A centimetre step: scored within its depth at edges, as plain in the total.
+        let (total, at) = scan(1);
+        let within = ln_mixture(e, SCALES.plain.hypot(f64::from(step.off_plane)), 0.3, 10.0);
+        assert!((at - det - within).abs() < 1e-9, "{at}");
+        assert!((total - det - ln_mixture(e, SCALES.plain, 0.02, 10.0)).abs() < 1e-9);
+        // An edge: the same range term in both.
+        let (total, at) = scan(2);
+        assert!((at - total).abs() < 1e-12, "{at} {total}");
+        assert!((at - det_edge - ln_mixture(e, SCALES.edge, 0.3, 10.0)).abs() < 1e-9);
+        assert_eq!(s.at_edges.len(), 3);
     }
 
     #[test]

@@ -157,6 +157,11 @@ pub struct Feature {
     /// Largest range step to the beam's surroundings (±5 mrad across, ±2.5 mrad along elevation),
     /// m: a depth edge inside the beam's possible footprint. Infinite when one side is sky.
     pub step: f32,
+    /// Farthest a probe's hit lies off the plane the ideal beam's hit is on (the plane through
+    /// it with its normal), m: a surface of another depth, another orientation or a curve
+    /// inside the beam's possible footprint. Infinite when only one of the centre and a probe
+    /// hits something; 0 when neither does.
+    pub off_plane: f32,
     /// Ego speed, m/s.
     pub speed: f32,
     /// Ego yaw rate, degrees per second.
@@ -189,7 +194,26 @@ impl Feature {
     pub fn is_edge(&self) -> bool {
         self.step > 0.05 * self.range + 0.1
     }
+
+    /// A firing whose footprint may hold surfaces at more than one depth: an edge, or a probe
+    /// beside the beam off the plane of its hit by more than [`PLANAR_M`] (a step too small to
+    /// be an edge, a corner, a curve, a stripe standing a centimetre proud of a car's side).
+    /// Where a footprint mixes depths, its echo's range depends on how the receiver weighs
+    /// and groups the parts (merged into one echo, or the nearest part of a sizeable share
+    /// alone): two footprint models of the same beam differ there by millimetres to
+    /// decimetres, firing by firing, and a beam's width is fitted on these firings with their
+    /// range scored within the depth the probes found ([`super::likelihood::Scored::at_edges`]).
+    pub fn is_mixed(&self) -> bool {
+        self.is_edge() || self.off_plane > PLANAR_M
+    }
 }
+
+/// How far a probe's hit may lie off the plane of the beam's hit for the footprint to count as
+/// one surface, m: a few times the millimetre scale of the neighbour-difference term, so that
+/// flat ground and facades (within rounding) and millimetre roughness count as one surface,
+/// and a box's step, a corner, a column's curve (5 cm beside the axis at 10 m: 10 mm of
+/// sagitta on a 12 cm radius) do not.
+pub const PLANAR_M: f32 = 0.005;
 
 /// Angle of the probe rays beside the beam (across), rad: wider than the half-angle of any
 /// beam the gap workflow should fit (the catalogue's VLP-16: 3.0 mrad full angle; footprints of
@@ -473,12 +497,18 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                     // Probe rays across (u) and along elevation (w).
                     let (u, w) = beam_frame(&d);
                     let mut step = 0.0f64;
+                    let mut off_plane = 0.0f64;
                     for (a, b) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
                         let pd = (d + u * (a * PROBE_ACROSS_RAD) + w * (b * PROBE_ALONG_RAD))
                             .normalize();
                         let probe = scene.cast(&f.origin, &pd, 0.0, max, &actors);
-                        step = step.max(match (&centre, probe) {
+                        step = step.max(match (&centre, &probe) {
                             (Some(c), Some(p)) => (c.range - p.range).abs(),
+                            (None, None) => 0.0,
+                            _ => f64::INFINITY,
+                        });
+                        off_plane = off_plane.max(match (&centre, &probe) {
+                            (Some(c), Some(p)) => c.normal.dot(&(pd * p.range - d * c.range)).abs(),
                             (None, None) => 0.0,
                             _ => f64::INFINITY,
                         });
@@ -512,6 +542,7 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                             .map_or(0.0, |h| h.material.reflectivity as f32),
                         cos: centre.as_ref().map_or(0.0, |h| (-h.normal.dot(&d)) as f32),
                         step: step as f32,
+                        off_plane: off_plane as f32,
                         speed: velocity.map_or(0.0, |v| v.xy().norm() as f32),
                         yaw_rate: yaw_rate as f32,
                         t_rotation: ((f.time.0 - s.time.rotation_start.0) as f64 * 1e-9) as f32,

@@ -131,7 +131,19 @@ struct Point {
     sampling: Sampling,
     share: Option<f64>,
     ll: f64,
+    /// The part of `ll` that shows the beam's width ([`Scored::at_edges`]).
+    at_edges: f64,
     scored: Vec<Scored>,
+}
+
+impl Point {
+    /// On the same line of the search as `other`: the same vertical divergence, sampling
+    /// and echo logic; only the horizontal divergence differs.
+    fn on_line_of(&self, other: &Point) -> bool {
+        (self.v - other.v).abs() < 1e-9
+            && self.sampling == other.sampling
+            && self.share == other.share
+    }
 }
 
 /// The shares of the footprint a first-echo receiver is tried with: from any sub-ray of the
@@ -153,14 +165,14 @@ impl Fitting<'_> {
                            v: f64,
                            n: Sampling,
                            share: Option<f64>|
-         -> Result<f64, GapError> {
+         -> Result<(f64, f64), GapError> {
             if let Some(g) = grid.iter().find(|g| {
                 (g.h - h).abs() < 1e-9
                     && (g.v - v).abs() < 1e-9
                     && g.sampling == n
                     && g.share == share
             }) {
-                return Ok(g.ll);
+                return Ok((g.ll, g.at_edges));
             }
             let model = with_effect(&base, divergence_effect(h, v, n, share));
             let mut obs = self.cast(&model)?;
@@ -177,9 +189,10 @@ impl Fitting<'_> {
             }
             let scored = self.score_all(&obs, random_of(&model));
             let total = scored.iter().flat_map(|s| &s.per_scan).sum();
+            let at_edges = scored.iter().flat_map(|s| &s.at_edges).sum();
             let sum = |k: usize| scored.iter().map(|s| s.terms[k]).sum::<f64>();
             tracing::debug!(
-                "divergence {h:.3} x {v:.3} mrad, {} sub-rays per axis ({:?}), first echo share {share:?}: log-likelihood {total:.1} (detection {:.1}, range {:.1}, difference {:.1}, intensity {:.1})",
+                "divergence {h:.3} x {v:.3} mrad, {} sub-rays per axis ({:?}), first echo share {share:?}: log-likelihood {total:.1} (detection {:.1}, range {:.1}, difference {:.1}, intensity {:.1}; at edges {at_edges:.1})",
                 n.n, n.pattern, sum(0), sum(1), sum(2), sum(3)
             );
             grid.push(Point {
@@ -188,9 +201,10 @@ impl Fitting<'_> {
                 sampling: n,
                 share,
                 ll: total,
+                at_edges,
                 scored,
             });
-            Ok(total)
+            Ok((total, at_edges))
         };
         // The likelihood is sharp and not smooth in the vertical divergence (sub-rays on the
         // ground at grazing incidence merge into one echo or part abruptly), so the search
@@ -199,34 +213,42 @@ impl Fitting<'_> {
         // footprint is sampled with 3 sub-rays per axis on the grid and, where they show a beam,
         // with 5 (the catalogue's default); stratified where a first-echo receiver explains the
         // runs better ([`Sampling`]).
+        // A point's scores: (log-likelihood, its part at edges).
+        type Scores = Result<(f64, f64), GapError>;
+        // The point of `pts` with the highest log-likelihood, or with `at_edges` the highest
+        // part at edges.
         let argmax = |pts: &[(f64, f64)],
-                      f: &mut dyn FnMut(f64, f64) -> Result<f64, GapError>|
+                      f: &mut dyn FnMut(f64, f64) -> Scores,
+                      at_edges: bool|
          -> Result<(f64, f64), GapError> {
             let mut best = (pts[0], f64::NEG_INFINITY);
             for &(h, v) in pts {
-                let ll = f(h, v)?;
-                if ll > best.1 {
-                    best = ((h, v), ll);
+                let (ll, edges) = f(h, v)?;
+                let x = if at_edges { edges } else { ll };
+                if x > best.1 {
+                    best = ((h, v), x);
                 }
             }
             Ok(best.0)
         };
         // The horizontal divergence at vertical `v`: aspects from a beam twice as tall as
-        // wide to three times as wide, then ±10 %, ±20 % around the best.
-        let across = |v: f64,
-                      f: &mut dyn FnMut(f64, f64) -> Result<f64, GapError>|
-         -> Result<(), GapError> {
+        // wide to three times as wide, then ±10 %, ±20 % around the best. Judged on the part
+        // of the likelihood at edges ([`Scored::at_edges`]), where a beam's width shows
+        // whatever its footprint model.
+        let across = |v: f64, f: &mut dyn FnMut(f64, f64) -> Scores| -> Result<f64, GapError> {
             let ratios: Vec<(f64, f64)> = [0.5, 0.7, 1.0, 1.4, 2.0, 3.0]
                 .iter()
                 .map(|r| (r * v, v))
                 .collect();
-            let (h1, _) = argmax(&ratios, &mut *f)?;
+            let (h1, _) = argmax(&ratios, &mut *f, true)?;
             let hs: Vec<(f64, f64)> = (-2..=2)
                 .map(|i| (h1 * (1.0 + 0.1 * f64::from(i)), v))
                 .collect();
-            argmax(&hs, f)?;
-            Ok(())
+            Ok(argmax(&hs, f, true)?.0)
         };
+        // The points the horizontal searches chose, one per line (vertical divergence,
+        // sampling, echo logic): the candidates of the best beam.
+        let mut chosen: Vec<Key> = Vec::new();
         // Whether the runs show the best beam sampled with `n` sub-rays per axis: its gain
         // over the current model has an interval above zero.
         let shown = |grid: &[Point], n: Sampling| {
@@ -238,7 +260,7 @@ impl Fitting<'_> {
         };
         // The vertical divergence at the typical aspect, then the horizontal one, with `n`
         // sub-rays per axis.
-        let walk = |f: &mut dyn FnMut(f64, f64) -> Result<f64, GapError>| -> Result<(), GapError> {
+        let walk = |f: &mut dyn FnMut(f64, f64) -> Scores| -> Result<(f64, f64), GapError> {
             // Steps of a factor of about 1.45 from 0.5 to 11 mrad (an 8 mrad footprint was
             // once cut off at the grid's 4 mrad end), then ±7 %, ±14 %, ±21 % around the best:
             // half way to the coarse neighbours.
@@ -246,15 +268,16 @@ impl Fitting<'_> {
                 .iter()
                 .map(|&v| (2.0 * v, v))
                 .collect();
-            let (_, v0) = argmax(&coarse, &mut *f)?;
+            let (_, v0) = argmax(&coarse, &mut *f, false)?;
             let fine: Vec<(f64, f64)> = (-3..=3)
                 .map(|i| v0 * (1.0 + 0.07 * f64::from(i)))
                 .map(|v| (2.0 * v0, v))
                 .collect();
-            let (_, v1) = argmax(&fine, &mut *f)?;
-            across(v1, f)
+            let (_, v1) = argmax(&fine, &mut *f, false)?;
+            Ok((across(v1, f)?, v1))
         };
-        walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::COARSE, None))?;
+        let (h, v) = walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::COARSE, None))?;
+        chosen.push((h, v, Sampling::COARSE, None));
         // The samplings whose best beam the runs show. The finer ones refine a beam the
         // coarse one shows; where 3 sub-rays per axis show none (most rounds of a study), the
         // 13 of the finer ones, which cost twice as much each, are not searched (four fifths
@@ -262,7 +285,8 @@ impl Fitting<'_> {
         let mut counts = Vec::new();
         if shown(&grid, Sampling::COARSE) {
             counts.push(Sampling::COARSE);
-            walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::FINE, None))?;
+            let (h, v) = walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::FINE, None))?;
+            chosen.push((h, v, Sampling::FINE, None));
             if shown(&grid, Sampling::FINE) {
                 counts.push(Sampling::FINE);
             }
@@ -278,8 +302,10 @@ impl Fitting<'_> {
         // and the search, which costs as much again, is skipped (most rounds of a study).
         let mut best_share: Option<(f64, f64)> = None;
         for n in counts {
-            let b = best_point(&grid, Some(n));
-            let (bh, bv, bll) = (grid[b].h, grid[b].v, grid[b].ll);
+            let Some(&(bh, bv, ..)) = chosen.iter().find(|k| k.2 == n && k.3.is_none()) else {
+                continue;
+            };
+            let (bll, _) = try_one(&mut grid, bh, bv, n, None)?;
             // Shares that ask for the same number of the footprint's sub-rays are one receiver
             // (with 3 per axis, 5 sub-rays: 5 % and 15 % both ask for one).
             let sub_rays = n.pattern.offsets(n.n).len() as f64;
@@ -291,13 +317,14 @@ impl Fitting<'_> {
                     continue;
                 }
                 asked.push(k);
-                let ll = try_one(&mut grid, bh, bv, n, Some(s))?;
+                let (ll, _) = try_one(&mut grid, bh, bv, n, Some(s))?;
                 if ll > bll && first.is_none_or(|(_, x)| ll > x) {
                     first = Some((s, ll));
                 }
             }
             if let Some((s, ll)) = first {
-                across(bv, &mut |h, v| try_one(&mut grid, h, v, n, Some(s)))?;
+                let h = across(bv, &mut |h, v| try_one(&mut grid, h, v, n, Some(s)))?;
+                chosen.push((h, bv, n, Some(s)));
                 if best_share.is_none_or(|(_, x)| ll > x) {
                     best_share = Some((s, ll));
                 }
@@ -310,20 +337,55 @@ impl Fitting<'_> {
         // reports the strongest echo (no share wins) is not walked again, which keeps such a
         // round's cost.
         if let Some((s, _)) = best_share {
-            walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::STRATIFIED, Some(s)))?;
+            let (h, v) = walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::STRATIFIED, Some(s)))?;
+            chosen.push((h, v, Sampling::STRATIFIED, Some(s)));
         }
-        Ok(self.divergence_candidate(grid, &refits))
+        Ok(self.divergence_candidate(grid, &refits, &chosen))
     }
 
     /// The candidate of the best point of the divergence search `grid`, with the intervals of
     /// its parameters and the threshold re-fitted with it (`refits`).
-    fn divergence_candidate(&self, mut grid: Vec<Point>, refits: &[(Key, f64)]) -> Candidate {
-        let i = best_point(&grid, None);
-        // Interval: the grid points chosen on resampled blocks.
+    fn divergence_candidate(
+        &self,
+        mut grid: Vec<Point>,
+        refits: &[(Key, f64)],
+        chosen: &[Key],
+    ) -> Candidate {
+        let is_chosen = |g: &Point| {
+            chosen.iter().any(|k| {
+                (k.0 - g.h).abs() < 1e-9
+                    && (k.1 - g.v).abs() < 1e-9
+                    && k.2 == g.sampling
+                    && k.3 == g.share
+            })
+        };
+        // The best of the beams the searches chose (each the best width at edges on its
+        // line); any point when none was (a search that never ran).
+        let i = grid
+            .iter()
+            .enumerate()
+            .filter(|(_, g)| is_chosen(g))
+            .max_by(|a, b| a.1.ll.total_cmp(&b.1.ll))
+            .map_or_else(|| best_point(&grid, None), |x| x.0);
+        // Intervals: the points chosen on resampled blocks; the vertical divergence over the
+        // whole search by the likelihood, the horizontal one along the best beam's line by
+        // the part at edges, as each was searched.
         let scores: Vec<&[Scored]> = grid.iter().map(|g| g.scored.as_slice()).collect();
-        let chosen = self.argmax_resampled(&scores, i);
-        let mut hs: Vec<f64> = chosen.iter().map(|&j| grid[j].h).collect();
-        let mut vs: Vec<f64> = chosen.iter().map(|&j| grid[j].v).collect();
+        let mut vs: Vec<f64> = self
+            .argmax_resampled(&scores, i, |s| &s.per_scan)
+            .iter()
+            .map(|&j| grid[j].v)
+            .collect();
+        let line: Vec<usize> = (0..grid.len())
+            .filter(|&j| grid[j].on_line_of(&grid[i]))
+            .collect();
+        let line_scores: Vec<&[Scored]> = line.iter().map(|&j| scores[j]).collect();
+        let at_i = line.iter().position(|&j| j == i).unwrap_or(0);
+        let mut hs: Vec<f64> = self
+            .argmax_resampled(&line_scores, at_i, |s| &s.at_edges)
+            .iter()
+            .map(|&k| grid[line[k]].h)
+            .collect();
         let (h, v, n, share) = (grid[i].h, grid[i].v, grid[i].sampling, grid[i].share);
         let refit = refits
             .iter()
@@ -446,14 +508,20 @@ impl Fitting<'_> {
     }
 
     /// For each of the first 200 bootstrap resamples, the index of the grid point (`scores`,
-    /// per run) with the highest resampled log-likelihood (`fallback` when there is none).
-    fn argmax_resampled(&self, scores: &[&[Scored]], fallback: usize) -> Vec<usize> {
+    /// per run) with the highest resampled `part` of the log-likelihood (per scan; `fallback`
+    /// when there is none).
+    fn argmax_resampled(
+        &self,
+        scores: &[&[Scored]],
+        fallback: usize,
+        part: impl Fn(&Scored) -> &[f64],
+    ) -> Vec<usize> {
         let per_block: Vec<Vec<f64>> = scores
             .iter()
             .map(|g| {
                 let mut b = vec![0.0; self.set.blocks.len()];
                 for (r, s) in g.iter().enumerate() {
-                    for (k, v) in s.per_scan.iter().enumerate() {
+                    for (k, v) in part(s).iter().enumerate() {
                         b[self.set.blocks.of(r, k as u32)] += v;
                     }
                 }
