@@ -93,14 +93,17 @@ fn both(o: &Obs) -> bool {
 pub struct Scored {
     /// Total per scan.
     pub per_scan: Vec<f64>,
-    /// Per scan, the part of the total that shows a beam's width whatever its footprint
-    /// model: the detection of every firing (returns beyond an object's silhouette, which
-    /// grow with the beam) and the range terms of firings whose footprint mixes depths
-    /// ([`Feature::is_mixed`]: the mixed ranges there). A beam's width is fitted on this part
-    /// alone: on one plane, two footprint models of the same beam place the echo differently
-    /// by tenths of millimetres (how they sample and weight the footprint), thousands of
-    /// times over, which is one implementation's echo logic and not the beam (a 4 mrad beam
-    /// of another footprint model was fitted as 1.5 mrad through them).
+    /// Per scan, a score of what shows a beam's width whatever its footprint model (not a
+    /// part of the total): the detection term of every firing (returns beyond an object's
+    /// silhouette, which grow with the beam) and the range of firings whose footprint mixes
+    /// depths ([`Feature::is_mixed`]: the mixed ranges there), an edge's as in the total, a
+    /// smaller step's scored within the depth its probes found off the hit's plane, with the
+    /// edges' outlier share. A beam's width is fitted on this alone: on one plane, two
+    /// footprint models of the same beam place the echo differently by tenths of
+    /// millimetres (how they sample and weight the footprint), thousands of times over, and
+    /// at a centimetre's step by millimetres to decimetres (how they group the depths),
+    /// which is one implementation's echo logic and not the beam (a 4 mrad beam of another
+    /// footprint model was fitted as 1.60 mrad through them).
     pub at_edges: Vec<f64>,
     /// Sums of the terms: detection, range, difference, intensity.
     pub terms: [f64; 4],
@@ -194,21 +197,47 @@ pub fn score(
         .max(1e-12)
         .ln();
         let mut terms = [det, 0.0, 0.0, 0.0];
+        // The part at edges: the detection, and the range of a firing whose footprint mixes
+        // depths (see `at_edges`).
+        let mut at_edges = det;
         if both(o) {
             let e = f64::from(o.measured - o.predicted);
-            terms[1] = if edge {
+            // A range term with a droplet echo's uniform density mixed in where clutter may
+            // have replaced the target.
+            let with_clutter = |ln: f64| match clutter {
+                Some((w, c)) => {
+                    let m = f64::from(o.measured);
+                    let uniform = if (c.min_m..=c.max_m).contains(&m) {
+                        1.0 / (c.max_m - c.min_m).max(1e-9)
+                    } else {
+                        0.0
+                    };
+                    ((1.0 - w) * ln.exp() + w * uniform).max(1e-300).ln()
+                }
+                None => ln,
+            };
+            terms[1] = with_clutter(if edge {
                 ln_gauss_mix(e, s_edge, OUTLIER_EDGE, WINDOW_M)
             } else {
                 ln_gauss_mix(e, s_plain, OUTLIER, WINDOW_M)
-            };
-            if let Some((w, c)) = clutter {
-                let m = f64::from(o.measured);
-                let uniform = if (c.min_m..=c.max_m).contains(&m) {
-                    1.0 / (c.max_m - c.min_m).max(1e-9)
-                } else {
-                    0.0
-                };
-                terms[1] = ((1.0 - w) * terms[1].exp() + w * uniform).max(1e-300).ln();
+            });
+            if edge {
+                at_edges += terms[1];
+            } else if f.is_mixed() {
+                // Where the footprint mixes depths, the echo lies anywhere among them (how a
+                // receiver groups and weighs the parts is its own): the range is scored within
+                // the depth the probes found off the hit's plane, with the edges' outlier
+                // share. (That depth stretched along the beam, divided by the incidence's
+                // cosine, is the echo's possible spread at a plane's step; scored with it,
+                // the test's 8 mrad beam of another footprint model was fitted as 4.5 mrad:
+                // at grazing incidence it hid the mixed ranges the width shows in.)
+                let depth = f64::from(f.off_plane);
+                at_edges += with_clutter(ln_gauss_mix(
+                    e,
+                    s_plain.hypot(depth),
+                    OUTLIER_EDGE,
+                    WINDOW_M,
+                ));
             }
             if !edge {
                 let n = f.neighbour as usize;
@@ -231,19 +260,7 @@ pub fn score(
             *s += terms.iter().sum::<f64>();
         }
         if let Some(s) = out.at_edges.get_mut(f.scan as usize) {
-            *s += terms[0];
-            if both(o) && f.is_mixed() {
-                // Where the footprint mixes depths, the echo lies anywhere among them
-                // (how a receiver groups and weighs the parts is its own): the range is
-                // scored within the depth the probes found, with the edges' outlier share.
-                let e = f64::from(o.measured - o.predicted);
-                let scale = if edge {
-                    s_edge
-                } else {
-                    s_plain.hypot(f64::from(f.off_plane))
-                };
-                *s += ln_gauss_mix(e, scale, OUTLIER_EDGE, WINDOW_M);
-            }
+            *s += at_edges;
         }
     }
     out
@@ -822,57 +839,89 @@ mod tests {
     }
 
     /// The part at edges: the detection of every firing, and the range of a firing whose
-    /// footprint mixes depths scored within the depth its probes found (with the edges'
-    /// outlier share); a plain firing's range, differences and intensity are not in it.
+    /// footprint mixes depths, scored within the depth its probes found off the hit's plane
+    /// (with the edges' outlier share); a plain firing's range, differences and intensity are not
+    /// in it, nor the range of a mixed firing without a return; clutter enters both alike.
     #[test]
     fn the_part_at_edges_is_detection_and_the_ranges_of_mixed_footprints() {
-        let on_plane = plain();
-        let step = Feature {
-            off_plane: 0.04,
+        let on_plane = Feature {
+            cos: 0.5,
             ..plain()
         };
+        // 4 cm off the plane (met at 60°).
+        let step = Feature {
+            off_plane: 0.04,
+            ..on_plane
+        };
+        use crate::gap::observe::PLANAR_M;
+        let just_planar = Feature {
+            off_plane: PLANAR_M,
+            ..on_plane
+        };
+        let just_not = Feature {
+            off_plane: PLANAR_M * 1.01,
+            ..on_plane
+        };
         assert!(!on_plane.is_mixed() && step.is_mixed() && !step.is_edge());
+        assert!(!just_planar.is_mixed() && just_not.is_mixed());
         let edge = Feature {
             step: 9.0,
             ..plain()
         };
         assert!(edge.is_mixed());
-        // A residual of 3 cm on each: the plain one is all but an outlier at 1/64 m.
-        let obs = [firing(8.03, 8.0), firing(8.03, 8.0), firing(8.03, 8.0)];
-        let s = score(
-            &obs,
-            &[on_plane, step, edge],
-            Random::default(),
-            &SCALES,
-            0.002,
-            3,
-        );
-        let scan = |k: u32| {
-            let mut f = [on_plane, step, edge];
-            for x in &mut f {
+        // One firing in scan 0, scored with its neighbours' in scan 1: (total, part at edges)
+        // of scan 0.
+        let one = |o: Obs, f: Feature, random: Random| {
+            let mut feat = [on_plane, step, edge, f];
+            for x in &mut feat[..3] {
                 x.scan = 1;
             }
-            f[k as usize].scan = 0;
-            let t = score(&obs, &f, Random::default(), &SCALES, 0.002, 2);
+            feat[3].scan = 0;
+            let obs = [firing(8.03, 8.0), firing(8.03, 8.0), firing(8.03, 8.0), o];
+            let t = score(&obs, &feat, random, &SCALES, 0.002, 2);
             (t.per_scan[0], t.at_edges[0])
         };
+        let none = Random::default();
+        // A residual of 3 cm: almost two of the plain scale's 1/64 m.
         let e = f64::from(8.03f32 - 8.0);
         let det = (1.0 - 1e-3f64).ln();
         let det_edge = (1.0 - 0.05f64).ln();
+        let plain_range = ln_mixture(e, SCALES.plain, 0.02, 10.0);
         // Plain: all of it in the total, only its detection at edges.
-        let (total, at) = scan(0);
+        let (total, at) = one(firing(8.03, 8.0), on_plane, none);
         assert!((at - det).abs() < 1e-12, "{at}");
-        assert!((total - det - ln_mixture(e, SCALES.plain, 0.02, 10.0)).abs() < 1e-9);
-        // A centimetre step: scored within its depth at edges, as plain in the total.
-        let (total, at) = scan(1);
-        let within = ln_mixture(e, SCALES.plain.hypot(f64::from(step.off_plane)), 0.3, 10.0);
+        assert!((total - det - plain_range).abs() < 1e-9);
+        // A 4 cm step: within its 4 cm at edges, as plain in the total.
+        let (total, at) = one(firing(8.03, 8.0), step, none);
+        let depth = f64::from(step.off_plane);
+        let within = ln_mixture(e, SCALES.plain.hypot(depth), 0.3, 10.0);
         assert!((at - det - within).abs() < 1e-9, "{at}");
-        assert!((total - det - ln_mixture(e, SCALES.plain, 0.02, 10.0)).abs() < 1e-9);
-        // An edge: the same range term in both.
-        let (total, at) = scan(2);
+        assert!((total - det - plain_range).abs() < 1e-9);
+        // A mixed firing that measured nothing: only its detection, in both.
+        let (total, at) = one(firing(f32::NAN, 8.0), step, none);
+        let missed = (1e-3f64).ln();
+        assert!((at - missed).abs() < 1e-12 && (total - missed).abs() < 1e-12);
+        // An edge: the same range term in both, with clutter or without.
+        let (total, at) = one(firing(8.03, 8.0), edge, none);
         assert!((at - total).abs() < 1e-12, "{at} {total}");
         assert!((at - det_edge - ln_mixture(e, SCALES.edge, 0.3, 10.0)).abs() < 1e-9);
-        assert_eq!(s.at_edges.len(), 3);
+        let rain = Random {
+            clutter: Some(Clutter {
+                probability: 0.2,
+                min_m: 1.0,
+                max_m: 30.0,
+                reflectivity: 0.05,
+            }),
+            ..none
+        };
+        // A faint target (a clutter echo outshines it 3 times in 4).
+        let faint = Obs {
+            power: 1e-4,
+            ..firing(8.03, 8.0)
+        };
+        let (total, at) = one(faint, edge, rain);
+        assert!((at - total).abs() < 1e-12, "{at} {total}");
+        assert!((at - one(faint, edge, none).1).abs() > 1e-3);
     }
 
     #[test]

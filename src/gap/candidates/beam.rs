@@ -65,11 +65,10 @@ fn divergence_effect(h: f64, v: f64, s: Sampling, share: Option<f64>) -> Effect 
     }
 }
 
-/// The index of the best-scoring point, of those sampled so when given (0 when there is none).
-fn best_point(grid: &[Point], sampling: Option<Sampling>) -> usize {
+/// The index of the point of the highest log-likelihood (0 when there is none).
+fn best_point(grid: &[Point]) -> usize {
     grid.iter()
         .enumerate()
-        .filter(|x| sampling.is_none_or(|s| x.1.sampling == s))
         .max_by(|a, b| a.1.ll.total_cmp(&b.1.ll))
         .map_or(0, |x| x.0)
 }
@@ -131,12 +130,20 @@ struct Point {
     sampling: Sampling,
     share: Option<f64>,
     ll: f64,
-    /// The part of `ll` that shows the beam's width ([`Scored::at_edges`]).
+    /// The score of what shows the beam's width ([`Scored::at_edges`]).
     at_edges: f64,
     scored: Vec<Scored>,
 }
 
 impl Point {
+    /// The point of the search at `k`.
+    fn is(&self, k: &Key) -> bool {
+        (self.h - k.0).abs() < 1e-9
+            && (self.v - k.1).abs() < 1e-9
+            && self.sampling == k.2
+            && self.share == k.3
+    }
+
     /// On the same line of the search as `other`: the same vertical divergence, sampling
     /// and echo logic; only the horizontal divergence differs.
     fn on_line_of(&self, other: &Point) -> bool {
@@ -166,12 +173,7 @@ impl Fitting<'_> {
                            n: Sampling,
                            share: Option<f64>|
          -> Result<(f64, f64), GapError> {
-            if let Some(g) = grid.iter().find(|g| {
-                (g.h - h).abs() < 1e-9
-                    && (g.v - v).abs() < 1e-9
-                    && g.sampling == n
-                    && g.share == share
-            }) {
+            if let Some(g) = grid.iter().find(|g| g.is(&(h, v, n, share))) {
                 return Ok((g.ll, g.at_edges));
             }
             let model = with_effect(&base, divergence_effect(h, v, n, share));
@@ -249,14 +251,16 @@ impl Fitting<'_> {
         // The points the horizontal searches chose, one per line (vertical divergence,
         // sampling, echo logic): the candidates of the best beam.
         let mut chosen: Vec<Key> = Vec::new();
-        // Whether the runs show the best beam sampled with `n` sub-rays per axis: its gain
-        // over the current model has an interval above zero.
-        let shown = |grid: &[Point], n: Sampling| {
-            let b = best_point(grid, Some(n));
-            self.set
-                .gain(&grid[b].scored, self.scored)
-                .interval
-                .is_some_and(|(lo, _)| lo > 0.0)
+        // Whether the runs show the beam the search chose with `n` sub-rays per axis (`at`,
+        // the chosen horizontal and vertical divergence): its gain over the current model has
+        // an interval above zero.
+        let shown = |grid: &[Point], n: Sampling, (h, v): (f64, f64)| {
+            grid.iter()
+                .find(|g| g.is(&(h, v, n, None)))
+                .is_some_and(|g| {
+                    let gain = self.set.gain(&g.scored, self.scored);
+                    gain.interval.is_some_and(|(lo, _)| lo > 0.0)
+                })
         };
         // The vertical divergence at the typical aspect, then the horizontal one, with `n`
         // sub-rays per axis.
@@ -283,11 +287,11 @@ impl Fitting<'_> {
         // 13 of the finer ones, which cost twice as much each, are not searched (four fifths
         // of such a round's casts).
         let mut counts = Vec::new();
-        if shown(&grid, Sampling::COARSE) {
+        if shown(&grid, Sampling::COARSE, (h, v)) {
             counts.push(Sampling::COARSE);
             let (h, v) = walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::FINE, None))?;
             chosen.push((h, v, Sampling::FINE, None));
-            if shown(&grid, Sampling::FINE) {
+            if shown(&grid, Sampling::FINE, (h, v)) {
                 counts.push(Sampling::FINE);
             }
         }
@@ -351,14 +355,7 @@ impl Fitting<'_> {
         refits: &[(Key, f64)],
         chosen: &[Key],
     ) -> Candidate {
-        let is_chosen = |g: &Point| {
-            chosen.iter().any(|k| {
-                (k.0 - g.h).abs() < 1e-9
-                    && (k.1 - g.v).abs() < 1e-9
-                    && k.2 == g.sampling
-                    && k.3 == g.share
-            })
-        };
+        let is_chosen = |g: &Point| chosen.iter().any(|k| g.is(k));
         // The best of the beams the searches chose (each the best width at edges on its
         // line); any point when none was (a search that never ran).
         let i = grid
@@ -366,10 +363,12 @@ impl Fitting<'_> {
             .enumerate()
             .filter(|(_, g)| is_chosen(g))
             .max_by(|a, b| a.1.ll.total_cmp(&b.1.ll))
-            .map_or_else(|| best_point(&grid, None), |x| x.0);
+            .map_or_else(|| best_point(&grid), |x| x.0);
         // Intervals: the points chosen on resampled blocks; the vertical divergence over the
-        // whole search by the likelihood, the horizontal one along the best beam's line by
-        // the part at edges, as each was searched.
+        // whole search by the likelihood (its walks compare the likelihood; the point of the
+        // most likelihood on a resample lies on the chosen beam's line or on a line of
+        // another vertical divergence, which is the spread wanted), the horizontal one along
+        // the chosen beam's line by the part at edges, as it was searched.
         let scores: Vec<&[Scored]> = grid.iter().map(|g| g.scored.as_slice()).collect();
         let mut vs: Vec<f64> = self
             .argmax_resampled(&scores, i, |s| &s.per_scan)
