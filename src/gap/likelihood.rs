@@ -844,6 +844,7 @@ mod tests {
     /// in it, nor the range of a mixed firing without a return; clutter enters both alike.
     #[test]
     fn the_part_at_edges_is_detection_and_the_ranges_of_mixed_footprints() {
+        use crate::gap::observe::PLANAR_M;
         let on_plane = Feature {
             cos: 0.5,
             ..plain()
@@ -853,7 +854,6 @@ mod tests {
             off_plane: 0.04,
             ..on_plane
         };
-        use crate::gap::observe::PLANAR_M;
         let just_planar = Feature {
             off_plane: PLANAR_M,
             ..on_plane

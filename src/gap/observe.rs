@@ -502,16 +502,16 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                         let pd = (d + u * (a * PROBE_ACROSS_RAD) + w * (b * PROBE_ALONG_RAD))
                             .normalize();
                         let probe = scene.cast(&f.origin, &pd, 0.0, max, &actors);
-                        step = step.max(match (&centre, &probe) {
-                            (Some(c), Some(p)) => (c.range - p.range).abs(),
-                            (None, None) => 0.0,
-                            _ => f64::INFINITY,
-                        });
-                        off_plane = off_plane.max(match (&centre, &probe) {
-                            (Some(c), Some(p)) => c.normal.dot(&(pd * p.range - d * c.range)).abs(),
-                            (None, None) => 0.0,
-                            _ => f64::INFINITY,
-                        });
+                        let (along, off) = match (&centre, probe) {
+                            (Some(c), Some(p)) => (
+                                (c.range - p.range).abs(),
+                                c.normal.dot(&(pd * p.range - d * c.range)).abs(),
+                            ),
+                            (None, None) => (0.0, 0.0),
+                            _ => (f64::INFINITY, f64::INFINITY),
+                        };
+                        step = step.max(along);
+                        off_plane = off_plane.max(off);
                     }
                     let pose = sim.sensor_pose(&run.trajectory, f.time, &mut hint);
                     let local = pose.map_or(d, |p| p.rotation.inverse() * d);

@@ -65,14 +65,6 @@ fn divergence_effect(h: f64, v: f64, s: Sampling, share: Option<f64>) -> Effect 
     }
 }
 
-/// The index of the point of the highest log-likelihood (0 when there is none).
-fn best_point(grid: &[Point]) -> usize {
-    grid.iter()
-        .enumerate()
-        .max_by(|a, b| a.1.ll.total_cmp(&b.1.ll))
-        .map_or(0, |x| x.0)
-}
-
 /// Rows needed before the noise is estimated from the untruncated ones alone.
 const UNTRUNCATED_ROWS: usize = 100;
 
@@ -138,18 +130,13 @@ struct Point {
 impl Point {
     /// The point of the search at `k`.
     fn is(&self, k: &Key) -> bool {
-        (self.h - k.0).abs() < 1e-9
-            && (self.v - k.1).abs() < 1e-9
-            && self.sampling == k.2
-            && self.share == k.3
+        (self.h - k.0).abs() < 1e-9 && self.on_line(k.1, k.2, k.3)
     }
 
-    /// On the same line of the search as `other`: the same vertical divergence, sampling
-    /// and echo logic; only the horizontal divergence differs.
-    fn on_line_of(&self, other: &Point) -> bool {
-        (self.v - other.v).abs() < 1e-9
-            && self.sampling == other.sampling
-            && self.share == other.share
+    /// On the line of the search of vertical divergence `v`, sampling `n` and echo logic
+    /// `share`: only the horizontal divergence may differ.
+    fn on_line(&self, v: f64, n: Sampling, share: Option<f64>) -> bool {
+        (self.v - v).abs() < 1e-9 && self.sampling == n && self.share == share
     }
 }
 
@@ -355,15 +342,14 @@ impl Fitting<'_> {
         refits: &[(Key, f64)],
         chosen: &[Key],
     ) -> Candidate {
-        let is_chosen = |g: &Point| chosen.iter().any(|k| g.is(k));
         // The best of the beams the searches chose (each the best width at edges on its
-        // line); any point when none was (a search that never ran).
+        // line; the first search always chooses one).
         let i = grid
             .iter()
             .enumerate()
-            .filter(|(_, g)| is_chosen(g))
+            .filter(|(_, g)| chosen.iter().any(|k| g.is(k)))
             .max_by(|a, b| a.1.ll.total_cmp(&b.1.ll))
-            .map_or_else(|| best_point(&grid), |x| x.0);
+            .map_or(0, |x| x.0);
         // Intervals: the points chosen on resampled blocks; the vertical divergence over the
         // whole search by the likelihood (its walks compare the likelihood; the point of the
         // most likelihood on a resample lies on the chosen beam's line or on a line of
@@ -375,8 +361,9 @@ impl Fitting<'_> {
             .iter()
             .map(|&j| grid[j].v)
             .collect();
+        let (h, v, n, share) = (grid[i].h, grid[i].v, grid[i].sampling, grid[i].share);
         let line: Vec<usize> = (0..grid.len())
-            .filter(|&j| grid[j].on_line_of(&grid[i]))
+            .filter(|&j| grid[j].on_line(v, n, share))
             .collect();
         let line_scores: Vec<&[Scored]> = line.iter().map(|&j| scores[j]).collect();
         let at_i = line.iter().position(|&j| j == i).unwrap_or(0);
@@ -385,7 +372,6 @@ impl Fitting<'_> {
             .iter()
             .map(|&k| grid[line[k]].h)
             .collect();
-        let (h, v, n, share) = (grid[i].h, grid[i].v, grid[i].sampling, grid[i].share);
         let refit = refits
             .iter()
             .find(|(k, _)| *k == (h, v, n, share))
