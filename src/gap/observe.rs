@@ -183,6 +183,9 @@ pub struct Feature {
     /// How well that surface's place is known, 1 sigma, m ([`crate::scene::Scene::accuracy_of`]):
     /// an error every scan of the run shares.
     pub accuracy: f32,
+    /// The firing's block reports the last echo (a last-return packet), not the strongest:
+    /// which of a firing's echoes a droplet's replaces.
+    pub last: bool,
 }
 
 /// [`Feature::surface`] of a beam that hits nothing.
@@ -482,6 +485,9 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
             let mut actors = scene.new_actor_poses();
             scene.actor_poses(s.time.first_firing, &mut actors);
             let mut last_of_laser = std::collections::HashMap::new();
+            // What the gap observes of a firing is what the simulator reports for it
+            // ([`Firing::reported`]): the last echo in a last-return packet, else the strongest.
+            let last = s.packet.return_mode.mode() == Some(hilrig_velodyne::ReturnMode::Last);
             let mut hint = 0usize;
             let max = 400.0;
             sim.simulate_observed(
@@ -556,6 +562,7 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                         accuracy: centre
                             .as_ref()
                             .map_or(0.0, |h| scene.accuracy_of(h.material.surface) as f32),
+                        last,
                     };
                 },
             );

@@ -103,7 +103,25 @@ impl Fitting<'_> {
             .flatten()
             .zip(self.set.feats.iter().flatten())
             .filter(|(o, f)| o.cast && !f.is_edge())
-            .map(|(o, _)| clutter.wins(o.predicted.is_finite().then_some(f64::from(o.power))))
+            .map(|(o, f)| {
+                if f.last {
+                    // A last-return block shows a droplet where the target is not detected
+                    // (cast here without a threshold: the fitted one, after the extinction)
+                    // and beyond a detected target, where it is not clutter-like (farther
+                    // than the prediction) and so not counted above.
+                    let detected = o.predicted.is_finite()
+                        && best_p.is_none_or(|p| {
+                            f64::from(o.power) * (-2.0 * best * f64::from(o.predicted)).exp() >= p
+                        });
+                    if detected {
+                        0.0
+                    } else {
+                        1.0
+                    }
+                } else {
+                    clutter.wins(o.predicted.is_finite().then_some(f64::from(o.power)))
+                }
+            })
             .sum();
         let probability = if exposure > 0.0 {
             (clutter_like as f64 / exposure).min(1.0)
