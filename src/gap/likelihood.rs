@@ -37,9 +37,9 @@ pub struct Random {
 }
 
 /// The weather effect's clutter: with `probability` a firing also sees a droplet echo at a
-/// uniform range in `[min_m, max_m]` with the power of a `reflectivity` target; it is the
-/// reported echo when it outshines the target (a block of strongest returns) or lies beyond
-/// it (a block of last returns: [`Clutter::wins_firing`]).
+/// uniform range in `[min_m, max_m]` with the power of a `reflectivity` target, hidden behind
+/// the surface the beam meets. Which firings report it depends on the receiver
+/// ([`Clutter::support`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Clutter {
     /// Probability per firing.
@@ -50,25 +50,49 @@ pub struct Clutter {
     pub max_m: f64,
     /// Apparent reflectivity.
     pub reflectivity: f64,
+    /// The receiver reports the nearest echo that holds its share of the footprint (a beam
+    /// divergence's `first_echo_share`), not the strongest: a droplet fills the whole beam.
+    pub first_echo: bool,
 }
 
 impl Clutter {
-    /// The probability that a clutter echo, when there is one, is the echo the receiver
-    /// reports for firing `o` (its block's kind of return in `f`).
-    pub fn wins_firing(&self, o: &Obs, f: &Feature) -> f64 {
-        if !o.predicted.is_finite() {
-            return 1.0;
-        }
-        if f.last {
-            // A receiver that reports the last echo reports the droplet only beyond the
-            // target: in rain, a last-return sensor shows the droplets where there is nothing
-            // else (a last-return drive's clutter share was fitted 31 % low with the strongest
-            // echo's rule).
-            let span = (self.max_m - self.min_m).max(1e-9);
-            ((self.max_m - f64::from(o.predicted)) / span).clamp(0.0, 1.0)
+    /// The ranges at which a droplet echo is the return reported for firing `o` (`f` says
+    /// which of its echoes the block reports), `None` where no droplet is: in front of the
+    /// target, as near as the blind zone, and
+    /// - for a block of strongest returns, only as near as it outshines the target;
+    /// - for a block of last returns, nowhere when there is a target (it is the last echo);
+    /// - for a first-echo receiver, anywhere in front of the target.
+    ///
+    /// With no target predicted, the whole range. (Scored with the strongest echo's rule, the
+    /// clutter share of two last-return drives was fitted 31 % low.)
+    pub fn support(&self, o: &Obs, f: &Feature) -> Option<(f64, f64)> {
+        let hi = if !o.predicted.is_finite() {
+            self.max_m
+        } else if f.last {
+            return None;
         } else {
-            self.wins(Some(f64::from(o.power)))
-        }
+            let front = f64::from(o.predicted).min(self.max_m);
+            if self.first_echo {
+                front
+            } else {
+                let power = f64::from(o.power);
+                let outshines = if power > 0.0 {
+                    (self.reflectivity / power).sqrt()
+                } else {
+                    f64::INFINITY
+                };
+                front.min(outshines)
+            }
+        };
+        (hi > self.min_m).then_some((self.min_m, hi))
+    }
+
+    /// The probability that a droplet echo, when there is one, is the return reported for
+    /// firing `o` ([`Clutter::support`]).
+    pub fn wins_firing(&self, o: &Obs, f: &Feature) -> f64 {
+        let span = (self.max_m - self.min_m).max(1e-9);
+        self.support(o, f)
+            .map_or(0.0, |(lo, hi)| ((hi - lo) / span).clamp(0.0, 1.0))
     }
 
     /// The probability that a clutter echo, when there is one, is the strongest of a firing
@@ -200,7 +224,7 @@ pub fn score(
         } else {
             eps
         };
-        // Clutter: a droplet echo that outshines the target replaces it.
+        // Clutter: a droplet echo the receiver reports instead of the target replaces it.
         let clutter = random.clutter.map(|c| {
             let w = c.probability * c.wins_firing(o, f);
             (w, c)
@@ -221,17 +245,19 @@ pub fn score(
         let mut at_edges = det;
         if both(o) {
             let e = f64::from(o.measured - o.predicted);
-            // A range term with a droplet echo's uniform density mixed in where clutter may
-            // have replaced the target.
+            // A range term with a droplet echo's density mixed in where clutter may have
+            // replaced the target: uniform, probability / span, over the ranges where it is
+            // the reported return, none elsewhere.
             let with_clutter = |ln: f64| match clutter {
                 Some((w, c)) => {
                     let m = f64::from(o.measured);
-                    let uniform = if (c.min_m..=c.max_m).contains(&m) {
-                        1.0 / (c.max_m - c.min_m).max(1e-9)
-                    } else {
-                        0.0
+                    let droplet = match c.support(o, f) {
+                        Some((lo, hi)) if (lo..=hi).contains(&m) => {
+                            c.probability / (c.max_m - c.min_m).max(1e-9)
+                        }
+                        _ => 0.0,
                     };
-                    ((1.0 - w) * ln.exp() + w * uniform).max(1e-300).ln()
+                    ((1.0 - w) * ln.exp() + droplet).max(1e-300).ln()
                 }
                 None => ln,
             };
@@ -421,12 +447,30 @@ pub fn random_of(model: &ModelFile) -> Random {
                         .min(clutter_max_range_m),
                     max_m: clutter_max_range_m,
                     reflectivity: clutter_reflectivity,
+                    first_echo: false,
                 });
             }
             _ => {}
         }
     }
+    if let Some(c) = &mut r.clutter {
+        c.first_echo = first_echo(model);
+    }
     r
+}
+
+/// Whether `model`'s receiver reports the nearest echo holding its share of the footprint
+/// (a beam divergence with `first_echo_share`), not the strongest.
+pub fn first_echo(model: &ModelFile) -> bool {
+    model.effects.iter().any(|e| {
+        matches!(
+            e,
+            Effect::BeamDivergence {
+                first_echo_share: Some(_),
+                ..
+            }
+        )
+    })
 }
 
 #[cfg(test)]
@@ -590,6 +634,7 @@ mod tests {
         min_m: 0.5,
         max_m: 3.0,
         reflectivity: 0.05,
+        first_echo: false,
     };
 
     #[test]
@@ -603,13 +648,18 @@ mod tests {
         assert_eq!(c.wins(Some(1e-9)), 1.0);
     }
 
-    /// In a block of last returns the droplet is reported only beyond the target, however
-    /// bright the target: a wall at 2 m hides the droplets between 0.5 and 2 m (three fifths
-    /// of them), one at 10 m all of them; with no target every droplet shows. In a block of
-    /// strongest returns the same firings follow the power rule.
+    /// Which firings report a droplet. Strongest returns: in front of the target where it
+    /// outshines it (a bright wall at 2 m: nowhere; a faint one at 10 m: the whole 0.5-3 m).
+    /// Last returns: only where no target is predicted (a droplet is always in front of it).
+    /// A first-echo receiver: anywhere in front of the target, however bright (2 m: 1.5 of
+    /// the 2.5 m). With no target, every droplet shows.
     #[test]
-    fn in_a_last_return_block_clutter_shows_only_beyond_the_target() {
+    fn the_receiver_decides_which_droplets_show() {
         let c = DRIZZLE;
+        let first = Clutter {
+            first_echo: true,
+            ..DRIZZLE
+        };
         let obs = |range: f32, power: f32| Obs {
             measured: range,
             predicted: range,
@@ -622,11 +672,16 @@ mod tests {
             ..Feature::default()
         };
         let strongest = Feature::default();
-        assert!((c.wins_firing(&obs(2.0, 1.0), &last) - 0.4).abs() < 1e-6);
-        assert_eq!(c.wins_firing(&obs(10.0, 1e-9), &last), 0.0);
-        assert_eq!(c.wins_firing(&Obs::default(), &last), 1.0);
-        assert_eq!(c.wins_firing(&obs(2.0, 1.0), &strongest), 0.0);
-        assert_eq!(c.wins_firing(&obs(10.0, 1e-9), &strongest), 1.0);
+        let (bright, faint, none) = (obs(2.0, 1.0), obs(10.0, 1e-9), Obs::default());
+        assert_eq!(c.wins_firing(&bright, &strongest), 0.0);
+        assert_eq!(c.support(&faint, &strongest), Some((0.5, 3.0)));
+        assert_eq!(c.wins_firing(&faint, &strongest), 1.0);
+        assert_eq!(c.wins_firing(&bright, &last), 0.0);
+        assert_eq!(c.wins_firing(&faint, &last), 0.0);
+        assert_eq!(c.wins_firing(&none, &last), 1.0);
+        assert_eq!(first.support(&bright, &strongest), Some((0.5, 2.0)));
+        assert!((first.wins_firing(&bright, &strongest) - 0.6).abs() < 1e-9);
+        assert_eq!(first.wins_firing(&none, &strongest), 1.0);
     }
 
     /// The Gaussian density, written out: N(e; 0, s).
@@ -812,14 +867,31 @@ mod tests {
             ..Random::default()
         };
         // A faint target at 2 m read at 1.5 m: 32 scales off, a droplet echo far likelier.
+        // The target hides the droplets behind it: one reported in 0.1 × 1.5 / 2.5 firings,
+        // at the density 0.1 / 2.5 per metre in front of it.
         let o = Obs {
             power: 1e-9,
             ..firing(1.5, 2.0)
         };
         let s = score1(&[o], &[plain()], rain);
         let target = ln_mixture(-0.5, 1.0 / 64.0, 0.02, 10.0).exp();
-        let want = (0.9 * target + 0.1 / 2.5).ln();
+        let want = (0.94 * target + 0.1 / 2.5).ln();
         assert!((s.terms[1] - want).abs() < 1e-9, "{} vs {want}", s.terms[1]);
+        // Read at 2.5 m, behind the target, it is no droplet's.
+        let behind = score1(
+            &[Obs {
+                power: 1e-9,
+                ..firing(2.5, 2.0)
+            }],
+            &[plain()],
+            rain,
+        );
+        let want = (0.94 * ln_mixture(0.5, 1.0 / 64.0, 0.02, 10.0).exp()).ln();
+        assert!(
+            (behind.terms[1] - want).abs() < 1e-9,
+            "{} vs {want}",
+            behind.terms[1]
+        );
     }
 
     /// The residual scales of a run: range residuals split at depth edges; intensity from the
@@ -956,10 +1028,11 @@ mod tests {
                 min_m: 1.0,
                 max_m: 30.0,
                 reflectivity: 0.05,
+                first_echo: false,
             }),
             ..none
         };
-        // A faint target (a clutter echo outshines it 3 times in 4).
+        // A faint target at 8 m: a clutter echo in front of it outshines it.
         let faint = Obs {
             power: 1e-4,
             ..firing(8.03, 8.0)

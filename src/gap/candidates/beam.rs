@@ -339,6 +339,8 @@ impl Fitting<'_> {
             // echo, 240 nats above the first-echo line at 5.70 mrad, which explains the
             // detections at edges better by 900 nats).
             chosen.retain(|k| k.3.is_some());
+            // And their points out of the intervals, which resample the search's points.
+            grid.retain(|g| g.share.is_some());
         }
         Ok(self.divergence_candidate(grid, &refits, &chosen))
     }
@@ -352,7 +354,8 @@ impl Fitting<'_> {
         chosen: &[Key],
     ) -> Candidate {
         // The best of the beams the searches chose (each the best width at edges on its
-        // line; the first search always chooses one).
+        // line; the first search always chooses one, and the stratified walk one of the
+        // first-echo lines it leaves).
         let i = grid
             .iter()
             .enumerate()

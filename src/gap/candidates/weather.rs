@@ -1,20 +1,20 @@
 //! The weather candidate (rain or fog, `src/sim/model.rs`): two-way extinction `exp(−2αR)` of
 //! the received power, which removes far returns through the detection threshold, and near
-//! clutter: droplet echoes that outshine the target. Offered when the model has a detection
-//! threshold (extinction acts only through it).
+//! clutter: droplet echoes in front of the target that the receiver reports instead of it.
+//! Offered when the model has a detection threshold (extinction acts only through it).
 //!
 //! Signature: returns missing more with range than the threshold alone explains, and returns
 //! within a few metres where the model sees a farther target or none. Fit: for each α of a grid
 //! the threshold is swept again on the attenuated power (the two trade off: a higher threshold
 //! also removes far returns, but not in proportion to range); the clutter probability is the
 //! share of clutter-like returns over the firings in which a clutter echo would be the
-//! strongest, its range the farthest such return.
+//! reported return (`Clutter::support`), its range the farthest such return.
 
 use super::{
     power_at, random_of, refitted_threshold, sort_rows, sweep_ll, with_effect, Candidate,
     DetectionRow, Fitting, Param, REFERENCE_REFLECTIVITY,
 };
-use crate::gap::likelihood::Clutter;
+use crate::gap::likelihood::{self, Clutter};
 use crate::gap::GapError;
 use crate::sim::model::Effect;
 use crate::sim::model::EffectKind;
@@ -97,32 +97,34 @@ impl Fitting<'_> {
             min_m,
             max_m,
             reflectivity: CLUTTER_REFLECTIVITY,
+            first_echo: likelihood::first_echo(self.current),
         };
-        let exposure: f64 = obs
-            .iter()
-            .flatten()
-            .zip(self.set.feats.iter().flatten())
-            .filter(|(o, f)| o.cast && !f.is_edge())
-            .map(|(o, f)| {
-                if f.last {
-                    // A last-return block shows a droplet where the target is not detected
-                    // (cast here without a threshold: the fitted one, after the extinction)
-                    // and beyond a detected target, where it is not clutter-like (farther
-                    // than the prediction) and so not counted above.
-                    let detected = o.predicted.is_finite()
-                        && best_p.is_none_or(|p| {
-                            f64::from(o.power) * (-2.0 * best * f64::from(o.predicted)).exp() >= p
+        // The firings in which a droplet, when there is one, is a clutter-like return: the
+        // reported one, nearer than the target (`Clutter::support`), on a firing the
+        // dropout leaves (it takes the droplet's echo with the target's).
+        let exposure: f64 = keep
+            * obs
+                .iter()
+                .flatten()
+                .zip(self.set.feats.iter().flatten())
+                .filter(|(o, f)| o.cast && !f.is_edge())
+                .map(|(o, f)| {
+                    // Cast here without a threshold: in a block of last returns, a target the
+                    // fitted threshold (after the extinction) does not detect lets the
+                    // droplets in front of it through, one it detects hides them all.
+                    let undetected = o.predicted.is_finite()
+                        && f.last
+                        && best_p.is_some_and(|p| {
+                            f64::from(o.power) * (-2.0 * best * f64::from(o.predicted)).exp() < p
                         });
-                    if detected {
-                        0.0
+                    if undetected {
+                        let span = (max_m - min_m).max(1e-9);
+                        ((f64::from(o.predicted).min(max_m) - min_m) / span).clamp(0.0, 1.0)
                     } else {
-                        1.0
+                        clutter.wins_firing(o, f)
                     }
-                } else {
-                    clutter.wins(o.predicted.is_finite().then_some(f64::from(o.power)))
-                }
-            })
-            .sum();
+                })
+                .sum::<f64>();
         let probability = if exposure > 0.0 {
             (clutter_like as f64 / exposure).min(1.0)
         } else {

@@ -255,9 +255,13 @@ impl LidarSim<'_> {
             if p > 0.0 && rng.random::<f64>() < p && n < echoes.len() {
                 let lo = self.min_range.min(rmax);
                 let r = lo + rng.random::<f64>() * (rmax - lo);
-                echoes[n] = self.contribution(r, refl, 1.0, 1.0);
-                shares[n] = 1.0;
-                n += 1;
+                // The beam ends at the first surface it meets: a droplet behind it is hidden
+                // (it would have made a last-return sensor report rain behind a wall).
+                if echoes[..n].iter().all(|e| r < e.range) {
+                    echoes[n] = self.contribution(r, refl, 1.0, 1.0);
+                    shares[n] = 1.0;
+                    n += 1;
+                }
             }
         }
         let first = fx.divergence.as_ref().and_then(|d| d.first_share);
