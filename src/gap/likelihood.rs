@@ -75,37 +75,36 @@ impl Clutter {
             if self.first_echo {
                 front
             } else {
-                let power = f64::from(o.power);
-                let outshines = if power > 0.0 {
-                    (self.reflectivity / power).sqrt()
-                } else {
-                    f64::INFINITY
-                };
-                front.min(outshines)
+                front.min(self.outshines_nearer_than(f64::from(o.power)))
             }
         };
         (hi > self.min_m).then_some((self.min_m, hi))
     }
 
+    /// The range within which a droplet's echo is stronger than a target's of `power`, m.
+    pub fn outshines_nearer_than(&self, power: f64) -> f64 {
+        if power > 0.0 {
+            (self.reflectivity / power).sqrt()
+        } else {
+            f64::INFINITY
+        }
+    }
+
     /// The probability that a droplet echo, when there is one, is the return reported for
     /// firing `o` ([`Clutter::support`]).
     pub fn wins_firing(&self, o: &Obs, f: &Feature) -> f64 {
-        let span = (self.max_m - self.min_m).max(1e-9);
-        self.support(o, f)
-            .map_or(0.0, |(lo, hi)| ((hi - lo) / span).clamp(0.0, 1.0))
+        self.share_of(self.support(o, f))
     }
 
-    /// The probability that a clutter echo, when there is one, is the strongest of a firing
-    /// whose target echo has `power` (`None`: no target).
-    pub fn wins(&self, power: Option<f64>) -> f64 {
+    /// The share of droplets that fall in `support` (`None`: none).
+    pub fn share_of(&self, support: Option<(f64, f64)>) -> f64 {
+        support.map_or(0.0, |(_, hi)| self.share_up_to(hi))
+    }
+
+    /// The share of droplets nearer than `range`, m.
+    pub fn share_up_to(&self, range: f64) -> f64 {
         let span = (self.max_m - self.min_m).max(1e-9);
-        match power {
-            Some(p) if p > 0.0 => {
-                let r = (self.reflectivity / p).sqrt().min(self.max_m);
-                ((r - self.min_m) / span).clamp(0.0, 1.0)
-            }
-            _ => 1.0,
-        }
+        ((range.min(self.max_m) - self.min_m) / span).clamp(0.0, 1.0)
     }
 }
 
@@ -226,10 +225,10 @@ pub fn score(
         };
         // Clutter: a droplet echo the receiver reports instead of the target replaces it.
         let clutter = random.clutter.map(|c| {
-            let w = c.probability * c.wins_firing(o, f);
-            (w, c)
+            let support = c.support(o, f);
+            (c.probability * c.share_of(support), c, support)
         });
-        if let Some((w, _)) = clutter {
+        if let Some((w, ..)) = clutter {
             p_return = 1.0 - (1.0 - p_return) * (1.0 - w);
         }
         let det = if o.measured.is_finite() {
@@ -249,9 +248,9 @@ pub fn score(
             // replaced the target: uniform, probability / span, over the ranges where it is
             // the reported return, none elsewhere.
             let with_clutter = |ln: f64| match clutter {
-                Some((w, c)) => {
+                Some((w, c, support)) => {
                     let m = f64::from(o.measured);
-                    let droplet = match c.support(o, f) {
+                    let droplet = match support {
                         Some((lo, hi)) if (lo..=hi).contains(&m) => {
                             c.probability / (c.max_m - c.min_m).max(1e-9)
                         }
@@ -447,14 +446,11 @@ pub fn random_of(model: &ModelFile) -> Random {
                         .min(clutter_max_range_m),
                     max_m: clutter_max_range_m,
                     reflectivity: clutter_reflectivity,
-                    first_echo: false,
+                    first_echo: first_echo(model),
                 });
             }
             _ => {}
         }
-    }
-    if let Some(c) = &mut r.clutter {
-        c.first_echo = first_echo(model);
     }
     r
 }
@@ -640,12 +636,17 @@ mod tests {
     #[test]
     fn clutter_wins_only_where_it_outshines_the_target() {
         let c = DRIZZLE;
-        assert_eq!(c.wins(None), 1.0);
+        // A target beyond the clutter's reach, in a block of strongest returns, with `power`.
+        let wins = |power: Option<f64>| match power {
+            Some(p) => c.share_up_to(c.outshines_nearer_than(p)),
+            None => c.wins_firing(&Obs::default(), &Feature::default()),
+        };
+        assert_eq!(wins(None), 1.0);
         // A bright close target (power 1): no droplet between 0.5 and 3 m outshines it.
-        assert_eq!(c.wins(Some(1.0)), 0.0);
+        assert_eq!(wins(Some(1.0)), 0.0);
         // A target of power 0.05 / 2² is outshone by droplets nearer than 2 m.
-        assert!((c.wins(Some(0.05 / 4.0)) - 0.6).abs() < 1e-9);
-        assert_eq!(c.wins(Some(1e-9)), 1.0);
+        assert!((wins(Some(0.05 / 4.0)) - 0.6).abs() < 1e-9);
+        assert_eq!(wins(Some(1e-9)), 1.0);
     }
 
     /// Which firings report a droplet. Strongest returns: in front of the target where it

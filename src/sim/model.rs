@@ -184,10 +184,11 @@ pub enum Effect {
     /// Rain or fog: two-way extinction `exp(-2 α R)` of the received power (acts through
     /// `detection_threshold`, which it requires) and near clutter: with `clutter_probability` a
     /// firing also sees a droplet echo at a uniform range up to `clutter_max_range_m` with the
-    /// power of a `clutter_reflectivity` target, unless the beam meets a surface before it. Source: Rasshofer, Spies & Spies 2011,
-    /// "Influences of weather phenomena on automotive laser radar systems"; Goodin et al. 2019,
-    /// "Predicting the influence of rain on LIDAR in ADAS" (α ≈ 0.01 R_rain^0.6 per metre for rain
-    /// rate in mm/h); fog α = 3.912 / visibility (Koschmieder).
+    /// power of a `clutter_reflectivity` target, unless the beam meets a surface before it.
+    /// Source: Rasshofer, Spies & Spies 2011, "Influences of weather phenomena on automotive
+    /// laser radar systems"; Goodin et al. 2019, "Predicting the influence of rain on LIDAR in
+    /// ADAS" (α ≈ 0.01 R_rain^0.6 per metre for rain rate in mm/h); fog α = 3.912 / visibility
+    /// (Koschmieder).
     Weather {
         /// Extinction coefficient α, per metre.
         extinction_per_m: f64,

@@ -142,8 +142,7 @@ impl Fitting<'_> {
                             f64::from(o.power) * (-2.0 * best * f64::from(o.predicted)).exp() < p
                         });
                     if undetected {
-                        let span = (max_m - min_m).max(1e-9);
-                        ((f64::from(o.predicted).min(max_m) - min_m) / span).clamp(0.0, 1.0)
+                        clutter.share_up_to(f64::from(o.predicted))
                     } else {
                         clutter.wins_firing(o, f)
                     }
