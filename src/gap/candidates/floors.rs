@@ -20,10 +20,10 @@ pub mod floor {
     pub const THRESHOLD_REMOVES: f64 = 0.002;
     /// `beam_divergence`: horizontal full angle, mrad.
     pub const DIVERGENCE_MRAD: f64 = 0.5;
-    /// `time_offset`: |offset|, ms (or the GNSS time offset's uncertainty, if larger).
+    /// `time_offset`: |offset|, ms; its interval holds the GNSS time offset's uncertainty.
     pub const TIME_OFFSET_MS: f64 = 1.0;
-    /// `mount_misalignment`: the largest angle, degrees (the yaw's: or the smoothed heading's
-    /// uncertainty, if larger).
+    /// `mount_misalignment`: the largest angle, degrees; the yaw's interval holds the smoothed
+    /// heading's uncertainty.
     pub const MOUNT_DEG: f64 = 0.1;
     /// `intensity`: the incidence exponent.
     pub const INTENSITY_EXPONENT: f64 = 0.2;
@@ -78,14 +78,14 @@ pub static FLOORS: std::sync::LazyLock<[(EffectKind, String); 10]> = std::sync::
             (
                 EffectKind::TimeOffset,
                 format!(
-                    "|offset| ≥ the larger of {} ms and the uncertainty of the GNSS time offset `check` found",
+                    "|offset| ≥ {} ms, with 95 % confidence once the uncertainty of the GNSS time offset `check` found is added to its interval",
                     floor_number(TIME_OFFSET_MS)
                 ),
             ),
             (
                 EffectKind::MountMisalignment,
                 format!(
-                    "largest angle ≥ {}° (the smoothed RTK heading is good to about that)",
+                    "largest angle ≥ {}°, with 95 % confidence once the smoothed heading's uncertainty is added to the yaw's interval",
                     floor_number(MOUNT_DEG)
                 ),
             ),
@@ -142,11 +142,11 @@ mod tests {
         assert_eq!(text(EffectKind::MotionDistortion), "none (a switch)");
         assert_eq!(
             text(EffectKind::TimeOffset),
-            "|offset| ≥ the larger of 1 ms and the uncertainty of the GNSS time offset `check` found"
+            "|offset| ≥ 1 ms, with 95 % confidence once the uncertainty of the GNSS time offset `check` found is added to its interval"
         );
         assert_eq!(
             text(EffectKind::MountMisalignment),
-            "largest angle ≥ 0.1° (the smoothed RTK heading is good to about that)"
+            "largest angle ≥ 0.1°, with 95 % confidence once the smoothed heading's uncertainty is added to the yaw's interval"
         );
         assert_eq!(FLOORS.len(), 10);
     }

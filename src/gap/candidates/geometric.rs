@@ -134,7 +134,11 @@ impl Fitting<'_> {
     /// a lidar time offset is measured against the trajectory's timing, known only to the GNSS
     /// offset's sigma, and a mount yaw against the smoothed heading, known only to its sigma.
     /// The bootstrap sees neither (it resamples the lidar's firings, not the reference), so
-    /// each side of the reported 95 % interval is widened by 1.96 times it, in quadrature.
+    /// each side of the reported 95 % interval is widened by 1.96 times it, in quadrature, and
+    /// it is that interval which must clear the resolution floor. (Until 2026-11 the lidar's own
+    /// interval had to clear the larger of the floor and one reference sigma: a true offset of
+    /// zero seen through a reference 1.5 sigma off was added, its reported interval holding
+    /// zero.)
     /// Repetitions of a drive pass the same places under the same sky, so their reference
     /// errors need not average out: the largest of the runs' sigmas is taken, not a mean.
     pub(super) fn geometric(
@@ -149,15 +153,15 @@ impl Fitting<'_> {
             Err(e) => return Ok(Candidate::unfitted(effect, e.to_string())),
         };
         let fitted = make(&theta);
-        // The floor already stands for the reference's uncertainty: it is tested on the
-        // lidar's own interval.
-        let above = floor(&theta, &intervals);
         let intervals: Vec<Option<Interval>> = intervals
             .into_iter()
             .zip(&theta)
             .zip(axes)
             .map(|((i, &v), a)| i.map(|i| widened(v, i, a.reference_sigma)))
             .collect();
+        // The floor is tested on the interval reported, the reference's uncertainty in it: an
+        // effect is never added while the interval it is reported with holds no effect at all.
+        let above = floor(&theta, &intervals);
         let model = with_effect(self.current, fitted.clone());
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
         let params = axes
@@ -245,6 +249,7 @@ pub(super) fn widened(value: f64, (lo, hi): Interval, sigma: f64) -> Interval {
 
 #[cfg(test)]
 mod tests {
+    use super::super::{clears, floor};
     use super::{irls, widened, Row};
 
     /// The robust fit of a line e = 2 + 3 x through points with 1 cm scatter and one gross
@@ -279,5 +284,20 @@ mod tests {
         assert!((hi - (2.0 + (0.2f64.powi(2) + 0.196f64.powi(2)).sqrt())).abs() < 1e-12);
         // No reference uncertainty: the interval stays.
         assert_eq!(widened(2.0, (1.9, 2.2), 0.0), (1.9, 2.2));
+    }
+
+    /// A time offset whose lidar interval is narrow but which the GNSS timing's own error could
+    /// make: the seed-5 dual-return weather drive's 4.6 ms, its lidar interval about ±1 ms, the
+    /// timing known to 3.1 ms. Its own interval clears the floor; the one it is reported and
+    /// judged with holds zero. Four sigmas of the timing clear it.
+    #[test]
+    fn an_offset_the_reference_timing_explains_does_not_clear_its_floor() {
+        let lidar = (3.6, 5.6);
+        assert!(clears(4.6, Some(lidar), floor::TIME_OFFSET_MS.max(3.1)));
+        let reported = widened(4.6, lidar, 3.1);
+        assert!(reported.0 < 0.0 && reported.1 > 10.0, "{reported:?}");
+        assert!(!clears(4.6, Some(reported), floor::TIME_OFFSET_MS));
+        let far = widened(12.4, (11.4, 13.4), 3.1);
+        assert!(clears(12.4, Some(far), floor::TIME_OFFSET_MS), "{far:?}");
     }
 }

@@ -491,9 +491,9 @@ impl Fitting<'_> {
     }
 
     fn time_offset(&self) -> Result<Candidate, GapError> {
-        // The trajectory's own timing is known only to the GNSS offset's uncertainty.
+        // The trajectory's own timing is known only to the GNSS offset's uncertainty: the
+        // reported interval holds it (see `geometric`).
         let time_sigma = self.set.largest_over_runs(|r| r.time_sigma_ms);
-        let time_floor = time_sigma.max(floor::TIME_OFFSET_MS);
         self.geometric(
             EffectKind::TimeOffset,
             &[Axis {
@@ -503,14 +503,14 @@ impl Fitting<'_> {
                 reference_sigma: time_sigma,
             }],
             &|t| Effect::TimeOffset { offset_ms: t[0] },
-            &|t, i| clears(t[0], i[0], time_floor),
+            &|t, i| clears(t[0], i[0], floor::TIME_OFFSET_MS),
         )
     }
 
     fn mount(&self) -> Result<Candidate, GapError> {
-        // The trajectory's heading error turns the whole scan like a mount yaw.
+        // The trajectory's heading error turns the whole scan like a mount yaw: the yaw's
+        // reported interval holds it (see `geometric`).
         let heading_sigma = self.set.largest_over_runs(|r| r.heading_sigma_deg);
-        let yaw_floor = heading_sigma.max(floor::MOUNT_DEG);
         let axis = |name, reference_sigma| Axis {
             name,
             step: 0.1,
@@ -532,7 +532,7 @@ impl Fitting<'_> {
             &|t, i| {
                 clears(t[0], i[0], floor::MOUNT_DEG)
                     || clears(t[1], i[1], floor::MOUNT_DEG)
-                    || clears(t[2], i[2], yaw_floor)
+                    || clears(t[2], i[2], floor::MOUNT_DEG)
             },
         )
     }
