@@ -770,6 +770,48 @@ fn weather_adds_near_clutter_and_shortens_range() {
     assert!((p - 0.2).abs() < 0.012, "clutter rate {p}");
 }
 
+/// Rain's droplets lie in front of the surface the beam meets: a wall 2 m ahead under a
+/// droplet range of 0.5-3 m hides the droplets behind it, so the last echo is always the wall
+/// (a droplet behind it was once reported as the last echo) and no echo lies beyond it, while
+/// a droplet in front of it, brighter than the faint wall, is the strongest echo in the share
+/// of firings the uniform droplet range puts there: 0.5 × (2 − 0.5) / (3 − 0.5) = 0.3.
+#[test]
+fn rain_droplets_behind_the_wall_are_hidden() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let weather = Effect::Weather {
+        extinction_per_m: 0.0,
+        clutter_probability: 0.5,
+        clutter_max_range_m: 3.0,
+        clutter_reflectivity: 0.5,
+    };
+    // The weather acts through a threshold; this one (ρ 0.1 seen to 100 m) passes all echoes.
+    let threshold = Effect::DetectionThreshold {
+        reference_range_m: 100.0,
+        reference_reflectivity: 0.1,
+    };
+    let s = scene(vec![wall(2.0, 0.1)], None);
+    let rainy = beam_sim(&s, vec![threshold, weather]);
+    let n = 20_000;
+    let mut droplets = 0;
+    for _ in 0..n {
+        let r = fire_at(&rainy, &s, Vector3::x(), &mut rng);
+        let (strongest, last) = (r.strongest.unwrap(), r.last.unwrap());
+        assert!(
+            (last.range - 2.0).abs() < 0.01,
+            "the last echo is not the wall: {last:?}"
+        );
+        assert!(
+            strongest.range < 2.01,
+            "an echo beyond the wall: {strongest:?}"
+        );
+        if strongest.range < 1.99 {
+            droplets += 1;
+        }
+    }
+    let p = f64::from(droplets) / f64::from(n);
+    assert!((p - 0.3).abs() < 0.015, "droplet share {p}");
+}
+
 /// Weather's extinction against Beer-Lambert (the two-way transmission `exp(-2 α R)` on the
 /// received power), bounded from both sides: the range at which a wall vanishes, bisected with
 /// the simulator, against the root of `ρ e^(-2αR) / R² = ρ_ref / R_ref²` found here without it.

@@ -218,19 +218,21 @@ pub fn score(
         out.firings += 1;
         let edge = f.is_edge();
         let eps = if edge { EPS_EDGE } else { EPS };
-        let mut p_return = if o.predicted.is_finite() {
-            keep * (1.0 - eps)
-        } else {
-            eps
-        };
-        // Clutter: a droplet echo the receiver reports instead of the target replaces it.
+        // Clutter: a droplet echo the receiver reports instead of the target replaces it;
+        // `w` is the chance of one on a firing the dropout leaves (a dropped firing loses its
+        // droplet with its target, as in the simulator and the weather fit's exposure).
         let clutter = random.clutter.map(|c| {
             let support = c.support(o, f);
             (c.probability * c.share_of(support), c, support)
         });
-        if let Some((w, ..)) = clutter {
-            p_return = 1.0 - (1.0 - p_return) * (1.0 - w);
-        }
+        let w = clutter.map_or(0.0, |(w, ..)| w);
+        let p_return = if o.predicted.is_finite() {
+            // Not dropped, and not both the target missed and no droplet.
+            keep * (1.0 - eps * (1.0 - w))
+        } else {
+            // A return no model explains, or a droplet on a firing not dropped.
+            1.0 - (1.0 - eps) * (1.0 - keep * w)
+        };
         let det = if o.measured.is_finite() {
             p_return
         } else {

@@ -27,8 +27,9 @@
 //! with would say the workflow should have seen it. An effect whose trial the keep rule
 //! refused (a validation metric worse) was seen: its line says it was refused, not missed.
 //!
-//! The search doubles the size from the effect's resolution floor (or the size fitted, if
-//! larger) until the test fires, then halves the last step once (so the limit is known to a
+//! The search doubles the size from the effect's resolution floor (a time offset's and a
+//! mount yaw's plus 1.96 sigmas of the reference's timing or heading, the least that can clear
+//! it; or the size fitted, if larger) until the test fires, then halves the last step once (so the limit is known to a
 //! factor of √2), and stops at the catalogue's largest sizes. Two parts of the workflow's
 //! decision are left out, on purpose: the joint re-fit of the effects added before (it moves
 //! them, not the injected one) and the keep rule's metric half (it can only refuse an effect
@@ -240,13 +241,15 @@ fn searched(
         EffectKind::TimeOffset => plain(
             "offset_ms",
             "ms, the lidar's clock late",
-            floor::TIME_OFFSET_MS.max(fit.largest_over_runs(|r| r.time_sigma_ms)),
+            // The smallest offset whose interval, the timing's sigma in it, can clear the floor.
+            floor::TIME_OFFSET_MS + 1.96 * fit.largest_over_runs(|r| r.time_sigma_ms),
             256.0,
         ),
         EffectKind::MountMisalignment => plain(
             "yaw_deg",
             "°, the sensor turned about its vertical axis",
-            floor::MOUNT_DEG.max(fit.largest_over_runs(|r| r.heading_sigma_deg)),
+            // Likewise, the heading's sigma.
+            floor::MOUNT_DEG + 1.96 * fit.largest_over_runs(|r| r.heading_sigma_deg),
             6.4,
         ),
         EffectKind::BeamDivergence => plain(

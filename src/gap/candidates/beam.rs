@@ -291,7 +291,7 @@ impl Fitting<'_> {
         //
         // Only for a beam the runs show. Otherwise there is no width for the logic to explain,
         // and the search, which costs as much again, is skipped (most rounds of a study).
-        let mut best_share: Option<(f64, f64)> = None;
+        let mut best_share: Option<(f64, f64, bool)> = None;
         for n in counts {
             let Some(&(bh, bv, ..)) = chosen.iter().find(|k| k.2 == n && k.3.is_none()) else {
                 continue;
@@ -314,10 +314,11 @@ impl Fitting<'_> {
                 }
             }
             if let Some((s, ll)) = first {
+                let decided = self.beats(&grid, &(bh, bv, n, Some(s)), &(bh, bv, n, None));
                 let h = across(bv, &mut |h, v| try_one(&mut grid, h, v, n, Some(s)))?;
                 chosen.push((h, bv, n, Some(s)));
-                if best_share.is_none_or(|(_, x)| ll > x) {
-                    best_share = Some((s, ll));
+                if best_share.is_none_or(|(_, x, _)| ll > x) {
+                    best_share = Some((s, ll, decided));
                 }
             }
         }
@@ -327,22 +328,36 @@ impl Fitting<'_> {
         // top-hat beam does. Walked again with it, with the best share; a receiver that
         // reports the strongest echo (no share wins) is not walked again, which keeps such a
         // round's cost.
-        if let Some((s, _)) = best_share {
+        if let Some((s, _, decided)) = best_share {
             let (h, v) = walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::STRATIFIED, Some(s)))?;
             chosen.push((h, v, Sampling::STRATIFIED, Some(s)));
-            // The echo logic is decided where it was tried: on one beam, a first-echo receiver
-            // explained the runs better than one that reports the strongest echo. The lines of
+            // The echo logic is decided where it was tried, when the runs decide it: on one
+            // beam, a first-echo receiver explained the runs better than one that reports the
+            // strongest echo, its gain's interval above zero (by a hair, a share could win on
+            // a strongest-echo sensor by chance; then every line stays in). The lines of
             // the strongest echo are out; their likelihood differs from the first-echo lines'
             // by the way they sample the road and the neighbours' differences, not by the echo
             // logic the runs chose (a 6 mrad beam of another footprint model, 10 m/s, 3 cm
             // survey error, was fitted as 2.93 mrad across on the 3-ray line of the strongest
             // echo, 240 nats above the first-echo line at 5.70 mrad, which explains the
             // detections at edges better by 900 nats).
-            chosen.retain(|k| k.3.is_some());
-            // And their points out of the intervals, which resample the search's points.
-            grid.retain(|g| g.share.is_some());
+            if decided {
+                chosen.retain(|k| k.3.is_some());
+                // And their points out of the intervals, which resample the search's points.
+                grid.retain(|g| g.share.is_some());
+            }
         }
         Ok(self.divergence_candidate(grid, &refits, &chosen))
+    }
+
+    /// Whether the point `a` of the divergence search explains the runs better than `b`
+    /// beyond their noise: its gain over `b` has an interval above zero.
+    fn beats(&self, grid: &[Point], a: &Key, b: &Key) -> bool {
+        let scored_at = |k: &Key| grid.iter().find(|g| g.is(k)).map(|g| g.scored.as_slice());
+        match (scored_at(a), scored_at(b)) {
+            (Some(a), Some(b)) => self.set.gain(a, b).interval.is_some_and(|(lo, _)| lo > 0.0),
+            _ => false,
+        }
     }
 
     /// The candidate of the best point of the divergence search `grid`, with the intervals of

@@ -153,15 +153,17 @@ impl Fitting<'_> {
             Err(e) => return Ok(Candidate::unfitted(effect, e.to_string())),
         };
         let fitted = make(&theta);
+        // The floor is tested on the interval reported, the reference's uncertainty in it: an
+        // effect is never added while the interval it is reported with holds no effect at all.
+        // Where the bootstrap gave none, on the reference's uncertainty alone (the value
+        // itself would let an offset of the reference's own timing through).
+        let above = floor(&theta, &judged(&theta, &intervals, axes));
         let intervals: Vec<Option<Interval>> = intervals
             .into_iter()
             .zip(&theta)
             .zip(axes)
             .map(|((i, &v), a)| i.map(|i| widened(v, i, a.reference_sigma)))
             .collect();
-        // The floor is tested on the interval reported, the reference's uncertainty in it: an
-        // effect is never added while the interval it is reported with holds no effect at all.
-        let above = floor(&theta, &intervals);
         let model = with_effect(self.current, fitted.clone());
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
         let params = axes
@@ -241,6 +243,25 @@ fn irls(rows: &[Row], s: f64, counts: &[u32]) -> Option<Vec<f64>> {
 
 /// `interval` about `value` with `sigma` more on each side: each half-width and 1.96 sigma in
 /// quadrature.
+/// The intervals a geometric effect's floor is tested on: the lidar's own `intervals` of the
+/// fitted `theta`, each widened by its axis's reference sigma ([`widened`]); where the
+/// bootstrap gave none, the reference's alone about the value.
+pub(super) fn judged(
+    theta: &[f64],
+    intervals: &[Option<Interval>],
+    axes: &[Axis],
+) -> Vec<Option<Interval>> {
+    intervals
+        .iter()
+        .zip(theta)
+        .zip(axes)
+        .map(|((i, &v), a)| {
+            (i.is_some() || a.reference_sigma > 0.0)
+                .then(|| widened(v, i.unwrap_or((v, v)), a.reference_sigma))
+        })
+        .collect()
+}
+
 pub(super) fn widened(value: f64, (lo, hi): Interval, sigma: f64) -> Interval {
     let extra = 1.96 * sigma.max(0.0);
     let (below, above) = ((value - lo).max(0.0), (hi - value).max(0.0));
@@ -250,7 +271,7 @@ pub(super) fn widened(value: f64, (lo, hi): Interval, sigma: f64) -> Interval {
 #[cfg(test)]
 mod tests {
     use super::super::{clears, floor};
-    use super::{irls, widened, Row};
+    use super::{irls, judged, widened, Axis, Row};
 
     /// The robust fit of a line e = 2 + 3 x through points with 1 cm scatter and one gross
     /// outlier: Huber's weights leave the outlier little say, and a block counted zero times
@@ -292,12 +313,25 @@ mod tests {
     /// judged with holds zero. Four sigmas of the timing clear it.
     #[test]
     fn an_offset_the_reference_timing_explains_does_not_clear_its_floor() {
+        let axis = |reference_sigma| Axis {
+            name: "offset_ms",
+            step: 2.0,
+            max_step: 60.0,
+            reference_sigma,
+        };
         let lidar = (3.6, 5.6);
         assert!(clears(4.6, Some(lidar), floor::TIME_OFFSET_MS.max(3.1)));
-        let reported = widened(4.6, lidar, 3.1);
+        let tested = judged(&[4.6], &[Some(lidar)], &[axis(3.1)]);
+        let reported = tested[0].unwrap();
+        assert_eq!(reported, widened(4.6, lidar, 3.1));
         assert!(reported.0 < 0.0 && reported.1 > 10.0, "{reported:?}");
-        assert!(!clears(4.6, Some(reported), floor::TIME_OFFSET_MS));
-        let far = widened(12.4, (11.4, 13.4), 3.1);
-        assert!(clears(12.4, Some(far), floor::TIME_OFFSET_MS), "{far:?}");
+        assert!(!clears(4.6, tested[0], floor::TIME_OFFSET_MS));
+        // Without a bootstrap interval, the reference's sigma alone still holds zero.
+        let alone = judged(&[4.6], &[None], &[axis(3.1)]);
+        assert!(!clears(4.6, alone[0], floor::TIME_OFFSET_MS), "{alone:?}");
+        // Without a reference sigma either, the value is tested as it is (as `clears` does).
+        assert_eq!(judged(&[4.6], &[None], &[axis(0.0)]), vec![None]);
+        let far = judged(&[12.4], &[Some((11.4, 13.4))], &[axis(3.1)]);
+        assert!(clears(12.4, far[0], floor::TIME_OFFSET_MS), "{far:?}");
     }
 }

@@ -16,7 +16,7 @@
 //! | `time_offset` | residuals along the ego's motion, proportional to speed and yaw rate | Gauss-Newton on the residuals away from edges |
 //! | `mount_misalignment` | residuals that rotate with the sensor, also at standstill | Gauss-Newton on roll, pitch and yaw |
 //! | `intensity` | measured reflectivity falls with the incidence angle | exponent k of cos θ by a robust fit, noise from the rest |
-//! | `weather` | far returns missing in proportion to range beyond the threshold; near returns in front of the target | extinction on a grid with the threshold re-swept; clutter share over the firings it would win |
+//! | `weather` | far returns missing in proportion to range beyond the threshold; near returns in front of the target | extinction on a grid with the threshold re-swept; clutter share over the firings whose receiver would report a droplet (`Clutter::support`) |
 //!
 //! Each effect also has a resolution floor: below it, the fitted value is not told apart from
 //! the reference data's own errors and the candidate is not eligible (see [`FLOORS`]).

@@ -15,6 +15,7 @@ use super::{
     DetectionRow, Fitting, Param, REFERENCE_REFLECTIVITY,
 };
 use crate::gap::likelihood::{self, Clutter};
+use crate::gap::observe::Obs;
 use crate::gap::GapError;
 use crate::sim::model::Effect;
 use crate::sim::model::EffectKind;
@@ -31,6 +32,10 @@ const REFINE_STEPS: u32 = 16;
 
 /// Clutter-like returns lie within this range, m.
 const CLUTTER_RANGE_M: f64 = 5.0;
+
+/// A return this much nearer than the target, m, is clutter-like (nearer ones are the target's
+/// own, with its noise); droplets within it of the target are neither counted nor exposed.
+const TARGET_MARGIN_M: f64 = 0.5;
 
 /// The apparent reflectivity of droplet echoes assumed in the fit (the catalogue's default).
 const CLUTTER_REFLECTIVITY: f64 = 0.05;
@@ -53,7 +58,7 @@ impl Fitting<'_> {
                 let m = f64::from(o.measured);
                 if o.measured.is_finite()
                     && m < CLUTTER_RANGE_M
-                    && (!o.predicted.is_finite() || m < f64::from(o.predicted) - 0.5)
+                    && (!o.predicted.is_finite() || m < f64::from(o.predicted) - TARGET_MARGIN_M)
                 {
                     clutter_ranges.push(m);
                 }
@@ -89,8 +94,9 @@ impl Fitting<'_> {
             })
         };
         let coarse = best_of(&mut ALPHAS.into_iter());
-        // Then finer, between the grid's neighbours of the best: the grid's steps are 20-40 %
-        // apart (a true 0.027 /m was fitted as 0.035, 0.0116 as 0.009, 0.0056 as 0.004).
+        // Then finer, at 15 points between the grid's neighbours of the best: the grid's
+        // steps are 20-40 % apart (a true 0.027 /m was fitted as 0.035, now 0.0297; 0.0167 as
+        // 0.014, now 0.0167).
         let i = ALPHAS.iter().position(|&a| a == coarse.0).unwrap_or(0);
         let (lo, hi) = (
             ALPHAS[i.saturating_sub(1)],
@@ -123,31 +129,7 @@ impl Fitting<'_> {
             reflectivity: CLUTTER_REFLECTIVITY,
             first_echo: likelihood::first_echo(self.current),
         };
-        // The firings in which a droplet, when there is one, is a clutter-like return: the
-        // reported one, nearer than the target (`Clutter::support`), on a firing the
-        // dropout leaves (it takes the droplet's echo with the target's).
-        let exposure: f64 = keep
-            * obs
-                .iter()
-                .flatten()
-                .zip(self.set.feats.iter().flatten())
-                .filter(|(o, f)| o.cast && !f.is_edge())
-                .map(|(o, f)| {
-                    // Cast here without a threshold: in a block of last returns, a target the
-                    // fitted threshold (after the extinction) does not detect lets the
-                    // droplets in front of it through, one it detects hides them all.
-                    let undetected = o.predicted.is_finite()
-                        && f.last
-                        && best_p.is_some_and(|p| {
-                            f64::from(o.power) * (-2.0 * best * f64::from(o.predicted)).exp() < p
-                        });
-                    if undetected {
-                        clutter.share_up_to(f64::from(o.predicted))
-                    } else {
-                        clutter.wins_firing(o, f)
-                    }
-                })
-                .sum::<f64>();
+        let exposure = self.exposure(&obs, &clutter, keep, (best, best_p));
         let probability = if exposure > 0.0 {
             (clutter_like as f64 / exposure).min(1.0)
         } else {
@@ -195,5 +177,56 @@ impl Fitting<'_> {
         );
         c.refitted.extend(threshold);
         Ok(c)
+    }
+
+    /// The firings in which a droplet, when there is one, would be counted as clutter-like:
+    /// the expected count per unit of clutter probability, for the runs cast without the
+    /// weather and the threshold (`obs`), at the fitted extinction and threshold power
+    /// (`fitted`).
+    fn exposure(
+        &self,
+        obs: &[Vec<Obs>],
+        clutter: &Clutter,
+        keep: f64,
+        (best, best_p): (f64, Option<f64>),
+    ) -> f64 {
+        // The firings in which a droplet, when there is one, is a clutter-like return: the
+        // reported one, nearer than the target (`Clutter::support`) by the margin the count
+        // asks, on a firing the dropout leaves (it takes the droplet's echo with the target's).
+        keep * obs
+            .iter()
+            .flatten()
+            .zip(self.set.feats.iter().flatten())
+            .filter(|(o, f)| o.cast && !f.is_edge())
+            .map(|(o, f)| {
+                // Cast here without the weather: the target's power as the fitted
+                // extinction leaves it, which the droplet must outshine (the score's
+                // casts hold the extinction).
+                let mut o = *o;
+                if o.predicted.is_finite() {
+                    o.power *= (-2.0 * best * f64::from(o.predicted)).exp() as f32;
+                }
+                // And without a threshold: in a block of last returns, a target the
+                // fitted threshold does not detect lets the droplets in front of it
+                // through, one it detects hides them all.
+                let undetected = o.predicted.is_finite()
+                    && f.last
+                    && best_p.is_some_and(|p| f64::from(o.power) < p);
+                let support = if undetected {
+                    Some((clutter.min_m, f64::from(o.predicted)))
+                } else {
+                    clutter.support(&o, f)
+                };
+                let counted = support.map(|(lo, hi)| {
+                    let hi = if o.predicted.is_finite() {
+                        hi.min(f64::from(o.predicted) - TARGET_MARGIN_M)
+                    } else {
+                        hi
+                    };
+                    (lo, hi)
+                });
+                clutter.share_of(counted)
+            })
+            .sum::<f64>()
     }
 }
