@@ -65,6 +65,11 @@ impl Clutter {
     ///
     /// With no target predicted, the whole range. (Scored with the strongest echo's rule, the
     /// clutter share of two last-return drives was fitted 31 % low.)
+    ///
+    /// The target is the reported echo. Under a divergent beam the simulator also hides a
+    /// droplet behind a nearer echo of part of the footprint that the receiver does not
+    /// report (a sliver of an edge): there this support is wider than the simulator's. Such
+    /// firings are edges, which the weather fit leaves out.
     pub fn support(&self, o: &Obs, f: &Feature) -> Option<(f64, f64)> {
         let hi = if !o.predicted.is_finite() {
             self.max_m
