@@ -785,6 +785,86 @@ mod tests {
         assert_eq!(miss_p.terms[1], 0.0);
     }
 
+    /// A dropped firing loses its droplet with its target (as the simulator drops it): with a
+    /// 0.5 dropout and a droplet on every firing, a firing with no target returns a droplet
+    /// half the time, and a missing target is missed only when dropped (or both the target
+    /// and the droplet are missed).
+    #[test]
+    fn a_dropped_firing_takes_its_droplet_with_it() {
+        let rain = Random {
+            dropout: 0.5,
+            clutter: Some(Clutter {
+                probability: 1.0,
+                ..DRIZZLE
+            }),
+            ..Random::default()
+        };
+        let f = [plain()];
+        // No target, a droplet at 2 m returned: the droplet's chance 0.5, or a stray return.
+        let droplet = score1(&[firing(2.0, f32::NAN)], &f, rain);
+        let want = (1.0f64 - (1.0 - 1e-3) * (1.0 - 0.5)).ln();
+        assert!(
+            (droplet.terms[0] - want).abs() < 1e-12,
+            "{:?}",
+            droplet.terms
+        );
+        // No target and nothing returned: the firing was dropped (or missed both).
+        let nothing = score1(&[firing(f32::NAN, f32::NAN)], &f, rain);
+        assert!(
+            (nothing.terms[0] - ((1.0 - 1e-3) * 0.5f64).ln()).abs() < 1e-12,
+            "{:?}",
+            nothing.terms
+        );
+        // A faint target at 10 m that every droplet outshines: a return whenever not dropped.
+        let target = Obs {
+            power: 1e-9,
+            ..firing(10.0, 10.0)
+        };
+        let kept = score1(&[target], &f, rain);
+        assert!(
+            (kept.terms[0] - 0.5f64.ln()).abs() < 1e-12,
+            "{:?}",
+            kept.terms
+        );
+    }
+
+    /// The likelihood's clutter is the model's weather: its probability and reach, the blind
+    /// zone of its limits, and a first-echo receiver where its divergence names a share.
+    #[test]
+    fn the_clutter_is_the_models_weather_and_its_receiver() {
+        let model = |share: &str, probability: f64| -> ModelFile {
+            toml::from_str(&format!(
+                r#"
+                name = "m"
+                [limits]
+                min_range_m = 0.8
+                [[effect]]
+                name = "detection_threshold"
+                reference_range_m = 80.0
+                reference_reflectivity = 0.1
+                [[effect]]
+                name = "weather"
+                extinction_per_m = 0.004
+                clutter_probability = {probability}
+                clutter_max_range_m = 2.5
+                [[effect]]
+                name = "beam_divergence"
+                horizontal_mrad = 3.0
+                vertical_mrad = 1.5
+                {share}
+                "#
+            ))
+            .unwrap()
+        };
+        let c = random_of(&model("first_echo_share = 0.3", 0.02))
+            .clutter
+            .unwrap();
+        assert_eq!((c.probability, c.min_m, c.max_m), (0.02, 0.8, 2.5));
+        assert!(c.first_echo);
+        assert!(!random_of(&model("", 0.02)).clutter.unwrap().first_echo);
+        assert_eq!(random_of(&model("", 0.0)).clutter, None);
+    }
+
     #[test]
     fn a_return_no_model_predicts_scores_the_unexplained_rate_and_more_at_depth_edges() {
         let stray = [firing(5.0, f32::NAN)];
