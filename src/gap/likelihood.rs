@@ -255,7 +255,7 @@ pub fn score(
             // replaced the target: uniform, probability / span, over the ranges where it is
             // the reported return, none elsewhere.
             let with_clutter = |ln: f64| match clutter {
-                Some((w, c, support)) => {
+                Some((_, c, support)) => {
                     let m = f64::from(o.measured);
                     let droplet = match support {
                         Some((lo, hi)) if (lo..=hi).contains(&m) => {

@@ -29,8 +29,8 @@
 //!
 //! The search doubles the size from the effect's resolution floor (a time offset's and a
 //! mount yaw's plus 1.96 sigmas of the reference's timing or heading, the least that can clear
-//! it; or the size fitted, if larger) until the test fires, then halves the last step once (so the limit is known to a
-//! factor of √2), and stops at the catalogue's largest sizes. Two parts of the workflow's
+//! it; or the size fitted, if larger) until the test fires, then halves the last step once
+//! (so the limit is known to a factor of √2), and stops at the catalogue's largest sizes. Two parts of the workflow's
 //! decision are left out, on purpose: the joint re-fit of the effects added before (it moves
 //! them, not the injected one) and the keep rule's metric half (it can only refuse an effect
 //! the likelihood found, so the limit is where an effect is *seen*; a refusal is said in the
@@ -40,7 +40,7 @@
 //! the workflow's test on the injection, the search over sizes and what it writes), of which
 //! about a sixth is its tests.
 
-use super::candidates::{floor, with_effect, Fitting};
+use super::candidates::{floor, least_clearing, with_effect, Fitting};
 use super::observe::Obs;
 use super::runset::{Measured, RunSet};
 use super::GapError;
@@ -242,14 +242,20 @@ fn searched(
             "offset_ms",
             "ms, the lidar's clock late",
             // The smallest offset whose interval, the timing's sigma in it, can clear the floor.
-            floor::TIME_OFFSET_MS + 1.96 * fit.largest_over_runs(|r| r.time_sigma_ms),
+            least_clearing(
+                floor::TIME_OFFSET_MS,
+                fit.largest_over_runs(|r| r.time_sigma_ms),
+            ),
             256.0,
         ),
         EffectKind::MountMisalignment => plain(
             "yaw_deg",
             "°, the sensor turned about its vertical axis",
             // Likewise, the heading's sigma.
-            floor::MOUNT_DEG + 1.96 * fit.largest_over_runs(|r| r.heading_sigma_deg),
+            least_clearing(
+                floor::MOUNT_DEG,
+                fit.largest_over_runs(|r| r.heading_sigma_deg),
+            ),
             6.4,
         ),
         EffectKind::BeamDivergence => plain(

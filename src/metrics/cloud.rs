@@ -26,51 +26,50 @@ pub(super) struct Cloud {
     pub(super) middle: UtcNanos,
 }
 
-/// The body poses at a packet's first and last firing, interpolated for the firings between.
-///
-/// A packet spans about a millisecond, in which the body turns by well under a milliradian: a
-/// normalised linear blend of the two rotations differs from the trajectory's own interpolation
-/// by far less than a micrometre at 100 m, and saves computing a rotation from Euler angles for
-/// every point (a fifth of `compare`'s decoding time). Translation is blended linearly, as the
-/// trajectory does between its samples.
-struct PacketPoses {
-    ends: Option<(UtcNanos, Isometry3<f64>, UtcNanos, Isometry3<f64>)>,
+/// A packet's sensor placement, blended linearly between its first and last firing: the
+/// rotation matrices and translations of the sensor at the two ends (body pose and mount
+/// composed), not the poses. A packet spans about a millisecond, in which the body turns by
+/// well under a milliradian: the blended matrix departs from a rotation by under 1e-7 (a
+/// micrometre at 10 m), and one matrix blend and product per point replaces computing a
+/// rotation from Euler angles (a fifth of `compare`'s decoding time) and, after that, a
+/// quaternion blend, its normalisation and two compositions (a sixth of its time on a parking
+/// repetition). Translation is blended linearly, as the trajectory does between its samples.
+struct Placement {
+    a: UtcNanos,
+    per_ns: f64,
+    r: Matrix3<f64>,
+    dr: Matrix3<f64>,
+    t: Vector3<f64>,
+    dt: Vector3<f64>,
 }
 
-impl PacketPoses {
-    fn new(
+impl Placement {
+    /// The placement over the packet of `points`, whose stamp is `first`, or `None` when an
+    /// end of it lies outside the trajectory (its points are then placed one by one).
+    fn of_packet(
         trajectory: &Trajectory,
         first: UtcNanos,
         points: &[LidarPoint],
+        mount: &Isometry3<f64>,
         hint: &mut usize,
-    ) -> PacketPoses {
+    ) -> Option<Placement> {
         let (lo, hi) = points.iter().fold((i64::MAX, i64::MIN), |(lo, hi), q| {
             let t = i64::from(q.time_offset_ns);
             (lo.min(t), hi.max(t))
         });
         if lo > hi {
-            return PacketPoses { ends: None };
+            return None;
         }
         let (a, b) = (UtcNanos(first.0 + lo), UtcNanos(first.0 + hi));
-        let ends = trajectory
-            .pose_at(a, hint)
-            .zip(trajectory.pose_at(b, hint))
-            .map(|(pa, pb)| (a, pa, b, pb));
-        PacketPoses { ends }
-    }
-
-    /// The sensor's placement in the scene over the packet (the body poses composed with
-    /// `mount`), or `None` when an end of the packet lies outside the trajectory.
-    fn placement(&self, mount: &Isometry3<f64>) -> Option<Placement> {
-        let (a, pa, b, pb) = self.ends.as_ref()?;
-        let (sa, sb) = (pa * mount, pb * mount);
+        let sa = trajectory.pose_at(a, hint)? * mount;
+        let sb = trajectory.pose_at(b, hint)? * mount;
         let (ra, rb) = (
             sa.rotation.to_rotation_matrix().into_inner(),
             sb.rotation.to_rotation_matrix().into_inner(),
         );
         let (ta, tb) = (sa.translation.vector, sb.translation.vector);
         Some(Placement {
-            a: *a,
+            a,
             per_ns: if b.0 == a.0 {
                 0.0
             } else {
@@ -82,24 +81,7 @@ impl PacketPoses {
             dt: tb - ta,
         })
     }
-}
 
-/// A packet's sensor placement, blended linearly between its first and last firing: the
-/// rotation matrices and translations of the two ends, not the poses (one matrix blend and
-/// product per point instead of a quaternion blend, its normalisation and two compositions,
-/// which were a sixth of `compare`'s time on a parking repetition). Over a packet's
-/// milliradian of turn the blended matrix departs from a rotation by under 1e-7, a micrometre
-/// at 10 m.
-struct Placement {
-    a: UtcNanos,
-    per_ns: f64,
-    r: Matrix3<f64>,
-    dr: Matrix3<f64>,
-    t: Vector3<f64>,
-    dt: Vector3<f64>,
-}
-
-impl Placement {
     /// The sensor-frame point `p`, fired at `t`, in the scene frame.
     #[inline]
     fn place(&self, t: UtcNanos, p: &Vector3<f64>) -> Point3<f64> {
@@ -152,8 +134,8 @@ impl Frame<'_> {
             {
                 continue;
             }
-            let span = PacketPoses::new(self.trajectory, first, &decoded, &mut hint)
-                .placement(&self.mount);
+            let span =
+                Placement::of_packet(self.trajectory, first, &decoded, &self.mount, &mut hint);
             for q in &decoded {
                 let at = UtcNanos(first.0 + i64::from(q.time_offset_ns));
                 let p = Vector3::new(f64::from(q.x), f64::from(q.y), f64::from(q.z));
@@ -206,7 +188,7 @@ pub(super) fn firing_key(packet: usize, time_offset_ns: u32, laser: u8, return_t
 
 #[cfg(test)]
 mod tests {
-    use super::{firing_key, PacketPoses};
+    use super::{firing_key, Placement};
     use crate::scene::pose::{PoseSample, Trajectory};
     use hilrig_stamp::UtcNanos;
     use hilrig_velodyne::{LaserId, Point as LidarPoint, ReturnType};
@@ -252,8 +234,7 @@ mod tests {
         let first = UtcNanos(t0 + 4_100_000_000 + 37_000);
         let points: Vec<LidarPoint> = [2_304, 655_000, 1_327_104, 90_000].map(firing).into();
         let mount = Isometry3::new(Vector3::new(1.2, 0.1, 1.9), Vector3::new(0.01, -0.02, 0.3));
-        let placement = PacketPoses::new(&trajectory, first, &points, &mut 0)
-            .placement(&mount)
+        let placement = Placement::of_packet(&trajectory, first, &points, &mount, &mut 0)
             .expect("a packet inside the trajectory is placed");
         for offset in [2_304, 300_000, 655_000, 1_000_000, 1_327_104] {
             let t = UtcNanos(first.0 + offset);
@@ -274,9 +255,7 @@ mod tests {
         // A packet that ends beyond the trajectory has no blend (its firings are looked up one
         // by one).
         let late = UtcNanos(t0 + 10_000_000_000 - 500_000);
-        assert!(PacketPoses::new(&trajectory, late, &points, &mut 0)
-            .placement(&mount)
-            .is_none());
+        assert!(Placement::of_packet(&trajectory, late, &points, &mount, &mut 0).is_none());
     }
 
     #[test]

@@ -157,12 +157,13 @@ impl Fitting<'_> {
         // effect is never added while the interval it is reported with holds no effect at all.
         // Where the bootstrap gave none, on the reference's uncertainty alone (the value
         // itself would let an offset of the reference's own timing through).
-        let above = floor(&theta, &judged(&theta, &intervals, axes));
+        let tested = judged(&theta, &intervals, axes);
+        let above = floor(&theta, &tested);
+        // Reported: the same, where the bootstrap gave an interval.
         let intervals: Vec<Option<Interval>> = intervals
-            .into_iter()
-            .zip(&theta)
-            .zip(axes)
-            .map(|((i, &v), a)| i.map(|i| widened(v, i, a.reference_sigma)))
+            .iter()
+            .zip(tested)
+            .map(|(own, t)| own.and(t))
             .collect();
         let model = with_effect(self.current, fitted.clone());
         let scored = self.score_all(&self.cast(&model)?, random_of(&model));
@@ -241,8 +242,6 @@ fn irls(rows: &[Row], s: f64, counts: &[u32]) -> Option<Vec<f64>> {
     Some(delta)
 }
 
-/// `interval` about `value` with `sigma` more on each side: each half-width and 1.96 sigma in
-/// quadrature.
 /// The intervals a geometric effect's floor is tested on: the lidar's own `intervals` of the
 /// fitted `theta`, each widened by its axis's reference sigma ([`widened`]); where the
 /// bootstrap gave none, the reference's alone about the value.
@@ -262,8 +261,19 @@ pub(super) fn judged(
         .collect()
 }
 
+/// The normal quantile of the reported intervals' 95 %.
+const Z95: f64 = 1.96;
+
+/// The least size of an effect whose interval, widened by `reference_sigma`, can clear `floor`:
+/// the detection-limit search starts there.
+pub(in crate::gap) fn least_clearing(floor: f64, reference_sigma: f64) -> f64 {
+    floor + Z95 * reference_sigma.max(0.0)
+}
+
+/// `interval` about `value` with `sigma` more on each side: each half-width and 1.96 sigma in
+/// quadrature.
 pub(super) fn widened(value: f64, (lo, hi): Interval, sigma: f64) -> Interval {
-    let extra = 1.96 * sigma.max(0.0);
+    let extra = Z95 * sigma.max(0.0);
     let (below, above) = ((value - lo).max(0.0), (hi - value).max(0.0));
     (value - below.hypot(extra), value + above.hypot(extra))
 }

@@ -25,6 +25,7 @@ mod beam;
 mod detection;
 mod floors;
 mod geometric;
+pub(super) use geometric::least_clearing;
 mod weather;
 pub use floors::{floor, FLOORS};
 

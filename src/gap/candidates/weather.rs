@@ -212,20 +212,19 @@ impl Fitting<'_> {
                 let undetected = o.predicted.is_finite()
                     && f.last
                     && best_p.is_some_and(|p| f64::from(o.power) < p);
-                let support = if undetected {
-                    Some((clutter.min_m, f64::from(o.predicted)))
+                // The farthest a reported droplet lies, and nearer than the target by the
+                // count's margin.
+                let reach = if undetected {
+                    Some(f64::from(o.predicted))
                 } else {
-                    clutter.support(&o, f)
+                    clutter.support(&o, f).map(|(_, hi)| hi)
                 };
-                let counted = support.map(|(lo, hi)| {
-                    let hi = if o.predicted.is_finite() {
-                        hi.min(f64::from(o.predicted) - TARGET_MARGIN_M)
-                    } else {
-                        hi
-                    };
-                    (lo, hi)
-                });
-                clutter.share_of(counted)
+                let margin = if o.predicted.is_finite() {
+                    f64::from(o.predicted) - TARGET_MARGIN_M
+                } else {
+                    f64::INFINITY
+                };
+                reach.map_or(0.0, |hi| clutter.share_up_to(hi.min(margin)))
             })
             .sum::<f64>()
     }
