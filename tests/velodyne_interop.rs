@@ -403,7 +403,7 @@ fn vls128_agrees_with_nebulas_cloud_at_the_cm_level() {
 /// rig line, if any) in return mode `mode`: the first 2 m of the short parking-aisle drive of
 /// fixtures/efast (about 2.9 s with the lead-in and out, 29 rotations: thousands of packets of
 /// every block layout of a rotation; the whole 10 m, 6.3 s, took a minute and a half of the
-/// test run for the two 64- and 128-laser sensors and decoded nothing new), with the parking
+/// test run for the 64- and 128-laser sensors alone, and decoded nothing new), with the parking
 /// truth model (noise, beam divergence, dropout, Lambertian intensity). Returns the lidar
 /// frames as a classic pcap (what velodyne-decoder reads).
 fn synthesized_lidar_pcap(
