@@ -38,6 +38,9 @@ pub enum OutputKind {
     CampaignPlan,
     /// A campaign task's stamp: what it read and wrote when it finished.
     CampaignTask,
+    /// `hilrig gap trial`: one validation run re-simulated with a round's model and measured,
+    /// for the gap workflow that planned it.
+    GapTrial,
 }
 
 impl OutputKind {
@@ -51,12 +54,16 @@ impl OutputKind {
             OutputKind::Gap => "gap",
             OutputKind::CampaignPlan => "campaign plan --json",
             OutputKind::CampaignTask => "campaign",
+            OutputKind::GapTrial => "gap",
         }
     }
 
     /// Whether `report` reads it (the campaign's own files are not results).
     pub fn is_result(self) -> bool {
-        !matches!(self, OutputKind::CampaignPlan | OutputKind::CampaignTask)
+        !matches!(
+            self,
+            OutputKind::CampaignPlan | OutputKind::CampaignTask | OutputKind::GapTrial
+        )
     }
 
     /// The spelling in the envelope.
@@ -69,6 +76,7 @@ impl OutputKind {
             OutputKind::Gap => "gap",
             OutputKind::CampaignPlan => "campaign_plan",
             OutputKind::CampaignTask => "campaign_task",
+            OutputKind::GapTrial => "gap_trial",
         }
     }
 }
@@ -112,7 +120,7 @@ pub enum OutputError {
         path: PathBuf,
     },
     /// A kind this build does not know.
-    #[error("{path}: kind \"{kind}\" is not one of recording, check, compare, validate, gap, campaign_plan, campaign_task")]
+    #[error("{path}: kind \"{kind}\" is not one of recording, check, compare, validate, gap, campaign_plan, campaign_task, gap_trial")]
     UnknownKind {
         /// The file.
         path: PathBuf,

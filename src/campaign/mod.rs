@@ -10,6 +10,7 @@
 
 pub mod efast;
 pub mod file;
+pub mod gap_rounds;
 mod graph;
 pub mod local;
 pub mod mirror;

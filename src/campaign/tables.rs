@@ -50,7 +50,10 @@ impl TableKind {
             OutputKind::Check => &[TableKind::CheckEpochs, TableKind::CheckRuns],
             OutputKind::Validate => &[TableKind::ValidateCells],
             OutputKind::Gap => &[TableKind::GapTrials],
-            OutputKind::Recording | OutputKind::CampaignPlan | OutputKind::CampaignTask => &[],
+            OutputKind::Recording
+            | OutputKind::CampaignPlan
+            | OutputKind::CampaignTask
+            | OutputKind::GapTrial => &[],
         }
     }
 }

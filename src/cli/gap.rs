@@ -3,14 +3,71 @@
 //! not), 2 on bad input or a run that fails `check` without --force.
 
 use anyhow::Result;
+use hilrig::campaign::gap_rounds::Runner;
 use hilrig::gap::study::Study;
+use hilrig::gap::trial::TrialTask;
 use hilrig::gap::workflow::{run, Options, Progress};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Mutex;
 
 #[derive(clap::Args)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
 pub struct GapArgs {
+    #[command(subcommand)]
+    sub: Option<Sub>,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+#[derive(clap::Subcommand)]
+enum Sub {
+    /// One validation run re-simulated with a round's model and measured (OCR^K, precision,
+    /// IoU, the scans' features): the task a study's round plans per validation run when its
+    /// full re-simulations run on an engine (`gap --jobs` or `--engine`). Writes the result
+    /// as JSON (kind `gap_trial`); exit 0 when written, 2 when not.
+    Trial(TrialArgs),
+}
+
+#[derive(clap::Args)]
+struct TrialArgs {
+    /// The recording.
+    #[arg(long)]
+    recording: PathBuf,
+    /// Its scene.
+    #[arg(long)]
+    scene: PathBuf,
+    /// The rig file; default: the one attached to the recording.
+    #[arg(long)]
+    rig: Option<PathBuf>,
+    /// The model (model.toml).
+    #[arg(long)]
+    model: PathBuf,
+    /// The model's deterministic part, simulated from the same casts (not written).
+    #[arg(long)]
+    deterministic: Option<PathBuf>,
+    /// Seed of the model's randomness.
+    #[arg(long)]
+    seed: u64,
+    /// Where the simulation goes (MCAP).
+    #[arg(long)]
+    simulation: PathBuf,
+    /// Remove the simulation once it is measured.
+    #[arg(long)]
+    scratch: bool,
+    /// Also measure the recorded scans' features.
+    #[arg(long)]
+    measured: bool,
+    /// Use a run that fails `check`.
+    #[arg(long)]
+    force: bool,
+    /// The result (JSON).
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
     /// The study file (TOML: `model`, `scene`, `[[run]]` with recording, scene, role).
     study: Option<PathBuf>,
     /// Parameterization runs (.mcap), when no study file is given: all share --scene.
@@ -29,8 +86,8 @@ pub struct GapArgs {
     #[arg(long)]
     rig: Option<PathBuf>,
     /// Output directory: model.fitted.toml, gap.json, sim/ (full re-simulations).
-    #[arg(short, long)]
-    output: PathBuf,
+    #[arg(short, long, required = true)]
+    output: Option<PathBuf>,
     /// Use runs that fail `check` (their trajectory errors may then pass for lidar effects).
     #[arg(long)]
     force: bool,
@@ -53,6 +110,16 @@ pub struct GapArgs {
     /// of each that the runs would have shown, found by injecting it into them).
     #[arg(long)]
     no_detection_limits: bool,
+    /// Run each round's full re-simulations as a plan of `gap trial` tasks on the campaigns'
+    /// local executor, this many processes at a time (default: in this process, one
+    /// validation run after the other, each scene loaded once).
+    #[arg(long, conflicts_with = "engine", value_parser = clap::value_parser!(u16).range(1..))]
+    jobs: Option<u16>,
+    /// Run each round's full re-simulations as a plan of `gap trial` tasks on an engine: a
+    /// command, as a shell would split it, that takes the plan file as its last argument,
+    /// e.g. "python -m hilrig_ray --address auto --hilrig /path/to/hilrig".
+    #[arg(long)]
+    engine: Option<String>,
 }
 
 struct Bars {
@@ -97,6 +164,40 @@ impl Progress for Bars {
 }
 
 pub fn run_cli(args: GapArgs) -> Result<ExitCode> {
+    match args.sub {
+        Some(Sub::Trial(t)) => trial(t),
+        None => run_study(args.run),
+    }
+}
+
+fn trial(t: TrialArgs) -> Result<ExitCode> {
+    let task = TrialTask {
+        recording: t.recording,
+        scene: t.scene,
+        rig: t.rig,
+        model: t.model,
+        deterministic: t.deterministic,
+        seed: t.seed,
+        simulation: t.simulation,
+        scratch: t.scratch,
+        measured: t.measured,
+        force: t.force,
+        output: t.output,
+    };
+    match hilrig::gap::trial::trial(&task) {
+        Ok(_) => Ok(ExitCode::SUCCESS),
+        Err(e) => {
+            eprintln!("error: {e}");
+            Ok(ExitCode::from(2))
+        }
+    }
+}
+
+fn run_study(args: RunArgs) -> Result<ExitCode> {
+    let output = args
+        .output
+        .clone()
+        .expect("clap requires --output without a subcommand");
     let fail = |e: &dyn std::fmt::Display| {
         eprintln!("error: {e}");
         Ok(ExitCode::from(2))
@@ -130,14 +231,27 @@ pub fn run_cli(args: GapArgs) -> Result<ExitCode> {
         current: Mutex::new(None),
         started: Mutex::new(None),
     };
+    let engine = match (&args.jobs, &args.engine) {
+        (Some(jobs), _) => Some(Runner::Local {
+            exe: std::env::current_exe()?,
+            jobs: usize::from(*jobs),
+        }),
+        (None, Some(command)) => match shlex::split(command) {
+            Some(argv) if !argv.is_empty() => Some(Runner::Command(argv)),
+            _ => return fail(&format!("--engine {command:?}: not a command")),
+        },
+        (None, None) => None,
+    }
+    .map(|r| std::sync::Arc::new(r) as std::sync::Arc<dyn hilrig::gap::trial::RoundEngine>);
     let opts = Options {
-        out: args.output.clone(),
+        out: output.clone(),
         firings: args.firings,
         force: args.force,
         max_rounds: args.max_rounds,
         full_metrics: !args.no_full_metrics,
         reference_model: args.reference_model.clone(),
         detection_limits: !args.no_detection_limits,
+        engine,
     };
     let result = run(&study, &opts, &bars);
     if let Ok(mut started) = bars.started.lock() {
@@ -165,8 +279,8 @@ pub fn run_cli(args: GapArgs) -> Result<ExitCode> {
             }
             eprintln!(
                 "{}: fitted model; {}: every round",
-                args.output.join("model.fitted.toml").display(),
-                args.output.join("gap.json").display()
+                output.join("model.fitted.toml").display(),
+                output.join("gap.json").display()
             );
             Ok(ExitCode::SUCCESS)
         }

@@ -4,25 +4,22 @@
 //! gap shrink on data the fit did not see, and the keep rule's metric half ([`super::keep`])
 //! judges every trial by them.
 
-use super::keep::{self, GridBasis, Samples, ScanSample};
+use super::engine::Engine;
+use super::keep::{self, GridBasis, Samples};
 use super::observe::RunData;
 use super::report::{FeatureAvm, FeatureLight, MetricCheck, ReferenceCheck, RunMetrics};
+use super::trial::{one_run, seed_of, simulation_path, TrialRun};
 use super::GapError;
-use crate::metrics::compare::{compare_simulated, Options as CompareOptions, ToSimulate};
-use crate::metrics::features::scan_features;
-use crate::metrics::grid::Dims;
-use crate::metrics::roi::Region;
 use crate::sim::model::ModelFile;
-use crate::sim::resim::Resimulator;
 use crate::stats::repetitions::RunFeatures;
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// Re-simulates the validation runs in full with `model` into `dir` and measures them: each run
 /// is read once, its scans cast batch by batch and compared as they come (OCR^K, precision,
 /// IoU at the admissible cell), and their features kept for the validation (Rosenberger et al.
 /// 2019, Fig. 7) of the simulated runs against the measured ones. The simulations are written
-/// to `dir` (their VelodyneScans) for the user to open.
+/// to `dir` (their VelodyneScans) for the user to open. The runs are re-simulated here one
+/// after the other, or as the tasks of a plan on `engine`.
 ///
 /// With `det` (the model's deterministic part, [`keep::deterministic_part`]), the same casts
 /// give its simulation too ([`Resimulator::cast_pair`]), compared on a second thread as the
@@ -39,13 +36,30 @@ fn run_metrics(
     det: Option<&ModelFile>,
     (dir, tag, keep_files): (&Path, &str, bool),
     measured: &mut Vec<RunFeatures>,
+    engine: &Engine,
 ) -> Result<(RunMetrics, Samples, Option<Samples>), GapError> {
     std::fs::create_dir_all(dir).map_err(|source| GapError::Output {
         path: dir.to_owned(),
         source,
     })?;
-    let quiet = |_: u64, _: u64| {};
     let known = measured.len() == val.len();
+    let runs: Vec<TrialRun> = match engine {
+        Engine::InProcess => val
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                one_run(
+                    r,
+                    seed_of(i),
+                    (model, det),
+                    &simulation_path(dir, tag, i),
+                    keep_files,
+                    !known,
+                )
+            })
+            .collect::<Result<_, _>>()?,
+        planned => planned.run(val, (model, det), (dir, tag, keep_files), !known)?,
+    };
     if !known {
         measured.clear();
     }
@@ -53,128 +67,25 @@ fn run_metrics(
     let mut samples = Samples::default();
     let mut det_samples = det.map(|_| Samples::default());
     let (mut ocr, mut precision, mut iou) = (Vec::new(), Vec::new(), Vec::new());
-    for (i, r) in val.iter().enumerate() {
-        let sim_path = dir.join(format!("{tag}-validation-{:02}.mcap", i + 1));
-        let (_, sensor, calibration) = r.rig.lidar_sensor().map_err(|source| GapError::Lidar {
-            run: r.name.clone(),
-            source,
-        })?;
-        let decoder = hilrig_velodyne::Decoder::with_calibration(sensor, calibration);
-        let resim_error = |source| GapError::Resim {
-            run: r.name.clone(),
-            source,
-        };
-        let mut resim = Resimulator::new(
-            &r.path,
-            &r.rig,
-            &r.scene,
-            &r.scene_path,
-            model,
-            i as u64 + 1,
-            &sim_path,
-            r.trajectory.span().0,
-        )
-        .map_err(resim_error)?;
-        if let Some(det) = det {
-            resim = resim
-                .with_deterministic_part(&r.rig, &r.scene, det)
-                .map_err(resim_error)?;
+    for (r, t) in val.iter().zip(runs) {
+        samples.runs.push(t.samples);
+        if let Some(d) = det_samples.as_mut() {
+            d.runs.push(t.deterministic.unwrap_or_default());
         }
-        let (mut real_scans, mut sim_scans) = (Vec::new(), Vec::new());
-        let compare_error = |source| GapError::Compare {
-            run: r.name.clone(),
-            source: std::sync::Arc::new(source),
-        };
-        let checked = r.checked.clone().map_err(|source| GapError::Compare {
-            run: r.name.clone(),
-            source,
-        })?;
-        let (c, det_c) = std::thread::scope(|scope| {
-            // The deterministic part's twins, a batch at a time, to its own comparison: at
-            // most one batch waits (memory stays a batch's, whatever the run's length).
-            let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<crate::bag::scans::Scan>>(1);
-            let det_thread = det.map(|_| {
-                let checked = checked.clone();
-                let decoder = decoder.clone();
-                scope.spawn(move || {
-                    let mut features = Vec::new();
-                    let c = compare_simulated(
-                        &r.path,
-                        checked,
-                        &mut |t: ToSimulate<'_>| {
-                            let sims = rx
-                                .recv()
-                                .map_err(|_| "the model's own comparison stopped")?;
-                            if sims.len() != t.scans.len() {
-                                return Err("the twins of another batch".into());
-                            }
-                            features.extend(scan_features(&sims, &decoder));
-                            Ok(sims)
-                        },
-                        Some(&r.scene),
-                        options(),
-                        &quiet,
-                    );
-                    (c, features)
-                })
-            });
-            let c = compare_simulated(
-                &r.path,
-                checked,
-                &mut |t: ToSimulate<'_>| {
-                    let sims = if det.is_some() {
-                        let (sims, part) = resim.cast_pair(t.trajectory, t.pps_locked, t.scans)?;
-                        tx.send(part)
-                            .map_err(|_| "the deterministic part's comparison stopped")?;
-                        sims
-                    } else {
-                        resim.cast(t.trajectory, t.pps_locked, t.scans)?
-                    };
-                    if !known {
-                        real_scans.extend(scan_features(t.scans, &decoder));
-                    }
-                    sim_scans.extend(scan_features(&sims, &decoder));
-                    Ok(sims)
-                },
-                Some(&r.scene),
-                options(),
-                &quiet,
-            );
-            // No more twins: the deterministic part's comparison ends with the run (or learns
-            // that this one stopped).
-            drop(tx);
-            let det_c = det_thread.map(|t| t.join().expect("the comparison thread does not panic"));
-            (c, det_c)
-        });
-        // The model's own error first: the other side's is then only that it stopped.
-        let c = c.map_err(compare_error)?;
-        let det_c = match det_c {
-            Some((c, features)) => Some((c.map_err(compare_error)?, features)),
-            None => None,
-        };
-        resim.finish().map_err(resim_error)?;
-        if !keep_files {
-            // A scratch simulation: nothing a user opens. Failing to remove it loses nothing.
-            let _ = std::fs::remove_file(&sim_path);
-        }
-        samples.runs.push(per_scan(&c, &sim_scans));
-        if let (Some(d), Some((c, features))) = (det_samples.as_mut(), &det_c) {
-            d.runs.push(per_scan(c, features));
-        }
-        ocr.extend(c.summary.ocr_mean);
-        precision.extend(c.summary.precision_mean);
-        iou.extend(c.summary.iou_mean);
+        ocr.extend(t.ocr);
+        precision.extend(t.precision);
+        iou.extend(t.iou);
         if !known {
             measured.push(RunFeatures {
                 name: r.path.display().to_string(),
                 damage: None,
-                scans: real_scans,
+                scans: t.measured.unwrap_or_default(),
             });
         }
         sim_features.push(RunFeatures {
-            name: sim_path.display().to_string(),
+            name: t.simulation.display().to_string(),
             damage: None,
-            scans: sim_scans,
+            scans: t.simulated,
         });
     }
     let v = crate::stats::repetitions::validate_features(measured, &sim_features, &[])?;
@@ -183,24 +94,6 @@ fn run_metrics(
         samples,
         det_samples,
     ))
-}
-
-/// The comparison the rounds make: OCR, precision and IoU at the admissible cell.
-fn options() -> CompareOptions {
-    CompareOptions {
-        cell_m: None,
-        k: 1,
-        dims: Dims::Voxel,
-        region: Region::All,
-        exclude_ground: true,
-        allow_small_cell: false,
-        trajectory: None,
-        sensor_frame: false,
-        grid_phases: crate::metrics::compare::DEFAULT_GRID_PHASES,
-        // The rounds report OCR, precision and IoU: no curve, no point metrics.
-        curve_every: 0,
-        point_metrics: false,
-    }
 }
 
 /// The round's metrics: the runs' mean OCR, precision and IoU, and the validation's cells.
@@ -233,23 +126,6 @@ fn metrics_of(
     }
 }
 
-/// Per scan of a comparison, what the keep rule judges: its grid metrics and the simulated
-/// scan's features.
-fn per_scan(
-    c: &crate::metrics::compare::Comparison,
-    features: &[crate::metrics::features::ScanFeatures],
-) -> BTreeMap<i64, ScanSample> {
-    let mut per_scan: BTreeMap<i64, ScanSample> = BTreeMap::new();
-    for row in &c.scans {
-        per_scan.entry(row.stamp_ns).or_default().grid =
-            row.grid.map(|g| [g.ocr, g.precision, g.iou]);
-    }
-    for f in features {
-        per_scan.entry(f.stamp.0).or_default().features = Some(f.values());
-    }
-    per_scan
-}
-
 /// A model's full re-simulation of the validation runs: its metrics and its scans.
 struct Full {
     model: ModelFile,
@@ -270,6 +146,8 @@ pub(super) struct Judged {
 /// trial's judged against them.
 pub(super) struct Watch<'a> {
     val: &'a [RunData],
+    /// Where the re-simulations run.
+    engine: Engine,
     dir: PathBuf,
     measured: Vec<RunFeatures>,
     now: Full,
@@ -280,12 +158,24 @@ pub(super) struct Watch<'a> {
 
 impl<'a> Watch<'a> {
     /// Re-simulates the validation runs with the start model (the round-0 simulations).
-    pub fn start(val: &'a [RunData], model: &ModelFile, dir: PathBuf) -> Result<Self, GapError> {
+    pub fn start(
+        val: &'a [RunData],
+        model: &ModelFile,
+        dir: PathBuf,
+        engine: Engine,
+    ) -> Result<Self, GapError> {
         let mut measured = Vec::new();
-        let (metrics, samples, _) =
-            run_metrics(val, model, None, (&dir, "round-0", true), &mut measured)?;
+        let (metrics, samples, _) = run_metrics(
+            val,
+            model,
+            None,
+            (&dir, "round-0", true),
+            &mut measured,
+            &engine,
+        )?;
         Ok(Watch {
             val,
+            engine,
             dir,
             measured,
             now: Full {
@@ -310,6 +200,7 @@ impl<'a> Watch<'a> {
             None,
             (&dir, tag, false),
             &mut self.measured,
+            &self.engine,
         )?
         .1)
     }
@@ -334,8 +225,14 @@ impl<'a> Watch<'a> {
         // The trial's deterministic part, where the grid is judged on it, from the trial's
         // own casts.
         let det = (basis != GridBasis::Unchanged && random_trial).then_some(&det_trial);
-        let (metrics, samples, deterministic) =
-            run_metrics(self.val, trial, det, (&dir, tag, true), &mut self.measured)?;
+        let (metrics, samples, deterministic) = run_metrics(
+            self.val,
+            trial,
+            det,
+            (&dir, tag, true),
+            &mut self.measured,
+            &self.engine,
+        )?;
         let full = Full {
             model: trial.clone(),
             metrics,
@@ -386,6 +283,7 @@ impl<'a> Watch<'a> {
             random_ref.then_some(&det_ref),
             (&dir, "reference", true),
             &mut self.measured,
+            &self.engine,
         )?;
         self.simulate_deterministic_now("fitted-deterministic")?;
         let measured = self.measured_by_stamp();

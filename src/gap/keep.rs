@@ -230,7 +230,7 @@ pub enum GridBasis {
 }
 
 /// One scan of a full re-simulation, as the keep rule reads it.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ScanSample {
     /// OCR^K, precision, IoU (`None` where the comparison had no grid for the scan).
     pub grid: Option<[Option<f64>; 3]>,

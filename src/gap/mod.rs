@@ -11,14 +11,15 @@
 //! re-fitted together with it ([`refit`]), and keeps it only when it improves the validation
 //! runs' likelihood beyond their noise ([`bootstrap`]) and makes none of the metrics a user
 //! reads worse beyond theirs ([`keep`]: the validation runs re-simulated in full,
-//! [`full_metrics`]); then it repeats. [`report`] is what it writes. The runs and their roles
-//! come from a [`study`] file. Parameterization and validation data never mix (Rosenberger et
-//! al. 2019, §4).
+//! [`full_metrics`], here or as tasks on an [`engine`]); then it repeats. [`report`] is what
+//! it writes. The runs and their roles come from a [`study`] file. Parameterization and
+//! validation data never mix (Rosenberger et al. 2019, §4).
 
 pub mod bins;
 pub mod bootstrap;
 pub mod candidates;
 pub mod casts;
+pub mod engine;
 mod full_metrics;
 pub mod keep;
 pub mod likelihood;
@@ -28,6 +29,7 @@ mod refit;
 pub mod report;
 pub mod runset;
 pub mod study;
+pub mod trial;
 pub mod workflow;
 
 use std::path::PathBuf;
@@ -108,6 +110,16 @@ pub enum GapError {
         scene: PathBuf,
         /// How few of its returns agree with the start model's.
         why: String,
+    },
+    /// A task of a round's plan failed, or its result cannot be read.
+    #[error("{task}: {why} (see {})", .log.display())]
+    Engine {
+        /// The task (or the round's plan).
+        task: String,
+        /// What went wrong.
+        why: String,
+        /// Its log.
+        log: PathBuf,
     },
     /// A model cannot simulate a run's lidar.
     #[error("{run}: {source}")]

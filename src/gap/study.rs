@@ -90,6 +90,14 @@ pub struct Study {
     pub runs: Vec<StudyRun>,
 }
 
+/// A run's file as an absolute path (links not resolved): the simulations name their run and
+/// scene in their metadata, and a relative path there would be relative to a folder the file
+/// does not record; a round's tasks, which may run in another folder or on another node,
+/// name them the same way ([`super::engine`]).
+fn anchored(p: &Path) -> PathBuf {
+    std::path::absolute(p).unwrap_or_else(|_| p.to_owned())
+}
+
 fn load_model(path: &Path) -> Result<ModelFile, GapError> {
     ModelFile::load(path).map_err(GapError::StartModel)
 }
@@ -153,8 +161,8 @@ impl Study {
                     }
                 })?;
                 Ok(StudyRun {
-                    recording: at(&r.recording),
-                    scene_path: at(scene),
+                    recording: anchored(&at(&r.recording)),
+                    scene_path: anchored(&at(scene)),
                     role: r.role,
                 })
             })
@@ -179,8 +187,8 @@ impl Study {
         rig: Option<&Path>,
     ) -> Result<Study, GapError> {
         let run = |p: &PathBuf, role| StudyRun {
-            recording: p.clone(),
-            scene_path: scene.to_owned(),
+            recording: anchored(p),
+            scene_path: anchored(scene),
             role,
         };
         let study = Study {

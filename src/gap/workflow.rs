@@ -9,6 +9,7 @@
 use super::bins::{tables, Table};
 use super::bootstrap;
 use super::candidates::{with_effect, Candidate, Fitting, Param};
+use super::engine::Engine;
 use super::full_metrics::{Judged, Watch};
 use super::observe::{count_scans, evaluate, features, load_run, Feature, Obs, RunData};
 use super::refit::{joint_refit, Added};
@@ -41,6 +42,23 @@ pub struct Options {
     /// When no further effect is found: search the detection limit of each one not added
     /// ([`super::limits`]).
     pub detection_limits: bool,
+    /// What runs the full re-simulations as trials, a round at a time; `None`: this process,
+    /// one run after the other ([`super::engine`]).
+    pub engine: Option<std::sync::Arc<dyn super::trial::RoundEngine>>,
+}
+
+impl Options {
+    /// Where `study`'s full re-simulations run.
+    fn engine_for(&self, study: &Study) -> Engine {
+        match &self.engine {
+            None => Engine::InProcess,
+            Some(engine) => Engine::Planned {
+                engine: engine.clone(),
+                rig: study.rig.clone(),
+                force: self.force,
+            },
+        }
+    }
 }
 
 /// What the workflow reports as it goes.
@@ -441,7 +459,12 @@ fn run_in(study: &Study, opts: &Options, progress: &dyn Progress) -> Result<GapR
     let mut added: Vec<Added> = Vec::new();
     let mut watch = if full_metrics {
         progress.phase(0, "re-simulating the validation runs with the start model");
-        Some(Watch::start(&val.runs, &model, opts.out.join("sim"))?)
+        Some(Watch::start(
+            &val.runs,
+            &model,
+            opts.out.join("sim"),
+            opts.engine_for(study),
+        )?)
     } else {
         None
     };

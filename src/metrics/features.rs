@@ -46,7 +46,7 @@ impl ScanFeature {
 }
 
 /// One scan's features.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ScanFeatures {
     /// The scan's stamp.
     pub stamp: UtcNanos,

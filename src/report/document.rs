@@ -29,7 +29,8 @@ impl Document {
             OutputKind::Compare => Document::Compare(Box::new(from_slice(path, bytes)?)),
             OutputKind::Validate => Document::Validate(Box::new(from_slice(path, bytes)?)),
             OutputKind::Gap => Document::Gap(Box::new(from_slice(path, bytes)?)),
-            found @ (OutputKind::CampaignPlan | OutputKind::CampaignTask) => {
+            found
+            @ (OutputKind::CampaignPlan | OutputKind::CampaignTask | OutputKind::GapTrial) => {
                 return Err(OutputError::WrongKind {
                     path: path.to_owned(),
                     found: found.name(),
