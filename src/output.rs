@@ -20,6 +20,17 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+/// This build of hilrig: its version and the SHA-256 of the source it was built from (the
+/// crates' files, manifests, lock file and compiler version; build.rs). The same on every
+/// node of a cluster that runs one build, whatever the path or time of its executable: what
+/// an output made by a task elsewhere is checked against (campaign stamps, gap trials).
+pub const BUILD: &str = concat!(
+    "hilrig ",
+    env!("CARGO_PKG_VERSION"),
+    " source sha256:",
+    env!("HILRIG_SOURCE")
+);
+
 /// What a JSON file is: the command that wrote it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

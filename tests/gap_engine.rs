@@ -155,6 +155,27 @@ fn same_as_in_process(engine_out: &Path, tasks: usize) {
     }
 }
 
+/// Modification times of the files under `dir`, by path.
+fn times(dir: &Path) -> Vec<(PathBuf, std::time::SystemTime)> {
+    let mut found = Vec::new();
+    let mut todo = vec![dir.to_owned()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).unwrap().flatten() {
+            if e.path().is_dir() {
+                todo.push(e.path());
+            } else {
+                found.push((e.path(), e.metadata().unwrap().modified().unwrap()));
+            }
+        }
+    }
+    found.sort();
+    found
+}
+
+/// The study with `--jobs 2`: the same as in one process; each trial stamped as the campaigns'
+/// executor stamps its tasks, its log beside its result. Made again into the same folder,
+/// every trial is up to date: no simulation, result or stamp is written again, and the study
+/// is the same.
 #[test]
 fn a_rounds_re_simulations_as_tasks_on_the_local_executor_give_the_same_study() {
     let dir = tempfile::tempdir().unwrap();
@@ -162,7 +183,6 @@ fn a_rounds_re_simulations_as_tasks_on_the_local_executor_give_the_same_study() 
     gap(&out, &["--jobs", "2"], &[]);
     // round 0, the trial, the reference: two validation runs each.
     same_as_in_process(&out, 6);
-    // Every task stamped as the campaigns' executor stamps them, its log beside.
     let stamps = out.join("sim/campaign/done/gap/round-0");
     for i in 1..=2 {
         assert!(
@@ -171,9 +191,24 @@ fn a_rounds_re_simulations_as_tasks_on_the_local_executor_give_the_same_study() 
             stamps.display()
         );
         assert!(out
-            .join(format!("sim/logs/round-0-validation-{i:02}.log"))
+            .join(format!("sim/round-0-validation-{i:02}.log"))
             .exists());
     }
+    let trials = |out: &Path| -> Vec<(PathBuf, std::time::SystemTime)> {
+        times(&out.join("sim"))
+            .into_iter()
+            .filter(|(p, _)| {
+                let name = p.file_name().unwrap().to_string_lossy();
+                name.contains("-validation-")
+                    && (name.ends_with(".mcap") || name.ends_with(".json"))
+            })
+            .collect()
+    };
+    let before = trials(&out);
+    assert!(before.len() >= 12, "{before:?}");
+    gap(&out, &["--jobs", "2"], &[]);
+    assert_eq!(trials(&out), before, "a trial up to date was made again");
+    assert_eq!(report(in_process()), report(&out));
 }
 
 #[test]
@@ -205,15 +240,16 @@ fn a_rounds_re_simulations_as_tasks_on_a_ray_cluster_give_the_same_study() {
     same_as_in_process(&out, 6);
 }
 
-/// An engine that cannot be started, or a task that fails, stops the study with exit 2 and
-/// says which command and which log; what the study wrote before (its runs, read and checked)
-/// stays.
+/// An engine that cannot be started, one that fails, and one that ends well but left no
+/// result stop the study with exit 2, saying which command or which trial and where to look;
+/// what the study wrote before (its runs, read and checked) stays.
 #[test]
 fn an_engine_that_cannot_run_the_plan_is_named_with_exit_2() {
     let dir = tempfile::tempdir().unwrap();
     for (engine, says) in [
         ("/no/such/engine --flag", "cannot start /no/such/engine"),
         ("false", "the engine `false` ended with"),
+        ("true", "the round-0 trial of"),
         ("", "--engine \"\": not a command"),
     ] {
         let out = dir.path().join("out");
@@ -237,7 +273,12 @@ fn an_engine_that_cannot_run_the_plan_is_named_with_exit_2() {
         if !engine.is_empty() {
             // The plan it was given, and the log the error points to.
             assert!(out.join("sim/round-0.plan.json").exists(), "{engine}");
-            assert!(stderr.contains("round-0.plan.log"), "{engine}: {stderr}");
+            let log = if engine == "true" {
+                "round-0-validation-01.json"
+            } else {
+                "round-0.plan.log"
+            };
+            assert!(stderr.contains(log), "{engine}: {stderr}");
             let report: serde_json::Value =
                 serde_json::from_slice(&std::fs::read(out.join("gap.json")).unwrap()).unwrap();
             assert_eq!(report["finished"], false);

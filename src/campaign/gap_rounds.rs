@@ -1,18 +1,19 @@
-//! The gap workflow's rounds on the engines that run campaigns: a round's trials (`hilrig gap
-//! trial`, one per validation run) as a plan, run by the local executor (`gap --jobs N`) or
-//! handed to an engine command that runs a plan file (`gap --engine "python -m hilrig_ray
-//! ..."`). The tasks are stamped as a campaign's are, so a study run again into its folder
-//! skips the trials whose files are as it left them.
+//! The gap workflow's full re-simulations on the engines that run campaigns: the trials of a
+//! model (`hilrig gap trial`, one per validation run) as a plan, run by the local executor
+//! (`gap --jobs N`) or handed to an engine command that runs a plan file (`gap --engine
+//! "python -m hilrig_ray ..."`). The tasks are stamped as a campaign's are, so a study run
+//! again into its folder skips the trials whose files are as it left them.
 
 use super::file::Step;
 use super::local::{self, Outcome, Progress};
 use super::plan::{Plan, Task};
 use super::resolve::{named_files, Names};
-use crate::gap::trial::{RoundEngine, TrialTask};
+use crate::gap::engine::RoundEngine;
+use crate::gap::trial::TrialTask;
 use crate::gap::GapError;
 use std::path::Path;
 
-/// What runs a round's plan.
+/// What runs the plan of a model's trials.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Runner {
     /// The campaigns' local executor: `jobs` tasks at a time, each a process of `exe`.
@@ -29,34 +30,35 @@ pub enum Runner {
 }
 
 impl RoundEngine for Runner {
-    fn run(&self, round: &str, dir: &Path, trials: &[TrialTask]) -> Result<(), GapError> {
-        let plan = plan(round, dir, trials)?;
+    fn run(&self, tag: &str, dir: &Path, trials: &[TrialTask]) -> Result<(), GapError> {
+        let plan = plan(tag, dir, trials)?;
         match self {
             Runner::Local { exe, jobs } => {
                 let options = local::Options {
                     exe: exe.clone(),
-                    jobs: (*jobs).max(1),
+                    jobs: *jobs,
                     force: false,
                 };
                 let summary =
                     local::run(&plan, &options, &Quiet).map_err(|e| GapError::Engine {
                         task: plan.campaign.clone(),
                         why: e.to_string(),
-                        log: dir.to_owned(),
+                        log: None,
                     })?;
                 for ((id, outcome), t) in summary.outcomes.iter().zip(&plan.tasks) {
-                    let why = match outcome {
+                    let (why, log) = match outcome {
                         Outcome::Ran { exit: 0, .. } | Outcome::UpToDate { exit: 0 } => continue,
                         Outcome::Ran { exit, .. } | Outcome::UpToDate { exit } => {
-                            format!("exit {exit}")
+                            (format!("exit {exit}"), Some(t.log.clone()))
                         }
-                        Outcome::Failed { why } => why.clone(),
-                        Outcome::NotRun { because } => format!("not run: {because}"),
+                        // The executor's reason names the log already.
+                        Outcome::Failed { why } => (why.clone(), None),
+                        Outcome::NotRun { because } => (format!("not run: {because}"), None),
                     };
                     return Err(GapError::Engine {
                         task: id.clone(),
                         why,
-                        log: t.log.clone(),
+                        log,
                     });
                 }
                 Ok(())
@@ -66,17 +68,17 @@ impl RoundEngine for Runner {
     }
 }
 
-/// The round's trials as a plan under `dir`: one task each, its log in `dir/logs`, its inputs
-/// the files it reads (a changed mesh, model or rig makes it run again).
-fn plan(round: &str, dir: &Path, trials: &[TrialTask]) -> Result<Plan, GapError> {
+/// The trials tagged `tag` as a plan under `dir`: one task each, its inputs the files it reads
+/// (a changed mesh, model or rig makes it run again).
+fn plan(tag: &str, dir: &Path, trials: &[TrialTask]) -> Result<Plan, GapError> {
     let mut tasks = Vec::with_capacity(trials.len());
     for (i, t) in trials.iter().enumerate() {
-        let id = format!("gap/{round}/validation-{:02}", i + 1);
+        let id = format!("gap/{tag}/validation-{:02}", i + 1);
         let files_of = |p: &Path, names| {
             named_files(p, names).map_err(|e| GapError::Engine {
                 task: id.clone(),
                 why: e.to_string(),
-                log: dir.to_owned(),
+                log: None,
             })
         };
         let mut inputs = vec![t.recording.clone(), t.model.clone()];
@@ -92,9 +94,7 @@ fn plan(round: &str, dir: &Path, trials: &[TrialTask]) -> Result<Plan, GapError>
             outputs.push(t.simulation.clone());
         }
         tasks.push(Task {
-            log: dir
-                .join("logs")
-                .join(format!("{round}-validation-{:02}.log", i + 1)),
+            log: t.log(),
             id,
             step: Step::Gap,
             args: t.args(),
@@ -107,15 +107,15 @@ fn plan(round: &str, dir: &Path, trials: &[TrialTask]) -> Result<Plan, GapError>
         });
     }
     Ok(Plan {
-        campaign: format!("gap: {round}"),
-        campaign_file: dir.join(format!("{round}.plan.json")),
+        campaign: format!("gap: {tag}"),
+        campaign_file: dir.join(format!("{tag}.plan.json")),
         out: dir.to_owned(),
         files: Vec::new(),
         tasks,
     })
 }
 
-/// Tells nobody: a round's tasks are one phase of the workflow's own progress.
+/// Tells nobody: the trials are one phase of the workflow's own progress.
 struct Quiet;
 
 impl Progress for Quiet {
@@ -131,7 +131,7 @@ fn run_command(plan: &Plan, argv: &[String]) -> Result<(), GapError> {
     let engine_error = |why: String| GapError::Engine {
         task: plan.campaign.clone(),
         why,
-        log: log.clone(),
+        log: Some(log.clone()),
     };
     let Some((program, args)) = argv.split_first() else {
         return Err(engine_error("no engine command".into()));

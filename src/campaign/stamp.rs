@@ -52,15 +52,8 @@ impl Output for Stamp {
     const SCHEMA: u32 = 2;
 }
 
-/// This build of hilrig: its version and the SHA-256 of the source it was built from (the
-/// crates' files, manifests, lock file and compiler version; build.rs). The same on every
-/// node of a cluster that runs one build, whatever the path or time of its executable.
-pub const TOOL: &str = concat!(
-    "hilrig ",
-    env!("CARGO_PKG_VERSION"),
-    " source sha256:",
-    env!("HILRIG_SOURCE")
-);
+/// This build of hilrig ([`crate::output::BUILD`]).
+pub const TOOL: &str = crate::output::BUILD;
 
 /// Where the stamp of task `id` lives under the output directory `out`.
 pub fn path(out: &Path, id: &str) -> PathBuf {

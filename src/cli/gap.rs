@@ -2,8 +2,9 @@
 //! per round and the one-line findings on the terminal. Exit 0 when it ran (an effect found or
 //! not), 2 on bad input or a run that fails `check` without --force.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use hilrig::campaign::gap_rounds::Runner;
+use hilrig::gap::engine::RoundEngine;
 use hilrig::gap::study::Study;
 use hilrig::gap::trial::TrialTask;
 use hilrig::gap::workflow::{run, Options, Progress};
@@ -110,15 +111,22 @@ struct RunArgs {
     /// of each that the runs would have shown, found by injecting it into them).
     #[arg(long)]
     no_detection_limits: bool,
-    /// Run each round's full re-simulations as a plan of `gap trial` tasks on the campaigns'
-    /// local executor, this many processes at a time (default: in this process, one
-    /// validation run after the other, each scene loaded once).
-    #[arg(long, conflicts_with = "engine", value_parser = clap::value_parser!(u16).range(1..))]
+    /// Run the full re-simulations as `gap trial` tasks (one per validation run, a model at
+    /// a time) on the campaigns' local executor, this many processes at a time (default: in
+    /// this process, one validation run after the other, each scene loaded once).
+    #[arg(
+        short,
+        long,
+        conflicts_with_all = ["engine", "no_full_metrics"],
+        value_parser = clap::value_parser!(u16).range(1..)
+    )]
     jobs: Option<u16>,
-    /// Run each round's full re-simulations as a plan of `gap trial` tasks on an engine: a
-    /// command, as a shell would split it, that takes the plan file as its last argument,
-    /// e.g. "python -m hilrig_ray --address auto --hilrig /path/to/hilrig".
-    #[arg(long)]
+    /// Run the full re-simulations as `gap trial` tasks on an engine: a command that takes a
+    /// plan file as its last argument, split into words as a POSIX shell splits them (quotes
+    /// and backslashes; no `~` or `$VAR` expansion), e.g. "python -m hilrig_ray --address
+    /// auto --hilrig /path/to/hilrig". Its workers must see the study's files and the output
+    /// folder at the same paths, and run the same hilrig build.
+    #[arg(long, conflicts_with = "no_full_metrics")]
     engine: Option<String>,
 }
 
@@ -233,16 +241,21 @@ fn run_study(args: RunArgs) -> Result<ExitCode> {
     };
     let engine = match (&args.jobs, &args.engine) {
         (Some(jobs), _) => Some(Runner::Local {
-            exe: std::env::current_exe()?,
+            exe: std::env::current_exe().context("cannot find the hilrig executable")?,
             jobs: usize::from(*jobs),
         }),
         (None, Some(command)) => match shlex::split(command) {
             Some(argv) if !argv.is_empty() => Some(Runner::Command(argv)),
-            _ => return fail(&format!("--engine {command:?}: not a command")),
+            Some(_) => return fail(&format!("--engine {command:?}: not a command")),
+            None => {
+                return fail(&format!(
+                    "--engine {command:?}: unbalanced quotes or a trailing backslash"
+                ))
+            }
         },
         (None, None) => None,
     }
-    .map(|r| std::sync::Arc::new(r) as std::sync::Arc<dyn hilrig::gap::trial::RoundEngine>);
+    .map(|r| std::sync::Arc::new(r) as std::sync::Arc<dyn RoundEngine>);
     let opts = Options {
         out: output.clone(),
         firings: args.firings,

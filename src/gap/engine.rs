@@ -4,14 +4,16 @@
 //! engine that runs a plan (the Ray executor of `python/`), so that a study with many
 //! validation runs fans out over a cluster like a campaign or an eFAST design.
 //!
-//! A round is one call, not the study: a round's trial is the model its fit found, and the fit
-//! waits for the rounds before it; within a round the validation runs are independent
-//! (Rosenberger et al. 2019, §4: repetitions). A trial writes what the round needs of its run
-//! ([`TrialRun`], JSON), and the workflow reads it back: the same numbers, bit for bit, as the
-//! run re-simulated in this process (tests/gap_engine.rs).
+//! The engine gets the trials of one model at a time (a round's start model, its trial, a
+//! current model's deterministic part, the reference model): each is what the round's fit
+//! found, and the fit waits for the rounds before it; the validation runs of one model are
+//! independent (Rosenberger et al. 2019, §4: repetitions). A trial writes what the workflow
+//! needs of its run ([`TrialRun`], JSON), and the workflow reads it back: the same numbers, bit
+//! for bit, as the run re-simulated in this process (tests/gap_engine.rs).
 
 use super::observe::RunData;
-use super::trial::{seed_of, simulation_path, RoundEngine, TrialTask};
+use super::study::anchored;
+use super::trial::{model_sha256, one_run, seed_of, simulation_path, TrialTask};
 use super::GapError;
 use crate::sim::model::ModelFile;
 use std::path::{Path, PathBuf};
@@ -19,13 +21,25 @@ use std::sync::Arc;
 
 pub use super::trial::TrialRun;
 
+/// What runs a model's trials as tasks (`hilrig gap trial`, one per validation run): the
+/// campaigns' local executor or an engine command ([`crate::campaign::gap_rounds`]). Defined
+/// here and implemented there, so that the workflow does not depend on the campaigns that run
+/// it.
+pub trait RoundEngine: Send + Sync + std::fmt::Debug {
+    /// Runs every trial of `trials`, the simulations tagged `tag` (their files under `dir`),
+    /// and returns once all have ended; an error ([`GapError::Engine`]) names the trial or
+    /// the engine that failed and its log. The caller reads the trials' results from their
+    /// outputs.
+    fn run(&self, tag: &str, dir: &Path, trials: &[TrialTask]) -> Result<(), GapError>;
+}
+
 /// Where a study's full re-simulations run.
 #[derive(Clone, Debug, Default)]
 pub enum Engine {
     /// Here, one run after the other.
     #[default]
     InProcess,
-    /// As trials that `engine` runs, a round at a time.
+    /// As trials that `engine` runs, one model at a time.
     Planned {
         /// What runs them.
         engine: Arc<dyn RoundEngine>,
@@ -36,97 +50,134 @@ pub enum Engine {
     },
 }
 
-/// A path as a task in another folder or on another node finds it: absolute, as given
-/// otherwise (links are not resolved, so that an absolute path reaches the simulation's
-/// metadata as the workflow's own process writes it).
-fn absolute(p: &Path) -> Result<PathBuf, GapError> {
-    std::path::absolute(p).map_err(|source| GapError::Output {
-        path: p.to_owned(),
-        source,
-    })
+/// The simulations of one model of the validation runs: their folder, their tag, and whether
+/// they stay there (scratch ones, a model's deterministic part, are removed once measured).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Simulations<'a> {
+    /// Where they go.
+    pub dir: &'a Path,
+    /// What their names start with (`round-0`, `round-2-range_noise`, `reference`).
+    pub tag: &'a str,
+    /// Whether they are kept for the user to open.
+    pub keep: bool,
 }
 
 impl Engine {
-    /// The trials of `val` with `model` (and `det`) as the round `tag`, run, and their results
-    /// read back in the runs' order.
+    /// Every run of `val` re-simulated with `model` (and its deterministic part `det`, from
+    /// the same casts) as `sims`, and measured: here, or as trials on the engine, whose
+    /// results are checked to be of this run, seed, model and build. The measured scans'
+    /// features only when `measured`.
     pub(super) fn run(
         &self,
         val: &[RunData],
         (model, det): (&ModelFile, Option<&ModelFile>),
-        (dir, tag, keep_files): (&Path, &str, bool),
+        sims: Simulations<'_>,
         measured: bool,
     ) -> Result<Vec<TrialRun>, GapError> {
         let Engine::Planned { engine, rig, force } = self else {
-            unreachable!("the workflow re-simulates in its own process without an engine")
+            return val
+                .iter()
+                .enumerate()
+                .map(|(i, r)| {
+                    one_run(
+                        r,
+                        seed_of(i),
+                        (model, det),
+                        &simulation_path(sims.dir, sims.tag, i),
+                        sims.keep,
+                        measured,
+                    )
+                })
+                .collect();
         };
-        let dir = absolute(dir)?;
-        // The models as files the trials read (their TOML reads back as the same model).
-        let write = |name: String, m: &ModelFile| -> Result<PathBuf, GapError> {
-            let path = dir.join(name);
-            std::fs::write(&path, m.to_toml()).map_err(|source| GapError::Output {
-                path: path.clone(),
-                source,
-            })?;
-            Ok(path)
-        };
-        let model_path = write(format!("{tag}.model.toml"), model)?;
+        let Simulations { tag, keep, .. } = sims;
+        // The trials run in other folders, perhaps on other nodes: every path absolute.
+        let dir = anchored(sims.dir);
+        let model_path = written(&dir.join(format!("{tag}.model.toml")), model)?;
         let det_path = det
-            .map(|d| write(format!("{tag}.deterministic.toml"), d))
+            .map(|d| written(&dir.join(format!("{tag}.deterministic.toml")), d))
             .transpose()?;
-        let rig = rig.as_deref().map(absolute).transpose()?;
+        let rig = rig.as_deref().map(anchored);
         let trials: Vec<TrialTask> = val
             .iter()
             .enumerate()
-            .map(|(i, r)| {
-                Ok(TrialTask {
-                    recording: absolute(&r.path)?,
-                    scene: absolute(&r.scene_path)?,
-                    rig: rig.clone(),
-                    model: model_path.clone(),
-                    deterministic: det_path.clone(),
-                    seed: seed_of(i),
-                    simulation: simulation_path(&dir, tag, i),
-                    scratch: !keep_files,
-                    measured,
-                    force: *force,
-                    output: dir.join(format!("{tag}-validation-{:02}.json", i + 1)),
-                })
+            .map(|(i, r)| TrialTask {
+                recording: anchored(&r.path),
+                scene: anchored(&r.scene_path),
+                rig: rig.clone(),
+                model: model_path.clone(),
+                deterministic: det_path.clone(),
+                seed: seed_of(i),
+                simulation: simulation_path(&dir, tag, i),
+                scratch: !keep,
+                measured,
+                force: *force,
+                output: dir.join(format!("{tag}-validation-{:02}.json", i + 1)),
             })
-            .collect::<Result<_, GapError>>()?;
+            .collect();
         engine.run(tag, &dir, &trials)?;
-        // The results, each checked to be of its run and to hold what was asked.
+        let (model_hash, det_hash) = (model_sha256(model), det.map(model_sha256));
         trials
             .iter()
             .zip(val)
             .enumerate()
             .map(|(i, (t, r))| {
                 let bad = |why: String| GapError::Engine {
-                    task: format!("the trial of {} ({tag})", r.name),
+                    task: format!("the {tag} trial of {}", r.name),
                     why,
-                    log: t.output.clone(),
+                    // Named when the engine ran the task and left it.
+                    log: Some(t.log()).filter(|l| l.exists()),
                 };
                 let mut result: TrialRun =
                     crate::output::read(&t.output).map_err(|e| bad(e.to_string()))?;
-                if result.recording != t.recording {
-                    return Err(bad(format!(
-                        "its result is of {}, not of {}",
-                        result.recording.display(),
-                        t.recording.display()
-                    )));
+                let wrong = [
+                    (result.recording != t.recording).then(|| {
+                        format!(
+                            "is of {}, not {}",
+                            result.recording.display(),
+                            t.recording.display()
+                        )
+                    }),
+                    (result.seed != t.seed)
+                        .then(|| format!("has seed {}, not {}", result.seed, t.seed)),
+                    (result.model_sha256 != model_hash || result.deterministic_sha256 != det_hash)
+                        .then(|| "was made with another model".to_owned()),
+                    (result.build != crate::output::BUILD).then(|| {
+                        format!(
+                            "was made by {}, not by this {}",
+                            result.build,
+                            crate::output::BUILD
+                        )
+                    }),
+                    (measured && result.measured.is_none())
+                        .then(|| "lacks the measured scans' features".to_owned()),
+                ];
+                if let Some(w) = wrong.into_iter().flatten().next() {
+                    return Err(bad(format!("its result {}: {}", t.output.display(), w)));
                 }
-                if result.deterministic.is_some() != det.is_some()
-                    || (measured && result.measured.is_none())
-                {
-                    return Err(bad(
-                        "its result lacks what the round asked for (written by another round?)"
-                            .into(),
-                    ));
-                }
-                // Named as the workflow names them in its own process.
+                // Named as the workflow names them here, whatever folder the task saw.
                 result.recording.clone_from(&r.path);
-                result.simulation = simulation_path(&dir, tag, i);
+                result.simulation = simulation_path(sims.dir, tag, i);
                 Ok(result)
             })
             .collect()
     }
+}
+
+/// `model` written to `path` for a trial to read; an error unless the file reads back as this
+/// very model (a model the TOML cannot hold would be simulated as another).
+fn written(path: &Path, model: &ModelFile) -> Result<PathBuf, GapError> {
+    let text = model.to_toml();
+    if toml::from_str::<ModelFile>(&text).ok().as_ref() != Some(model) {
+        return Err(GapError::Engine {
+            task: format!("the model '{}'", model.name),
+            why: format!("its TOML does not read back as the same model: {text:?}"),
+            log: None,
+        });
+    }
+    std::fs::write(path, text).map_err(|source| GapError::Output {
+        path: path.to_owned(),
+        source,
+    })?;
+    Ok(path.to_owned())
 }

@@ -4,11 +4,11 @@
 //! gap shrink on data the fit did not see, and the keep rule's metric half ([`super::keep`])
 //! judges every trial by them.
 
-use super::engine::Engine;
+use super::engine::{Engine, Simulations, TrialRun};
 use super::keep::{self, GridBasis, Samples};
 use super::observe::RunData;
 use super::report::{FeatureAvm, FeatureLight, MetricCheck, ReferenceCheck, RunMetrics};
-use super::trial::{one_run, seed_of, simulation_path, TrialRun};
+
 use super::GapError;
 use crate::sim::model::ModelFile;
 use crate::stats::repetitions::RunFeatures;
@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 /// after the other, or as the tasks of a plan on `engine`.
 ///
 /// With `det` (the model's deterministic part, [`keep::deterministic_part`]), the same casts
-/// give its simulation too ([`Resimulator::cast_pair`]), compared on a second thread as the
+/// give its simulation too ([`crate::sim::resim::Resimulator::cast_pair`]), compared on a second thread as the
 /// batches come, not written: what the keep rule judges a trial's grid metrics on, for the
 /// price of one cast of the runs instead of two.
 ///
@@ -34,32 +34,16 @@ fn run_metrics(
     val: &[RunData],
     model: &ModelFile,
     det: Option<&ModelFile>,
-    (dir, tag, keep_files): (&Path, &str, bool),
+    sims: Simulations<'_>,
     measured: &mut Vec<RunFeatures>,
     engine: &Engine,
 ) -> Result<(RunMetrics, Samples, Option<Samples>), GapError> {
-    std::fs::create_dir_all(dir).map_err(|source| GapError::Output {
-        path: dir.to_owned(),
+    std::fs::create_dir_all(sims.dir).map_err(|source| GapError::Output {
+        path: sims.dir.to_owned(),
         source,
     })?;
     let known = measured.len() == val.len();
-    let runs: Vec<TrialRun> = match engine {
-        Engine::InProcess => val
-            .iter()
-            .enumerate()
-            .map(|(i, r)| {
-                one_run(
-                    r,
-                    seed_of(i),
-                    (model, det),
-                    &simulation_path(dir, tag, i),
-                    keep_files,
-                    !known,
-                )
-            })
-            .collect::<Result<_, _>>()?,
-        planned => planned.run(val, (model, det), (dir, tag, keep_files), !known)?,
-    };
+    let runs: Vec<TrialRun> = engine.run(val, (model, det), sims, !known)?;
     if !known {
         measured.clear();
     }
@@ -169,7 +153,11 @@ impl<'a> Watch<'a> {
             val,
             model,
             None,
-            (&dir, "round-0", true),
+            Simulations {
+                dir: &dir,
+                tag: "round-0",
+                keep: true,
+            },
             &mut measured,
             &engine,
         )?;
@@ -198,7 +186,11 @@ impl<'a> Watch<'a> {
             self.val,
             model,
             None,
-            (&dir, tag, false),
+            Simulations {
+                dir: &dir,
+                tag,
+                keep: false,
+            },
             &mut self.measured,
             &self.engine,
         )?
@@ -229,7 +221,11 @@ impl<'a> Watch<'a> {
             self.val,
             trial,
             det,
-            (&dir, tag, true),
+            Simulations {
+                dir: &dir,
+                tag,
+                keep: true,
+            },
             &mut self.measured,
             &self.engine,
         )?;
@@ -281,7 +277,11 @@ impl<'a> Watch<'a> {
             self.val,
             reference,
             random_ref.then_some(&det_ref),
-            (&dir, "reference", true),
+            Simulations {
+                dir: &dir,
+                tag: "reference",
+                keep: true,
+            },
             &mut self.measured,
             &self.engine,
         )?;

@@ -111,15 +111,15 @@ pub enum GapError {
         /// How few of its returns agree with the start model's.
         why: String,
     },
-    /// A task of a round's plan failed, or its result cannot be read.
-    #[error("{task}: {why} (see {})", .log.display())]
+    /// A trial run as a task failed, or its result cannot be used.
+    #[error("{task}: {why}{}", .log.as_ref().map_or(String::new(), |l| format!(" (see {})", l.display())))]
     Engine {
-        /// The task (or the round's plan).
+        /// The trial (or the engine that runs a model's trials).
         task: String,
         /// What went wrong.
         why: String,
-        /// Its log.
-        log: PathBuf,
+        /// Its log, when the message does not name it already.
+        log: Option<PathBuf>,
     },
     /// A model cannot simulate a run's lidar.
     #[error("{run}: {source}")]

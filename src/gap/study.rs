@@ -94,7 +94,7 @@ pub struct Study {
 /// scene in their metadata, and a relative path there would be relative to a folder the file
 /// does not record; a round's tasks, which may run in another folder or on another node,
 /// name them the same way ([`super::engine`]).
-fn anchored(p: &Path) -> PathBuf {
+pub(super) fn anchored(p: &Path) -> PathBuf {
     std::path::absolute(p).unwrap_or_else(|_| p.to_owned())
 }
 
@@ -171,7 +171,7 @@ impl Study {
         let study = Study {
             model: load_model(&model_path)?,
             model_path,
-            rig: file.rig.as_deref().map(at),
+            rig: file.rig.as_deref().map(|r| anchored(&at(r))),
             runs,
         };
         study.check()?;
@@ -194,7 +194,7 @@ impl Study {
         let study = Study {
             model: load_model(model)?,
             model_path: model.to_owned(),
-            rig: rig.map(Path::to_owned),
+            rig: rig.map(anchored),
             runs: fit
                 .iter()
                 .map(|p| run(p, Role::Fit))

@@ -1,8 +1,8 @@
-//! One validation run re-simulated in full with a round's model and measured: the unit of the
-//! gap workflow's full re-simulations ([`super::full_metrics`]), made in the workflow's own
-//! process or, as `hilrig gap trial`, as a task that an engine runs ([`RoundEngine`],
-//! [`super::engine`]). Both ways give the same [`TrialRun`], bit for bit: it is this one
-//! function of the run, the model and the seed.
+//! One validation run re-simulated in full with a model and measured: the unit of the gap
+//! workflow's full re-simulations ([`super::full_metrics`]), made in the workflow's own process
+//! or, as `hilrig gap trial`, as a task that an engine runs ([`super::engine`]). Both ways give
+//! the same [`TrialRun`], bit for bit: it is this one function of the run, the model and the
+//! seed.
 
 use super::keep::ScanSample;
 use super::observe::{load_run, RunData};
@@ -16,17 +16,6 @@ use crate::sim::model::ModelFile;
 use crate::sim::resim::Resimulator;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-
-/// What runs a round's trials as tasks (`hilrig gap trial`, one per validation run): the
-/// campaigns' local executor or an engine command ([`crate::campaign::gap_rounds`]). Defined
-/// here and implemented there, so that the workflow does not depend on the campaigns that run
-/// it.
-pub trait RoundEngine: Send + Sync + std::fmt::Debug {
-    /// Runs every trial of the round `round` (their files under `dir`), and returns once all
-    /// have ended; an error ([`GapError::Engine`]) names the trial or the engine that failed
-    /// and its log. The trials' results are read from their outputs by the caller.
-    fn run(&self, round: &str, dir: &Path, trials: &[TrialTask]) -> Result<(), GapError>;
-}
 
 /// One validation run's trial as `hilrig gap trial` takes it: what a task needs to make the
 /// run's [`TrialRun`] without the study.
@@ -57,6 +46,11 @@ pub struct TrialTask {
 }
 
 impl TrialTask {
+    /// Where an engine sends what the task prints: beside its result.
+    pub fn log(&self) -> PathBuf {
+        self.output.with_extension("log")
+    }
+
     /// Its command line after `hilrig`.
     pub fn args(&self) -> Vec<String> {
         let s = |p: &Path| p.display().to_string();
@@ -98,6 +92,23 @@ impl TrialTask {
 /// Makes the trial `t` and writes its result: the run loaded and checked as the workflow loads
 /// a validation run, re-simulated and measured as in the workflow's own process.
 pub fn trial(t: &TrialTask) -> Result<TrialRun, GapError> {
+    // The models first: a bad one is said before the run is read and checked. They are the
+    // workflow's own, read as it holds them (its hash of each is checked against the
+    // result's); the range checks of a user's model file are not repeated, so that a fitted
+    // model simulates here exactly as in the workflow's process.
+    let model = |p: &Path| {
+        let bad = |message: String| GapError::Model {
+            run: p.display().to_string(),
+            source: crate::sim::model::ModelError::Toml {
+                path: p.display().to_string(),
+                message,
+            },
+        };
+        let text = std::fs::read_to_string(p).map_err(|e| bad(e.to_string()))?;
+        toml::from_str::<ModelFile>(&text).map_err(|e| bad(e.to_string()))
+    };
+    let m = model(&t.model)?;
+    let det = t.deterministic.as_deref().map(model).transpose()?;
     let rig = t.rig.as_deref().map(crate::rig::Rig::load).transpose()?;
     let scene = crate::scene::Scene::load(&t.scene).map_err(|source| GapError::Scene {
         recording: t.recording.clone(),
@@ -114,14 +125,6 @@ pub fn trial(t: &TrialTask) -> Result<TrialRun, GapError> {
         0,
         t.force,
     )?;
-    let model = |p: &Path| {
-        ModelFile::load(p).map_err(|source| GapError::Model {
-            run: p.display().to_string(),
-            source,
-        })
-    };
-    let m = model(&t.model)?;
-    let det = t.deterministic.as_deref().map(model).transpose()?;
     let result = one_run(
         &run,
         t.seed,
@@ -136,7 +139,7 @@ pub fn trial(t: &TrialTask) -> Result<TrialRun, GapError> {
 
 /// One validation run re-simulated in full with a model and measured: what a round needs of
 /// it. Made here for each run in turn, or by `hilrig gap trial` as a task of a plan that an
-/// engine runs ([`RoundEngine`]); either way the same numbers, bit for bit.
+/// engine runs ([`super::engine::RoundEngine`]); either way the same numbers, bit for bit.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TrialRun {
     /// The recording.
@@ -157,6 +160,24 @@ pub struct TrialRun {
     pub measured: Option<Vec<ScanFeatures>>,
     /// The simulated scans' features.
     pub simulated: Vec<ScanFeatures>,
+    /// The re-simulation's seed.
+    pub seed: u64,
+    /// SHA-256 of the model's TOML text ([`ModelFile::to_toml`]) as the trial held it.
+    pub model_sha256: String,
+    /// The same of its deterministic part, when it was cast too.
+    pub deterministic_sha256: Option<String>,
+    /// The hilrig that made it ([`crate::output::BUILD`]): another build may simulate
+    /// differently, and its result is then not this study's.
+    pub build: String,
+}
+
+/// SHA-256 (hex) of a model's TOML text: what a trial's result says it was made with.
+pub(super) fn model_sha256(m: &ModelFile) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(m.to_toml().as_bytes())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
 impl crate::output::Output for TrialRun {
@@ -300,6 +321,10 @@ pub(super) fn one_run(
         deterministic: det_c.map(|(c, features)| per_scan(&c, &features)),
         measured: want_measured.then_some(real_scans),
         simulated: sim_scans,
+        seed,
+        model_sha256: model_sha256(model),
+        deterministic_sha256: det.map(model_sha256),
+        build: crate::output::BUILD.to_owned(),
     })
 }
 

@@ -44,7 +44,7 @@ pub struct Options {
     pub detection_limits: bool,
     /// What runs the full re-simulations as trials, a round at a time; `None`: this process,
     /// one run after the other ([`super::engine`]).
-    pub engine: Option<std::sync::Arc<dyn super::trial::RoundEngine>>,
+    pub engine: Option<std::sync::Arc<dyn super::engine::RoundEngine>>,
 }
 
 impl Options {
