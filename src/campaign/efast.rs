@@ -170,11 +170,11 @@ impl Design<'_> {
             let id = format!("efast/evaluate/{from:05}-{to:05}");
             let mut inputs = vec![params.clone(), scenario_path.clone(), samples.clone()];
             inputs.extend(documents.iter().cloned());
-            tasks.push(Task {
-                log: layout.log(&id),
+            let log = layout.log(&id);
+            tasks.push(Task::new(
                 id,
-                step: Step::Efast,
-                args: vec![
+                Step::Efast,
+                vec![
                     "efast".into(),
                     "evaluate".into(),
                     "--params".into(),
@@ -190,13 +190,9 @@ impl Design<'_> {
                     "-o".into(),
                     s(&part),
                 ],
-                inputs,
-                outputs: vec![part.clone()],
-                after: Vec::new(),
-                results: vec![0],
-                gates: Vec::new(),
-                partial: false,
-            });
+                (inputs, vec![part.clone()]),
+                log,
+            ));
             parts.push(part);
         }
         let mut args = vec![
@@ -222,18 +218,14 @@ impl Design<'_> {
         let mut inputs = vec![params.clone(), samples.clone()];
         inputs.extend(parts);
         let id = "efast/analyze".to_owned();
-        tasks.push(Task {
-            log: layout.log(&id),
+        let log = layout.log(&id);
+        tasks.push(Task::new(
             id,
-            step: Step::Efast,
+            Step::Efast,
             args,
-            inputs,
-            outputs: vec![layout.indices(), layout.outputs()],
-            after: Vec::new(),
-            results: vec![0],
-            gates: Vec::new(),
-            partial: false,
-        });
+            (inputs, vec![layout.indices(), layout.outputs()]),
+            log,
+        ));
         let tasks = super::graph::order(tasks, &BTreeMap::new())?;
         Ok(Plan {
             campaign: format!(

@@ -93,18 +93,13 @@ fn plan(tag: &str, dir: &Path, trials: &[TrialTask]) -> Result<Plan, GapError> {
         if !t.scratch {
             outputs.push(t.simulation.clone());
         }
-        tasks.push(Task {
-            log: t.log(),
+        tasks.push(Task::new(
             id,
-            step: Step::Gap,
-            args: t.args(),
-            inputs,
-            outputs,
-            after: Vec::new(),
-            results: vec![0],
-            gates: Vec::new(),
-            partial: false,
-        });
+            Step::Gap,
+            t.args(),
+            (inputs, outputs),
+            t.log(),
+        ));
     }
     Ok(Plan {
         campaign: format!("gap: {tag}"),

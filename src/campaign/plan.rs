@@ -118,18 +118,8 @@ impl Builder<'_> {
         outputs: Vec<PathBuf>,
     ) -> &mut Task {
         let log = self.layout.log(&id);
-        self.tasks.push(Task {
-            id,
-            step,
-            args,
-            inputs,
-            outputs,
-            after: Vec::new(),
-            results: vec![0],
-            gates: Vec::new(),
-            partial: false,
-            log,
-        });
+        self.tasks
+            .push(Task::new(id, step, args, (inputs, outputs), log));
         self.tasks.last_mut().expect("just pushed")
     }
 

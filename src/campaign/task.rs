@@ -35,3 +35,28 @@ pub struct Task {
     /// Where its standard output and error go.
     pub log: PathBuf,
 }
+
+impl Task {
+    /// A task that waits for nothing, passes only with exit 0 and is no summary: what a task
+    /// is until the plan says more (what it waits for, which exits are results).
+    pub fn new(
+        id: String,
+        step: Step,
+        args: Vec<String>,
+        (inputs, outputs): (Vec<PathBuf>, Vec<PathBuf>),
+        log: PathBuf,
+    ) -> Task {
+        Task {
+            id,
+            step,
+            args,
+            inputs,
+            outputs,
+            after: Vec::new(),
+            results: vec![0],
+            gates: Vec::new(),
+            partial: false,
+            log,
+        }
+    }
+}
