@@ -181,3 +181,32 @@ fn written(path: &Path, model: &ModelFile) -> Result<PathBuf, GapError> {
     })?;
     Ok(path.to_owned())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::model::Effect;
+
+    /// A fitted model is written for the trials as the workflow holds it; one whose TOML
+    /// would read back as another model (a NaN is not equal to itself) is refused, naming it,
+    /// and no file is left for a trial to read.
+    #[test]
+    fn a_model_is_written_only_if_it_reads_back_as_itself() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut m = ModelFile::idealized();
+        m.effects.push(Effect::RangeBias {
+            bias_m: 0.1 + 0.2, // not a short decimal: its exact digits must survive
+        });
+        let path = dir.path().join("m.toml");
+        written(&path, &m).unwrap();
+        let back: ModelFile = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        assert_eq!(back, m);
+        assert_eq!(model_sha256(&back), model_sha256(&m));
+
+        m.effects = vec![Effect::RangeBias { bias_m: f64::NAN }];
+        let nan = dir.path().join("nan.toml");
+        let e = written(&nan, &m).unwrap_err().to_string();
+        assert!(e.contains("does not read back"), "{e}");
+        assert!(!nan.exists());
+    }
+}

@@ -362,3 +362,64 @@ fn per_scan(
     }
     per_scan
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A trial's command line holds every field the task needs, the optional ones only when
+    /// set, and its log lies beside its result.
+    #[test]
+    fn a_trial_task_is_its_command_line() {
+        let mut t = TrialTask {
+            recording: "/d/run.mcap".into(),
+            scene: "/d/scene.toml".into(),
+            rig: None,
+            model: "/o/sim/round-1-x.model.toml".into(),
+            deterministic: None,
+            seed: 2,
+            simulation: "/o/sim/round-1-x-validation-02.mcap".into(),
+            scratch: false,
+            measured: false,
+            force: false,
+            output: "/o/sim/round-1-x-validation-02.json".into(),
+        };
+        let args = t.args();
+        let value = |args: &[String], flag: &str| {
+            args.iter()
+                .position(|a| a == flag)
+                .map(|i| args[i + 1].clone())
+        };
+        assert_eq!(&args[..2], ["gap", "trial"]);
+        assert_eq!(value(&args, "--seed").as_deref(), Some("2"));
+        assert_eq!(
+            value(&args, "-o").as_deref(),
+            Some("/o/sim/round-1-x-validation-02.json")
+        );
+        for absent in [
+            "--rig",
+            "--deterministic",
+            "--scratch",
+            "--measured",
+            "--force",
+        ] {
+            assert!(!args.iter().any(|a| a == absent), "{absent} in {args:?}");
+        }
+        t.rig = Some("/d/rig.toml".into());
+        t.deterministic = Some("/o/sim/round-1-x.deterministic.toml".into());
+        (t.scratch, t.measured, t.force) = (true, true, true);
+        let args = t.args();
+        assert_eq!(value(&args, "--rig").as_deref(), Some("/d/rig.toml"));
+        assert_eq!(
+            value(&args, "--deterministic").as_deref(),
+            Some("/o/sim/round-1-x.deterministic.toml")
+        );
+        for present in ["--scratch", "--measured", "--force"] {
+            assert!(
+                args.iter().any(|a| a == present),
+                "{present} not in {args:?}"
+            );
+        }
+        assert_eq!(t.log(), Path::new("/o/sim/round-1-x-validation-02.log"));
+    }
+}
