@@ -91,19 +91,19 @@ impl Engine {
                 .collect();
         };
         let Simulations { tag, keep, .. } = sims;
-        // The trials run in other folders, perhaps on other nodes: every path absolute.
+        // The trials run in other folders, perhaps on other nodes: every path absolute (the
+        // study's own are, `Study::load`; the output folder may not be).
         let dir = anchored(sims.dir);
         let model_path = written(&dir.join(format!("{tag}.model.toml")), model)?;
         let det_path = det
             .map(|d| written(&dir.join(format!("{tag}.deterministic.toml")), d))
             .transpose()?;
-        let rig = rig.as_deref().map(anchored);
         let trials: Vec<TrialTask> = val
             .iter()
             .enumerate()
             .map(|(i, r)| TrialTask {
-                recording: anchored(&r.path),
-                scene: anchored(&r.scene_path),
+                recording: r.path.clone(),
+                scene: r.scene_path.clone(),
                 rig: rig.clone(),
                 model: model_path.clone(),
                 deterministic: det_path.clone(),
@@ -155,8 +155,7 @@ impl Engine {
                 if let Some(w) = wrong.into_iter().flatten().next() {
                     return Err(bad(format!("its result {}: {}", t.output.display(), w)));
                 }
-                // Named as the workflow names them here, whatever folder the task saw.
-                result.recording.clone_from(&r.path);
+                // Named as the workflow names it here, whatever folder the task saw.
                 result.simulation = simulation_path(sims.dir, tag, i);
                 Ok(result)
             })
