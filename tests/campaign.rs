@@ -527,12 +527,16 @@ fn on_ray(file: &Path, out: &Path, dir: &Path) -> serde_json::Value {
         String::from_utf8_lossy(&result.stderr)
     );
     let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
-    // Both workers ran tasks (their process ids differ), one of them lost mid-run.
+    // Both worker nodes took tasks (their worker processes differ), one of them lost mid-run.
+    // A task that finds its outputs current counts: it ran `hilrig campaign task` on its node
+    // as any other. (The node killed may have finished only such tasks, all before it ran one
+    // of the work: its loss is then a task in flight, and the outcomes of "ran" name only the
+    // other node.)
     let pids: BTreeSet<i64> = summary["outcomes"]
         .as_array()
         .unwrap()
         .iter()
-        .filter(|o| o["outcome"] == "ran")
+        .filter(|o| o["outcome"] == "ran" || o["outcome"] == "up_to_date")
         .filter_map(|o| o["pid"].as_i64())
         .collect();
     assert!(pids.len() >= 2, "{pids:?}");
