@@ -516,7 +516,7 @@ fn on_ray(file: &Path, out: &Path, dir: &Path) -> serde_json::Value {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
-    cluster.kill_a_worker_node_mid_task(&common::hilrig_bin(), &mut || {
+    let killed = cluster.kill_a_worker_node_mid_task(&common::hilrig_bin(), &mut || {
         exec.try_wait().unwrap().is_none()
     });
     let result = exec.wait_with_output().unwrap();
@@ -527,19 +527,18 @@ fn on_ray(file: &Path, out: &Path, dir: &Path) -> serde_json::Value {
         String::from_utf8_lossy(&result.stderr)
     );
     let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
-    // Both worker nodes took tasks (their worker processes differ), one of them lost mid-run.
-    // A task that finds its outputs current counts: it ran `hilrig campaign task` on its node
-    // as any other. (The node killed may have finished only such tasks, all before it ran one
-    // of the work: its loss is then a task in flight, and the outcomes of "ran" name only the
-    // other node.)
-    let pids: BTreeSet<i64> = summary["outcomes"]
+    // Both worker nodes took tasks, the one killed among them: it had finished a task before
+    // (with one CPU a node, its next task started only once that outcome had reached the
+    // driver, which holds it), so an outcome names it. Every task that ended counts, whether
+    // it ran or found its outputs current: either ran `hilrig campaign task` on its node.
+    let nodes: BTreeSet<&str> = summary["outcomes"]
         .as_array()
         .unwrap()
         .iter()
-        .filter(|o| o["outcome"] == "ran" || o["outcome"] == "up_to_date")
-        .filter_map(|o| o["pid"].as_i64())
+        .filter_map(|o| o["node"].as_str())
         .collect();
-    assert!(pids.len() >= 2, "{pids:?}");
+    assert!(nodes.len() >= 2, "{nodes:?}");
+    assert!(nodes.contains(killed.as_str()), "{killed} not in {nodes:?}");
     drop(cluster);
     summary
 }

@@ -94,7 +94,19 @@ def run_one(hilrig, plan_text, task_id, *before, threads=None):
         }
     outcome = json.loads(lines[-1])
     outcome["pid"] = os.getpid()
+    outcome["node"] = node_id()
     return outcome
+
+
+def node_id():
+    """The Ray node this runs on (hex), or None outside a Ray task."""
+    try:
+        import ray
+    except ImportError:
+        return None
+    if not ray.is_initialized():
+        return None
+    return ray.get_runtime_context().get_node_id()
 
 
 def run(plan_path, hilrig="hilrig", address=None, retries=3, cpus_per_task=1):

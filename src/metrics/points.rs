@@ -10,13 +10,13 @@
 //! first looks within half a cell of the finest grid (30 cm), its own cell first and then only
 //! the cells that could still hold a nearer point; a point found within that half cell is the
 //! nearest, since anything nearer lies in the cells searched. Otherwise the next grid, with
-//! cells four times larger, and so on. Any point of the other cloud bounds
+//! cells three times larger, and so on. Any point of the other cloud bounds
 //! the search, and a re-simulation nearly always gives one a few centimetres away: the twin,
 //! the same firing's return; without a twin, the neighbour found for the query before. Points
-//! tens of metres from every point of the other cloud go to `kiddo`'s immutable k-d tree (a
+//! more than 97 m from every point of the other cloud go to `kiddo`'s immutable k-d tree (a
 //! well-kept crate, exact queries), built only when one comes. A k-d tree query for every
 //! point was nine tenths of `compare`'s time on a street: it costs as much as decoding ten
-//! points, one or two grid cells about as much as one.
+//! points.
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Point3;
@@ -33,16 +33,19 @@ pub struct PointScores {
 /// Cell edge of the finest grid, m. A cell lookup (a hash, a probe, a run elsewhere in memory)
 /// costs as much as a few tens of distances, and against a scene surveyed to 10 cm the nearest
 /// point of the other cloud is often 5-15 cm away: with 10 cm cells a third of the queries went
-/// on to the next grid and the lookups were most of the time; with 30 cm cells `compare` took
-/// two thirds of the CPU time on a street drive of a VLS-128 (0.2-0.4 m were alike, 0.6 m
-/// slower), with the same distances. The parking drive gained too.
+/// on to the next grid and the lookups were most of the time. With 30 cm cells (and the search
+/// passing over cells already too far) `compare` of a VLS-128 street drive took 0.78 of the CPU
+/// time, with the same distances; 0.2-0.4 m were alike, 0.6 m slower; the sparse VLP-16
+/// parking drive, where the point metrics are a small part, took as long as before.
 const FINEST_CELL_M: f64 = 0.3;
 
-/// Each grid's cells are this many times the edge of the one before.
-const LEVEL_RATIO: f64 = 4.0;
+/// Each grid's cells are this many times the edge of the one before: three, not four, so that
+/// a query whose nearest point is a few metres away searches cells of 8.1 m, not of 19.2 m
+/// holding tens of thousands of a dense sensor's points (as fast on the VLS-128 drive).
+const LEVEL_RATIO: f64 = 3.0;
 
-/// Grids (the coarsest has cells of 19.2 m).
-const LEVELS: usize = 4;
+/// Grids (the coarsest has cells of 24.3 m).
+const LEVELS: usize = 5;
 
 /// One grid: a cloud's points sorted by (a 32-bit hash of) their cell, with an open-addressing
 /// table from the hash to its run of points. Two cells with one hash share a run: their points
@@ -198,12 +201,7 @@ impl Level {
         let hi = Level::cell_of(self.cell, &[p[0] + r, p[1] + r, p[2] + r]);
         let own = Level::cell_of(self.cell, p);
         self.visit(own, p, best);
-        // The squared distance along one axis from `v` to cell `i`'s slab (0 inside it).
-        let gap2 = |i: i64, v: f64| {
-            let (a, b) = (i as f64 * self.cell, (i + 1) as f64 * self.cell);
-            let g = ((a - v).max(v - b) - pad).max(0.0);
-            g * g
-        };
+        let gap2 = |i: i64, v: f64| slab_gap2(self.cell, i, v, pad);
         for x in lo[0]..=hi[0] {
             let gx = gap2(x, p[0]);
             if gx >= best.0 {
@@ -225,6 +223,19 @@ impl Level {
     }
 }
 
+/// The squared distance along one axis from `v` to the slab of cells `i` of edge `cell` (0
+/// inside it), never more than the true distance from `v` to a point that `Level::cell_of`
+/// puts in that cell. Rounding makes the two disagree by an ulp or so: the division in
+/// `cell_of` can put a point just below the computed border `i * cell` into cell `i`, and the
+/// border's own product rounds either way. So the gap is shrunk by `pad` (a few ulps of the
+/// query's coordinates) and by two ulps of the border.
+fn slab_gap2(cell: f64, i: i64, v: f64, pad: f64) -> f64 {
+    let (a, b) = (i as f64 * cell, i.saturating_add(1) as f64 * cell);
+    let slack = pad + 2.0 * f64::EPSILON * a.abs().max(b.abs());
+    let g = ((a - v).max(v - b) - slack).max(0.0);
+    g * g
+}
+
 /// A cloud indexed for exact nearest-neighbour queries: grids of growing cells and, for the
 /// rare point tens of metres from every other, a k-d tree; each built on first use.
 struct Grid<'a> {
@@ -233,9 +244,12 @@ struct Grid<'a> {
     tree: Option<Option<ImmutableKdTree<f32, 3>>>,
 }
 
-/// A cube of this many coarsest cells' half edge at most is searched in the grid; beyond, the
-/// k-d tree.
-const MAX_COARSE_REACH: f64 = 4.0;
+/// A cube of at most this half edge (four of the coarsest grid's cells) is searched in the
+/// coarsest grid; beyond, the k-d tree. A point whose nearest neighbour lies tens of metres
+/// away is not rare on a street (a facade's upper floors where the other cloud has no
+/// return): handing those to the tree built it anew for most scans, and `compare` of the
+/// VLS-128 drive took a tenth longer than with the grid reaching this far.
+const MAX_GRID_REACH_M: f64 = 97.2;
 
 impl<'a> Grid<'a> {
     fn new(cloud: &'a [Point3<f64>]) -> Grid<'a> {
@@ -266,9 +280,8 @@ impl<'a> Grid<'a> {
                 return best;
             }
         }
-        let coarsest = self.level(LEVELS - 1).cell;
         let r = best.0.sqrt();
-        if r <= MAX_COARSE_REACH * coarsest {
+        if r <= MAX_GRID_REACH_M {
             self.level(LEVELS - 1).search(p, r + pad, pad, &mut best);
             return best;
         }
@@ -504,27 +517,57 @@ mod tests {
         close(distances(&a, &b).unwrap(), brute(&a, &b), "far");
     }
 
-    /// Points on and a hair beside the finest grid's cell borders (multiples of its edge, where
-    /// a division rounds either way), near the origin and kilometres from it: the cells the
-    /// search passes over as too far never hold the nearest point. The nearest-neighbour
-    /// distances themselves, not only their means, equal the brute-force ones.
+    /// A coordinate on a border of the finest grid's cells (`k` cells from `base`) or one to
+    /// three ulps to either side of it, where the division in `cell_of` and the border's own
+    /// product round either way.
+    fn by_a_border(rng: &mut rand_chacha::ChaCha8Rng, base: i64) -> f64 {
+        let mut v = (base + rng.random_range(-6i64..6)) as f64 * FINEST_CELL_M;
+        let steps = rng.random_range(-3i32..=3);
+        for _ in 0..steps.abs() {
+            v = if steps > 0 {
+                v.next_up()
+            } else {
+                v.next_down()
+            };
+        }
+        v
+    }
+
+    /// No point lies nearer to a query than the gap the search computes to the slab of the
+    /// point's own cell: near the origin, 2.5 km from it and on the negative side, on borders
+    /// and ulps beside them.
+    #[test]
+    fn the_gap_to_a_cell_never_exceeds_the_distance_to_its_points() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for base in [0i64, 8333, -8333, 3] {
+            for _ in 0..20_000 {
+                let (q, v) = (by_a_border(&mut rng, base), by_a_border(&mut rng, base));
+                let i = Level::cell_of(FINEST_CELL_M, &[q, 0.0, 0.0])[0];
+                let pad = 8.0 * f64::EPSILON * v.abs();
+                let d = q - v;
+                assert!(
+                    slab_gap2(FINEST_CELL_M, i, v, pad) <= d * d,
+                    "point {q:e} in cell {i}, query {v:e}"
+                );
+            }
+        }
+    }
+
+    /// Points on and ulps beside the finest grid's cell borders, near the origin and 2.5 km
+    /// from it: the cells the search passes over as too far never hold the nearest point. The
+    /// distances, each of them, are bit for bit the brute-force ones (the same expression: a
+    /// skipped nearest point would show as a difference of an ulp or more).
     #[test]
     fn points_on_cell_borders_are_never_passed_over() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
-        for far in [0.0, 2500.0] {
-            let on_border = |rng: &mut rand_chacha::ChaCha8Rng| {
-                let k = f64::from(rng.random_range(-6i32..6));
-                let hair = [0.0, 1e-13, -1e-13, 1e-9, -1e-9][rng.random_range(0..5)];
-                far + k * FINEST_CELL_M + hair
-            };
+        for base in [0i64, 8333, -8333] {
             let mut cloud = |n: usize| -> Vec<Point3<f64>> {
                 (0..n)
                     .map(|_| {
-                        // One axis anywhere, two on borders: the nearest lies across a border.
                         Point3::new(
-                            on_border(&mut rng),
-                            on_border(&mut rng),
-                            rng.random_range(-1.0..1.0),
+                            by_a_border(&mut rng, base),
+                            by_a_border(&mut rng, base),
+                            by_a_border(&mut rng, 0),
                         )
                     })
                     .collect()
@@ -534,9 +577,13 @@ mod tests {
             for (p, d) in a.iter().zip(&got) {
                 let want = b
                     .iter()
-                    .map(|q| (p - q).norm())
-                    .fold(f64::INFINITY, f64::min);
-                assert!((d - want).abs() < 1e-12, "{p}: {d} against {want}");
+                    .map(|q| {
+                        let e = [q.x - p.x, q.y - p.y, q.z - p.z];
+                        e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
+                    })
+                    .fold(f64::INFINITY, |m, x| if x < m { x } else { m })
+                    .sqrt();
+                assert_eq!(d.to_bits(), want.to_bits(), "{p}: {d} against {want}");
             }
         }
     }

@@ -84,12 +84,13 @@ impl Cluster {
     /// says the work goes on. A busy node, not whichever raylet comes first, makes the loss
     /// real (an idle node's death costs the run nothing); one that has finished a task makes
     /// both nodes' work show in the outcomes, whatever Ray's placement (a node killed during
-    /// its first task leaves only the other's). Returns the raylet's pid.
+    /// its first task leaves only the other's). Returns the node's id (its raylet's
+    /// `--node_id`), as a task's `ray.get_runtime_context().get_node_id()` gives it.
     pub fn kill_a_worker_node_mid_task(
         &self,
         program: &std::path::Path,
         running: &mut dyn FnMut() -> bool,
-    ) -> i32 {
+    ) -> String {
         let program = program.display().to_string();
         let started = std::time::Instant::now();
         // Per worker raylet, the task processes seen under it.
@@ -125,13 +126,18 @@ impl Cluster {
             );
             std::thread::sleep(std::time::Duration::from_millis(10));
         };
+        let node = cmdline(raylet)
+            .split(' ')
+            .find_map(|a| a.strip_prefix("--node_id="))
+            .unwrap_or_else(|| panic!("raylet {raylet} names no --node_id"))
+            .to_owned();
         for pid in std::iter::once(raylet).chain(tree) {
             let _ = nix::sys::signal::kill(
                 nix::unistd::Pid::from_raw(pid),
                 nix::sys::signal::Signal::SIGKILL,
             );
         }
-        raylet
+        node
     }
 }
 
