@@ -93,7 +93,6 @@ def run_one(hilrig, plan_text, task_id, *before, threads=None):
             "why": f"hilrig campaign task exited {proc.returncode}: {proc.stderr.strip()[-500:]}",
         }
     outcome = json.loads(lines[-1])
-    outcome["pid"] = os.getpid()
     outcome["node"] = node_id()
     return outcome
 

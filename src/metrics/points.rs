@@ -72,6 +72,26 @@ fn floor(x: f64) -> i64 {
     t - i64::from(x < t as f64)
 }
 
+/// The squared distance of `a` and `b`. Every distance of the search is this one expression
+/// (`visit` finds a run's least distance and then the point at exactly that distance; the
+/// tests compare with a brute force bit for bit).
+#[inline(always)]
+fn dist2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+}
+
+/// The lesser of `a` and `b` as a compare and a select (`a` when neither is less): unlike
+/// `f64::min` it makes vector code in `visit`.
+#[inline(always)]
+fn lesser(a: f64, b: f64) -> f64 {
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
+
 /// The hash of a cell's integer coordinates (never `EMPTY`).
 fn hash(c: [i64; 3]) -> u32 {
     let h = (c[0] as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
@@ -161,27 +181,23 @@ impl Level {
             &self.ys[start..end],
             &self.zs[start..end],
         );
-        let d2 = |i: usize| {
-            let d = [xs[i] - p[0], ys[i] - p[1], zs[i] - p[2]];
-            d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
-        };
+        let d2 = |i: usize| dist2(&[xs[i], ys[i], zs[i]], p);
         let mut lanes = [f64::INFINITY; 4];
         let (cx, cy, cz) = (xs.chunks_exact(4), ys.chunks_exact(4), zs.chunks_exact(4));
-        let whole = len - cx.remainder().len();
+        let tail = cx
+            .remainder()
+            .iter()
+            .zip(cy.remainder())
+            .zip(cz.remainder());
         for ((x, y), z) in cx.zip(cy).zip(cz) {
             for l in 0..4 {
-                let d = [x[l] - p[0], y[l] - p[1], z[l] - p[2]];
-                let d = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                lanes[l] = if d < lanes[l] { d } else { lanes[l] };
+                lanes[l] = lesser(lanes[l], dist2(&[x[l], y[l], z[l]], p));
             }
         }
-        for i in whole..len {
-            let d = d2(i);
-            lanes[0] = if d < lanes[0] { d } else { lanes[0] };
+        for ((x, y), z) in tail {
+            lanes[0] = lesser(lanes[0], dist2(&[*x, *y, *z], p));
         }
-        let least = lanes
-            .iter()
-            .fold(f64::INFINITY, |a, &b| if b < a { b } else { a });
+        let least = lanes.into_iter().fold(f64::INFINITY, lesser);
         if least < best.0 {
             if let Some(i) = (0..len).find(|&i| d2(i) == least) {
                 *best = (least, Some([xs[i], ys[i], zs[i]]));
@@ -237,7 +253,8 @@ fn slab_gap2(cell: f64, i: i64, v: f64, pad: f64) -> f64 {
 }
 
 /// A cloud indexed for exact nearest-neighbour queries: grids of growing cells and, for the
-/// rare point tens of metres from every other, a k-d tree; each built on first use.
+/// rare point more than `MAX_GRID_REACH_M` from every other, a k-d tree; each built on first
+/// use.
 struct Grid<'a> {
     cloud: &'a [Point3<f64>],
     levels: [Option<Level>; LEVELS],
@@ -274,8 +291,9 @@ impl<'a> Grid<'a> {
         let pad = 8.0 * f64::EPSILON * p[0].abs().max(p[1].abs()).max(p[2].abs());
         let mut best = (bound2, None);
         for k in 0..LEVELS {
-            let reach = best.0.sqrt().min(0.5 * self.level(k).cell);
-            self.level(k).search(p, reach + pad, pad, &mut best);
+            let level = self.level(k);
+            let reach = best.0.sqrt().min(0.5 * level.cell);
+            level.search(p, reach + pad, pad, &mut best);
             if best.0.sqrt() <= reach {
                 return best;
             }
@@ -322,7 +340,7 @@ impl<'a> Grid<'a> {
             .execute();
         for n in near {
             let q = cloud[n.item as usize];
-            let d2 = (q.x - p[0]).powi(2) + (q.y - p[1]).powi(2) + (q.z - p[2]).powi(2);
+            let d2 = dist2(&[q.x, q.y, q.z], p);
             if d2 < best.0 {
                 best = (d2, Some([q.x, q.y, q.z]));
             }
@@ -353,16 +371,13 @@ fn nearest(from: &[Point3<f64>], to: &[Point3<f64>], twin: &[u32]) -> Vec<f64> {
             let bound = twin
                 .get(i as usize)
                 .and_then(|&t| to.get(t as usize))
-                .map_or(f64::INFINITY, |t| {
-                    (t.x - q[0]).powi(2) + (t.y - q[1]).powi(2) + (t.z - q[2]).powi(2)
-                });
+                .map_or(f64::INFINITY, |t| dist2(&[t.x, t.y, t.z], &q));
             (i, q, bound)
         })
         .collect();
     for (i, q, mut bound) in queries {
         if let Some(o) = &previous {
-            bound =
-                bound.min((o[0] - q[0]).powi(2) + (o[1] - q[1]).powi(2) + (o[2] - q[2]).powi(2));
+            bound = bound.min(dist2(o, &q));
         }
         let (best, at) = grid.nearest2(&q, bound);
         previous = at.or(previous);
@@ -577,11 +592,8 @@ mod tests {
             for (p, d) in a.iter().zip(&got) {
                 let want = b
                     .iter()
-                    .map(|q| {
-                        let e = [q.x - p.x, q.y - p.y, q.z - p.z];
-                        e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
-                    })
-                    .fold(f64::INFINITY, |m, x| if x < m { x } else { m })
+                    .map(|q| dist2(&[q.x, q.y, q.z], &[p.x, p.y, p.z]))
+                    .fold(f64::INFINITY, lesser)
                     .sqrt();
                 assert_eq!(d.to_bits(), want.to_bits(), "{p}: {d} against {want}");
             }
