@@ -1362,6 +1362,101 @@ fn adaptive_footprint_equals_the_full_cast_within_its_tolerance() {
     }
 }
 
+/// A Lambertian intensity effect (incidence exponent 1) changes nothing in a cast but the
+/// reflectivity it predicts, and every cast gives that reflectivity too (`Echo::lambertian`),
+/// bit for bit: what lets the gap workflow cast a model with that effect as the model without
+/// it. On the standard and banked layouts, with a divergent beam cast adaptively (merged and
+/// partial echoes, the threshold) and with the idealized beam (its single-echo path), with the
+/// weather's extinction too; a model with another exponent still reports the Lambertian value
+/// beside its own.
+#[test]
+fn a_lambertian_intensity_effect_changes_only_the_reflectivity_every_cast_also_gives() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = edge_scene(dir.path(), false);
+    let lambert = |k: f64| Effect::Intensity {
+        incidence_exponent: k,
+        noise_sigma: 0.0,
+    };
+    let extinction = Effect::Weather {
+        extinction_per_m: 0.002,
+        clutter_probability: 0.0,
+        clutter_max_range_m: 20.0,
+        clutter_reflectivity: 0.2,
+    };
+    let beam: Vec<Effect> = truth_deterministic()
+        .into_iter()
+        .filter(|e| !matches!(e, Effect::Intensity { .. }))
+        .collect();
+    let ego = ctrv(3.0, 0.2, 1.0);
+    for (model, mode) in [
+        (Model::Vlp16, ReturnMode::Strongest),
+        (Model::Vls128, ReturnMode::Strongest),
+        (Model::Vls128, ReturnMode::Dual),
+    ] {
+        let threshold = Effect::DetectionThreshold {
+            reference_range_m: 60.0,
+            reference_reflectivity: 0.1,
+        };
+        for without in [
+            beam.clone(),
+            Vec::new(),
+            vec![threshold.clone(), extinction.clone()],
+        ] {
+            let sim = |effects: Vec<Effect>| {
+                LidarSim::new(
+                    &s,
+                    model,
+                    Calibration::builtin(model),
+                    &mounting(),
+                    &model_of(effects),
+                )
+                .unwrap()
+            };
+            let sp = Spin {
+                mode,
+                ..spin(model)
+            };
+            let with_k = |k: f64| {
+                let mut e = without.clone();
+                e.push(lambert(k));
+                rotation(&sim(e), &ego, sp, 0.1)
+            };
+            let (bare, lambertian, steep) = (
+                rotation(&sim(without.clone()), &ego, sp, 0.1),
+                with_k(1.0),
+                with_k(2.0),
+            );
+            assert_eq!(bare.reported.len(), lambertian.reported.len());
+            let mut echoes = 0;
+            let mut differ = 0;
+            for ((a, b), c) in bare
+                .reported
+                .iter()
+                .zip(&lambertian.reported)
+                .zip(&steep.reported)
+            {
+                assert_eq!(a.is_some(), b.is_some(), "{model} {mode:?} {without:?}");
+                let (Some(a), Some(b), Some(c)) = (a, b, c) else {
+                    continue;
+                };
+                echoes += 1;
+                assert_eq!(a.range.to_bits(), b.range.to_bits());
+                assert_eq!(a.power.to_bits(), b.power.to_bits());
+                assert_eq!(a.lambertian.to_bits(), b.reflectivity.to_bits());
+                assert_eq!(b.lambertian.to_bits(), b.reflectivity.to_bits());
+                assert_eq!(c.lambertian.to_bits(), b.reflectivity.to_bits());
+                differ += usize::from(a.reflectivity != b.reflectivity);
+            }
+            // The scene shows the effect: most echoes are not at normal incidence.
+            assert!(echoes > 1000, "{model} {mode:?}: {echoes}");
+            assert!(
+                2 * differ > echoes,
+                "{model} {mode:?}: {differ} of {echoes}"
+            );
+        }
+    }
+}
+
 /// A model and its deterministic part simulated together from one cast of each beam
 /// ([`LidarSim::simulate_pair`], what the gap workflow's full re-simulations use) give bit for
 /// bit the packets each gives alone: on every layout, with the truth model plus weather

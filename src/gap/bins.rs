@@ -187,6 +187,7 @@ mod tests {
             predicted,
             power: 1.0,
             reflectivity: 50.0,
+            lambertian: 50.0,
             cast,
         }
     }

@@ -5,8 +5,10 @@
 //! effect that is random only (range noise, dropout) leaves that part as it was, and a
 //! candidate that re-fits the detection threshold casts without it; so the next round casts
 //! many of the very models this one cast (on the real-size study, the 44 footprints of the
-//! beam-divergence search twice over). The same inputs give the same observations, bit for
-//! bit, so a kept cast is the cast; only the time differs.
+//! beam-divergence search twice over). A Lambertian intensity effect, the one the workflow
+//! usually adds, changes only the predicted reflectivity, which every cast gives besides
+//! ([`Obs::lambertian`]): a model with it is cast as the model without it. The same inputs give
+//! the same observations, bit for bit, so a kept cast is the cast; only the time differs.
 //!
 //! Memory: at most [`BUDGET_BYTES`] of casts, from the round under way and those of the round
 //! before that it used again, each the sample's size ([`Obs`] per sampled slot: about 14 MB
@@ -17,7 +19,7 @@
 
 use super::observe::{deterministic, evaluate, Obs, RunData};
 use super::GapError;
-use crate::sim::model::ModelFile;
+use crate::sim::model::{Effect, ModelFile};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
 
@@ -28,6 +30,29 @@ use std::sync::{Arc, Mutex, PoisonError};
 fn key(model: &ModelFile) -> String {
     let m = deterministic(model);
     format!("{:?} {:?}", m.limits, m.effects)
+}
+
+/// `model` without a Lambertian intensity effect (incidence exponent 1), and whether it had
+/// one. Such an effect changes nothing in a cast but the reflectivity it predicts, which every
+/// cast also gives as the Lambertian one would ([`Obs::lambertian`], bit for bit): so a model
+/// with it is cast as the model without it, and its reflectivity read from there. The round
+/// after the workflow added the intensity effect (it is Lambertian unless the runs show
+/// otherwise) then finds every candidate's casts of the round before, not just the random
+/// effects' (on the real-size study, the 28 s of the beam-divergence search).
+fn lambertian_apart(model: &ModelFile) -> (ModelFile, bool) {
+    let mut m = model.clone();
+    let before = m.effects.len();
+    m.effects.retain(|e| {
+        !matches!(
+            e,
+            Effect::Intensity {
+                incidence_exponent,
+                ..
+            } if *incidence_exponent == 1.0
+        )
+    });
+    let had = m.effects.len() != before;
+    (m, had)
 }
 
 /// Bytes of casts kept at most: with the workflow's own 0.6 GB on the real-size study, the
@@ -61,24 +86,36 @@ impl Casts {
     /// Every run of `runs` cast with `model` (see [`evaluate`]), from a cast kept when there is
     /// one. `runs` must be the same set every time: the key does not name them.
     pub fn of(&self, runs: &[RunData], model: &ModelFile) -> Result<Vec<Vec<Obs>>, GapError> {
-        let key = key(model);
+        let (model, lambertian) = lambertian_apart(model);
+        let key = key(&model);
         let lock = || self.kept.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some(k) = lock().get_mut(&key) {
+        let kept = lock().get_mut(&key).map(|k| {
             k.used = true;
-            return Ok(k.obs.as_ref().clone());
-        }
-        // Cast without the lock: a cast takes seconds, and uses every core itself.
-        let started = std::time::Instant::now();
-        let obs: Vec<Vec<Obs>> = runs
-            .iter()
-            .map(|r| evaluate(r, model))
-            .collect::<Result<_, _>>()?;
-        let new = Kept {
-            obs: Arc::new(obs.clone()),
-            seconds: started.elapsed().as_secs_f64(),
-            used: true,
+            k.obs.as_ref().clone()
+        });
+        let mut obs = match kept {
+            Some(obs) => obs,
+            None => {
+                // Cast without the lock: a cast takes seconds, and uses every core itself.
+                let started = std::time::Instant::now();
+                let obs: Vec<Vec<Obs>> = runs
+                    .iter()
+                    .map(|r| evaluate(r, &model))
+                    .collect::<Result<_, _>>()?;
+                let new = Kept {
+                    obs: Arc::new(obs.clone()),
+                    seconds: started.elapsed().as_secs_f64(),
+                    used: true,
+                };
+                keep(&mut lock(), key, new, BUDGET_BYTES);
+                obs
+            }
         };
-        keep(&mut lock(), key, new, BUDGET_BYTES);
+        if lambertian {
+            for o in obs.iter_mut().flatten() {
+                o.reflectivity = o.lambertian;
+            }
+        }
         Ok(obs)
     }
 
@@ -132,7 +169,6 @@ fn keep(kept: &mut HashMap<String, Kept>, key: String, new: Kept, budget: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::model::Effect;
 
     fn model(effects: Vec<Effect>) -> ModelFile {
         ModelFile {
@@ -173,6 +209,27 @@ mod tests {
             ..bare.clone()
         };
         assert_ne!(key(&bare), key(&limited));
+    }
+
+    #[test]
+    fn a_lambertian_intensity_effect_is_cast_as_the_model_without_it() {
+        let intensity = |k: f64| Effect::Intensity {
+            incidence_exponent: k,
+            noise_sigma: 2.1,
+        };
+        let threshold = Effect::DetectionThreshold {
+            reference_range_m: 57.9,
+            reference_reflectivity: 0.1,
+        };
+        let bare = model(vec![threshold.clone()]);
+        let (m, had) = lambertian_apart(&model(vec![intensity(1.0), threshold.clone()]));
+        assert!(had);
+        assert_eq!(key(&m), key(&bare));
+        // Another exponent is cast as it is.
+        let (m, had) = lambertian_apart(&model(vec![intensity(1.000_001), threshold]));
+        assert!(!had);
+        assert_ne!(key(&m), key(&bare));
+        assert_eq!(lambertian_apart(&bare).0.effects, bare.effects);
     }
 
     fn kept(n: usize, seconds: f64) -> Kept {

@@ -722,6 +722,7 @@ mod tests {
             intensity: 255,
             power: 1.0,
             reflectivity: f32::NAN,
+            lambertian: f32::NAN,
             cast: true,
         }
     }

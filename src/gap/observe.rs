@@ -124,6 +124,10 @@ pub struct Obs {
     pub power: f32,
     /// Predicted reflectivity the intensity byte reports (×100).
     pub reflectivity: f32,
+    /// What a Lambertian intensity effect would predict from the same cast
+    /// ([`crate::sim::Echo::lambertian`]): the reflectivity of the model with that effect,
+    /// read from a cast of the model without it ([`super::casts`]).
+    pub lambertian: f32,
     /// The model cast this firing (false: outside the trajectory, or not a firing slot).
     pub cast: bool,
 }
@@ -136,6 +140,7 @@ impl Default for Obs {
             predicted: NONE,
             power: NONE,
             reflectivity: NONE,
+            lambertian: NONE,
             cast: false,
         }
     }
@@ -461,6 +466,7 @@ pub fn evaluate(run: &RunData, model: &ModelFile) -> Result<Vec<Obs>, GapError> 
                         o.predicted = e.range as f32;
                         o.power = e.power as f32;
                         o.reflectivity = e.reflectivity as f32;
+                        o.lambertian = e.lambertian as f32;
                     }
                 },
             );

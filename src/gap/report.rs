@@ -675,6 +675,7 @@ mod tests {
             predicted,
             power: 1.0,
             reflectivity: f32::NAN,
+            lambertian: f32::NAN,
             cast,
         };
         let obs = vec![

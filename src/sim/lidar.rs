@@ -44,6 +44,12 @@ pub struct Echo {
     /// Reflectivity the intensity byte reports (×100): footprint-weighted ρ for the idealized
     /// model, ρ cos^k θ with the intensity effect; partial footprints report less.
     pub reflectivity: f64,
+    /// The reflectivity a Lambertian intensity effect (k = 1) would report from the same cast,
+    /// whatever this model's: bit for bit what that model's `reflectivity` is. Nothing else
+    /// in a cast depends on the intensity effect, so the gap workflow keeps one cast for a
+    /// model with and without a Lambertian one (the effect it adds in most studies) instead
+    /// of casting every candidate again after adding it.
+    pub lambertian: f64,
 }
 
 /// What one firing reports: at most a strongest and a last echo.

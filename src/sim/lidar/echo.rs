@@ -45,6 +45,7 @@ fn merge(
             },
             power: p,
             reflectivity: group().map(|e| e.reflectivity).sum(),
+            lambertian: group().map(|e| e.lambertian).sum(),
         };
         let share = (j - i) as f64 / total.max(1) as f64;
         if n < echoes.len() {
@@ -130,10 +131,13 @@ impl LidarSim<'_> {
         if h.range < self.min_range || h.range > self.max_range {
             return Returns::default();
         }
+        let cos = -h.normal.dot(d);
         let e = Echo {
             range: h.range,
-            power: h.material.reflectivity * -h.normal.dot(d) / (h.range * h.range),
+            power: h.material.reflectivity * cos / (h.range * h.range),
             reflectivity: h.material.reflectivity,
+            // What `contribution` gives a whole footprint (its `1.0 * ρ` is ρ).
+            lambertian: h.material.reflectivity * cos.max(0.0),
         };
         Returns {
             strongest: Some(e),
@@ -165,6 +169,7 @@ impl LidarSim<'_> {
     fn contribution(&self, range: f64, refl: f64, cos: f64, share: f64) -> Echo {
         let alpha = self.fx.weather.map_or(0.0, |w| w.0);
         let k = self.fx.intensity.map(|i| i.0);
+        let reflected = share * refl;
         Echo {
             range,
             power: share * refl * cos / (range * range)
@@ -173,14 +178,14 @@ impl LidarSim<'_> {
                 } else {
                     1.0
                 },
-            reflectivity: share
-                * refl
+            reflectivity: reflected
                 * match k {
                     None => 1.0,
                     // Lambertian (k = 1) is the common case; powf costs a tenth of a ray cast.
                     Some(1.0) => cos.max(0.0),
                     Some(k) => cos.max(0.0).powf(k),
                 },
+            lambertian: reflected * cos.max(0.0),
         }
     }
 
@@ -199,6 +204,7 @@ impl LidarSim<'_> {
             range: 0.0,
             power: 0.0,
             reflectivity: 0.0,
+            lambertian: 0.0,
         }; 4];
         // Each echo's share of the footprint (the whole of it without divergence).
         let mut shares = [1.0f64; 4];
