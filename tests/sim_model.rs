@@ -1469,8 +1469,8 @@ fn on_finely_meshed_facades_the_adaptive_footprint_takes_the_neighbouring_facets
 /// bit for bit: what lets the gap workflow cast a model with that effect as the model without
 /// it. On the standard and banked layouts, with a divergent beam cast adaptively (merged and
 /// partial echoes, the threshold) and with the idealized beam (its single-echo path), with the
-/// weather's extinction too; a model with another exponent still reports the Lambertian value
-/// beside its own.
+/// weather's extinction too; a model with another exponent returns the same echoes and still
+/// reports the Lambertian value beside its own.
 #[test]
 fn a_lambertian_intensity_effect_changes_only_the_reflectivity_every_cast_also_gives() {
     let dir = tempfile::tempdir().unwrap();
@@ -1538,6 +1538,7 @@ fn a_lambertian_intensity_effect_changes_only_the_reflectivity_every_cast_also_g
                 .zip(&steep.reported)
             {
                 assert_eq!(a.is_some(), b.is_some(), "{model} {mode:?} {without:?}");
+                assert_eq!(a.is_some(), c.is_some(), "{model} {mode:?} {without:?}");
                 let (Some(a), Some(b), Some(c)) = (a, b, c) else {
                     continue;
                 };
@@ -1547,6 +1548,8 @@ fn a_lambertian_intensity_effect_changes_only_the_reflectivity_every_cast_also_g
                 assert_eq!(a.lambertian.to_bits(), b.reflectivity.to_bits());
                 assert_eq!(b.lambertian.to_bits(), b.reflectivity.to_bits());
                 assert_eq!(c.lambertian.to_bits(), b.reflectivity.to_bits());
+                assert_eq!(a.range.to_bits(), c.range.to_bits());
+                assert_eq!(a.power.to_bits(), c.power.to_bits());
                 differ += usize::from(a.reflectivity != b.reflectivity);
             }
             // The scene shows the effect: most echoes are not at normal incidence.

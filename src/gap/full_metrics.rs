@@ -207,7 +207,7 @@ impl<'a> Watch<'a> {
         );
         let random_now = keep::has_random_effects(&self.now.model);
         let random_trial = keep::has_random_effects(trial);
-        let basis = if keep::same_effects(&det_now, &det_trial) {
+        let basis = if keep::same_returns(&det_now, &det_trial) {
             GridBasis::Unchanged
         } else if random_now || random_trial {
             GridBasis::DeterministicParts

@@ -224,8 +224,9 @@ pub enum GridBasis {
     Models,
     /// The models' deterministic parts (their random effects off).
     DeterministicParts,
-    /// Not judged: the trial differs from the current model in its random effects only, so
-    /// its deterministic part, and with it every grid metric, is the current model's.
+    /// Not judged: the trial differs from the current model in its random effects and its
+    /// intensity effect only, so its deterministic part puts every return where the current
+    /// model's does ([`same_returns`]), and every grid metric is the current model's.
     Unchanged,
 }
 
@@ -283,6 +284,22 @@ pub fn deterministic_part(model: &ModelFile) -> ModelFile {
 /// Whether the model has a random effect (its deterministic part differs from it).
 pub fn has_random_effects(model: &ModelFile) -> bool {
     !same_effects(&deterministic_part(model), model)
+}
+
+/// Whether two deterministic models return the same points: the same effects and limits but
+/// for their intensity effect, which changes only the reflectivity a return reports (the
+/// incidence exponent enters nothing else; tests/sim_model.rs checks range, power and every
+/// echo bit for bit with exponents 0, 1 and 2). The grid metrics read
+/// where the returns lie, never their intensity, so such two models have the same grid metrics
+/// and the second comparison a trial that adds intensity would need is not made (on the
+/// real-size study, 5.5 s of its round).
+pub fn same_returns(a: &ModelFile, b: &ModelFile) -> bool {
+    let geometric = |m: &ModelFile| {
+        let mut g = m.clone();
+        g.effects.retain(|e| !matches!(e, Effect::Intensity { .. }));
+        g
+    };
+    same_effects(&geometric(a), &geometric(b))
 }
 
 /// Whether two models have the same effects (in any order) and limits.
@@ -863,5 +880,34 @@ mod tests {
         );
         assert!(same_effects(&d, &deterministic_part(&d)));
         assert!(!same_effects(&d, &m));
+    }
+
+    #[test]
+    fn an_intensity_effect_leaves_the_returns_where_they_were() {
+        let model = |effects: Vec<Effect>| ModelFile {
+            name: "m".into(),
+            effects,
+            ..ModelFile::default()
+        };
+        let bias = Effect::RangeBias { bias_m: 0.02 };
+        let intensity = |k: f64| Effect::Intensity {
+            incidence_exponent: k,
+            noise_sigma: 0.0,
+        };
+        let bare = model(vec![bias.clone()]);
+        assert!(same_returns(
+            &bare,
+            &model(vec![intensity(1.0), bias.clone()])
+        ));
+        assert!(same_returns(
+            &model(vec![bias.clone(), intensity(0.7)]),
+            &model(vec![intensity(1.0), bias])
+        ));
+        // Anything else that differs moves returns.
+        assert!(!same_returns(
+            &bare,
+            &model(vec![Effect::RangeBias { bias_m: 0.021 }, intensity(1.0)])
+        ));
+        assert!(!same_returns(&bare, &model(vec![intensity(1.0)])));
     }
 }

@@ -140,6 +140,65 @@ impl Point {
     }
 }
 
+/// A point's scores: (log-likelihood, its part at edges).
+type Scores = Result<(f64, f64), GapError>;
+
+/// The point of `pts` with the highest log-likelihood, or with `at_edges` the highest part at
+/// edges.
+fn argmax(
+    pts: &[(f64, f64)],
+    f: &mut dyn FnMut(f64, f64) -> Scores,
+    at_edges: bool,
+) -> Result<(f64, f64), GapError> {
+    let mut best = (pts[0], f64::NEG_INFINITY);
+    for &(h, v) in pts {
+        let (ll, edges) = f(h, v)?;
+        let x = if at_edges { edges } else { ll };
+        if x > best.1 {
+            best = ((h, v), x);
+        }
+    }
+    Ok(best.0)
+}
+
+/// The horizontal divergence at vertical `v`: aspects from a beam twice as tall as wide to
+/// three times as wide, then ±10 %, ±20 % around the best. Judged on the part of the
+/// likelihood at edges ([`Scored::at_edges`]), where a beam's width shows whatever its
+/// footprint model.
+fn across(v: f64, f: &mut dyn FnMut(f64, f64) -> Scores) -> Result<f64, GapError> {
+    let ratios: Vec<(f64, f64)> = [0.5, 0.7, 1.0, 1.4, 2.0, 3.0]
+        .iter()
+        .map(|r| (r * v, v))
+        .collect();
+    let (h1, _) = argmax(&ratios, &mut *f, true)?;
+    let hs: Vec<(f64, f64)> = (-2..=2)
+        .map(|i| (h1 * (1.0 + 0.1 * f64::from(i)), v))
+        .collect();
+    Ok(argmax(&hs, f, true)?.0)
+}
+
+/// The vertical divergence at the typical aspect, then the horizontal one, each point scored
+/// by `f`. Every sampling walks the whole coarse grid: the finer grid's best beam is not near
+/// the coarse one's (a hidden 1.7 mrad beam of 5 sub-rays per axis, seen at 4.5 m/s beside a
+/// known threshold, was best at the coarse step of 0.75 mrad with 3 per axis and of 1.6 with
+/// 5; a walk of the finer grid around the coarser one's step ended at 1.33).
+fn walk(f: &mut dyn FnMut(f64, f64) -> Scores) -> Result<(f64, f64), GapError> {
+    // Steps of a factor of about 1.45 from 0.5 to 11 mrad (an 8 mrad footprint was once cut
+    // off at the grid's 4 mrad end), then ±7 %, ±14 %, ±21 % around the best: half way to the
+    // coarse neighbours.
+    let coarse: Vec<(f64, f64)> = [0.5, 0.75, 1.1, 1.6, 2.4, 3.5, 5.0, 7.5, 11.0]
+        .iter()
+        .map(|&v| (2.0 * v, v))
+        .collect();
+    let (_, v0) = argmax(&coarse, &mut *f, false)?;
+    let fine: Vec<(f64, f64)> = (-3..=3)
+        .map(|i| v0 * (1.0 + 0.07 * f64::from(i)))
+        .map(|v| (2.0 * v0, v))
+        .collect();
+    let (_, v1) = argmax(&fine, &mut *f, false)?;
+    Ok((across(v1, f)?, v1))
+}
+
 /// The shares of the footprint a first-echo receiver is tried with: from any sub-ray of the
 /// finer pattern (1/13) to half the footprint.
 const FIRST_ECHO_SHARES: [f64; 5] = [0.05, 0.15, 0.25, 0.35, 0.5];
@@ -202,39 +261,6 @@ impl Fitting<'_> {
         // footprint is sampled with 3 sub-rays per axis on the grid and, where they show a beam,
         // with 5 (the catalogue's default); stratified where a first-echo receiver explains the
         // runs better ([`Sampling`]).
-        // A point's scores: (log-likelihood, its part at edges).
-        type Scores = Result<(f64, f64), GapError>;
-        // The point of `pts` with the highest log-likelihood, or with `at_edges` the highest
-        // part at edges.
-        let argmax = |pts: &[(f64, f64)],
-                      f: &mut dyn FnMut(f64, f64) -> Scores,
-                      at_edges: bool|
-         -> Result<(f64, f64), GapError> {
-            let mut best = (pts[0], f64::NEG_INFINITY);
-            for &(h, v) in pts {
-                let (ll, edges) = f(h, v)?;
-                let x = if at_edges { edges } else { ll };
-                if x > best.1 {
-                    best = ((h, v), x);
-                }
-            }
-            Ok(best.0)
-        };
-        // The horizontal divergence at vertical `v`: aspects from a beam twice as tall as
-        // wide to three times as wide, then ±10 %, ±20 % around the best. Judged on the part
-        // of the likelihood at edges ([`Scored::at_edges`]), where a beam's width shows
-        // whatever its footprint model.
-        let across = |v: f64, f: &mut dyn FnMut(f64, f64) -> Scores| -> Result<f64, GapError> {
-            let ratios: Vec<(f64, f64)> = [0.5, 0.7, 1.0, 1.4, 2.0, 3.0]
-                .iter()
-                .map(|r| (r * v, v))
-                .collect();
-            let (h1, _) = argmax(&ratios, &mut *f, true)?;
-            let hs: Vec<(f64, f64)> = (-2..=2)
-                .map(|i| (h1 * (1.0 + 0.1 * f64::from(i)), v))
-                .collect();
-            Ok(argmax(&hs, f, true)?.0)
-        };
         // The points the horizontal searches chose, one per line (vertical divergence,
         // sampling, echo logic): the candidates of the best beam.
         let mut chosen: Vec<Key> = Vec::new();
@@ -248,24 +274,6 @@ impl Fitting<'_> {
                     let gain = self.set.gain(&g.scored, self.scored);
                     gain.interval.is_some_and(|(lo, _)| lo > 0.0)
                 })
-        };
-        // The vertical divergence at the typical aspect, then the horizontal one, with `n`
-        // sub-rays per axis.
-        let walk = |f: &mut dyn FnMut(f64, f64) -> Scores| -> Result<(f64, f64), GapError> {
-            // Steps of a factor of about 1.45 from 0.5 to 11 mrad (an 8 mrad footprint was
-            // once cut off at the grid's 4 mrad end), then ±7 %, ±14 %, ±21 % around the best:
-            // half way to the coarse neighbours.
-            let coarse: Vec<(f64, f64)> = [0.5, 0.75, 1.1, 1.6, 2.4, 3.5, 5.0, 7.5, 11.0]
-                .iter()
-                .map(|&v| (2.0 * v, v))
-                .collect();
-            let (_, v0) = argmax(&coarse, &mut *f, false)?;
-            let fine: Vec<(f64, f64)> = (-3..=3)
-                .map(|i| v0 * (1.0 + 0.07 * f64::from(i)))
-                .map(|v| (2.0 * v0, v))
-                .collect();
-            let (_, v1) = argmax(&fine, &mut *f, false)?;
-            Ok((across(v1, f)?, v1))
         };
         let (h, v) = walk(&mut |h, v| try_one(&mut grid, h, v, Sampling::COARSE, None))?;
         chosen.push((h, v, Sampling::COARSE, None));
