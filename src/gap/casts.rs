@@ -11,7 +11,7 @@
 //! the same observations, bit for bit, so a kept cast is the cast; only the time differs.
 //!
 //! Memory: at most [`BUDGET_BYTES`] of casts, from the round under way and those of the round
-//! before that it used again, each the sample's size ([`Obs`] per sampled slot: about 14 MB
+//! before that it used again, each the sample's size ([`Obs`] per sampled slot: about 17 MB
 //! for the 400 k firings the real-size study's two parameterization minutes sample), whatever
 //! the runs' length. When a cast does not fit, the ones quickest to cast again go first (a
 //! beam-divergence footprint of 5 × 5 sub-rays takes twice as long as one of 3 × 3, and ten
@@ -53,6 +53,14 @@ fn lambertian_apart(model: &ModelFile) -> (ModelFile, bool) {
     });
     let had = m.effects.len() != before;
     (m, had)
+}
+
+/// Observations of a cast without a Lambertian intensity effect as the model with it predicts
+/// them: the reflectivity that effect reports ([`Obs::lambertian`]) in place of the bare one.
+fn as_lambertian(obs: &mut [Vec<Obs>]) {
+    for o in obs.iter_mut().flatten() {
+        o.reflectivity = o.lambertian;
+    }
 }
 
 /// Bytes of casts kept at most: with the workflow's own 0.6 GB on the real-size study, the
@@ -112,9 +120,7 @@ impl Casts {
             }
         };
         if lambertian {
-            for o in obs.iter_mut().flatten() {
-                o.reflectivity = o.lambertian;
-            }
+            as_lambertian(&mut obs);
         }
         Ok(obs)
     }
@@ -230,6 +236,22 @@ mod tests {
         assert!(!had);
         assert_ne!(key(&m), key(&bare));
         assert_eq!(lambertian_apart(&bare).0.effects, bare.effects);
+    }
+
+    #[test]
+    fn a_cast_without_the_effect_reads_as_the_model_with_it() {
+        let o = |reflectivity: f32, lambertian: f32| Obs {
+            reflectivity,
+            lambertian,
+            predicted: 10.0,
+            ..Obs::default()
+        };
+        let mut obs = vec![vec![o(0.5, 0.25), Obs::default()], vec![o(0.9, 0.9)]];
+        as_lambertian(&mut obs);
+        assert_eq!(obs[0][0].reflectivity, 0.25);
+        assert_eq!(obs[0][0].predicted, 10.0);
+        assert!(obs[0][1].reflectivity.is_nan() && obs[0][1].lambertian.is_nan());
+        assert_eq!(obs[1][0].reflectivity, 0.9);
     }
 
     fn kept(n: usize, seconds: f64) -> Kept {

@@ -170,6 +170,7 @@ impl LidarSim<'_> {
         let alpha = self.fx.weather.map_or(0.0, |w| w.0);
         let k = self.fx.intensity.map(|i| i.0);
         let reflected = share * refl;
+        let lambertian = reflected * cos.max(0.0);
         Echo {
             range,
             power: share * refl * cos / (range * range)
@@ -178,14 +179,13 @@ impl LidarSim<'_> {
                 } else {
                     1.0
                 },
-            reflectivity: reflected
-                * match k {
-                    None => 1.0,
-                    // Lambertian (k = 1) is the common case; powf costs a tenth of a ray cast.
-                    Some(1.0) => cos.max(0.0),
-                    Some(k) => cos.max(0.0).powf(k),
-                },
-            lambertian: reflected * cos.max(0.0),
+            reflectivity: match k {
+                None => reflected,
+                // Lambertian (k = 1) is the common case; powf costs a tenth of a ray cast.
+                Some(1.0) => lambertian,
+                Some(k) => reflected * cos.max(0.0).powf(k),
+            },
+            lambertian,
         }
     }
 
