@@ -48,6 +48,20 @@ fn object(name: &str, x: f64, y: f64, z: f64, shape: Shape, reflectivity: f64) -
     }
 }
 
+/// An object of `shape` on the ground at (x, y), turned by `yaw` degrees.
+fn yawed(name: &str, (x, y, yaw): (f64, f64, f64), shape: Shape, reflectivity: f64) -> ObjectFile {
+    ObjectFile {
+        pose: Placement {
+            x,
+            y,
+            z: 0.0,
+            yaw_deg: yaw,
+            ..Placement::default()
+        },
+        ..object(name, 0.0, 0.0, 0.0, shape, reflectivity)
+    }
+}
+
 fn wall(x: f64, reflectivity: f64) -> ObjectFile {
     // Near face at `x`, 1 km wide, 40 m tall.
     object(
@@ -1068,19 +1082,10 @@ fn sphere_obj(r: f64, rings: usize, segments: usize) -> String {
 /// 4 m up, and a bar 2 cm high lying on the ground.
 fn edge_scene(dir: &Path, thin: bool) -> Scene {
     std::fs::write(dir.join("sphere.obj"), sphere_obj(1.5, 24, 48)).unwrap();
-    let bx = |name: &str, x: f64, y: f64, size: [f64; 3], yaw: f64, refl: f64| ObjectFile {
-        pose: Placement {
-            x,
-            y,
-            z: 0.0,
-            yaw_deg: yaw,
-            ..Placement::default()
-        },
-        ..object(
+    let bx = |name: &str, x: f64, y: f64, size: [f64; 3], yaw: f64, refl: f64| {
+        yawed(
             name,
-            0.0,
-            0.0,
-            0.0,
+            (x, y, yaw),
             Shape::Box {
                 size,
                 at: Placement::default(),
@@ -1396,19 +1401,10 @@ fn facade_obj(width: f64, height: f64, step: f64) -> String {
 /// 25 m around the sensor, one of them set back behind another's end, and the ground.
 fn facade_scene(dir: &Path) -> Scene {
     std::fs::write(dir.join("facade.obj"), facade_obj(16.0, 5.0, 0.04)).unwrap();
-    let facade = |name: &str, x: f64, y: f64, yaw: f64, refl: f64| ObjectFile {
-        pose: Placement {
-            x,
-            y,
-            z: 0.0,
-            yaw_deg: yaw,
-            ..Placement::default()
-        },
-        ..object(
+    let facade = |name: &str, x: f64, y: f64, yaw: f64, refl: f64| {
+        yawed(
             name,
-            0.0,
-            0.0,
-            0.0,
+            (x, y, yaw),
             Shape::Mesh {
                 file: "facade.obj".into(),
                 scale: 1.0,

@@ -237,7 +237,39 @@ struct Surface<'a> {
     facets_len: usize,
 }
 
-impl Surface<'_> {
+impl<'a> Surface<'a> {
+    /// The surface the centre ray from `o` along `d` (beam frame `u`, `w`) met with `hit`,
+    /// before any point is known.
+    fn new(
+        prims: &'a [Primitive],
+        (o, d, u, w): (
+            &'a Point3<f64>,
+            &'a Vector3<f64>,
+            &'a Vector3<f64>,
+            &'a Vector3<f64>,
+        ),
+        hit: Option<Hit>,
+        tolerance_m: f64,
+        half_axes: (f64, f64),
+    ) -> Surface<'a> {
+        Surface {
+            prims,
+            o,
+            d,
+            u,
+            w,
+            hit: hit.map(|h| (h, o + d * h.range)),
+            tolerance_m,
+            half_axes,
+            points: [(0.0, 0.0); POINTS],
+            len: 0,
+            blocked: [(0.0, 0.0); POINTS],
+            blocked_len: 0,
+            facets: [0; POINTS],
+            facets_len: 0,
+        }
+    }
+
     /// Whether a ray from `origin` along `dir` that met `hit` agrees with the centre (see the
     /// module's documentation): `Ok` with the coordinates of its point (of its direction when
     /// it met nothing), `Err` with those of its direction when it does not; gnomonic, in
@@ -462,22 +494,13 @@ pub(super) fn resolve(
             on_axis,
         )
     }));
-    let mut surface = Surface {
+    let mut surface = Surface::new(
         prims,
-        o,
-        d,
-        u,
-        w,
-        hit: centre.hit.map(|h| (h, o + d * h.range)),
+        (o, d, u, w),
+        centre.hit,
         tolerance_m,
-        half_axes: pattern.half_axes,
-        points: [(0.0, 0.0); POINTS],
-        len: 0,
-        blocked: [(0.0, 0.0); POINTS],
-        blocked_len: 0,
-        facets: [0; POINTS],
-        facets_len: 0,
-    };
+        pattern.half_axes,
+    );
     // Witnesses that agree become points; those that do not (an edge beside the footprint)
     // block the sub-rays near them.
     let witness = |surface: &mut Surface, ws: &[Option<&CentreRay>]| {
@@ -557,22 +580,13 @@ mod tests {
             material: WALL,
             primitive: Some(0),
         };
-        let mut s = Surface {
+        let mut s = Surface::new(
             prims,
-            o: origin,
-            d: &frame[0],
-            u: &frame[1],
-            w: &frame[2],
-            hit: Some((hit, Point3::new(10.0, 0.0, 0.0))),
-            tolerance_m: 0.002,
-            half_axes: (1.5e-3, 0.75e-3),
-            points: [(0.0, 0.0); POINTS],
-            len: 0,
-            blocked: [(0.0, 0.0); POINTS],
-            blocked_len: 0,
-            facets: [0; POINTS],
-            facets_len: 0,
-        };
+            (origin, &frame[0], &frame[1], &frame[2]),
+            Some(hit),
+            0.002,
+            (1.5e-3, 0.75e-3),
+        );
         for &f in facets {
             s.facet(Some(&Hit {
                 primitive: Some(f),
