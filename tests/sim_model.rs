@@ -700,6 +700,126 @@ fn beam_divergence_gives_edge_and_mixed_returns() {
     );
 }
 
+/// A dark post 10 m ahead (its right edge at y = 0) in front of a bright wall 20 m ahead.
+fn post_before_a_bright_wall() -> Scene {
+    let post = object(
+        "post",
+        10.1,
+        1.0,
+        -5.0,
+        Shape::Box {
+            size: [0.2, 2.0, 10.0],
+            at: Placement::default(),
+            reflectivity: None,
+        },
+        0.05,
+    );
+    scene(vec![post, wall(20.0, 0.9)], None)
+}
+
+fn wide_beam() -> Effect {
+    Effect::BeamDivergence {
+        horizontal_mrad: 3.0,
+        vertical_mrad: 1.5,
+        sub_rays_per_axis: 7,
+        range_separation_m: 0.5,
+        first_echo_share: None,
+        pattern: FootprintPattern::Grid,
+    }
+}
+
+/// The Velodyne manuals' dual return mode (VLP-16 and VLP-32C user manuals, ch. 9): "If the
+/// strongest return is also the last return, then the second-strongest return is provided."
+/// A footprint split between a dark post and the bright wall behind it has the wall as both
+/// its strongest and its last echo: the strongest block must then carry the post.
+#[test]
+fn where_the_strongest_echo_is_the_last_a_dual_return_reports_the_second_strongest() {
+    let s = post_before_a_bright_wall();
+    let sim = beam_sim(&s, vec![wide_beam()]);
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let (mut second, mut first_strongest, mut single) = (0, 0, 0);
+    for i in 0..=120 {
+        let y = -0.03 + 0.0005 * f64::from(i);
+        let r = fire_at(&sim, &s, Vector3::new(10.0, y, 0.0), &mut rng);
+        let (st, last) = (r.strongest.unwrap(), r.last.unwrap());
+        let dual = r.dual_strongest().unwrap();
+        if (last.range - st.range).abs() > 5.0 {
+            // The post is the strongest: reported as such, nothing else needed.
+            assert!(r.second.is_none(), "y {y}: {r:?}");
+            assert_eq!(dual, st);
+            first_strongest += 1;
+        } else if let Some(sec) = r.second {
+            // The wall is both: the post is the other echo, and weaker.
+            assert!(
+                sec.range < last.range - 5.0 && sec.power < st.power,
+                "y {y}: {r:?}"
+            );
+            assert_eq!(dual, sec);
+            second += 1;
+        } else {
+            // One echo only: the pair is identical.
+            assert_eq!(dual, last);
+            single += 1;
+        }
+    }
+    assert!(
+        second >= 5 && first_strongest >= 5 && single >= 50,
+        "{second} second strongest, {first_strongest} post strongest, {single} single"
+    );
+
+    // In packets: where a strongest-return VLP-16 reports the wall at a firing, a dual-return
+    // one reports the post in that block and the wall in the last. Without divergence (one
+    // echo a firing) every dual firing is one point, reported as both.
+    use hilrig::velodyne::ReturnType;
+    let ego = ctrv(0.0, 0.0, 1.0);
+    let by_firing = |effects: Vec<Effect>, mode: ReturnMode| {
+        let sim = beam_sim(&s, effects);
+        let sp = Spin {
+            mode,
+            ..spin(Model::Vlp16)
+        };
+        let mut out: std::collections::BTreeMap<(i64, u8), Vec<(ReturnType, f32)>> =
+            Default::default();
+        for (p, t) in simulate_and_decode(&sim, &ego, sp, sp.packets_in(0.3)) {
+            out.entry((t.0, p.laser.0))
+                .or_default()
+                .push((p.return_type, p.distance_m));
+        }
+        out
+    };
+    let dual = by_firing(vec![wide_beam()], ReturnMode::Dual);
+    let strongest = by_firing(vec![wide_beam()], ReturnMode::Strongest);
+    // The two modes place a firing's beam a few microradians apart (the azimuth interpolated
+    // over a dual packet's block pairs): the same echo within a few range quanta.
+    let same = |a: f32, b: f32| (a - b).abs() < 0.01;
+    let mut split = 0;
+    for (key, pts) in &dual {
+        let Some(single) = strongest.get(key) else {
+            continue;
+        };
+        let s_range = single[0].1;
+        match pts.as_slice() {
+            [(ReturnType::Both, r)] => assert!(same(*r, s_range), "{key:?}: {r} {s_range}"),
+            [(ReturnType::Last, last), (ReturnType::Strongest, st)] => {
+                assert!(st < last, "{key:?}: {pts:?}");
+                if same(s_range, *last) {
+                    // The strongest is the last: the dual packet's other block is the post.
+                    assert!(*st < last - 5.0, "{key:?}: {pts:?}");
+                    split += 1;
+                } else {
+                    assert!(same(*st, s_range), "{key:?}: {pts:?} {s_range}");
+                }
+            }
+            other => panic!("{key:?}: {other:?}"),
+        }
+    }
+    assert!(split >= 10, "{split} firings with the second strongest");
+    let ideal = by_firing(vec![], ReturnMode::Dual);
+    assert!(ideal
+        .values()
+        .all(|p| matches!(p.as_slice(), [(ReturnType::Both, _)])));
+}
+
 /// A surface at grazing incidence returns one echo however far its footprint stretches in
 /// range: the road 40 m ahead under an 8 mrad beam spans metres, which 5 sub-rays per axis
 /// sample a metre or more apart, yet the surface is continuous and so is its pulse. Split, the

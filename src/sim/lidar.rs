@@ -59,6 +59,20 @@ pub struct Returns {
     pub strongest: Option<Echo>,
     /// Last (farthest) echo.
     pub last: Option<Echo>,
+    /// Where the strongest echo is the last and the firing had others: the strongest of
+    /// those (what a dual-return packet reports beside the last, [`Returns::dual_strongest`]).
+    pub second: Option<Echo>,
+}
+
+impl Returns {
+    /// What a dual-return packet carries beside the last echo: the strongest, or where the
+    /// strongest is the last, the second strongest; the last again when it was the only echo
+    /// (the pair of blocks then identical). So the Velodyne manuals describe the dual return
+    /// mode (VLP-16 and VLP-32C user manuals, ch. 9; the VLS-128's likewise): a beam that
+    /// meets a dark pole's edge in front of a bright wall reports both, not the wall twice.
+    pub fn dual_strongest(&self) -> Option<Echo> {
+        self.second.or(self.strongest)
+    }
 }
 
 /// When a packet's firings happened (the recorded packets' times are read in one place,
@@ -128,7 +142,9 @@ pub struct Firing {
     pub origin: Point3<f64>,
     /// Unit beam direction in the scene frame.
     pub direction: Vector3<f64>,
-    /// What the packet reports for it: the strongest echo (last in last-return mode).
+    /// What its block of the packet reports: the strongest echo, the last in last-return
+    /// mode, and in a dual-return packet's strongest block the second strongest where the
+    /// strongest is the last ([`Returns::dual_strongest`]).
     pub reported: Option<Echo>,
 }
 

@@ -105,7 +105,10 @@ fn intensity_noise(rows: &[(f64, f64)]) -> f64 {
 /// Whether a divergence candidate re-fits the model's detection threshold. Beam divergence
 /// spreads the power over the footprint, so a threshold of the current model is re-fitted at
 /// every grid point (cast without it, the threshold swept on the result and applied: exact for
-/// the strongest echo, which is below the threshold only when every echo is). A model without
+/// the strongest echo, which is below the threshold only when every echo is; not quite for a
+/// dual-return packet's strongest block where it holds the second strongest echo: a threshold
+/// that removes that echo leaves the last one there, which the sweep counts as no return, on
+/// the few firings split between a dark edge and a brighter surface behind). A model without
 /// a threshold gets none (re-fitting must not bring an effect in unnamed), and a model with
 /// weather keeps its own: the extinction was fitted with that threshold.
 fn refits_threshold(effects: &[Effect]) -> bool {

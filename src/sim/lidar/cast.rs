@@ -129,6 +129,8 @@ impl LidarSim<'_> {
                 direction: c.direction,
                 reported: if mode == ReturnMode::Last {
                     r.last
+                } else if plan.dual {
+                    r.dual_strongest()
                 } else {
                     r.strongest
                 },
@@ -154,7 +156,12 @@ impl LidarSim<'_> {
         pkt: &mut DataPacket,
         rng: &mut ChaCha8Rng,
     ) {
-        let strongest = self.channel(laser, r.strongest, rng);
+        // The same draws in every mode: the strongest block's first, then the last's.
+        let strongest = if plan.dual {
+            self.channel(laser, r.dual_strongest(), rng)
+        } else {
+            self.channel(laser, r.strongest, rng)
+        };
         if plan.dual {
             pkt.blocks[block].channels[ch] = strongest;
             pkt.blocks[last_block].channels[ch] = self.channel(laser, r.last, rng);

@@ -9,6 +9,15 @@ use nalgebra::{Point3, Vector3};
 use rand::Rng;
 use rand_distr::Distribution;
 
+/// Whether echo `e` is reported before `s`: the stronger one, or for a first-echo receiver
+/// (`first`, its share) the nearer.
+fn better_of(first: Option<f64>, e: &Echo, s: &Echo) -> bool {
+    match first {
+        Some(_) => e.range < s.range,
+        None => e.power > s.power,
+    }
+}
+
 /// Merges sub-ray contributions `subs` (sorted by range; each with the range its part of the
 /// footprint spans on its surface) into echoes at their power-weighted range; keeps the
 /// strongest four, each one's share of the `total` sub-rays in `shares`. Returns how many
@@ -142,6 +151,7 @@ impl LidarSim<'_> {
         Returns {
             strongest: Some(e),
             last: Some(e),
+            second: None,
         }
     }
 
@@ -271,8 +281,13 @@ impl LidarSim<'_> {
             }
         }
         let first = fx.divergence.as_ref().and_then(|d| d.first_share);
-        let mut out = Returns::default();
-        for (e, &share) in echoes[..n].iter_mut().zip(&shares) {
+        // The echoes detected, each with its index: the strongest (or the nearest, for a
+        // first-echo receiver, which reports that one where a Velodyne reports the
+        // strongest) and the last.
+        let mut detected: [Option<Echo>; 4] = [None; 4];
+        let mut strongest: Option<(usize, Echo)> = None;
+        let mut last: Option<(usize, Echo)> = None;
+        for (i, (e, &share)) in echoes[..n].iter_mut().zip(&shares).enumerate() {
             if first.is_some_and(|s| share < s - 1e-9) {
                 continue;
             }
@@ -288,20 +303,33 @@ impl LidarSim<'_> {
             if e.range < self.min_range || e.range > self.max_range {
                 continue;
             }
-            // A first-echo receiver reports the nearest echo it detects where a Velodyne
-            // reports the strongest.
-            let better = |s: &Echo| match first {
-                Some(_) => e.range < s.range,
-                None => e.power > s.power,
-            };
-            if out.strongest.is_none_or(|s| better(&s)) {
-                out.strongest = Some(*e);
+            detected[i] = Some(*e);
+            if strongest.is_none_or(|(_, s)| better_of(first, e, &s)) {
+                strongest = Some((i, *e));
             }
-            if out.last.is_none_or(|l| e.range > l.range) {
-                out.last = Some(*e);
+            if last.is_none_or(|(_, l)| e.range > l.range) {
+                last = Some((i, *e));
             }
         }
-        out
+        // Where the strongest is the last, the strongest of the others.
+        let mut second: Option<Echo> = None;
+        if let (Some((s, _)), Some((l, _))) = (strongest, last) {
+            if s == l {
+                for (i, e) in detected.iter().enumerate() {
+                    match e {
+                        Some(e) if i != l && second.is_none_or(|b| better_of(first, e, &b)) => {
+                            second = Some(*e);
+                        }
+                        _ => {}
+                    }
+                }
+            }
+        }
+        Returns {
+            strongest: strongest.map(|(_, e)| e),
+            last: last.map(|(_, e)| e),
+            second,
+        }
     }
 
     /// Every sub-ray's direction and hit into `scratch.hits`: all cast, or with
