@@ -1763,6 +1763,163 @@ fn a_model_and_its_deterministic_part_cast_together_equal_each_alone() {
     }
 }
 
+/// The edge scene with a walker crossing the sensor's path (an actor: cast at every firing,
+/// never kept with the static hits).
+fn edge_scene_with_walker(dir: &Path) -> Scene {
+    let statics = edge_scene(dir, false);
+    let csv = dir.join("walker.csv");
+    let t0 = T0.0 as f64 * 1e-9;
+    std::fs::write(
+        &csv,
+        format!(
+            "t,x,y,z,yaw_deg\n{},6.0,-3.0,0.0,90.0\n{},6.0,3.0,0.0,90.0\n",
+            t0 - 1.0,
+            t0 + 2.0
+        ),
+    )
+    .unwrap();
+    let mut file = statics.file.clone();
+    file.actors = vec![hilrig::scene::file::ActorFile {
+        name: "walker".into(),
+        trajectory: csv,
+        accuracy_m: 0.0,
+        reflectivity: 0.3,
+        parts: vec![Shape::Cylinder {
+            radius: 0.3,
+            height: 1.8,
+            at: Placement::default(),
+            reflectivity: None,
+        }],
+    }];
+    Scene::from_file(file, dir, &dir.join("scene.toml")).unwrap()
+}
+
+/// The gap workflow's rounds reuse the static hits of the centre rays a re-simulation before
+/// kept (lidar/reuse.rs): the packets are those a fresh cast makes, bit for bit, for every
+/// layout and for models with and without random effects and footprints; a model whose rays
+/// are the same traverses none of its centre rays again, and one whose rays differ (a mount
+/// yaw) casts them all anew.
+#[test]
+fn static_hits_kept_by_one_simulation_give_the_next_the_same_packets_without_casting() {
+    use hilrig::sim::lidar::HitSlot;
+    let dir = tempfile::tempdir().unwrap();
+    let s = edge_scene_with_walker(dir.path());
+    let ego = ctrv(3.0, 0.2, 1.0);
+    let yawed = vec![Effect::MountMisalignment {
+        yaw_deg: 0.1,
+        pitch_deg: 0.0,
+        roll_deg: 0.0,
+    }];
+    let noisy = vec![Effect::RangeNoise { sigma_m: 0.02 }];
+    let (mut adaptive, mut reused) = (0, 0);
+    for (model, mode) in LAYOUTS {
+        let sim = |effects: &Vec<Effect>| {
+            LidarSim::new(
+                &s,
+                model,
+                Calibration::builtin(model),
+                &mounting(),
+                &model_of(effects.clone()),
+            )
+            .unwrap()
+        };
+        let sp = Spin {
+            mode,
+            ..spin(model)
+        };
+        let packets: Vec<_> = (0..sp.packets_in(0.2))
+            .map(|k| sp.packet(k, |t| t))
+            .collect();
+        // Every packet of `sim`, with the hits `given` (kept when `None`): the packets, the
+        // hits kept, the rays cast.
+        let run = |sim: &LidarSim, given: Option<&Vec<Option<hilrig::sim::lidar::CentreHits>>>| {
+            let mut st = SimStats::default();
+            let mut kept = Vec::new();
+            let mut out = Vec::new();
+            for (k, sk) in packets.iter().enumerate() {
+                let mut slot = HitSlot {
+                    given: given.and_then(|g| g[k].clone()),
+                    keep: given.is_none(),
+                    kept: None,
+                };
+                out.push(
+                    sim.simulate_reusing(&sk.packet, sk.time, &ego, k as u64, &mut st, &mut slot),
+                );
+                kept.push(slot.kept);
+            }
+            (out, kept, st.rays)
+        };
+        let fresh = |sim: &LidarSim| -> Vec<_> {
+            let mut st = SimStats::default();
+            packets
+                .iter()
+                .enumerate()
+                .map(|(k, sk)| sim.simulate(&sk.packet, sk.time, &ego, k as u64, &mut st))
+                .collect()
+        };
+        let ideal = sim(&Vec::new());
+        let (first, kept, cast) = run(&ideal, None);
+        assert_eq!(
+            first,
+            fresh(&ideal),
+            "{model} {mode:?}: keeping changed the packets"
+        );
+        assert!(kept.iter().all(Option::is_some) && cast > 1000);
+        let returns: usize = first
+            .iter()
+            .flat_map(|p| p.blocks.iter().flat_map(|b| b.channels.iter()))
+            .filter(|c| c.distance > 0)
+            .count();
+        assert!(returns > 1000, "{model} {mode:?}: {returns} returns");
+        // The same rays: nothing traversed, the same packets (the walker included).
+        for effects in [Vec::new(), noisy.clone()] {
+            let m = sim(&effects);
+            let (again, _, cast) = run(&m, Some(&kept));
+            assert_eq!(cast, 0, "{model} {mode:?} {effects:?}");
+            assert!(again == fresh(&m), "{model} {mode:?} {effects:?}");
+        }
+        // Other rays: every ray cast anew, the packets those of a fresh cast. A footprint
+        // cast adaptively casts the same centre rays (its centre sub-ray is the beam's ray)
+        // and only its other sub-rays, where its packet casts no witnesses outside itself
+        // (the VLP-16's; a banked packet's witness sequences change its rays' hash).
+        for effects in [yawed.clone(), truth_effects()] {
+            let m = sim(&effects);
+            let (_, _, alone) = run(&m, Some(&vec![None; packets.len()]));
+            let (again, _, cast) = run(&m, Some(&kept));
+            assert!(again == fresh(&m), "{model} {mode:?} {effects:?}");
+            if model == Model::Vlp16 && effects != yawed {
+                assert!(
+                    cast < alone,
+                    "{model} {mode:?} {effects:?}: {cast} of {alone}"
+                );
+                reused += 1;
+            } else {
+                assert_eq!(cast, alone, "{model} {mode:?} {effects:?}");
+            }
+        }
+        // Hits kept with a footprint cast adaptively serve that model again (a layout whose
+        // footprints are cast in full, a dual-return VLS-128's, keeps none).
+        let truth = sim(&truth_effects());
+        let (_, kept, full) = run(&truth, None);
+        let (again, _, cast) = run(&truth, Some(&kept));
+        assert!(again == fresh(&truth), "{model} {mode:?}");
+        if kept.iter().any(Option::is_some) {
+            assert!(cast < full, "{model} {mode:?}: {cast} of {full} rays");
+            adaptive += 1;
+        } else {
+            assert_eq!(cast, full, "{model} {mode:?}");
+        }
+    }
+    assert!(
+        adaptive >= 4,
+        "{adaptive} layouts cast footprints adaptively"
+    );
+    assert_eq!(
+        reused, 2,
+        "the VLP-16's footprints reuse the idealized centre hits"
+    );
+}
+
 /// The stratified footprint the gap workflow fits with (its sub-rays off the grid's rows and
 /// columns), and a first-echo receiver: cast adaptively, the same packets as cast in full.
 #[test]

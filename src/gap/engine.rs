@@ -15,6 +15,7 @@ use super::observe::RunData;
 use super::study::anchored;
 use super::trial::{model_sha256, one_run, seed_of, simulation_path, TrialTask};
 use super::GapError;
+use crate::sim::hit_log::HitLog;
 use crate::sim::model::ModelFile;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -60,6 +61,9 @@ pub(super) struct Simulations<'a> {
     pub tag: &'a str,
     /// Whether they are kept for the user to open.
     pub keep: bool,
+    /// Per validation run, its centre hits kept from one round's re-simulation for the next
+    /// ([`crate::sim::hit_log`]; used where the runs are re-simulated in this process).
+    pub hits: &'a [HitLog],
 }
 
 impl Engine {
@@ -86,6 +90,7 @@ impl Engine {
                         &simulation_path(sims.dir, sims.tag, i),
                         sims.keep,
                         measured,
+                        sims.hits.get(i),
                     )
                 })
                 .collect();

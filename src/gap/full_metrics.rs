@@ -10,6 +10,7 @@ use super::observe::RunData;
 use super::report::{FeatureAvm, FeatureLight, MetricCheck, ReferenceCheck, RunMetrics};
 
 use super::GapError;
+use crate::sim::hit_log::HitLog;
 use crate::sim::model::ModelFile;
 use crate::stats::repetitions::RunFeatures;
 use std::path::{Path, PathBuf};
@@ -138,6 +139,9 @@ pub(super) struct Watch<'a> {
     /// The current model's deterministic part, re-simulated, once a trial needed it (when
     /// the model has random effects).
     deterministic_now: Option<Samples>,
+    /// Per validation run, the centre hits its first re-simulation kept: most rounds' models
+    /// cast the same rays, and traverse none of them again.
+    hits: Vec<HitLog>,
 }
 
 impl<'a> Watch<'a> {
@@ -149,6 +153,7 @@ impl<'a> Watch<'a> {
         engine: Engine,
     ) -> Result<Self, GapError> {
         let mut measured = Vec::new();
+        let hits: Vec<HitLog> = val.iter().map(|_| HitLog::default()).collect();
         let (metrics, samples, _) = run_metrics(
             val,
             model,
@@ -157,6 +162,7 @@ impl<'a> Watch<'a> {
                 dir: &dir,
                 tag: "round-0",
                 keep: true,
+                hits: &hits,
             },
             &mut measured,
             &engine,
@@ -172,6 +178,7 @@ impl<'a> Watch<'a> {
                 samples,
             },
             deterministic_now: None,
+            hits,
         })
     }
 
@@ -190,6 +197,7 @@ impl<'a> Watch<'a> {
                 dir: &dir,
                 tag,
                 keep: false,
+                hits: &self.hits,
             },
             &mut self.measured,
             &self.engine,
@@ -225,6 +233,7 @@ impl<'a> Watch<'a> {
                 dir: &dir,
                 tag,
                 keep: true,
+                hits: &self.hits,
             },
             &mut self.measured,
             &self.engine,
@@ -281,6 +290,7 @@ impl<'a> Watch<'a> {
                 dir: &dir,
                 tag: "reference",
                 keep: true,
+                hits: &self.hits,
             },
             &mut self.measured,
             &self.engine,

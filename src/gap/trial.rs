@@ -132,6 +132,8 @@ pub fn trial(t: &TrialTask) -> Result<TrialRun, GapError> {
         &t.simulation,
         !t.scratch,
         t.measured,
+        // A trial re-simulates its run once.
+        None,
     )?;
     crate::output::write(&t.output, &result)?;
     Ok(result)
@@ -199,7 +201,8 @@ pub(super) fn seed_of(index: usize) -> u64 {
 /// Validation run `r` re-simulated with `model` (and its deterministic part `det`, from the
 /// same casts) into `sim_path` with `seed`, and compared scan by scan as it is cast; the
 /// simulation removed again unless `keep_file`; the measured scans' features only when
-/// `want_measured`.
+/// `want_measured`. With `hits`, the run's centre hits of the re-simulations before are
+/// reused where the rays are the same, or kept for the later ones.
 pub(super) fn one_run(
     r: &RunData,
     seed: u64,
@@ -207,6 +210,7 @@ pub(super) fn one_run(
     sim_path: &Path,
     keep_file: bool,
     want_measured: bool,
+    hits: Option<&crate::sim::hit_log::HitLog>,
 ) -> Result<TrialRun, GapError> {
     let quiet = |_: u64, _: u64| {};
     let (_, sensor, calibration) = r.rig.lidar_sensor().map_err(|source| GapError::Lidar {
@@ -233,6 +237,9 @@ pub(super) fn one_run(
         resim = resim
             .with_deterministic_part(&r.rig, &r.scene, det)
             .map_err(resim_error)?;
+    }
+    if let Some(log) = hits {
+        resim = resim.with_hit_log(log);
     }
     let (mut real_scans, mut sim_scans) = (Vec::new(), Vec::new());
     let compare_error = |source| GapError::Compare {

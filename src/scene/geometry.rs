@@ -434,6 +434,29 @@ impl Geometry {
     }
 }
 
+impl Geometry {
+    /// The hit of primitive `i` (an index a [`Hit`] of this geometry names) along `o + t d`,
+    /// exactly as [`Geometry::cast`] reports it when `i` is the nearest: the same intersection
+    /// test of the same ray, so that a ray known to meet `i` first is not traversed again.
+    pub fn hit_on(
+        &self,
+        i: u32,
+        o: &Point3<f64>,
+        d: &Vector3<f64>,
+        tmin: f64,
+        tmax: f64,
+    ) -> Option<Hit> {
+        let p = self.prims.get(i as usize)?;
+        let (range, normal) = p.intersect(o, d, tmin, tmax)?;
+        Some(Hit {
+            range,
+            normal,
+            material: p.material(),
+            primitive: Some(i),
+        })
+    }
+}
+
 /// Rays of one [`Geometry::cast_bundle`] traversal at most (more are cast in several).
 pub const BUNDLE: usize = 16;
 

@@ -17,6 +17,7 @@ mod cast;
 mod echo;
 mod effects;
 mod footprint;
+mod reuse;
 
 use effects::Compiled;
 use footprint::{CentreRay, SubHit};
@@ -74,6 +75,8 @@ impl Returns {
         self.second.or(self.strongest)
     }
 }
+
+pub use reuse::{CentreHits, HitSlot, NO_HIT};
 
 /// When a packet's firings happened (the recorded packets' times are read in one place,
 /// [`crate::bag::packet_times`]).
@@ -385,7 +388,7 @@ impl<'a> LidarSim<'a> {
         stats: &mut SimStats,
         observe: &mut dyn FnMut(&Firing),
     ) -> DataPacket {
-        self.simulate_with(skeleton, time, ego, seed, stats, observe, None)
+        self.simulate_with(skeleton, time, ego, seed, stats, observe, None, None)
     }
 
     /// Whether the model has no random effect (range noise, dropout, weather clutter,
@@ -413,26 +416,7 @@ impl<'a> LidarSim<'a> {
         seed: u64,
         stats: &mut SimStats,
     ) -> Option<(DataPacket, DataPacket)> {
-        if !det.is_deterministic() {
-            return None;
-        }
-        let mut twin = Twin {
-            sim: det,
-            pkt: skeleton.clone(),
-        };
-        for b in twin.pkt.blocks.iter_mut() {
-            b.channels = [Channel::default(); CHANNELS];
-        }
-        let full = self.simulate_with(
-            skeleton,
-            time,
-            ego,
-            seed,
-            stats,
-            &mut |_| {},
-            Some(&mut twin),
-        );
-        Some((full, twin.pkt))
+        self.simulate_pair_reusing(det, skeleton, time, ego, seed, stats, None)
     }
 
     /// [`LidarSim::simulate_observed`], with the deterministic `twin`'s packet written from
@@ -450,10 +434,11 @@ impl<'a> LidarSim<'a> {
         stats: &mut SimStats,
         observe: &mut dyn FnMut(&Firing),
         twin: Option<&mut Twin<'_, '_>>,
+        hits: Option<&mut HitSlot>,
     ) -> DataPacket {
         let model = self.decoder.model();
         if model == hilrig_velodyne::Model::Vls128 || model.is_hdl64e() {
-            return self.simulate_banked(skeleton, time, ego, seed, stats, observe, twin);
+            return self.simulate_banked(skeleton, time, ego, seed, stats, observe, twin, hits);
         }
         // Every channel is written below; none keeps what the skeleton carried (a recording's).
         let mut pkt = skeleton.clone();
@@ -570,7 +555,7 @@ impl<'a> LidarSim<'a> {
                 });
             }
         }
-        self.cast_planned(&mut plan, stats, observe, &mut pkt, &mut rng, twin);
+        self.cast_planned(&mut plan, stats, observe, &mut pkt, &mut rng, twin, hits);
         pkt
     }
 }

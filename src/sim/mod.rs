@@ -3,6 +3,7 @@
 
 pub mod drivable;
 pub mod drive;
+pub mod hit_log;
 pub mod lidar;
 pub mod model;
 pub mod pattern;

@@ -15,7 +15,8 @@
 //! that compares as it goes (`Resimulator`, with a model's deterministic part from the same
 //! casts); split, the caster would be shared across files for no reader's gain.
 
-use super::lidar::{LidarSim, SimStats};
+use super::hit_log::{HitLog, HitRun};
+use super::lidar::{HitSlot, LidarSim, SimStats};
 use super::model::ModelFile;
 use super::sim_file::{ScanMessages, Writer};
 use crate::bag::msgs;
@@ -317,7 +318,7 @@ impl Caster<'_> {
         state: &mut CastState,
         stats: &mut SimStats,
     ) -> Vec<ScanMessages> {
-        let simulated = self.simulate(scans, state, stats);
+        let simulated = self.simulate(scans, (state, None), stats);
         self.messages(scans, &simulated)
     }
 
@@ -326,44 +327,67 @@ impl Caster<'_> {
     fn simulate(
         &self,
         scans: &[Scan],
-        state: &mut CastState,
+        (state, hits): (&mut CastState, Option<&mut HitRun<'_>>),
         stats: &mut SimStats,
     ) -> Vec<[u8; DATA_PACKET_SIZE]> {
         self.each_packet(
             scans,
-            (state, stats),
-            |p, time, seed, st| {
-                self.sim
+            (state, stats, hits),
+            |p, time, seed, st, slot| match slot {
+                Some(slot) => self
+                    .sim
+                    .simulate_reusing(p, time, self.trajectory, seed, st, slot)
+                    .encode(),
+                None => self
+                    .sim
                     .simulate(p, time, self.trajectory, seed, st)
-                    .encode()
+                    .encode(),
             },
             |b| *b,
         )
     }
 
-    /// `cast(packet, time, seed, stats)` of every packet of `scans`, in order, all of the
-    /// batch at once (both cores busy whatever the scan size); `kept(bytes)` of a packet that
-    /// does not decode (it is kept as it was); the firing counts added to `stats`.
+    /// `cast(packet, time, seed, stats, hits)` of every packet of `scans`, in order, all of
+    /// the batch at once (both cores busy whatever the scan size), with each packet's slot of
+    /// `hits` when a log is kept; `kept(bytes)` of a packet that does not decode (it is kept
+    /// as it was); the firing counts added to `stats`.
+    #[allow(
+        clippy::type_complexity,
+        reason = "the cast's arguments, named at its callers"
+    )]
     fn each_packet<T: Send>(
         &self,
         scans: &[Scan],
-        (state, stats): (&mut CastState, &mut SimStats),
-        cast: impl Fn(&DataPacket, PacketTime, u64, &mut SimStats) -> T + Sync,
+        (state, stats, hits): (&mut CastState, &mut SimStats, Option<&mut HitRun<'_>>),
+        cast: impl Fn(&DataPacket, PacketTime, u64, &mut SimStats, Option<&mut HitSlot>) -> T + Sync,
         kept: impl Fn(&[u8; DATA_PACKET_SIZE]) -> T + Sync,
     ) -> Vec<T> {
         let jobs = Caster::jobs(scans, state);
+        let mut hits = hits;
+        let mut slots: Option<Vec<HitSlot>> = hits.as_deref_mut().map(|h| h.slots(jobs.len()));
+        let mut each: Vec<Option<&mut HitSlot>> = match slots.as_mut() {
+            Some(v) => v.iter_mut().map(Some).collect(),
+            None => jobs.iter().map(|_| None).collect(),
+        };
         let simulated: Vec<(T, SimStats)> = jobs
             .par_iter()
-            .map(|&(k, i, time, n)| {
+            .zip(each.par_iter_mut())
+            .map(|(&(k, i, time, n), slot)| {
                 let b = &scans[k].packets[i].1;
                 let mut st = SimStats::default();
                 let out = match (DataPacket::decode(&b[..]), time) {
-                    (Ok(p), Some(time)) => cast(&p, time, self.seed ^ n, &mut st),
+                    (Ok(p), Some(time)) => {
+                        cast(&p, time, self.seed ^ n, &mut st, slot.as_deref_mut())
+                    }
                     _ => kept(b),
                 };
                 (out, st)
             })
             .collect();
+        drop(each);
+        if let (Some(h), Some(s)) = (hits, slots) {
+            h.done(s);
+        }
         let mut out = Vec::with_capacity(simulated.len());
         for (b, st) in simulated {
             *stats += st;
@@ -396,16 +420,16 @@ impl Caster<'_> {
         &self,
         det: &LidarSim<'_>,
         scans: &[Scan],
-        state: &mut CastState,
+        (state, hits): (&mut CastState, Option<&mut HitRun<'_>>),
         stats: &mut SimStats,
     ) -> Vec<[[u8; DATA_PACKET_SIZE]; 2]> {
         self.each_packet(
             scans,
-            (state, stats),
-            |p, time, seed, st| {
+            (state, stats, hits),
+            |p, time, seed, st, slot| {
                 let (a, d) = self
                     .sim
-                    .simulate_pair(det, p, time, self.trajectory, seed, st)
+                    .simulate_pair_reusing(det, p, time, self.trajectory, seed, st, slot)
                     .expect("a deterministic part, checked when it was set");
                 [a.encode(), d.encode()]
             },
@@ -465,6 +489,8 @@ pub struct Resimulator<'a> {
     state: Option<CastState>,
     writer: Writer,
     stats: SimStats,
+    /// The run's centre hits, reused or kept ([`Resimulator::with_hit_log`]).
+    hits: Option<HitRun<'a>>,
 }
 
 impl<'a> Resimulator<'a> {
@@ -500,6 +526,7 @@ impl<'a> Resimulator<'a> {
             state: None,
             writer: Writer::start(out, meta, model.to_toml(), first_log)?,
             stats: SimStats::default(),
+            hits: None,
         })
     }
 
@@ -570,13 +597,14 @@ impl<'a> Resimulator<'a> {
             seed: self.seed,
         };
         let state = self.state.get_or_insert_with(|| CastState::new(pps_locked));
+        let hits = self.hits.as_mut();
         let (full, part) = match self.det.as_ref().filter(|_| pair) {
             Some(det) => {
-                let pairs = caster.simulate_pair(det, scans, state, &mut self.stats);
+                let pairs = caster.simulate_pair(det, scans, (state, hits), &mut self.stats);
                 let (full, part): (Vec<_>, Vec<_>) = pairs.into_iter().map(|[a, b]| (a, b)).unzip();
                 (full, Some(part))
             }
-            None => (caster.simulate(scans, state, &mut self.stats), None),
+            None => (caster.simulate(scans, (state, hits), &mut self.stats), None),
         };
         for m in caster.messages(scans, &full) {
             self.writer.send(m)?;
@@ -584,10 +612,22 @@ impl<'a> Resimulator<'a> {
         Ok((twins_of(scans, full), part.map(|p| twins_of(scans, p))))
     }
 
-    /// Closes the simulation's file; the firings cast.
+    /// Closes the simulation's file; the firings cast. A log of centre hits this
+    /// re-simulation wrote is kept for the next ones.
     pub fn finish(self) -> Result<SimStats, ResimError> {
         self.writer.finish()?;
+        if let Some(h) = self.hits {
+            h.finish();
+        }
         Ok(self.stats)
+    }
+
+    /// This re-simulation reusing the centre hits `log` kept from a re-simulation of the
+    /// same run before (where the rays are the same), or keeping them there for the next ones
+    /// ([`crate::sim::hit_log`]): the same packets, bit for bit.
+    pub fn with_hit_log(mut self, log: &'a HitLog) -> Resimulator<'a> {
+        self.hits = log.open();
+        self
     }
 }
 

@@ -28,6 +28,7 @@ impl LidarSim<'_> {
         stats: &mut SimStats,
         observe: &mut dyn FnMut(&Firing),
         twin: Option<&mut Twin<'_, '_>>,
+        hits: Option<&mut super::HitSlot>,
     ) -> DataPacket {
         use hilrig_velodyne::decode::{
             hdl64e_dual, hdl64e_firing, hdl64e_offset_us, hdl64e_rate, vls128_firing,
@@ -190,7 +191,7 @@ impl LidarSim<'_> {
                 });
             }
         }
-        self.cast_planned(&mut plan, stats, observe, &mut pkt, &mut rng, twin);
+        self.cast_planned(&mut plan, stats, observe, &mut pkt, &mut rng, twin, hits);
         pkt
     }
 }

@@ -10,6 +10,7 @@
 //! changes no draw.
 
 use super::footprint::Witnesses;
+use super::reuse::{self, CentreHits, HitSlot, NO_HIT};
 use super::{Firing, LidarSim, PacketPlan, Planned, Scratch, SimStats, Twin};
 use hilrig_stamp::UtcNanos;
 use hilrig_velodyne::{DataPacket, ReturnMode};
@@ -31,7 +32,9 @@ const TOGETHER: usize = 4;
 const NONE: u16 = u16::MAX;
 
 impl LidarSim<'_> {
-    /// Casts `plan`'s firings, hands each to `observe` and writes its returns into `pkt`.
+    /// Casts `plan`'s firings, hands each to `observe` and writes its returns into `pkt`; the
+    /// centre rays' static hits reused from `hits` or kept there (reuse.rs).
+    #[allow(clippy::too_many_arguments, reason = "simulate_with's, handed on")]
     pub(super) fn cast_planned(
         &self,
         plan: &mut PacketPlan,
@@ -40,6 +43,7 @@ impl LidarSim<'_> {
         pkt: &mut DataPacket,
         rng: &mut ChaCha8Rng,
         mut twin: Option<&mut Twin<'_, '_>>,
+        hits: Option<&mut HitSlot>,
     ) {
         let adaptive = plan.adaptive;
         let has_actors = !self.scene.actors.is_empty();
@@ -61,15 +65,14 @@ impl LidarSim<'_> {
             index = vec![NONE; plan.sequences * lasers];
         }
         if precast {
-            self.cast_centres(plan, stats);
+            self.cast_centres(plan, stats, hits);
             let tmax = self.casting_range();
             for (i, p) in plan.firings.iter_mut().enumerate() {
                 pose_actors(p.actors_at, &mut actors);
                 let c = &mut p.centre;
                 if has_actors {
-                    let d = c.cast_direction(adaptive);
                     self.scene
-                        .actors_into(&c.origin, &d, 0.0, tmax, &actors, &mut c.hit);
+                        .actors_into(&c.origin, &c.direction, 0.0, tmax, &actors, &mut c.hit);
                 }
                 if let Some(slot) =
                     index.get_mut(usize::from(p.sequence) * lasers + usize::from(p.laser))
@@ -172,13 +175,46 @@ impl LidarSim<'_> {
         }
     }
 
-    /// The static geometry's hit of every planned centre ray (along its direction normalised
-    /// again when the footprint is adaptive: what the full cast's centre sub-ray is), into
-    /// its `hit`; the actors are the caller's. Neighbouring firings are cast together
+    /// The static geometry's hit of every planned centre ray (the full cast's centre sub-ray
+    /// too, `footprint::sub_ray`), into its `hit`; the actors are the caller's. Neighbouring firings are cast together
     /// ([`crate::scene::Scene::cast_statics`]): a laser's firings in a few adjacent firing
-    /// sequences, a fraction of a degree apart, share most of their traversal.
-    fn cast_centres(&self, plan: &mut PacketPlan, stats: &mut SimStats) {
+    /// sequences, a fraction of a degree apart, share most of their traversal. Where `hits`
+    /// gives the static hits of these very rays (a re-simulation before kept them: reuse.rs),
+    /// each is its primitive's intersection instead, and none is traversed; where it asks,
+    /// the hits are kept there.
+    fn cast_centres(
+        &self,
+        plan: &mut PacketPlan,
+        stats: &mut SimStats,
+        hits: Option<&mut HitSlot>,
+    ) {
         let n = plan.firings.len();
+        let tmax = self.casting_range();
+        let reusing = hits.map(|slot| {
+            let fp = reuse::fingerprint(
+                plan.firings
+                    .iter()
+                    .map(|p| (p.centre.origin, p.centre.direction)),
+                tmax,
+            );
+            (slot, fp)
+        });
+        if let Some((slot, fp)) = &reusing {
+            if let Some(given) = slot
+                .given
+                .as_ref()
+                .filter(|g| g.rays == *fp && g.prims.len() == n)
+            {
+                let statics = &self.scene.statics;
+                for (p, &prim) in plan.firings.iter_mut().zip(&given.prims) {
+                    let c = &mut p.centre;
+                    c.hit = (prim != NO_HIT)
+                        .then(|| statics.hit_on(prim, &c.origin, &c.direction, 0.0, tmax))
+                        .flatten();
+                }
+                return;
+            }
+        }
         // The sequences the plan really casts (a banked packet's three, five with the
         // witnesses around them; a VLP-32C's twelve), split into groups of at most TOGETHER
         // of nearly equal size; a group's firings of one laser are cast together.
@@ -211,11 +247,10 @@ impl LidarSim<'_> {
         let mut rays = vec![(Point3::origin(), Vector3::zeros()); n];
         for (i, (p, &g)) in plan.firings.iter().zip(&keys).enumerate() {
             order[next[g]] = i;
-            rays[next[g]] = (p.centre.origin, p.centre.cast_direction(plan.adaptive));
+            rays[next[g]] = (p.centre.origin, p.centre.direction);
             next[g] += 1;
         }
         let mut hits = vec![None; n];
-        let tmax = self.casting_range();
         for g in 0..groups {
             let r = starts[g]..starts[g + 1];
             self.scene
@@ -225,5 +260,15 @@ impl LidarSim<'_> {
             plan.firings[i].centre.hit = h;
         }
         stats.rays += n as u64;
+        if let Some((slot, fp)) = reusing.filter(|(slot, _)| slot.keep) {
+            slot.kept = Some(CentreHits {
+                rays: fp,
+                prims: plan
+                    .firings
+                    .iter()
+                    .map(|p| p.centre.hit.and_then(|h| h.primitive).unwrap_or(NO_HIT))
+                    .collect(),
+            });
+        }
     }
 }

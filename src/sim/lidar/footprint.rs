@@ -98,19 +98,6 @@ pub(super) struct CentreRay {
     pub(super) hit: Option<Hit>,
 }
 
-impl CentreRay {
-    /// The direction it is cast along: with an adaptive footprint the unit direction
-    /// normalised again, as the full cast computes its centre sub-ray, so that both agree to
-    /// the bit; otherwise the direction as it is (what a beam without divergence casts).
-    pub(super) fn cast_direction(&self, adaptive: bool) -> Vector3<f64> {
-        if adaptive {
-            self.direction.normalize()
-        } else {
-            self.direction
-        }
-    }
-}
-
 /// The sub-rays of a divergent beam, as the beam_divergence effect lays them out.
 #[derive(Clone, Debug)]
 pub(super) struct Pattern {
@@ -204,6 +191,13 @@ pub(super) fn sub_ray(
     a: f64,
     b: f64,
 ) -> Vector3<f64> {
+    if a == 0.0 && b == 0.0 {
+        // The centre sub-ray is the beam's own ray, to the bit (normalising the unit
+        // direction again could move it by an ulp): the one ray a beam without divergence
+        // casts, and the one an adaptive footprint casts first. So every model casts the same
+        // centre rays, and a re-simulation reuses another's hits (reuse.rs).
+        return *d;
+    }
     (d + u * a + w * b).normalize()
 }
 
