@@ -50,7 +50,7 @@ fn study() -> &'static Path {
 }
 
 /// `hilrig gap STUDY` of one round with the truth as reference model and `extra` arguments,
-/// into `out`; it must succeed.
+/// into `out`; it must succeed. Its log (stderr).
 fn gap(out: &Path, extra: &[&str], env: &[(&str, &Path)]) -> String {
     let study = study();
     let mut cmd = Command::new(common::hilrig_bin());
@@ -75,18 +75,58 @@ fn gap(out: &Path, extra: &[&str], env: &[(&str, &Path)]) -> String {
         "gap {extra:?}: {}",
         String::from_utf8_lossy(&o.stderr)
     );
-    String::from_utf8_lossy(&o.stdout).into_owned()
+    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-/// The study made in this process, once per test binary.
-fn in_process() -> &'static Path {
-    static OUT: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+/// The study made in this process, once per test binary, and its log at `-v`.
+fn in_process_with_log() -> &'static (PathBuf, String) {
+    static OUT: std::sync::OnceLock<(PathBuf, String)> = std::sync::OnceLock::new();
     OUT.get_or_init(|| {
         let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("gap-engine-in-process");
         let _ = std::fs::remove_dir_all(&out);
-        gap(&out, &[], &[]);
-        out
+        let log = gap(&out, &["-v"], &[]);
+        (out, log)
     })
+}
+
+fn in_process() -> &'static Path {
+    &in_process_with_log().0
+}
+
+/// In one process, the validation runs' re-simulations after round 0 (the trial's, the
+/// reference's: models that cast the start model's rays) traverse none of their centre rays
+/// again: the hits round 0 kept are reused (and the study is the one the tasks make, which
+/// reuse nothing: the tests above).
+#[test]
+fn in_one_process_the_rounds_reuse_the_centre_hits_round_0_kept() {
+    let (_, log) = in_process_with_log();
+    let counts: Vec<(u64, u64)> = log
+        .lines()
+        .filter(|l| l.contains("centre rays' static hits reused"))
+        .map(|l| {
+            let n: Vec<u64> = l
+                .split(|c: char| !c.is_ascii_digit())
+                .filter(|w| !w.is_empty())
+                .map(|w| w.parse().unwrap())
+                .collect();
+            // The last two numbers: hits reused, rays cast.
+            (n[n.len() - 2], n[n.len() - 1])
+        })
+        .collect();
+    // Round 0's two runs, the trial's two, the reference's two.
+    assert!(counts.len() >= 6, "{counts:?}\n{log}");
+    assert!(
+        counts[..2]
+            .iter()
+            .all(|&(reused, cast)| reused == 0 && cast > 100_000),
+        "{counts:?}"
+    );
+    assert!(
+        counts[2..]
+            .iter()
+            .all(|&(reused, cast)| reused > 100_000 && cast == 0),
+        "{counts:?}"
+    );
 }
 
 /// The simulations a study kept (`sim/*.mcap`), by name.

@@ -814,6 +814,41 @@ fn where_the_strongest_echo_is_the_last_a_dual_return_reports_the_second_stronge
         }
     }
     assert!(split >= 10, "{split} firings with the second strongest");
+    // "If only one return was detected, the data will be identical in the even|odd block
+    // pairs": with intensity noise too (drawn once for the pair).
+    let noisy = beam_sim(
+        &s,
+        vec![
+            wide_beam(),
+            Effect::Intensity {
+                incidence_exponent: 1.0,
+                noise_sigma: 3.0,
+            },
+        ],
+    );
+    let sp = Spin {
+        mode: ReturnMode::Dual,
+        ..spin(Model::Vlp16)
+    };
+    let (mut identical, mut two) = (0, 0);
+    for k in 0..sp.packets_in(0.3) {
+        let sk = sp.packet(k, |t| t);
+        let pkt = noisy.simulate(&sk.packet, sk.time, &ego, k, &mut SimStats::default());
+        for pair in pkt.blocks.chunks_exact(2) {
+            for (last, st) in pair[0].channels.iter().zip(&pair[1].channels) {
+                if last.distance == st.distance {
+                    assert_eq!(last, st, "packet {k}");
+                    identical += usize::from(last.distance > 0);
+                } else {
+                    two += 1;
+                }
+            }
+        }
+    }
+    assert!(
+        identical > 1000 && two >= 10,
+        "{identical} identical pairs, {two} two echoes"
+    );
     let ideal = by_firing(vec![], ReturnMode::Dual);
     assert!(ideal
         .values()

@@ -153,7 +153,7 @@ impl<'a> Watch<'a> {
         engine: Engine,
     ) -> Result<Self, GapError> {
         let mut measured = Vec::new();
-        let hits: Vec<HitLog> = val.iter().map(|_| HitLog::default()).collect();
+        let hits: Vec<HitLog> = val.iter().map(|_| HitLog::in_dir(dir.clone())).collect();
         let (metrics, samples, _) = run_metrics(
             val,
             model,

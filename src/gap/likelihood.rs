@@ -23,6 +23,7 @@
 //! outlier share.
 
 use super::observe::{Feature, Obs};
+use crate::sim::lidar::Reported;
 use crate::sim::model::{Effect, ModelFile};
 
 /// The random parts of a model, which the likelihood applies analytically.
@@ -61,7 +62,9 @@ impl Clutter {
     /// target, as near as the blind zone, and
     /// - for a block of strongest returns, only as near as it outshines the target;
     /// - for a block of last returns, nowhere when there is a target (it is the last echo);
-    /// - for a first-echo receiver, anywhere in front of the target.
+    /// - for a first-echo receiver, and for a dual-return packet's strongest block, anywhere
+    ///   in front of the target (a droplet there is the strongest echo, or the second
+    ///   strongest where the target is both the strongest and the last).
     ///
     /// With no target predicted, the whole range. (Scored with the strongest echo's rule, the
     /// clutter share of two last-return drives was fitted 31 % low.)
@@ -73,11 +76,11 @@ impl Clutter {
     pub fn support(&self, o: &Obs, f: &Feature) -> Option<(f64, f64)> {
         let hi = if !o.predicted.is_finite() {
             self.max_m
-        } else if f.last {
+        } else if f.reports == Reported::Last {
             return None;
         } else {
             let front = f64::from(o.predicted).min(self.max_m);
-            if self.first_echo {
+            if self.first_echo || f.reports == Reported::DualStrongest {
                 front
             } else {
                 front.min(self.outshines_nearer_than(f64::from(o.power)))
@@ -676,7 +679,11 @@ mod tests {
             ..Obs::default()
         };
         let last = Feature {
-            last: true,
+            reports: Reported::Last,
+            ..Feature::default()
+        };
+        let dual = Feature {
+            reports: Reported::DualStrongest,
             ..Feature::default()
         };
         let strongest = Feature::default();
@@ -690,6 +697,16 @@ mod tests {
         assert_eq!(first.support(&bright, &strongest), Some((0.5, 2.0)));
         assert!((first.wins_firing(&bright, &strongest) - 0.6).abs() < 1e-9);
         assert_eq!(first.wins_firing(&none, &strongest), 1.0);
+        // A dual-return packet's strongest block reports a droplet anywhere in front of the
+        // target, bright or faint (the droplet, or the second strongest where the target is
+        // both strongest and last).
+        assert_eq!(c.support(&bright, &dual), Some((0.5, 2.0)));
+        assert_eq!(c.support(&faint, &dual), Some((0.5, 3.0)));
+        assert_eq!(c.support(&bright, &strongest), None);
+        assert_eq!(
+            c.wins_firing(&bright, &dual),
+            first.wins_firing(&bright, &strongest)
+        );
     }
 
     /// The Gaussian density, written out: N(e; 0, s).

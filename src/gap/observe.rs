@@ -188,9 +188,8 @@ pub struct Feature {
     /// How well that surface's place is known, 1 sigma, m ([`crate::scene::Scene::accuracy_of`]):
     /// an error every scan of the run shares.
     pub accuracy: f32,
-    /// The firing's block reports the last echo (a last-return packet), not the strongest:
-    /// which of a firing's echoes a droplet's replaces.
-    pub last: bool,
+    /// Which of the firing's echoes its block reports: which of them a droplet's replaces.
+    pub reports: crate::sim::lidar::Reported,
 }
 
 /// [`Feature::surface`] of a beam that hits nothing.
@@ -492,8 +491,8 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
             scene.actor_poses(s.time.first_firing, &mut actors);
             let mut last_of_laser = std::collections::HashMap::new();
             // What the gap observes of a firing is what the simulator reports for it
-            // ([`Firing::reported`]): the last echo in a last-return packet, else the strongest.
-            let last = s.packet.return_mode.mode() == Some(hilrig_velodyne::ReturnMode::Last);
+            // ([`Firing::reported`]).
+            let reports = crate::sim::lidar::Reported::of(s.packet.return_mode.mode());
             let mut hint = 0usize;
             let max = 400.0;
             sim.simulate_observed(
@@ -568,7 +567,7 @@ pub fn features(run: &RunData, model: &ModelFile) -> Result<Vec<Feature>, GapErr
                         accuracy: centre
                             .as_ref()
                             .map_or(0.0, |h| scene.accuracy_of(h.material.surface) as f32),
-                        last,
+                        reports,
                     };
                 },
             );

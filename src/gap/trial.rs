@@ -313,7 +313,15 @@ pub(super) fn one_run(
         Some((c, features)) => Some((c.map_err(compare_error)?, features)),
         None => None,
     };
-    resim.finish().map_err(resim_error)?;
+    let stats = resim.finish().map_err(resim_error)?;
+    if hits.is_some() {
+        tracing::info!(
+            "{}: {} centre rays' static hits reused, {} rays cast",
+            r.name,
+            stats.reused,
+            stats.rays
+        );
+    }
     if !keep_file {
         // A scratch simulation: nothing a user opens. Failing to remove it loses nothing.
         let _ = std::fs::remove_file(sim_path);

@@ -4,8 +4,8 @@
 //! before traverses none of them again.
 //!
 //! On disk, not in memory, so that the workflow's memory does not grow with the runs' length:
-//! four bytes a firing (a VLP-32C minute, 36 M firings: 144 MB) in a file of its own that the
-//! system removes however the process ends. The first re-simulation of the run writes it,
+//! four bytes a firing (a VLP-32C minute, 36 M firings: 144 MB) in a file of its own beside
+//! the simulations, which the system removes however the process ends (unlinked once open). The first re-simulation of the run writes it,
 //! packet by packet in the run's order; the later ones read it in the same order. Each packet's
 //! hits are used only where its rays hash alike, so a log read by a model that moves the beams
 //! costs the reading, never a wrong hit. A re-simulation that stops half-way leaves no log
@@ -14,16 +14,28 @@
 use super::lidar::{CentreHits, HitSlot};
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Seek, Write};
+use std::path::PathBuf;
 use std::sync::{Mutex, PoisonError};
 
 /// The centre hits of one run, kept for its re-simulations (one at a time).
 #[derive(Debug, Default)]
 pub struct HitLog {
+    /// Where the file goes (the system's temporary folder when `None`, which may be held in
+    /// memory: a tmpfs).
+    dir: Option<PathBuf>,
     /// The file of a re-simulation that wrote every packet's hits.
     written: Mutex<Option<File>>,
 }
 
 impl HitLog {
+    /// A log whose file goes to `dir` (the simulations' own folder: on the disk they go to).
+    pub fn in_dir(dir: PathBuf) -> HitLog {
+        HitLog {
+            dir: Some(dir),
+            written: Mutex::default(),
+        }
+    }
+
     /// What a re-simulation of the run does with the log: reads it where one was written,
     /// else writes it. `None` when the file cannot be made (the re-simulation then casts
     /// every ray, as without a log).
@@ -39,7 +51,19 @@ impl HitLog {
                 f.rewind().ok()?;
                 Mode::Read(BufReader::new(f))
             }
-            None => Mode::Write(BufWriter::new(tempfile::tempfile().ok()?)),
+            None => {
+                let file = match &self.dir {
+                    Some(d) => tempfile::tempfile_in(d),
+                    None => tempfile::tempfile(),
+                };
+                match file {
+                    Ok(f) => Mode::Write(BufWriter::new(f)),
+                    Err(e) => {
+                        tracing::warn!("no file for the centre hits ({e}): every ray is cast");
+                        return None;
+                    }
+                }
+            }
         };
         Some(HitRun { log: self, mode })
     }
@@ -70,7 +94,7 @@ impl HitRun<'_> {
                     match read_one(r) {
                         Ok(h) => s.given = Some(h),
                         Err(e) => {
-                            tracing::debug!("the kept centre hits end early ({e}): cast anew");
+                            tracing::warn!("the kept centre hits end early ({e}): cast anew");
                             self.mode = Mode::Off;
                             break;
                         }
@@ -96,7 +120,7 @@ impl HitRun<'_> {
         let empty = CentreHits::default();
         for s in &slots {
             if let Err(e) = write_one(w, s.kept.as_ref().unwrap_or(&empty)) {
-                tracing::debug!("the centre hits cannot be kept ({e})");
+                tracing::warn!("the centre hits cannot be kept ({e}): the next rounds cast");
                 self.mode = Mode::Off;
                 return;
             }

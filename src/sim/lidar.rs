@@ -65,17 +65,7 @@ pub struct Returns {
     pub second: Option<Echo>,
 }
 
-impl Returns {
-    /// What a dual-return packet carries beside the last echo: the strongest, or where the
-    /// strongest is the last, the second strongest; the last again when it was the only echo
-    /// (the pair of blocks then identical). So the Velodyne manuals describe the dual return
-    /// mode (VLP-16 and VLP-32C user manuals, ch. 9; the VLS-128's likewise): a beam that
-    /// meets a dark pole's edge in front of a bright wall reports both, not the wall twice.
-    pub fn dual_strongest(&self) -> Option<Echo> {
-        self.second.or(self.strongest)
-    }
-}
-
+pub use echo::Reported;
 pub use reuse::{CentreHits, HitSlot, NO_HIT};
 
 /// When a packet's firings happened (the recorded packets' times are read in one place,
@@ -96,6 +86,9 @@ pub struct SimStats {
     /// Firings whose every sub-ray was cast (with the beam divergence effect): all of them with
     /// [`FootprintCast::Full`], those near an edge with [`FootprintCast::Adaptive`].
     pub footprints_cast: u64,
+    /// Centre rays not cast: their static hits were those a re-simulation before kept
+    /// ([`LidarSim::simulate_reusing`]).
+    pub reused: u64,
 }
 
 impl std::ops::AddAssign for SimStats {
@@ -108,12 +101,14 @@ impl std::ops::AddAssign for SimStats {
             outside_trajectory,
             rays,
             footprints_cast,
+            reused,
         } = o;
         self.firings += firings;
         self.returns += returns;
         self.outside_trajectory += outside_trajectory;
         self.rays += rays;
         self.footprints_cast += footprints_cast;
+        self.reused += reused;
     }
 }
 

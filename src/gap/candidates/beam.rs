@@ -107,8 +107,9 @@ fn intensity_noise(rows: &[(f64, f64)]) -> f64 {
 /// every grid point (cast without it, the threshold swept on the result and applied: exact for
 /// the strongest echo, which is below the threshold only when every echo is; not quite for a
 /// dual-return packet's strongest block where it holds the second strongest echo: a threshold
-/// that removes that echo leaves the last one there, which the sweep counts as no return, on
-/// the few firings split between a dark edge and a brighter surface behind). A model without
+/// that removes that echo leaves the last one there, which the sweep would count as no return:
+/// firings split between a dark edge and a brighter surface behind, which the sweep leaves out
+/// as edges). A model without
 /// a threshold gets none (re-fitting must not bring an effect in unnamed), and a model with
 /// weather keeps its own: the extinction was fitted with that threshold.
 fn refits_threshold(effects: &[Effect]) -> bool {

@@ -394,7 +394,11 @@ impl Fitting<'_> {
     }
 
     /// The detection threshold (as a minimum power) that best explains which of `obs`'s
-    /// predicted returns the sensor missed; `None` when no threshold beats none.
+    /// predicted returns the sensor missed; `None` when no threshold beats none. Swept on the
+    /// firings away from depth edges ([`DetectionRow`]s of `detections_of`): there a firing's
+    /// echo is one, and a threshold that removes it leaves no return. (At an edge a
+    /// dual-return packet's strongest block may hold the second strongest echo, whose removal
+    /// leaves the last one there instead.)
     pub(super) fn threshold_of(&self, obs: &[Vec<Obs>]) -> Option<f64> {
         let (mut rows, _) = self.detections_of(obs);
         sort_rows(&mut rows);

@@ -210,7 +210,7 @@ impl Fitting<'_> {
                 // fitted threshold does not detect lets the droplets in front of it
                 // through, one it detects hides them all.
                 let undetected = o.predicted.is_finite()
-                    && f.last
+                    && f.reports == crate::sim::lidar::Reported::Last
                     && best_p.is_some_and(|p| f64::from(o.power) < p);
                 // The farthest a reported droplet lies, and nearer than the target by the
                 // count's margin.

@@ -130,13 +130,7 @@ impl LidarSim<'_> {
                 time: p.time,
                 origin: c.origin,
                 direction: c.direction,
-                reported: if mode == ReturnMode::Last {
-                    r.last
-                } else if plan.dual {
-                    r.dual_strongest()
-                } else {
-                    r.strongest
-                },
+                reported: r.reported(super::Reported::of(Some(mode))),
             });
             let (block, last_block) = (usize::from(p.block), usize::from(p.last_block));
             let ch = usize::from(p.channel);
@@ -167,7 +161,10 @@ impl LidarSim<'_> {
         };
         if plan.dual {
             pkt.blocks[block].channels[ch] = strongest;
-            pkt.blocks[last_block].channels[ch] = self.channel(laser, r.last, rng);
+            let last = self.channel(laser, r.last, rng);
+            // One echo: the same data in both blocks, as the manuals say (the last block's
+            // intensity noise is drawn all the same, so that every firing draws alike).
+            pkt.blocks[last_block].channels[ch] = if r.single() { strongest } else { last };
         } else if plan.mode == ReturnMode::Last {
             pkt.blocks[block].channels[ch] = self.channel(laser, r.last, rng);
         } else {
@@ -205,6 +202,7 @@ impl LidarSim<'_> {
                 .as_ref()
                 .filter(|g| g.rays == *fp && g.prims.len() == n)
             {
+                stats.reused += n as u64;
                 let statics = &self.scene.statics;
                 for (p, &prim) in plan.firings.iter_mut().zip(&given.prims) {
                     let c = &mut p.centre;

@@ -5,6 +5,7 @@
 use super::footprint::{self, CentreRay, Footprint, Resolved, Witnesses};
 use super::{beam_frame, effects, Echo, LidarSim, Returns, Scratch, SimStats};
 use crate::scene::ActorPoses;
+use hilrig_velodyne::packet::ReturnMode;
 use nalgebra::{Point3, Vector3};
 use rand::Rng;
 use rand_distr::Distribution;
@@ -259,7 +260,8 @@ impl LidarSim<'_> {
 
     /// What the receiver reports of `cast`: the weather's clutter added, the echoes below the
     /// threshold or outside the range limits dropped, bias and noise applied, the strongest
-    /// (or, for a first-echo receiver, the nearest) and the last.
+    /// (or, for a first-echo receiver, the nearest), the last, and where those two are one
+    /// echo, the strongest of the others (what a dual-return packet reports beside the last).
     fn returns(&self, cast: Cast, rng: &mut impl Rng) -> Returns {
         let fx = &self.fx;
         let Cast {
@@ -389,5 +391,57 @@ impl LidarSim<'_> {
         );
         stats.rays += u64::from(rays);
         stats.footprints_cast += u64::from(full);
+    }
+}
+
+impl Returns {
+    /// What a dual-return packet carries beside the last echo: the strongest, or where the
+    /// strongest is the last, the second strongest; the last again when it was the only echo
+    /// (the pair of blocks then identical, [`Returns::single`]). So the Velodyne manuals
+    /// describe the dual return mode (VLP-16 and VLP-32C user manuals, ch. 9; the simulator
+    /// writes the VLS-128's and HDL-64E's dual packets by the same rule): a beam that meets a
+    /// dark pole's edge in front of a bright wall reports both, not the wall twice.
+    pub fn dual_strongest(&self) -> Option<Echo> {
+        self.second.or(self.strongest)
+    }
+
+    /// One echo was detected (or none): a dual-return packet's two blocks carry the same.
+    pub fn single(&self) -> bool {
+        self.second.is_none() && self.strongest == self.last
+    }
+
+    /// The echo a block that reports `which` carries.
+    pub fn reported(&self, which: Reported) -> Option<Echo> {
+        match which {
+            Reported::Strongest => self.strongest,
+            Reported::Last => self.last,
+            Reported::DualStrongest => self.dual_strongest(),
+        }
+    }
+}
+
+/// Which of a firing's echoes a packet's block reports (the gap workflow scores each firing
+/// by it, and a droplet's echo replaces it or not by it).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Reported {
+    /// The strongest (a strongest-return packet).
+    #[default]
+    Strongest,
+    /// The last (a last-return packet, and a dual-return packet's other block).
+    Last,
+    /// A dual-return packet's strongest block ([`Returns::dual_strongest`]): every detected
+    /// echo in front of the last one can be it.
+    DualStrongest,
+}
+
+impl Reported {
+    /// What the block a firing's return goes to reports, in a packet of `mode` (its strongest
+    /// block in a dual-return packet).
+    pub fn of(mode: Option<ReturnMode>) -> Reported {
+        match mode {
+            Some(ReturnMode::Last) => Reported::Last,
+            Some(ReturnMode::Dual) => Reported::DualStrongest,
+            _ => Reported::Strongest,
+        }
     }
 }

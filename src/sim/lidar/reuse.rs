@@ -109,7 +109,10 @@ impl LidarSim<'_> {
 }
 
 /// A hash of rays and the range they are cast to, from the bits of every number: equal for
-/// the same rays, different (but for a chance of 2^-64) for any other.
+/// the same rays; different for rays that differ in one number, always (each step of the mix
+/// is a bijection of the state for a given input, and of the input for a given state), and
+/// for unrelated rays but for a chance of about 2^-64 (not a cryptographic hash: nothing
+/// here is chosen by an adversary).
 pub(super) fn fingerprint(
     rays: impl Iterator<Item = (Point3<f64>, Vector3<f64>)>,
     tmax: f64,
