@@ -17,11 +17,75 @@
 //! beam-divergence footprint of 5 × 5 sub-rays takes twice as long as one of 3 × 3, and ten
 //! times as long as a time offset's cast).
 
-use super::observe::{deterministic, evaluate, Obs, RunData};
+use super::observe::{deterministic, simulator, slot, Obs, RunData, SLOTS};
 use super::GapError;
+use crate::sim::lidar::{Firing, HitSlot, SimStats};
 use crate::sim::model::{Effect, ModelFile};
+use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
+
+/// Casts every sampled firing of `run` with `model`'s deterministic part and pairs it with
+/// the measured return: one [`Obs`] per slot (packet × block × channel). The first cast of the
+/// run keeps its centre rays' static hits ([`RunData::sample_hits`]), and every later one
+/// whose rays are the same (a model that does not move the beams: every candidate but a time
+/// offset and a mount) takes them instead of traversing the scene again, bit for bit the same
+/// ([`crate::sim::lidar::HitSlot`]).
+pub fn evaluate(run: &RunData, model: &ModelFile) -> Result<Vec<Obs>, GapError> {
+    let model = deterministic(model);
+    let sim = simulator(run, &model)?;
+    let cal = sim.decoder().calibration().clone();
+    let kept = run.sample_hits.get();
+    let mut hits: Vec<HitSlot> = (0..run.packets.len())
+        .map(|i| HitSlot {
+            given: kept.and_then(|k| k.get(i).cloned()),
+            keep: kept.is_none(),
+            kept: None,
+        })
+        .collect();
+    let mut out = vec![Obs::default(); run.packets.len() * SLOTS];
+    out.par_chunks_mut(SLOTS)
+        .zip(run.packets.par_iter())
+        .zip(hits.par_iter_mut())
+        .enumerate()
+        .for_each(|(i, ((slots, s), hit))| {
+            let mut stats = SimStats::default();
+            sim.simulate_observed_reusing(
+                &s.packet,
+                s.time,
+                &run.trajectory,
+                i as u64,
+                &mut stats,
+                &mut |f: &Firing| {
+                    let slot = slot(f.block, f.channel);
+                    let ch = s.packet.blocks[usize::from(f.block)].channels[usize::from(f.channel)];
+                    let o = &mut slots[slot];
+                    o.cast = true;
+                    if ch.distance > 0 {
+                        o.measured = cal.metres(usize::from(f.laser), ch.distance) as f32;
+                        o.intensity = ch.reflectivity;
+                    }
+                    if let Some(e) = f.reported {
+                        o.predicted = e.range as f32;
+                        o.power = e.power as f32;
+                        o.reflectivity = e.reflectivity as f32;
+                        o.lambertian = e.lambertian as f32;
+                    }
+                },
+                hit,
+            );
+        });
+    if kept.is_none() {
+        // Another cast of the run at the same time may have kept its own first: either is
+        // the run's.
+        let _ = run.sample_hits.set(
+            hits.into_iter()
+                .map(|h| h.kept.unwrap_or_default())
+                .collect(),
+        );
+    }
+    Ok(out)
+}
 
 /// What decides a cast: the deterministic part of the model, its limits and effects in their
 /// order, each number in its exact (round-trip) form. Two models with the same key cast alike;

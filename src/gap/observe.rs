@@ -30,7 +30,7 @@ pub const SLOTS: usize = BLOCKS * CHANNELS;
 
 /// The slot of a firing within its packet's [`SLOTS`]: observations and features are paired
 /// by it, so both are written through this one function.
-fn slot(block: u8, channel: u8) -> usize {
+pub(super) fn slot(block: u8, channel: u8) -> usize {
     usize::from(block) * CHANNELS + usize::from(channel)
 }
 
@@ -109,6 +109,9 @@ pub struct RunData {
     /// The run as its full comparisons take it, from this one check (or why they cannot take
     /// it): a validation run is compared after every round, and checked only here.
     pub checked: Result<Checked, std::sync::Arc<crate::metrics::compare::CompareError>>,
+    /// The sampled packets' centre hits, kept by the first cast of them for the casts of
+    /// every model with the same rays ([`super::casts::evaluate`]).
+    pub sample_hits: std::sync::OnceLock<Vec<crate::sim::lidar::CentreHits>>,
 }
 
 /// What one firing measured and what a model predicts for it (`NONE` where there is no return).
@@ -392,6 +395,7 @@ pub fn load_run(
         range_quantum_m: model.distance_resolution_m(),
         damage,
         checked,
+        sample_hits: std::sync::OnceLock::new(),
     })
 }
 
@@ -420,7 +424,7 @@ pub fn deterministic(model: &ModelFile) -> ModelFile {
     m
 }
 
-fn simulator<'a>(run: &'a RunData, model: &ModelFile) -> Result<LidarSim<'a>, GapError> {
+pub(super) fn simulator<'a>(run: &'a RunData, model: &ModelFile) -> Result<LidarSim<'a>, GapError> {
     let (lidar, sensor, calibration) =
         run.rig.lidar_sensor().map_err(|source| GapError::Lidar {
             run: run.name.clone(),
@@ -432,45 +436,6 @@ fn simulator<'a>(run: &'a RunData, model: &ModelFile) -> Result<LidarSim<'a>, Ga
             source,
         }
     })
-}
-
-/// Casts every sampled firing of `run` with `model`'s deterministic part and pairs it with
-/// the measured return: one [`Obs`] per slot (packet × block × channel).
-pub fn evaluate(run: &RunData, model: &ModelFile) -> Result<Vec<Obs>, GapError> {
-    let model = deterministic(model);
-    let sim = simulator(run, &model)?;
-    let cal = sim.decoder().calibration().clone();
-    let mut out = vec![Obs::default(); run.packets.len() * SLOTS];
-    out.par_chunks_mut(SLOTS)
-        .zip(run.packets.par_iter())
-        .enumerate()
-        .for_each(|(i, (slots, s))| {
-            let mut stats = SimStats::default();
-            sim.simulate_observed(
-                &s.packet,
-                s.time,
-                &run.trajectory,
-                i as u64,
-                &mut stats,
-                &mut |f: &Firing| {
-                    let slot = slot(f.block, f.channel);
-                    let ch = s.packet.blocks[usize::from(f.block)].channels[usize::from(f.channel)];
-                    let o = &mut slots[slot];
-                    o.cast = true;
-                    if ch.distance > 0 {
-                        o.measured = cal.metres(usize::from(f.laser), ch.distance) as f32;
-                        o.intensity = ch.reflectivity;
-                    }
-                    if let Some(e) = f.reported {
-                        o.predicted = e.range as f32;
-                        o.power = e.power as f32;
-                        o.reflectivity = e.reflectivity as f32;
-                        o.lambertian = e.lambertian as f32;
-                    }
-                },
-            );
-        });
-    Ok(out)
 }
 
 /// The features of every sampled firing, from the ideal beams of `model`'s geometry (its

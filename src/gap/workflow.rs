@@ -9,9 +9,10 @@
 use super::bins::{tables, Table};
 use super::bootstrap;
 use super::candidates::{with_effect, Candidate, Fitting, Param};
+use super::casts::evaluate;
 use super::engine::Engine;
 use super::full_metrics::{Judged, Watch};
-use super::observe::{count_scans, evaluate, features, load_run, Feature, Obs, RunData};
+use super::observe::{count_scans, features, load_run, Feature, Obs, RunData};
 use super::refit::{joint_refit, Added};
 use super::report::{
     alike, confounded_line, describe, firing_stats, no_effect_line, save, summary_line, GapReport,

@@ -59,16 +59,26 @@ impl LidarSim<'_> {
         stats: &mut SimStats,
         hits: &mut HitSlot,
     ) -> DataPacket {
-        self.simulate_with(
-            skeleton,
-            time,
-            ego,
-            seed,
-            stats,
-            &mut |_| {},
-            None,
-            Some(hits),
-        )
+        self.simulate_observed_reusing(skeleton, time, ego, seed, stats, &mut |_| {}, hits)
+    }
+
+    /// [`LidarSim::simulate_observed`], reusing and keeping static hits as
+    /// [`LidarSim::simulate_reusing`] does.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "simulate_observed's and the hits"
+    )]
+    pub fn simulate_observed_reusing(
+        &self,
+        skeleton: &DataPacket,
+        time: PacketTime,
+        ego: &Trajectory,
+        seed: u64,
+        stats: &mut SimStats,
+        observe: &mut dyn FnMut(&super::Firing),
+        hits: &mut HitSlot,
+    ) -> DataPacket {
+        self.simulate_with(skeleton, time, ego, seed, stats, observe, None, Some(hits))
     }
 
     /// [`LidarSim::simulate_pair`], reusing and keeping static hits as
