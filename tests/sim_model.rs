@@ -1429,6 +1429,18 @@ fn difference(full: &Rotation, adaptive: &Rotation) -> Difference {
     d
 }
 
+/// The simulator of `model` with `effects` in `s`, on the test mounting.
+fn layout_sim<'a>(s: &'a Scene, model: Model, effects: &[Effect]) -> LidarSim<'a> {
+    LidarSim::new(
+        s,
+        model,
+        Calibration::builtin(model),
+        &mounting(),
+        &model_of(effects.to_vec()),
+    )
+    .unwrap()
+}
+
 /// The sensors and return modes the adaptive footprint is checked on: the standard layout
 /// (VLP-16, 24 firing sequences a packet) and the banked ones (VLS-128, three, or one in dual;
 /// HDL-64E, six or three).
@@ -1743,16 +1755,7 @@ fn a_model_and_its_deterministic_part_cast_together_equal_each_alone() {
             (&noisy, &Vec::new()),
             (&dropping, &Vec::new()),
         ] {
-            let sim = |effects: &Vec<Effect>| {
-                LidarSim::new(
-                    &s,
-                    model,
-                    Calibration::builtin(model),
-                    &mounting(),
-                    &model_of(effects.clone()),
-                )
-                .unwrap()
-            };
+            let sim = |effects: &Vec<Effect>| layout_sim(&s, model, effects);
             let (full, part) = (sim(trial), sim(det));
             assert!(part.is_deterministic() && !full.is_deterministic());
             assert!(full
@@ -1848,16 +1851,7 @@ fn static_hits_kept_by_one_simulation_give_the_next_the_same_packets_without_cas
     let noisy = vec![Effect::RangeNoise { sigma_m: 0.02 }];
     let (mut adaptive, mut reused) = (0, 0);
     for (model, mode) in LAYOUTS {
-        let sim = |effects: &Vec<Effect>| {
-            LidarSim::new(
-                &s,
-                model,
-                Calibration::builtin(model),
-                &mounting(),
-                &model_of(effects.clone()),
-            )
-            .unwrap()
-        };
+        let sim = |effects: &Vec<Effect>| layout_sim(&s, model, effects);
         let sp = Spin {
             mode,
             ..spin(model)
