@@ -425,12 +425,17 @@ impl Geometry {
                 }
             });
         }
-        best.map(|(range, normal, i)| Hit {
+        best.map(|(range, normal, i)| self.hit_of(i, (range, normal)))
+    }
+
+    /// The [`Hit`] primitive `i` gives at `(range, normal)`: how every cast reports one.
+    fn hit_of(&self, i: usize, (range, normal): (f64, Vector3<f64>)) -> Hit {
+        Hit {
             range,
             normal,
             material: self.prims[i].material(),
             primitive: u32::try_from(i).ok(),
-        })
+        }
     }
 }
 
@@ -446,14 +451,8 @@ impl Geometry {
         tmin: f64,
         tmax: f64,
     ) -> Option<Hit> {
-        let p = self.prims.get(i as usize)?;
-        let (range, normal) = p.intersect(o, d, tmin, tmax)?;
-        Some(Hit {
-            range,
-            normal,
-            material: p.material(),
-            primitive: Some(i),
-        })
+        let at = self.prims.get(i as usize)?.intersect(o, d, tmin, tmax)?;
+        Some(self.hit_of(i as usize, at))
     }
 }
 
@@ -584,12 +583,7 @@ impl Geometry {
             );
         }
         for k in 0..n {
-            out[k] = best[k].map(|(range, normal, i)| Hit {
-                range,
-                normal,
-                material: self.prims[i].material(),
-                primitive: u32::try_from(i).ok(),
-            });
+            out[k] = best[k].map(|(range, normal, i)| self.hit_of(i, (range, normal)));
         }
     }
 }

@@ -154,11 +154,12 @@ impl LidarSim<'_> {
         rng: &mut ChaCha8Rng,
     ) {
         // The same draws in every mode: the strongest block's first, then the last's.
-        let strongest = if plan.dual {
-            self.channel(laser, r.dual_strongest(), rng)
+        let first = if plan.dual {
+            r.dual_strongest()
         } else {
-            self.channel(laser, r.strongest, rng)
+            r.strongest
         };
+        let strongest = self.channel(laser, first, rng);
         if plan.dual {
             pkt.blocks[block].channels[ch] = strongest;
             let last = self.channel(laser, r.last, rng);
@@ -187,7 +188,8 @@ impl LidarSim<'_> {
     ) {
         let n = plan.firings.len();
         let tmax = self.casting_range();
-        let reusing = hits.map(|slot| {
+        // A slot that neither gives hits nor keeps them needs no hash.
+        let reusing = hits.filter(|s| s.keep || s.given.is_some()).map(|slot| {
             let fp = reuse::fingerprint(
                 plan.firings
                     .iter()
