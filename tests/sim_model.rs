@@ -1867,9 +1867,9 @@ fn static_hits_kept_by_one_simulation_give_the_next_the_same_packets_without_cas
             let mut out = Vec::new();
             for (k, sk) in packets.iter().enumerate() {
                 let mut slot = HitSlot {
-                    given: given.and_then(|g| g[k].clone()),
+                    given: given.and_then(|g| g[k].clone()).into_iter().collect(),
                     keep: given.is_none(),
-                    kept: None,
+                    ..HitSlot::default()
                 };
                 out.push(
                     sim.simulate_reusing(&sk.packet, sk.time, &ego, k as u64, &mut st, &mut slot),
@@ -1888,6 +1888,7 @@ fn static_hits_kept_by_one_simulation_give_the_next_the_same_packets_without_cas
         };
         let ideal = sim(&Vec::new());
         let (first, kept, cast) = run(&ideal, None);
+        let ideal_kept = kept.clone();
         assert_eq!(
             first,
             fresh(&ideal),
@@ -1937,6 +1938,49 @@ fn static_hits_kept_by_one_simulation_give_the_next_the_same_packets_without_cas
             adaptive += 1;
         } else {
             assert_eq!(cast, full, "{model} {mode:?}");
+        }
+        // The hits of both models offered together (the gap workflow keeps a file for each
+        // set of rays its models cast, src/sim/hit_log.rs): each model takes the first that
+        // fits, the same packets, nothing cast that its own hits would have spared.
+        if kept.iter().all(Option::is_some) {
+            let both = |m: &LidarSim| {
+                let mut st = SimStats::default();
+                let mut used = Vec::new();
+                let out: Vec<_> = packets
+                    .iter()
+                    .enumerate()
+                    .map(|(k, sk)| {
+                        let mut slot = HitSlot {
+                            given: [&ideal_kept[k], &kept[k]]
+                                .into_iter()
+                                .flatten()
+                                .cloned()
+                                .collect(),
+                            ..HitSlot::default()
+                        };
+                        let p = m.simulate_reusing(
+                            &sk.packet, sk.time, &ego, k as u64, &mut st, &mut slot,
+                        );
+                        used.push(slot.used);
+                        p
+                    })
+                    .collect();
+                (out, used, st.rays)
+            };
+            let (again, used, c) = both(&ideal);
+            assert!(again == fresh(&ideal), "{model} {mode:?}");
+            assert_eq!(
+                (c, used),
+                (0, vec![Some(0); packets.len()]),
+                "{model} {mode:?}"
+            );
+            let (again, used, c) = both(&truth);
+            assert!(again == fresh(&truth), "{model} {mode:?}");
+            assert_eq!(c, cast, "{model} {mode:?}: the truth model's rays");
+            assert!(
+                used.iter().all(Option::is_some),
+                "{model} {mode:?}: {used:?}"
+            );
         }
     }
     assert!(

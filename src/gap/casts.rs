@@ -38,9 +38,9 @@ pub fn evaluate(run: &RunData, model: &ModelFile) -> Result<Vec<Obs>, GapError> 
     let kept = run.sample_hits.get();
     let mut hits: Vec<HitSlot> = (0..run.packets.len())
         .map(|i| HitSlot {
-            given: kept.and_then(|k| k.get(i).cloned()),
+            given: kept.and_then(|k| k.get(i).cloned()).into_iter().collect(),
             keep: kept.is_none(),
-            kept: None,
+            ..HitSlot::default()
         })
         .collect();
     let mut out = vec![Obs::default(); run.packets.len() * SLOTS];

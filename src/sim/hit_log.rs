@@ -1,15 +1,18 @@
 //! A run's centre hits kept on disk from one re-simulation to the next
 //! ([`crate::sim::lidar::CentreHits`], why in `lidar/reuse.rs`): the gap workflow re-simulates
-//! its validation runs in every round, and a round whose model casts the rays of the round
+//! its validation runs in every round, and a round whose model casts the rays of a round
 //! before traverses none of them again.
 //!
 //! On disk, not in memory, so that the workflow's memory does not grow with the runs' length:
 //! four bytes a firing (a VLP-32C minute, 36 M firings: 144 MB) in a file of its own beside
-//! the simulations, which the system removes however the process ends (unlinked once open). The first re-simulation of the run writes it,
-//! packet by packet in the run's order; the later ones read it in the same order. Each packet's
-//! hits are used only where its rays hash alike, so a log read by a model that moves the beams
-//! costs the reading, never a wrong hit. A re-simulation that stops half-way leaves no log
-//! (the next one writes it anew); a log that cannot be read is cast around.
+//! the simulations, which the system removes however the process ends (unlinked once open).
+//! The first re-simulation of the run writes a file, packet by packet in the run's order; the
+//! later ones read it in the same order. Each packet's hits are used only where its rays hash
+//! alike, so a file read by a model that moves the beams costs the reading, never a wrong
+//! hit. A re-simulation whose first packets mostly miss every kept file writes its own (the
+//! two most recent are kept, [`KEPT_LOGS`]), so that models casting two sets of rays each
+//! find theirs. A re-simulation that stops half-way leaves no file (the next one writes it
+//! anew); a file that cannot be read is cast around.
 
 use super::lidar::{CentreHits, HitSlot};
 use std::fs::File;
@@ -17,18 +20,25 @@ use std::io::{BufReader, BufWriter, Read, Seek, Write};
 use std::path::PathBuf;
 use std::sync::{Mutex, PoisonError};
 
+/// Logs kept per run: one for each set of rays its models cast. A study's rounds re-simulate
+/// a run with the model so far and with that model and one effect more, and an effect can
+/// change the rays: with an adaptive beam footprint a banked packet (VLS-128, HDL-64E) casts
+/// the firing sequences around it as witnesses. With one log, every re-simulation after the
+/// round that added beam divergence missed it; with one log a set, each finds its own.
+const KEPT_LOGS: usize = 2;
+
 /// The centre hits of one run, kept for its re-simulations (one at a time).
 #[derive(Debug, Default)]
 pub struct HitLog {
-    /// Where the file goes (the system's temporary folder when `None`, which may be held in
+    /// Where the files go (the system's temporary folder when `None`, which may be held in
     /// memory: a tmpfs).
     dir: Option<PathBuf>,
-    /// The file of a re-simulation that wrote every packet's hits.
-    written: Mutex<Option<File>>,
+    /// The files of re-simulations that wrote every packet's hits, the most recent first.
+    written: Mutex<Vec<File>>,
 }
 
 impl HitLog {
-    /// A log whose file goes to `dir` (the simulations' own folder: on the disk they go to).
+    /// A log whose files go to `dir` (the simulations' own folder: on the disk they go to).
     pub fn in_dir(dir: PathBuf) -> HitLog {
         HitLog {
             dir: Some(dir),
@@ -36,43 +46,57 @@ impl HitLog {
         }
     }
 
-    /// What a re-simulation of the run does with the log: reads it where one was written,
-    /// else writes it. `None` when the file cannot be made (the re-simulation then casts
-    /// every ray, as without a log).
+    /// What a re-simulation of the run does with the log: reads the kept files where there
+    /// are some (all of them for its first batch of packets, then the one that fits most of
+    /// those packets, or none, and it writes a file of its own), else writes one. `None` when
+    /// no file can be made (the re-simulation then casts every ray, as without a log).
     pub fn open(&self) -> Option<HitRun<'_>> {
-        let written = self
+        let kept: Vec<BufReader<File>> = self
             .written
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
-            .as_ref()
-            .and_then(|f| f.try_clone().ok());
-        let mode = match written {
-            Some(mut f) => {
+            .iter()
+            .filter_map(|f| {
+                let mut f = f.try_clone().ok()?;
                 f.rewind().ok()?;
-                Mode::Read(BufReader::new(f))
-            }
-            None => {
-                let file = match &self.dir {
-                    Some(d) => tempfile::tempfile_in(d),
-                    None => tempfile::tempfile(),
-                };
-                match file {
-                    Ok(f) => Mode::Write(BufWriter::new(f)),
-                    Err(e) => {
-                        tracing::warn!("no file for the centre hits ({e}): every ray is cast");
-                        return None;
-                    }
-                }
+                Some(BufReader::new(f))
+            })
+            .collect();
+        let mode = if kept.is_empty() {
+            Mode::Write(self.new_file()?)
+        } else {
+            Mode::Read {
+                logs: kept,
+                chosen: false,
             }
         };
         Some(HitRun { log: self, mode })
     }
+
+    fn new_file(&self) -> Option<BufWriter<File>> {
+        let file = match &self.dir {
+            Some(d) => tempfile::tempfile_in(d),
+            None => tempfile::tempfile(),
+        };
+        match file {
+            Ok(f) => Some(BufWriter::new(f)),
+            Err(e) => {
+                tracing::warn!("no file for the centre hits ({e}): every ray is cast");
+                None
+            }
+        }
+    }
 }
 
 enum Mode {
-    Read(BufReader<File>),
+    /// Reading kept files: each one's hits offered for the first batch of packets; from the
+    /// second on, only the one `chosen` (the others are dropped).
+    Read {
+        logs: Vec<BufReader<File>>,
+        chosen: bool,
+    },
     Write(BufWriter<File>),
-    /// Reading failed: cast the rest.
+    /// Reading failed, or no file fitted and none could be made: cast the rest.
     Off,
 }
 
@@ -85,18 +109,21 @@ pub struct HitRun<'l> {
 
 impl HitRun<'_> {
     /// The slots of the run's next `n` packets: each with its kept hits (reading) or asking
-    /// for them (writing).
+    /// for them (writing; in the first batch of a reading also, in case no file fits).
     pub fn slots(&mut self, n: usize) -> Vec<HitSlot> {
         let mut slots: Vec<HitSlot> = (0..n).map(|_| HitSlot::default()).collect();
         match &mut self.mode {
-            Mode::Read(r) => {
+            Mode::Read { logs, chosen } => {
                 for s in &mut slots {
-                    match read_one(r) {
-                        Ok(h) => s.given = Some(h),
-                        Err(e) => {
-                            tracing::warn!("the kept centre hits end early ({e}): cast anew");
-                            self.mode = Mode::Off;
-                            break;
+                    s.keep = !*chosen;
+                    for r in logs.iter_mut() {
+                        match read_one(r) {
+                            Ok(h) => s.given.push(h),
+                            Err(e) => {
+                                tracing::warn!("the kept centre hits end early ({e}): cast anew");
+                                self.mode = Mode::Off;
+                                return (0..n).map(|_| HitSlot::default()).collect();
+                            }
                         }
                     }
                 }
@@ -112,14 +139,51 @@ impl HitRun<'_> {
     }
 
     /// The slots of [`HitRun::slots`] after their packets were simulated: written, in order,
-    /// when this re-simulation writes the log.
+    /// when this re-simulation writes a file. After the first batch of a reading, the file
+    /// most of its packets took is read on; where none did, this re-simulation writes its own
+    /// (its first batch's hits, cast or taken, and every packet's after).
     pub fn done(&mut self, slots: Vec<HitSlot>) {
+        if let Mode::Read {
+            logs,
+            chosen: chosen @ false,
+        } = &mut self.mode
+        {
+            if slots.is_empty() {
+                return;
+            }
+            let mut took = vec![0usize; logs.len()];
+            for u in slots.iter().filter_map(|s| s.used) {
+                took[u] += 1;
+            }
+            let best = (0..took.len()).max_by_key(|&j| (took[j], std::cmp::Reverse(j)));
+            match best.filter(|&j| 2 * took[j] > slots.len()) {
+                Some(j) => {
+                    let log = logs.swap_remove(j);
+                    *logs = vec![log];
+                    *chosen = true;
+                    return;
+                }
+                None => {
+                    tracing::info!(
+                        "the kept centre hits fit {} of {} packets: kept anew",
+                        took.iter().max().copied().unwrap_or(0),
+                        slots.len()
+                    );
+                    self.mode = self.log.new_file().map_or(Mode::Off, Mode::Write);
+                }
+            }
+        }
         let Mode::Write(w) = &mut self.mode else {
             return;
         };
         let empty = CentreHits::default();
         for s in &slots {
-            if let Err(e) = write_one(w, s.kept.as_ref().unwrap_or(&empty)) {
+            let h = s
+                .kept
+                .as_ref()
+                .or_else(|| s.used.and_then(|u| s.given.get(u)))
+                .unwrap_or(&empty);
+            if let Err(e) = write_one(w, h) {
                 tracing::warn!("the centre hits cannot be kept ({e}): the next rounds cast");
                 self.mode = Mode::Off;
                 return;
@@ -127,15 +191,18 @@ impl HitRun<'_> {
         }
     }
 
-    /// The re-simulation wrote every packet: the log is kept for the next ones.
+    /// The re-simulation wrote every packet: its file is kept for the next ones (beside the
+    /// most recent other, [`KEPT_LOGS`]).
     pub fn finish(self) {
         if let Mode::Write(w) = self.mode {
             if let Ok(f) = w.into_inner() {
-                *self
+                let mut written = self
                     .log
                     .written
                     .lock()
-                    .unwrap_or_else(PoisonError::into_inner) = Some(f);
+                    .unwrap_or_else(PoisonError::into_inner);
+                written.insert(0, f);
+                written.truncate(KEPT_LOGS);
             }
         }
     }
@@ -187,6 +254,37 @@ mod tests {
         }
     }
 
+    /// The hits of packet `k` under the rays of set `set` (another set: other hashes).
+    fn of(set: u32, k: u32) -> CentreHits {
+        CentreHits {
+            rays: hits(k + 2).rays ^ u64::from(set) << 48,
+            ..hits(k + 2)
+        }
+    }
+
+    /// One re-simulation of five packets (batches of three and two) whose rays are those of
+    /// `set`: what the cast does with each slot (takes a given file's hits of the same hash,
+    /// or casts and keeps where asked). Returns, per packet, the file position it took
+    /// (`None`: cast).
+    fn resim(log: &HitLog, set: u32) -> Vec<Option<usize>> {
+        let mut run = log.open().unwrap();
+        let mut took = Vec::new();
+        for (from, n) in [(0u32, 3usize), (3, 2)] {
+            let mut slots = run.slots(n);
+            for (k, s) in slots.iter_mut().enumerate() {
+                let mine = of(set, from + k as u32);
+                s.used = s.given.iter().position(|g| *g == mine);
+                if s.used.is_none() && s.keep {
+                    s.kept = Some(mine);
+                }
+                took.push(s.used);
+            }
+            run.done(slots);
+        }
+        run.finish();
+        took
+    }
+
     /// A log written packet by packet reads back the same in every later run; a run that
     /// stopped before `finish` leaves none (the next one writes).
     #[test]
@@ -194,7 +292,7 @@ mod tests {
         let log = HitLog::default();
         let mut first = log.open().unwrap();
         let mut slots = first.slots(3);
-        assert!(slots.iter().all(|s| s.keep && s.given.is_none()));
+        assert!(slots.iter().all(|s| s.keep && s.given.is_empty()));
         for (k, s) in slots.iter_mut().enumerate() {
             s.kept = (k != 1).then(|| hits(k as u32 + 2));
         }
@@ -206,7 +304,7 @@ mod tests {
         drop(first);
         let mut w = log.open().unwrap();
         let mut s = w.slots(5);
-        assert!(s.iter().all(|s| s.keep && s.given.is_none()));
+        assert!(s.iter().all(|s| s.keep && s.given.is_empty()));
         for (k, slot) in s.iter_mut().enumerate() {
             slot.kept = (k != 1).then(|| hits(k as u32 + 2));
         }
@@ -214,18 +312,88 @@ mod tests {
         w.finish();
         for _ in 0..2 {
             let mut r = log.open().unwrap();
-            let got = r.slots(5);
-            assert!(got.iter().all(|s| !s.keep));
-            for (k, s) in got.iter().enumerate() {
+            let mut got = r.slots(5);
+            for (k, s) in got.iter_mut().enumerate() {
                 let want = if k == 1 {
                     CentreHits::default()
                 } else {
                     hits(k as u32 + 2)
                 };
-                assert_eq!(s.given.as_ref(), Some(&want), "packet {k}");
+                assert_eq!(s.given, vec![want], "packet {k}");
+                // The first batch is also kept, in case no file fits it.
+                assert!(s.keep);
+                s.used = Some(0);
             }
+            r.done(got);
             // Past the end: nothing given, and no error.
-            assert!(r.slots(2).iter().all(|s| s.given.is_none()));
+            assert!(r.slots(2).iter().all(|s| s.given.is_empty() && !s.keep));
+        }
+    }
+
+    /// A model that casts other rays (an effect that adds witness sequences) writes a file of
+    /// its own when the kept one fits too few of its first packets, and from then on each set
+    /// of rays finds its own file, whichever ran last; a third set replaces the older file.
+    #[test]
+    fn each_set_of_rays_finds_its_own_file() {
+        let log = HitLog::default();
+        assert_eq!(resim(&log, 0), vec![None; 5], "the first run casts");
+        assert_eq!(
+            resim(&log, 0),
+            vec![Some(0); 5],
+            "the same rays take every hit"
+        );
+        // Other rays: nothing fits; the run writes its own file (its first batch included).
+        assert_eq!(resim(&log, 1), vec![None; 5]);
+        // Both sets now take their own (the most recent file first).
+        assert_eq!(
+            resim(&log, 0),
+            [vec![Some(1); 3], vec![Some(0); 2]].concat()
+        );
+        assert_eq!(
+            resim(&log, 1),
+            [vec![Some(0); 3], vec![Some(0); 2]].concat()
+        );
+        assert_eq!(
+            resim(&log, 0),
+            [vec![Some(1); 3], vec![Some(0); 2]].concat()
+        );
+        // A third set: written, beside the most recent one; the oldest (set 0) is gone.
+        assert_eq!(resim(&log, 2), vec![None; 5]);
+        assert_eq!(
+            resim(&log, 1),
+            [vec![Some(1); 3], vec![Some(0); 2]].concat()
+        );
+        assert_eq!(resim(&log, 0), vec![None; 5], "set 0's file was dropped");
+    }
+
+    /// The file that fits most of the first batch is read on, when it fits more than half;
+    /// at half or less, the run writes its own.
+    #[test]
+    fn a_file_is_read_on_when_it_fits_most_of_the_first_packets() {
+        for (fitting, read_on) in [(3usize, true), (2, true), (1, false)] {
+            let log = HitLog::default();
+            resim(&log, 0);
+            let mut run = log.open().unwrap();
+            let mut slots = run.slots(3);
+            for (k, s) in slots.iter_mut().enumerate() {
+                if k < fitting {
+                    s.used = Some(0);
+                } else {
+                    s.kept = Some(of(1, k as u32));
+                }
+            }
+            run.done(slots);
+            let next = run.slots(2);
+            assert_eq!(
+                next.iter().all(|s| s.given.len() == 1 && !s.keep),
+                read_on,
+                "{fitting} of 3 fit"
+            );
+            assert_eq!(
+                next.iter().all(|s| s.given.is_empty() && s.keep),
+                !read_on,
+                "{fitting} of 3 fit"
+            );
         }
     }
 }

@@ -189,7 +189,7 @@ impl LidarSim<'_> {
         let n = plan.firings.len();
         let tmax = self.casting_range();
         // A slot that neither gives hits nor keeps them needs no hash.
-        let reusing = hits.filter(|s| s.keep || s.given.is_some()).map(|slot| {
+        let mut reusing = hits.filter(|s| s.keep || !s.given.is_empty()).map(|slot| {
             let fp = reuse::fingerprint(
                 plan.firings
                     .iter()
@@ -198,12 +198,14 @@ impl LidarSim<'_> {
             );
             (slot, fp)
         });
-        if let Some((slot, fp)) = &reusing {
-            if let Some(given) = slot
+        if let Some((slot, fp)) = &mut reusing {
+            if let Some(used) = slot
                 .given
-                .as_ref()
-                .filter(|g| g.rays == *fp && g.prims.len() == n)
+                .iter()
+                .position(|g| g.rays == *fp && g.prims.len() == n)
             {
+                slot.used = Some(used);
+                let given = &slot.given[used];
                 stats.reused += n as u64;
                 let statics = &self.scene.statics;
                 for (p, &prim) in plan.firings.iter_mut().zip(&given.prims) {

@@ -15,7 +15,8 @@
 //! sub-ray is the beam's own ray (`footprint::sub_ray`), so that the round that adds beam
 //! divergence reuses the centre hits of the rounds before, and only its other sub-rays are
 //! cast (a dual-return VLS-128's packets, whose footprints are cast whole, and the witness
-//! sequences a banked packet casts around itself change its rays' hash: they cast anew).
+//! sequences a banked packet casts around itself change its rays' hash: those re-simulations
+//! keep hits of their own beside, `sim/hit_log.rs`, and reuse them from the next round on).
 
 use super::{DataPacket, LidarSim, PacketTime, SimStats, Trajectory, Twin, CHANNELS};
 use hilrig_velodyne::packet::Channel;
@@ -37,11 +38,14 @@ pub struct CentreHits {
 /// it, and whether to keep this one's.
 #[derive(Debug, Default)]
 pub struct HitSlot {
-    /// Hits kept for this packet before (used when its rays hash alike).
-    pub given: Option<CentreHits>,
-    /// Keep this packet's hits in `kept`.
+    /// Hits kept for this packet before, by one re-simulation or several (whose models cast
+    /// different rays): the first whose rays hash alike is used.
+    pub given: Vec<CentreHits>,
+    /// Which of `given` was used, when one was.
+    pub used: Option<usize>,
+    /// Keep this packet's hits in `kept` (when none of `given` fits).
     pub keep: bool,
-    /// This packet's hits, when `keep` asked for them.
+    /// This packet's hits, when `keep` asked for them and they were cast.
     pub kept: Option<CentreHits>,
 }
 
