@@ -9,9 +9,10 @@
 //! The first re-simulation of the run writes a file, packet by packet in the run's order; the
 //! later ones read it in the same order. Each packet's hits are used only where its rays hash
 //! alike, so a file read by a model that moves the beams costs the reading, never a wrong
-//! hit. A re-simulation whose first packets mostly miss every kept file writes its own (the
-//! two most recent are kept, [`KEPT_LOGS`]), so that models casting two sets of rays each
-//! find theirs. A re-simulation that stops half-way leaves no file (the next one writes it
+//! hit. A re-simulation whose first packets share the rays of no kept file in more than half
+//! of them writes its own (the two most recently written or read are kept, [`KEPT_LOGS`]),
+//! so that models casting two sets of rays each find theirs, and a third set (a candidate
+//! that moves the beams) drops the set least recently used. A re-simulation that stops half-way leaves no file (the next one writes it
 //! anew); a file that cannot be read is cast around.
 
 use super::lidar::{CentreHits, HitSlot};
@@ -33,8 +34,11 @@ pub struct HitLog {
     /// Where the files go (the system's temporary folder when `None`, which may be held in
     /// memory: a tmpfs).
     dir: Option<PathBuf>,
-    /// The files of re-simulations that wrote every packet's hits, the most recent first.
-    written: Mutex<Vec<File>>,
+    /// The files of re-simulations that wrote every packet's hits, each with its number, the
+    /// most recently written or read first.
+    written: Mutex<Vec<(u64, File)>>,
+    /// The number of the next file written.
+    next: Mutex<u64>,
 }
 
 impl HitLog {
@@ -42,24 +46,24 @@ impl HitLog {
     pub fn in_dir(dir: PathBuf) -> HitLog {
         HitLog {
             dir: Some(dir),
-            written: Mutex::default(),
+            ..HitLog::default()
         }
     }
 
     /// What a re-simulation of the run does with the log: reads the kept files where there
-    /// are some (all of them for its first batch of packets, then the one that fits most of
-    /// those packets, or none, and it writes a file of its own), else writes one. `None` when
-    /// no file can be made (the re-simulation then casts every ray, as without a log).
+    /// are some (all of them for its first packets, then the one that fits more than half of
+    /// those, or, where none does, writes a file of its own), else writes one. `None` when no
+    /// file can be made (the re-simulation then casts every ray, as without a log).
     pub fn open(&self) -> Option<HitRun<'_>> {
-        let kept: Vec<BufReader<File>> = self
+        let kept: Vec<(u64, BufReader<File>)> = self
             .written
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .iter()
-            .filter_map(|f| {
+            .filter_map(|(id, f)| {
                 let mut f = f.try_clone().ok()?;
                 f.rewind().ok()?;
-                Some(BufReader::new(f))
+                Some((*id, BufReader::new(f)))
             })
             .collect();
         let mode = if kept.is_empty() {
@@ -70,7 +74,11 @@ impl HitLog {
                 chosen: false,
             }
         };
-        Some(HitRun { log: self, mode })
+        Some(HitRun {
+            log: self,
+            mode,
+            hits: 0,
+        })
     }
 
     fn new_file(&self) -> Option<BufWriter<File>> {
@@ -86,13 +94,22 @@ impl HitLog {
             }
         }
     }
+
+    /// Puts the file `id` first (read or just written: the last to be dropped).
+    fn to_front(&self, id: u64) {
+        let mut written = self.written.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(i) = written.iter().position(|(k, _)| *k == id) {
+            let f = written.remove(i);
+            written.insert(0, f);
+        }
+    }
 }
 
 enum Mode {
-    /// Reading kept files: each one's hits offered for the first batch of packets; from the
-    /// second on, only the one `chosen` (the others are dropped).
+    /// Reading kept files (each with its number): each one's hits offered for the first
+    /// batch of packets; from the second on, only the one `chosen` (the others are dropped).
     Read {
-        logs: Vec<BufReader<File>>,
+        logs: Vec<(u64, BufReader<File>)>,
         chosen: bool,
     },
     Write(BufWriter<File>),
@@ -105,6 +122,9 @@ enum Mode {
 pub struct HitRun<'l> {
     log: &'l HitLog,
     mode: Mode,
+    /// Packets whose hits this run wrote (a run that cast no centre ray, a dual-return
+    /// VLS-128's whose footprints are cast whole, keeps no file).
+    hits: u64,
 }
 
 impl HitRun<'_> {
@@ -116,7 +136,7 @@ impl HitRun<'_> {
             Mode::Read { logs, chosen } => {
                 for s in &mut slots {
                     s.keep = !*chosen;
-                    for r in logs.iter_mut() {
+                    for (_, r) in logs.iter_mut() {
                         match read_one(r) {
                             Ok(h) => s.given.push(h),
                             Err(e) => {
@@ -139,35 +159,42 @@ impl HitRun<'_> {
     }
 
     /// The slots of [`HitRun::slots`] after their packets were simulated: written, in order,
-    /// when this re-simulation writes a file. After the first batch of a reading, the file
-    /// most of its packets took is read on; where none did, this re-simulation writes its own
-    /// (its first batch's hits, cast or taken, and every packet's after).
+    /// when this re-simulation writes a file. After the first batch of a reading whose
+    /// packets cast centre rays, the file whose rays more than half of those packets share is
+    /// read on; where none is, this re-simulation writes its own (that batch's hits, cast or
+    /// taken, and every packet's after).
     pub fn done(&mut self, slots: Vec<HitSlot>) {
         if let Mode::Read {
             logs,
             chosen: chosen @ false,
         } = &mut self.mode
         {
-            if slots.is_empty() {
+            // The packets that cast (or took) their centre rays, and per file how many of
+            // those share its rays (every file that does, not only the one taken).
+            let cast: Vec<&HitSlot> = slots.iter().filter(|s| s.rays.is_some()).collect();
+            if cast.is_empty() {
                 return;
             }
-            let mut took = vec![0usize; logs.len()];
-            for u in slots.iter().filter_map(|s| s.used) {
-                took[u] += 1;
-            }
+            let fits = |j: usize| {
+                cast.iter()
+                    .filter(|s| s.given.get(j).is_some_and(|g| Some(g.rays) == s.rays))
+                    .count()
+            };
+            let took: Vec<usize> = (0..logs.len()).map(fits).collect();
             let best = (0..took.len()).max_by_key(|&j| (took[j], std::cmp::Reverse(j)));
-            match best.filter(|&j| 2 * took[j] > slots.len()) {
+            match best.filter(|&j| 2 * took[j] > cast.len()) {
                 Some(j) => {
                     let log = logs.swap_remove(j);
+                    self.log.to_front(log.0);
                     *logs = vec![log];
                     *chosen = true;
                     return;
                 }
                 None => {
                     tracing::info!(
-                        "the kept centre hits fit {} of {} packets: kept anew",
+                        "the kept centre hits fit at most {} of {} packets: kept anew",
                         took.iter().max().copied().unwrap_or(0),
-                        slots.len()
+                        cast.len()
                     );
                     self.mode = self.log.new_file().map_or(Mode::Off, Mode::Write);
                 }
@@ -181,9 +208,9 @@ impl HitRun<'_> {
             let h = s
                 .kept
                 .as_ref()
-                .or_else(|| s.used.and_then(|u| s.given.get(u)))
-                .unwrap_or(&empty);
-            if let Err(e) = write_one(w, h) {
+                .or_else(|| s.used.and_then(|u| s.given.get(u)));
+            self.hits += u64::from(h.is_some());
+            if let Err(e) = write_one(w, h.unwrap_or(&empty)) {
                 tracing::warn!("the centre hits cannot be kept ({e}): the next rounds cast");
                 self.mode = Mode::Off;
                 return;
@@ -191,17 +218,25 @@ impl HitRun<'_> {
         }
     }
 
-    /// The re-simulation wrote every packet: its file is kept for the next ones (beside the
-    /// most recent other, [`KEPT_LOGS`]).
+    /// The re-simulation wrote every packet, and some hits: its file is kept for the next
+    /// ones, first, beside the most recently used other ([`KEPT_LOGS`]).
     pub fn finish(self) {
         if let Mode::Write(w) = self.mode {
+            if self.hits == 0 {
+                return;
+            }
             if let Ok(f) = w.into_inner() {
+                let id = {
+                    let mut next = self.log.next.lock().unwrap_or_else(PoisonError::into_inner);
+                    *next += 1;
+                    *next
+                };
                 let mut written = self
                     .log
                     .written
                     .lock()
                     .unwrap_or_else(PoisonError::into_inner);
-                written.insert(0, f);
+                written.insert(0, (id, f));
                 written.truncate(KEPT_LOGS);
             }
         }
@@ -263,9 +298,9 @@ mod tests {
     }
 
     /// One re-simulation of five packets (batches of three and two) whose rays are those of
-    /// `set`: what the cast does with each slot (takes a given file's hits of the same hash,
-    /// or casts and keeps where asked). Returns, per packet, the file position it took
-    /// (`None`: cast).
+    /// `set`: what the cast does with each slot (hashes the rays, takes the first given file's
+    /// hits of the same hash, or casts and keeps where asked). Returns, per packet, the file
+    /// position it took (`None`: cast).
     fn resim(log: &HitLog, set: u32) -> Vec<Option<usize>> {
         let mut run = log.open().unwrap();
         let mut took = Vec::new();
@@ -273,6 +308,7 @@ mod tests {
             let mut slots = run.slots(n);
             for (k, s) in slots.iter_mut().enumerate() {
                 let mine = of(set, from + k as u32);
+                s.rays = Some(mine.rays);
                 s.used = s.given.iter().position(|g| *g == mine);
                 if s.used.is_none() && s.keep {
                     s.kept = Some(mine);
@@ -283,6 +319,15 @@ mod tests {
         }
         run.finish();
         took
+    }
+
+    /// Every record of the most recent file, in order.
+    fn records(log: &HitLog, n: usize) -> Vec<CentreHits> {
+        let mut run = log.open().unwrap();
+        run.slots(n)
+            .into_iter()
+            .map(|s| s.given[0].clone())
+            .collect()
     }
 
     /// A log written packet by packet reads back the same in every later run; a run that
@@ -322,6 +367,7 @@ mod tests {
                 assert_eq!(s.given, vec![want], "packet {k}");
                 // The first batch is also kept, in case no file fits it.
                 assert!(s.keep);
+                s.rays = Some(s.given[0].rays);
                 s.used = Some(0);
             }
             r.done(got);
@@ -331,69 +377,121 @@ mod tests {
     }
 
     /// A model that casts other rays (an effect that adds witness sequences) writes a file of
-    /// its own when the kept one fits too few of its first packets, and from then on each set
-    /// of rays finds its own file, whichever ran last; a third set replaces the older file.
+    /// its own when no kept one fits more than half of its first packets, and from then on
+    /// each set of rays finds its own file, whichever ran last; a third set (a candidate that
+    /// moves the beams) replaces the file least recently used.
     #[test]
     fn each_set_of_rays_finds_its_own_file() {
         let log = HitLog::default();
-        assert_eq!(resim(&log, 0), vec![None; 5], "the first run casts");
-        assert_eq!(
-            resim(&log, 0),
+        let (mine, first) = (
             vec![Some(0); 5],
-            "the same rays take every hit"
+            [vec![Some(1); 3], vec![Some(0); 2]].concat(),
         );
+        assert_eq!(resim(&log, 0), vec![None; 5], "the first run casts");
+        assert_eq!(resim(&log, 0), mine, "the same rays take every hit");
         // Other rays: nothing fits; the run writes its own file (its first batch included).
         assert_eq!(resim(&log, 1), vec![None; 5]);
-        // Both sets now take their own (the most recent file first).
         assert_eq!(
-            resim(&log, 0),
-            [vec![Some(1); 3], vec![Some(0); 2]].concat()
+            records(&log, 5),
+            (0..5).map(|k| of(1, k)).collect::<Vec<_>>()
         );
-        assert_eq!(
-            resim(&log, 1),
-            [vec![Some(0); 3], vec![Some(0); 2]].concat()
-        );
-        assert_eq!(
-            resim(&log, 0),
-            [vec![Some(1); 3], vec![Some(0); 2]].concat()
-        );
-        // A third set: written, beside the most recent one; the oldest (set 0) is gone.
+        // Each set takes its own: the other set's file is first (the most recently used).
+        for set in [0, 1, 0] {
+            assert_eq!(resim(&log, set), first, "set {set}");
+        }
+        // A third set is written; the file of set 1, least recently used, is dropped.
         assert_eq!(resim(&log, 2), vec![None; 5]);
         assert_eq!(
-            resim(&log, 1),
-            [vec![Some(1); 3], vec![Some(0); 2]].concat()
+            resim(&log, 0),
+            first,
+            "set 0's file was used last before set 2's"
         );
-        assert_eq!(resim(&log, 0), vec![None; 5], "set 0's file was dropped");
+        assert_eq!(resim(&log, 1), vec![None; 5], "set 1's file was dropped");
     }
 
-    /// The file that fits most of the first batch is read on, when it fits more than half;
-    /// at half or less, the run writes its own.
+    /// The file that fits more than half of the first batch's packets is read on; at half or
+    /// less, the run writes its own file: the first batch's hits, those taken and those cast,
+    /// then every packet's, in order. Packets that cast no centre ray count for neither.
     #[test]
-    fn a_file_is_read_on_when_it_fits_most_of_the_first_packets() {
-        for (fitting, read_on) in [(3usize, true), (2, true), (1, false)] {
+    fn a_file_is_read_on_when_it_fits_more_than_half_of_the_first_packets() {
+        for (fitting, of_first, not_cast, read_on) in [
+            (3usize, 3usize, 0usize, true),
+            (2, 3, 0, true),
+            (2, 4, 0, false),
+            (1, 3, 0, false),
+            (2, 3, 1, true),
+        ] {
+            let what = format!("{fitting} of {of_first} fit, {not_cast} not cast");
             let log = HitLog::default();
-            resim(&log, 0);
+            for set in [0, 0] {
+                // Five packets kept: enough for the first batch here.
+                resim(&log, set);
+            }
             let mut run = log.open().unwrap();
-            let mut slots = run.slots(3);
-            for (k, s) in slots.iter_mut().enumerate() {
+            let mut slots = run.slots(of_first + not_cast);
+            for (k, s) in slots.iter_mut().enumerate().take(of_first) {
                 if k < fitting {
+                    s.rays = Some(s.given[0].rays);
                     s.used = Some(0);
                 } else {
-                    s.kept = Some(of(1, k as u32));
+                    let h = of(1, k as u32);
+                    s.rays = Some(h.rays);
+                    s.kept = Some(h);
                 }
             }
             run.done(slots);
-            let next = run.slots(2);
+            let mut next = run.slots(1);
             assert_eq!(
                 next.iter().all(|s| s.given.len() == 1 && !s.keep),
                 read_on,
-                "{fitting} of 3 fit"
+                "{what}"
             );
             assert_eq!(
                 next.iter().all(|s| s.given.is_empty() && s.keep),
                 !read_on,
-                "{fitting} of 3 fit"
+                "{what}"
             );
+            if !read_on {
+                next[0].kept = Some(of(1, 99));
+                run.done(next);
+                run.finish();
+                let mut want: Vec<CentreHits> = (0..of_first as u32)
+                    .map(|k| {
+                        if (k as usize) < fitting {
+                            of(0, k)
+                        } else {
+                            of(1, k)
+                        }
+                    })
+                    .collect();
+                want.extend((0..not_cast).map(|_| CentreHits::default()));
+                want.push(of(1, 99));
+                assert_eq!(records(&log, want.len()), want, "{what}");
+            }
         }
+    }
+
+    /// A re-simulation that casts no centre ray (a dual-return VLS-128's footprints are cast
+    /// whole) decides nothing, writes no file and drops none.
+    #[test]
+    fn a_run_that_casts_no_centre_ray_keeps_no_file_and_drops_none() {
+        let log = HitLog::default();
+        let mut run = log.open().unwrap();
+        let slots = run.slots(3);
+        run.done(slots);
+        run.finish();
+        assert_eq!(resim(&log, 0), vec![None; 5], "nothing was kept");
+        for _ in 0..3 {
+            let mut run = log.open().unwrap();
+            let slots = run.slots(3);
+            run.done(slots);
+            assert!(run.slots(2).iter().all(|s| s.given.len() == 1 && s.keep));
+            run.finish();
+        }
+        assert_eq!(
+            resim(&log, 0),
+            vec![Some(0); 5],
+            "set 0's file is still there"
+        );
     }
 }

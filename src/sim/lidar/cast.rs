@@ -199,6 +199,7 @@ impl LidarSim<'_> {
             (slot, fp)
         });
         if let Some((slot, fp)) = &mut reusing {
+            slot.rays = Some(*fp);
             if let Some(used) = slot
                 .given
                 .iter()

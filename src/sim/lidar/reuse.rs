@@ -43,6 +43,8 @@ pub struct HitSlot {
     pub given: Vec<CentreHits>,
     /// Which of `given` was used, when one was.
     pub used: Option<usize>,
+    /// The hash of this packet's centre rays, when they were cast or taken ([`fingerprint`]).
+    pub rays: Option<u64>,
     /// Keep this packet's hits in `kept` (when none of `given` fits).
     pub keep: bool,
     /// This packet's hits, when `keep` asked for them and they were cast.
