@@ -1463,17 +1463,7 @@ fn full_and_adaptive(
     use hilrig::sim::lidar::FootprintCast;
     // Moving and turning, so that each firing has its own pose.
     let ego = ctrv(3.0, 0.2, 1.0);
-    let sim = |how| {
-        LidarSim::new(
-            s,
-            model,
-            Calibration::builtin(model),
-            &mounting(),
-            &model_of(effects.to_vec()),
-        )
-        .unwrap()
-        .with_footprint_cast(how)
-    };
+    let sim = |how| layout_sim(s, model, effects).with_footprint_cast(how);
     let sp = Spin {
         mode,
         ..spin(model)

@@ -12,13 +12,15 @@
 //! hit. A re-simulation whose first packets share the rays of no kept file in more than half
 //! of them writes its own (the two most recently written or read are kept, [`KEPT_LOGS`]),
 //! so that models casting two sets of rays each find theirs, and a third set (a candidate
-//! that moves the beams) drops the set least recently used. A re-simulation that stops half-way leaves no file (the next one writes it
-//! anew); a file that cannot be read is cast around.
+//! that moves the beams) drops the set least recently used. A re-simulation that stops
+//! half-way leaves no file (the next one writes it anew); a file that cannot be read is cast
+//! around.
 
 use super::lidar::{CentreHits, HitSlot};
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Seek, Write};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 /// Logs kept per run: one for each set of rays its models cast. A study's rounds re-simulate
@@ -37,8 +39,8 @@ pub struct HitLog {
     /// The files of re-simulations that wrote every packet's hits, each with its number, the
     /// most recently written or read first.
     written: Mutex<Vec<(u64, File)>>,
-    /// The number of the next file written.
-    next: Mutex<u64>,
+    /// The number of the last file written.
+    last: AtomicU64,
 }
 
 impl HitLog {
@@ -134,18 +136,17 @@ impl HitRun<'_> {
         let mut slots: Vec<HitSlot> = (0..n).map(|_| HitSlot::default()).collect();
         match &mut self.mode {
             Mode::Read { logs, chosen } => {
-                for s in &mut slots {
+                let read = slots.iter_mut().try_for_each(|s| {
                     s.keep = !*chosen;
                     for (_, r) in logs.iter_mut() {
-                        match read_one(r) {
-                            Ok(h) => s.given.push(h),
-                            Err(e) => {
-                                tracing::warn!("the kept centre hits end early ({e}): cast anew");
-                                self.mode = Mode::Off;
-                                return (0..n).map(|_| HitSlot::default()).collect();
-                            }
-                        }
+                        s.given.push(read_one(r)?);
                     }
+                    Ok::<(), std::io::Error>(())
+                });
+                if let Err(e) = read {
+                    tracing::warn!("the kept centre hits end early ({e}): cast anew");
+                    self.mode = Mode::Off;
+                    slots.fill_with(HitSlot::default);
                 }
             }
             Mode::Write(_) => {
@@ -226,11 +227,7 @@ impl HitRun<'_> {
                 return;
             }
             if let Ok(f) = w.into_inner() {
-                let id = {
-                    let mut next = self.log.next.lock().unwrap_or_else(PoisonError::into_inner);
-                    *next += 1;
-                    *next
-                };
+                let id = self.log.last.fetch_add(1, Ordering::Relaxed) + 1;
                 let mut written = self
                     .log
                     .written
