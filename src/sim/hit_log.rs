@@ -14,11 +14,12 @@
 //! so that models casting two sets of rays each find theirs, and a third set (a candidate
 //! that moves the beams) drops the set least recently used. A re-simulation that stops
 //! half-way leaves no file (the next one writes it anew); a file that cannot be read is cast
-//! around.
+//! around. Each reading reads at its own offset ([`KeptFile`]), so re-simulations of one run
+//! may read its files side by side.
 
 use super::lidar::{CentreHits, HitSlot};
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Read, Seek, Write};
+use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
@@ -30,7 +31,7 @@ use std::sync::{Mutex, PoisonError};
 /// round that added beam divergence missed it; with one log a set, each finds its own.
 const KEPT_LOGS: usize = 2;
 
-/// The centre hits of one run, kept for its re-simulations (one at a time).
+/// The centre hits of one run, kept for its re-simulations.
 #[derive(Debug, Default)]
 pub struct HitLog {
     /// Where the files go (the system's temporary folder when `None`, which may be held in
@@ -57,15 +58,14 @@ impl HitLog {
     /// those, or, where none does, writes a file of its own), else writes one. `None` when no
     /// file can be made (the re-simulation then casts every ray, as without a log).
     pub fn open(&self) -> Option<HitRun<'_>> {
-        let kept: Vec<(u64, BufReader<File>)> = self
+        let kept: Vec<(u64, BufReader<KeptFile>)> = self
             .written
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .iter()
             .filter_map(|(id, f)| {
-                let mut f = f.try_clone().ok()?;
-                f.rewind().ok()?;
-                Some((*id, BufReader::new(f)))
+                let file = f.try_clone().ok()?;
+                Some((*id, BufReader::new(KeptFile { file, at: 0 })))
             })
             .collect();
         let mode = if kept.is_empty() {
@@ -111,7 +111,7 @@ enum Mode {
     /// Reading kept files (each with its number): each one's hits offered for the first
     /// batch of packets; from the second on, only the one `chosen` (the others are dropped).
     Read {
-        logs: Vec<(u64, BufReader<File>)>,
+        logs: Vec<(u64, BufReader<KeptFile>)>,
         chosen: bool,
     },
     Write(BufWriter<File>),
@@ -237,6 +237,27 @@ impl HitRun<'_> {
                 written.truncate(KEPT_LOGS);
             }
         }
+    }
+}
+
+/// A kept file read from its start at an offset of its own. A cloned handle shares the
+/// kernel's offset with every other clone of the file, so two re-simulations reading one
+/// file through `read` would each skip what the other read (and a writer's last position
+/// would be the readers' start); reading at an explicit offset leaves the handle's alone.
+struct KeptFile {
+    file: File,
+    /// The next byte to read.
+    at: u64,
+}
+
+impl Read for KeptFile {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        #[cfg(unix)]
+        let n = std::os::unix::fs::FileExt::read_at(&self.file, buf, self.at)?;
+        #[cfg(windows)]
+        let n = std::os::windows::fs::FileExt::seek_read(&self.file, buf, self.at)?;
+        self.at += n as u64;
+        Ok(n)
     }
 }
 
@@ -371,6 +392,30 @@ mod tests {
             // Past the end: nothing given, and no error.
             assert!(r.slots(2).iter().all(|s| s.given.is_empty() && !s.keep));
         }
+    }
+
+    /// Two re-simulations reading one kept file side by side, batch by batch in turn, each
+    /// read every record in order: each reads at its own offset (cloned handles share the
+    /// kernel's, and then each skipped what the other read).
+    #[test]
+    fn re_simulations_read_one_file_side_by_side() {
+        let log = HitLog::default();
+        let mut w = log.open().unwrap();
+        let mut s = w.slots(6);
+        for (k, slot) in s.iter_mut().enumerate() {
+            slot.kept = Some(hits(k as u32 + 1));
+        }
+        w.done(s);
+        w.finish();
+        let (mut a, mut b) = (log.open().unwrap(), log.open().unwrap());
+        let mut seen = (Vec::new(), Vec::new());
+        for _ in 0..3 {
+            seen.0.extend(a.slots(2).into_iter().map(|s| s.given));
+            seen.1.extend(b.slots(2).into_iter().map(|s| s.given));
+        }
+        let want: Vec<Vec<CentreHits>> = (1..=6).map(|k| vec![hits(k)]).collect();
+        assert_eq!(seen.0, want);
+        assert_eq!(seen.1, want);
     }
 
     /// A model that casts other rays (an effect that adds witness sequences) writes a file of
