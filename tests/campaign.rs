@@ -679,6 +679,22 @@ fn a_campaign_that_cannot_run_says_why_before_any_task_runs() {
         dir.path(),
     );
     assert!(e.contains("model 'm'") && e.contains("nowhere.toml"), "{e}");
+    // Where the gap step's re-simulations run: one place, a number of tasks, a command.
+    let gap = head("\"record\", \"check\", \"resim\", \"gap\"")
+        + &format!("rig = \"{}\"\n", common::demo_rig().display())
+        + &drive(&format!("{p}/rep-0[12]/drive.pcapng.zst"))
+        + &models;
+    for (table, says) in [
+        ("jobs = 2\nengine = \"ray-run\"", "both `jobs` and `engine`"),
+        ("jobs = 0", "jobs = 0"),
+        ("engine = \"run 'plan\"", "unbalanced quotes"),
+        ("engine = \"  \"", "not a command"),
+        ("workers = 2", "workers"),
+        ("", "neither"),
+    ] {
+        let e = refused(&format!("{gap}[gap]\n{table}\n"), dir.path());
+        assert!(e.contains(says), "[gap] {table}: {e}");
+    }
     // A bucket without credentials, for the outputs or for the drives: refused before anything
     // is asked of the network, and nothing written here.
     let work = dir.path().join("work");
@@ -894,6 +910,62 @@ fn the_plan_is_json_that_names_every_command_and_what_it_waits_for() {
     assert_eq!(study.matches("role = \"validate\"").count(), 2, "{study}");
     assert!(plan.task("report").unwrap().after.len() >= 18);
     // Nothing was run or written by planning.
+    assert!(!dir.path().join("out").exists());
+    // A `[gap]` table hands the study's full re-simulations to local tasks or to an engine:
+    // the gap task's command line says so, and no other task's changes.
+    let parking = common::fixture("parking");
+    let text = campaign_text(
+        &parking.to_string_lossy(),
+        &common::demo_rig().to_string_lossy(),
+    )
+    .replace(
+        "\"validate\", \"tables\"",
+        "\"validate\", \"gap\", \"tables\"",
+    );
+    let engine = "python -m hilrig_ray --address 'auto'";
+    let mut args_of = BTreeMap::new();
+    for (key, table) in [
+        ("none", String::new()),
+        ("jobs", "[gap]\njobs = 2\n".into()),
+        ("engine", format!("[gap]\nengine = \"{engine}\"\n")),
+    ] {
+        let file = dir.path().join(format!("gap-{key}.toml"));
+        std::fs::write(&file, format!("{text}\n{table}")).unwrap();
+        let out = Command::new(common::hilrig_bin())
+            .args(["campaign", "plan"])
+            .arg(&file)
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .arg("--json")
+            .output()
+            .unwrap();
+        let plan: hilrig::campaign::plan::Plan =
+            hilrig::output::from_slice(Path::new("stdout"), &out.stdout).unwrap();
+        let args: BTreeMap<String, Vec<String>> = plan
+            .tasks
+            .iter()
+            .map(|t| (t.id.clone(), t.args.clone()))
+            .collect();
+        args_of.insert(key, args);
+    }
+    let gap_args = |key: &str| args_of[key]["gap/parking"].clone();
+    let plain = gap_args("none");
+    assert!(!plain.iter().any(|a| a == "--jobs" || a == "--engine"));
+    assert_eq!(
+        gap_args("jobs"),
+        [plain.clone(), vec!["--jobs".into(), "2".into()]].concat()
+    );
+    assert_eq!(
+        gap_args("engine"),
+        [plain, vec!["--engine".into(), engine.into()]].concat()
+    );
+    for key in ["jobs", "engine"] {
+        let mut others = args_of[key].clone();
+        others.remove("gap/parking");
+        let mut plain = args_of["none"].clone();
+        plain.remove("gap/parking");
+        assert_eq!(others, plain, "[gap] {key} changed another task");
+    }
     assert!(!dir.path().join("out").exists());
 }
 

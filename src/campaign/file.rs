@@ -19,6 +19,10 @@
 //! [[model]]
 //! name = "idealized"
 //! file = "idealized.toml"
+//!
+//! [gap]                                 # optional: where the gap step's full re-simulations run
+//! jobs = 2                              # `gap --jobs`: as local tasks, this many at a time
+//! # engine = "python -m hilrig_ray --address auto --hilrig /opt/hilrig/bin/hilrig"  # `gap --engine`
 //! ```
 //!
 //! Relative paths are relative to the campaign file. Any path may be an object's URL
@@ -36,6 +40,7 @@ use serde::Deserialize;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
+pub use super::gap_trials::{GapEntry, GapTrials};
 pub use super::step::Step;
 
 /// The campaign file as written.
@@ -58,6 +63,9 @@ pub struct CampaignFile {
     /// The models every drive is re-simulated with.
     #[serde(rename = "model", default)]
     pub models: Vec<ModelEntry>,
+    /// Where the gap step's full re-simulations run (default: inside its task).
+    #[serde(default)]
+    pub gap: Option<GapEntry>,
 }
 
 /// Drives of one scenario, by a pattern.
@@ -167,6 +175,8 @@ pub struct Campaign {
     pub scenarios: Vec<Scenario>,
     /// The models, in the file's order.
     pub models: Vec<Model>,
+    /// Where the gap step's full re-simulations run (`None`: inside the gap task).
+    pub gap_trials: Option<GapTrials>,
 }
 
 /// Which extensions make a file a recording or a capture.
@@ -312,6 +322,12 @@ impl Campaign {
         for (i, d) in drives.iter().enumerate() {
             scenarios[d.scenario].drives.push(i);
         }
+        let gap_trials = file
+            .gap
+            .as_ref()
+            .map(GapTrials::of)
+            .transpose()
+            .map_err(|e| r.invalid(e))?;
         let mut campaign = Campaign {
             path: path.to_owned(),
             name: file.name,
@@ -321,6 +337,7 @@ impl Campaign {
             drives,
             scenarios,
             models,
+            gap_trials,
         };
         campaign.check_steps()?;
         for s in &mut campaign.scenarios {

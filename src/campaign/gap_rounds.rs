@@ -2,7 +2,8 @@
 //! model (`hilrig gap trial`, one per validation run) as a plan, run by the local executor
 //! (`gap --jobs N`) or handed to an engine command that runs a plan file (`gap --engine
 //! "python -m hilrig_ray ..."`). The tasks are stamped as a campaign's are, so a study run
-//! again into its folder skips the trials whose files are as it left them.
+//! again into its folder skips the trials whose files are as it left them. A campaign's gap
+//! step says where with its `[gap]` table (gap_trials.rs).
 
 use super::file::Step;
 use super::local::{self, Outcome, Progress};

@@ -11,6 +11,7 @@
 pub mod efast;
 pub mod file;
 pub mod gap_rounds;
+mod gap_trials;
 mod graph;
 pub mod local;
 pub mod mirror;

@@ -369,6 +369,9 @@ impl Builder<'_> {
             ),
         });
         let mut args = vec!["gap".into(), s(&study_path), "-o".into(), s(&dir)];
+        if let Some(t) = &c.gap_trials {
+            args.extend(t.args());
+        }
         let mut inputs = vec![study_path, model.file.clone()];
         if let Some(r) = sc.reference_model {
             let r = &c.models[r].file;
