@@ -46,6 +46,24 @@ file = "{parking}/truth-model.toml"
     )
 }
 
+/// [`campaign_text`] of the parking fixture with the gap step, studied against the truth
+/// model.
+fn with_gap_step() -> String {
+    let parking = common::fixture("parking");
+    campaign_text(
+        &parking.to_string_lossy(),
+        &common::demo_rig().to_string_lossy(),
+    )
+    .replace(
+        "\"validate\", \"tables\"",
+        "\"validate\", \"gap\", \"tables\"",
+    )
+    .replace(
+        "phases.toml\"\n",
+        "phases.toml\"\nreference_model = \"truth\"\n",
+    )
+}
+
 /// The commands a user would type for the same study, in two threads, into `dir` with the
 /// campaign's layout.
 fn one_by_one(dir: &Path, parking: &Path, rig: &Path) {
@@ -230,6 +248,31 @@ fn a_campaign_from_a_bucket_killed_mid_run_here_resumed_on_ray_gives_the_same_fi
     let server = common::s3::Server::start();
     let from_bucket = dir.path().join("from-bucket");
     let (file, out) = in_a_bucket(&server, dir.path(), &from_bucket);
+    // A gap step's trials on an engine: its workers would not see the copies of objects that
+    // a task reads, so with the outputs in a bucket an engine is refused before anything runs
+    // (local jobs, on the gap task's node, are not).
+    for (table, code) in [
+        ("jobs = 2", Some(0)),
+        ("engine = \"python -m hilrig_ray --address auto\"", Some(2)),
+    ] {
+        let gap = dir.path().join("gap-in-a-bucket.toml");
+        std::fs::write(&gap, format!("{}\n[gap]\n{table}\n", with_gap_step())).unwrap();
+        let mut cmd = Command::new(common::hilrig_bin());
+        cmd.args(["campaign", "plan"]).arg(&gap).args([
+            "--out",
+            "s3://hilrig-drives/gap-out",
+            "--json",
+        ]);
+        let o = server.env(&mut cmd).output().unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), code, "[gap] {table}: {e}");
+        if code == Some(2) {
+            assert!(
+                e.contains("[gap] engine") && e.contains("is an object"),
+                "{e}"
+            );
+        }
+    }
     // 5 record + 5 check + 10 resim + 10 compare + 2 validate + 1 report, and a table task
     // for each of the 17 JSON files.
     let total = 50;
@@ -913,32 +956,32 @@ fn the_plan_is_json_that_names_every_command_and_what_it_waits_for() {
     assert!(!dir.path().join("out").exists());
     // A `[gap]` table hands the study's full re-simulations to local tasks or to an engine:
     // the gap task's command line says so, and no other task's changes.
-    let parking = common::fixture("parking");
-    let text = campaign_text(
-        &parking.to_string_lossy(),
-        &common::demo_rig().to_string_lossy(),
-    )
-    .replace(
-        "\"validate\", \"tables\"",
-        "\"validate\", \"gap\", \"tables\"",
-    );
+    let text = with_gap_step();
     let engine = "python -m hilrig_ray --address 'auto'";
+    let plan_of = |key: &str, table: &str, out: &OsStr| {
+        let file = dir.path().join(format!("gap-{key}.toml"));
+        std::fs::write(&file, format!("{text}\n{table}")).unwrap();
+        Command::new(common::hilrig_bin())
+            .args(["campaign", "plan"])
+            .arg(&file)
+            .arg("--out")
+            .arg(out)
+            .arg("--json")
+            .output()
+            .unwrap()
+    };
     let mut args_of = BTreeMap::new();
     for (key, table) in [
         ("none", String::new()),
         ("jobs", "[gap]\njobs = 2\n".into()),
         ("engine", format!("[gap]\nengine = \"{engine}\"\n")),
     ] {
-        let file = dir.path().join(format!("gap-{key}.toml"));
-        std::fs::write(&file, format!("{text}\n{table}")).unwrap();
-        let out = Command::new(common::hilrig_bin())
-            .args(["campaign", "plan"])
-            .arg(&file)
-            .arg("--out")
-            .arg(dir.path().join("out"))
-            .arg("--json")
-            .output()
-            .unwrap();
+        let out = plan_of(key, &table, dir.path().join("out").as_os_str());
+        assert!(
+            out.status.success(),
+            "[gap] {key}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let plan: hilrig::campaign::plan::Plan =
             hilrig::output::from_slice(Path::new("stdout"), &out.stdout).unwrap();
         let args: BTreeMap<String, Vec<String>> = plan
@@ -948,17 +991,14 @@ fn the_plan_is_json_that_names_every_command_and_what_it_waits_for() {
             .collect();
         args_of.insert(key, args);
     }
+    // `hilrig gap STUDY -o DIR [--jobs N | --engine C] --reference-model M`.
     let gap_args = |key: &str| args_of[key]["gap/parking"].clone();
     let plain = gap_args("none");
     assert!(!plain.iter().any(|a| a == "--jobs" || a == "--engine"));
-    assert_eq!(
-        gap_args("jobs"),
-        [plain.clone(), vec!["--jobs".into(), "2".into()]].concat()
-    );
-    assert_eq!(
-        gap_args("engine"),
-        [plain, vec!["--engine".into(), engine.into()]].concat()
-    );
+    assert_eq!(plain[4], "--reference-model", "{plain:?}");
+    let with = |extra: [&str; 2]| [&plain[..4], &extra.map(String::from), &plain[4..]].concat();
+    assert_eq!(gap_args("jobs"), with(["--jobs", "2"]));
+    assert_eq!(gap_args("engine"), with(["--engine", engine]));
     for key in ["jobs", "engine"] {
         let mut others = args_of[key].clone();
         others.remove("gap/parking");

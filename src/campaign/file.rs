@@ -249,6 +249,19 @@ impl Campaign {
         if file.steps.is_empty() {
             return Err(r.invalid("`steps` is empty: name at least one step".into()));
         }
+        // Checked before any drive is looked for (which may list a bucket).
+        let gap_trials = file
+            .gap
+            .as_ref()
+            .map(GapTrials::of)
+            .transpose()
+            .map_err(|e| r.invalid(e))?;
+        if gap_trials.is_some() && !file.steps.contains(&Step::Gap) {
+            return Err(r.invalid(
+                "[gap] says where the gap step's trials run, but \"gap\" is not among the steps"
+                    .into(),
+            ));
+        }
         if file.steps.contains(&Step::Efast) {
             return Err(r.invalid(
                 "\"efast\" is not a step of a campaign: an eFAST design is a plan of its own (`hilrig efast plan`, `hilrig efast run`)".into(),
@@ -322,12 +335,6 @@ impl Campaign {
         for (i, d) in drives.iter().enumerate() {
             scenarios[d.scenario].drives.push(i);
         }
-        let gap_trials = file
-            .gap
-            .as_ref()
-            .map(GapTrials::of)
-            .transpose()
-            .map_err(|e| r.invalid(e))?;
         let mut campaign = Campaign {
             path: path.to_owned(),
             name: file.name,

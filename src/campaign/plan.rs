@@ -8,7 +8,7 @@
 //! before anything runs. The plan is written as JSON (`hilrig campaign plan --json`) so that any
 //! engine can run it: every path in it is absolute, every command line complete.
 
-use super::file::{Campaign, Scenario, Step};
+use super::file::{Campaign, GapTrials, Scenario, Step};
 use super::tables::{Labels, TableKind};
 pub use super::task::Task;
 use super::CampaignError;
@@ -384,6 +384,26 @@ impl Builder<'_> {
         }
         let id = format!("gap/{}", sc.name);
         let outputs = vec![dir.join("gap.json"), dir.join("model.fitted.toml")];
+        // A task reads objects from a copy on its own node, and the gap task hands its trials
+        // the paths it sees: an engine's workers on other nodes would not find them.
+        if let Some(GapTrials::Engine(_)) = &c.gap_trials {
+            if let Some(o) = inputs
+                .iter()
+                .chain(&outputs)
+                .find(|p| super::mirror::is_url(p))
+            {
+                return Err(CampaignError::Invalid {
+                    path: c.path.clone(),
+                    what: format!(
+                        "[gap] engine: the trials run on the engine's workers at the paths the \
+                         gap task sees, but {} is an object, which each task reads from a copy \
+                         on its own node; use `jobs` (trials on the gap task's node) or a disk \
+                         the nodes share",
+                        o.display()
+                    ),
+                });
+            }
+        }
         let labels = [None, Some(sc.name.as_str()), Some(model.name.as_str())];
         self.table(OutputKind::Gap, &outputs[0], &sc.name, labels);
         self.add(id.clone(), Step::Gap, args, inputs, outputs);
