@@ -2,7 +2,7 @@
 //! exit code, and the SHA-256 of every file it read and wrote.
 //!
 //! A task is up to date when its stamp exists, this build of hilrig made it, its command line is
-//! the plan's, and every input and output still has the hash the stamp gives (an output that is
+//! the plan's (but for where a gap task's trials run: [`WHERE_TRIALS_RUN`]), and every input and output still has the hash the stamp gives (an output that is
 //! missing, cut short or edited makes it run again; so does an input that a task before it
 //! wrote anew; so does a fixed hilrig). A stamp is
 //! written only after the task ended with a result, and removed before it starts: a task killed
@@ -135,6 +135,25 @@ impl Hashes {
     }
 }
 
+/// A gap task's options that say where its trials run, not what it makes: its results are
+/// the same with either or neither (tests/gap_engine.rs), so a campaign resumed with another
+/// `[gap]`, or with its engine at a new address, keeps the studies it finished.
+const WHERE_TRIALS_RUN: [&str; 2] = ["--jobs", "--engine"];
+
+/// `args` of `task` without the options that do not change its outputs.
+fn what_it_makes<'a>(task: &Task, args: &'a [String]) -> Vec<&'a String> {
+    let mut out = Vec::with_capacity(args.len());
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        if task.step == super::file::Step::Gap && WHERE_TRIALS_RUN.contains(&a.as_str()) {
+            it.next();
+        } else {
+            out.push(a);
+        }
+    }
+    out
+}
+
 /// The exit code `task` ended with last time, when its stamp shows it up to date.
 pub fn up_to_date(
     out: &Path,
@@ -149,7 +168,10 @@ pub fn up_to_date(
     let Ok(stamp) = crate::output::from_slice::<Stamp>(&p, &bytes) else {
         return Ok(None);
     };
-    if stamp.tool != TOOL || stamp.args != task.args || !task.results.contains(&stamp.exit) {
+    if stamp.tool != TOOL
+        || what_it_makes(task, &stamp.args) != what_it_makes(task, &task.args)
+        || !task.results.contains(&stamp.exit)
+    {
         return Ok(None);
     }
     let same = |now: Option<Vec<FileHash>>, then: &[FileHash]| now.is_some_and(|n| n == then);
@@ -203,5 +225,77 @@ mod tests {
         crate::output::write(&at, &stamp(&other, &mut hashes)).unwrap();
         assert_eq!(up_to_date(d, &task, &mut hashes).unwrap(), None);
         assert!(TOOL.starts_with("hilrig ") && TOOL.len() > 64, "{TOOL}");
+    }
+
+    /// A gap task stamped with its trials run in process is up to date when they would now run
+    /// as local jobs or on an engine, and the other way round; another study, or such options
+    /// on a task of another step, make it run again.
+    #[test]
+    fn where_a_gap_task_s_trials_run_does_not_make_it_run_again() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::write(d.join("study.toml"), b"study").unwrap();
+        std::fs::write(d.join("gap.json"), b"{}").unwrap();
+        let args = |extra: &[&str]| -> Vec<String> {
+            ["gap", "study.toml", "-o", "g"]
+                .iter()
+                .chain(extra)
+                .map(|a| a.to_string())
+                .collect()
+        };
+        let task = |step: Step, args: Vec<String>| Task {
+            id: "gap/s".into(),
+            step,
+            args,
+            inputs: vec![d.join("study.toml")],
+            outputs: vec![d.join("gap.json")],
+            after: Vec::new(),
+            results: vec![0],
+            gates: Vec::new(),
+            partial: false,
+            log: d.join("gap.log"),
+        };
+        let mut hashes = Hashes::default();
+        let at = path(d, "gap/s");
+        std::fs::create_dir_all(at.parent().unwrap()).unwrap();
+        for (stamped, now, step, fresh) in [
+            (args(&[]), args(&["--jobs", "2"]), Step::Gap, true),
+            (
+                args(&["--jobs", "2"]),
+                args(&["--engine", "ray --address a:1"]),
+                Step::Gap,
+                true,
+            ),
+            (
+                args(&["--engine", "ray --address a:1"]),
+                args(&[]),
+                Step::Gap,
+                true,
+            ),
+            (
+                args(&["--jobs", "2"]),
+                args(&["--jobs", "2", "--force"]),
+                Step::Gap,
+                false,
+            ),
+            (args(&[]), args(&["--jobs", "2"]), Step::Check, false),
+        ] {
+            let then = task(step, stamped.clone());
+            let stamp = Stamp {
+                task: then.id.clone(),
+                args: stamped.clone(),
+                exit: 0,
+                inputs: hashes.inputs(&then).unwrap().unwrap(),
+                outputs: hashes.all(&then.outputs).unwrap().unwrap(),
+                tool: TOOL.into(),
+            };
+            crate::output::write(&at, &stamp).unwrap();
+            let got = up_to_date(d, &task(step, now.clone()), &mut hashes).unwrap();
+            assert_eq!(
+                got.is_some(),
+                fresh,
+                "{step:?}: {stamped:?} then, {now:?} now"
+            );
+        }
     }
 }
