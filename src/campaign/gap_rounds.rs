@@ -6,6 +6,7 @@
 //! step says where with its `[gap]` table (gap_trials.rs).
 
 use super::file::Step;
+pub use super::gap_trials::engine_argv;
 use super::local::{self, Outcome, Progress};
 use super::plan::{Plan, Task};
 use super::resolve::{named_files, Names};

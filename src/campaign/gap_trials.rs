@@ -18,6 +18,17 @@ pub struct GapEntry {
     pub engine: Option<String>,
 }
 
+/// The words of an engine command (`gap --engine`, `[gap] engine`), split as a POSIX shell
+/// splits them (quotes and backslashes; no `~` or `$VAR` expansion); `Err` says why it is not
+/// a command.
+pub fn engine_argv(command: &str) -> Result<Vec<String>, &'static str> {
+    match shlex::split(command) {
+        Some(argv) if !argv.is_empty() => Ok(argv),
+        Some(_) => Err("not a command"),
+        None => Err("unbalanced quotes or a trailing backslash"),
+    }
+}
+
 /// Where the gap step's full re-simulations run, checked.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum GapTrials {
@@ -36,12 +47,9 @@ impl GapTrials {
             ),
             (Some(0), None) => Err("[gap] jobs = 0: at least 1".into()),
             (Some(n), None) => Ok(GapTrials::Jobs(n)),
-            (None, Some(c)) => match shlex::split(c) {
-                Some(argv) if !argv.is_empty() => Ok(GapTrials::Engine(c.clone())),
-                Some(_) => Err(format!("[gap] engine = {c:?}: not a command")),
-                None => Err(format!(
-                    "[gap] engine = {c:?}: unbalanced quotes or a trailing backslash"
-                )),
+            (None, Some(c)) => match engine_argv(c) {
+                Ok(_) => Ok(GapTrials::Engine(c.clone())),
+                Err(why) => Err(format!("[gap] engine = {c:?}: {why}")),
             },
             (None, None) => Err("[gap] names neither `jobs` nor `engine`".into()),
         }

@@ -2,11 +2,11 @@
 //! exit code, and the SHA-256 of every file it read and wrote.
 //!
 //! A task is up to date when its stamp exists, this build of hilrig made it, its command line is
-//! the plan's (but for where a gap task's trials run: [`WHERE_TRIALS_RUN`]), and every input and output still has the hash the stamp gives (an output that is
-//! missing, cut short or edited makes it run again; so does an input that a task before it
-//! wrote anew; so does a fixed hilrig). A stamp is
-//! written only after the task ended with a result, and removed before it starts: a task killed
-//! half-way has none. Content hashes, not modification times, so that a drive copied to another
+//! the plan's (but for where a gap task's trials run: `--jobs`, `--engine`), and every input
+//! and output still has the hash the stamp gives (an output that is missing, cut short or
+//! edited makes it run again; so does an input that a task before it wrote anew; so does a
+//! fixed hilrig). A stamp is written only after the task ended with a result, and removed
+//! before it starts: a task killed half-way has none. Content hashes, not modification times, so that a drive copied to another
 //! disk, or an output rewritten with the same bytes, does not redo the work after it.
 
 use super::plan::Task;
@@ -188,6 +188,18 @@ mod tests {
     use super::*;
     use crate::campaign::file::Step;
 
+    /// The stamp `task` would leave with `exit`, made by `tool`, its files as they are now.
+    fn stamp_of(task: &Task, exit: i32, tool: &str, hashes: &mut Hashes) -> Stamp {
+        Stamp {
+            task: task.id.clone(),
+            args: task.args.clone(),
+            exit,
+            inputs: hashes.inputs(task).unwrap().unwrap(),
+            outputs: hashes.all(&task.outputs).unwrap().unwrap(),
+            tool: tool.into(),
+        }
+    }
+
     /// A stamp whose files all match is up to date only when this build made it: after an
     /// upgrade (another source, another version) the task is made again.
     #[test]
@@ -209,14 +221,7 @@ mod tests {
             log: d.join("check.log"),
         };
         let mut hashes = Hashes::default();
-        let stamp = |tool: &str, hashes: &mut Hashes| Stamp {
-            task: task.id.clone(),
-            args: task.args.clone(),
-            exit: 1,
-            inputs: hashes.inputs(&task).unwrap().unwrap(),
-            outputs: hashes.all(&task.outputs).unwrap().unwrap(),
-            tool: tool.into(),
-        };
+        let stamp = |tool: &str, hashes: &mut Hashes| stamp_of(&task, 1, tool, hashes);
         let at = path(d, &task.id);
         std::fs::create_dir_all(at.parent().unwrap()).unwrap();
         crate::output::write(&at, &stamp(TOOL, &mut hashes)).unwrap();
@@ -281,15 +286,7 @@ mod tests {
             (args(&[]), args(&["--jobs", "2"]), Step::Check, false),
         ] {
             let then = task(step, stamped.clone());
-            let stamp = Stamp {
-                task: then.id.clone(),
-                args: stamped.clone(),
-                exit: 0,
-                inputs: hashes.inputs(&then).unwrap().unwrap(),
-                outputs: hashes.all(&then.outputs).unwrap().unwrap(),
-                tool: TOOL.into(),
-            };
-            crate::output::write(&at, &stamp).unwrap();
+            crate::output::write(&at, &stamp_of(&then, 0, TOOL, &mut hashes)).unwrap();
             let got = up_to_date(d, &task(step, now.clone()), &mut hashes).unwrap();
             assert_eq!(
                 got.is_some(),

@@ -3,7 +3,7 @@
 //! not), 2 on bad input or a run that fails `check` without --force.
 
 use anyhow::{Context, Result};
-use hilrig::campaign::gap_rounds::Runner;
+use hilrig::campaign::gap_rounds::{engine_argv, Runner};
 use hilrig::gap::engine::RoundEngine;
 use hilrig::gap::study::Study;
 use hilrig::gap::trial::TrialTask;
@@ -244,14 +244,9 @@ fn run_study(args: RunArgs) -> Result<ExitCode> {
             exe: std::env::current_exe().context("cannot find the hilrig executable")?,
             jobs: usize::from(*jobs),
         }),
-        (None, Some(command)) => match shlex::split(command) {
-            Some(argv) if !argv.is_empty() => Some(Runner::Command(argv)),
-            Some(_) => return fail(&format!("--engine {command:?}: not a command")),
-            None => {
-                return fail(&format!(
-                    "--engine {command:?}: unbalanced quotes or a trailing backslash"
-                ))
-            }
+        (None, Some(command)) => match engine_argv(command) {
+            Ok(argv) => Some(Runner::Command(argv)),
+            Err(why) => return fail(&format!("--engine {command:?}: {why}")),
         },
         (None, None) => None,
     }
