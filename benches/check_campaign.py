@@ -37,13 +37,17 @@
    at 3-7 m/s and a 160 m straight at 5-15 m/s (no pedestrian on those), each starting standing,
    already moving or moving in a turn. Every mode prints, per drive and pooled, how honest the
    heading sigma is: the share of seconds whose heading error is within 2 sigma (one sample at
-   each whole second) and rms(error/sigma) (issue 32, must-hold 4).
+   each whole second) and rms(error/sigma) (issue 32, must-hold 4). With --paths long: the
+   loop, the slalom and the straight only, each starting every way in turn: drives long
+   enough for the track to tell a heading source's mounting (a 21 m parking manoeuvre tells
+   it to 0.03-0.04°, 1 sigma; there the rig must state a calibrated mounting,
+   --calibrated-mounting).
 
 usage: python3 benches/check_campaign.py [CLEAN_DRIVES] [SEEDS_PER_FAULT] [FIRST_CLEAN_SEED]
            [--gnss-sigma M] [--gnss-correlation S] [--gnss-rate HZ] [--can-rate HZ]
            [--yaw-rate-noise RAD/S] [--sigma-limits DEG,DEG,...] [--heading SOURCE]
            [--calibrated-mounting DEG]
-           [--paths parking|mixed] [--keep DIR]
+           [--paths parking|mixed|long] [--keep DIR]
        (default 30 10 100; SEEDS_PER_FAULT 0 leaves out the fault kinds and the lever grid;
        another first seed draws another set of clean drives; the options
        replace the parking drive's [gnss] and [can] stream settings: other receivers and cars)
@@ -74,7 +78,7 @@ ap.add_argument("--yaw-rate-noise", type=float)
 ap.add_argument("--sigma-limits", type=lambda t: [float(x) for x in t.split(",")], default=[])
 ap.add_argument("--heading", choices=["THS", "HDT", "PASHR", "PSTI,036"])
 ap.add_argument("--calibrated-mounting", type=float, metavar="DEG")
-ap.add_argument("--paths", choices=["parking", "mixed"], default="parking")
+ap.add_argument("--paths", choices=["parking", "mixed", "long"], default="parking")
 ap.add_argument("--keep", metavar="DIR",
                 help="make the drives in DIR and keep them; a drive whose run.mcap exists there "
                      "is checked again without synthesizing and recording it anew")
@@ -328,10 +332,14 @@ with (tempfile.TemporaryDirectory() if not args.keep else
     for k in range(n_clean):
         speed = 1.4 + 0.3 * (k % 5)
         path, waypoints = "parking", None
-        if args.paths == "mixed":
-            path, waypoints, low, high = PATHS[k % len(PATHS)]
-            speed = round(low + (high - low) * ((k * 0.382) % 1.0), 1)
         start = STARTS[k % 3]
+        if args.paths != "parking":
+            kinds = PATHS if args.paths == "mixed" else PATHS[1:]
+            path, waypoints, low, high = kinds[k % len(kinds)]
+            speed = round(low + (high - low) * ((k * 0.382) % 1.0), 1)
+            if args.paths == "long":
+                # Three kinds and three starts: each kind starts every way in turn.
+                start = STARTS[(k // 3) % 3]
         misalignment = round(0.2 + 1.8 * ((k * 0.618) % 1.0), 2) if args.heading else None
         d, v = drive(tmp, f"clean{k}", "", first_seed + k, speed, start, misalignment, waypoints)
         for lim, acc in limits.items():
