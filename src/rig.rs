@@ -336,8 +336,11 @@ pub struct Thresholds {
     /// A gap is this many nominal periods without data. Default 3: one lost sample is noise,
     /// three in a row is a gap.
     pub gap_periods: f64,
-    /// Largest 95th percentile of clock-model residuals (transport jitter), µs. Default 1000:
-    /// at 10 km/h the ego moves 2.8 mm in 1 ms, well inside a 10 cm cell.
+    /// Largest 95th percentile of the lidar's clock-model residuals (transport jitter) when it
+    /// runs without PPS, µs: its packets are then placed in time by that model. Default 1000:
+    /// at 10 km/h the ego moves 2.8 mm in 1 ms, well inside a 10 cm cell. The GNSS clock
+    /// model's residuals are not judged: each fix carries its own time tag, and a serial
+    /// line's jitter of a millisecond or two moves nothing.
     pub max_clock_residual_p95_us: f64,
     /// Smallest grid cell the metrics may use, m (Rosenberger et al. 2019, §6: 10 cm).
     pub min_grid_cell_m: f64,

@@ -1189,7 +1189,11 @@ fn a_run_marked_not_usable_throughout_fails() {
 fn rewrite_capture(
     src: &std::path::Path,
     out: &std::path::Path,
-    mut edit: impl FnMut(hilrig::capture::LinkType, &mut Vec<u8>) -> bool,
+    mut edit: impl FnMut(
+        hilrig::capture::LinkType,
+        &mut hilrig::capture::UtcNanos,
+        &mut Vec<u8>,
+    ) -> bool,
 ) {
     use hilrig::capture::{CaptureReader, PcapngWriter};
     let mut r =
@@ -1198,7 +1202,7 @@ fn rewrite_capture(
     let mut declared = 0usize;
     while let Some(rec) = r.next_record() {
         let rec = rec.unwrap();
-        let (interface, link, time, mut data) =
+        let (interface, link, mut time, mut data) =
             (rec.interface, rec.link, rec.time, rec.data.to_vec());
         while declared <= interface as usize {
             let i = r.interfaces()[declared].clone();
@@ -1206,11 +1210,91 @@ fn rewrite_capture(
                 .unwrap();
             declared += 1;
         }
-        if edit(link, &mut data) {
+        if edit(link, &mut time, &mut data) {
             w.write_packet(interface, time, &data).unwrap();
         }
     }
     std::fs::write(out, w.finish().unwrap()).unwrap();
+}
+
+/// A logger whose clock is not on UTC (no NTP or PTP on the vehicle, or not yet settled)
+/// stamps every record of its capture off GNSS time: the lidar's own stamps and the fixes'
+/// UTC stay, and the CAN frames, which carry no clock, carry the logger's. The PPS-locked
+/// lidar's clock model tells how far off. Beyond what the lidar's own timing could be off
+/// (100 ms), the run's logger times are put on GNSS time with it and the drive checks
+/// exactly as with the clock on time (a drive of another generator, the logger 2.5 s ahead,
+/// raised jumps at every epoch and a lever arm 2 m off). Within it, a logger 50 ms ahead
+/// cannot be told from a lidar 50 ms late: the GNSS time offset is a fault whose detail names
+/// the logger's clock and by how much.
+#[test]
+fn a_logger_clock_off_gnss_time_is_put_right_or_named() {
+    let d = synth_and_record("", 12, true);
+    let (code, text, on_time) = check_json(&d, &d.run, "on-time");
+    assert_eq!(code, Some(0), "{text}");
+    let on_time_ahead = on_time["temporal"]["logger_ahead_of_gnss_ms"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no PPS-locked lidar clock: {}", on_time["temporal"]));
+    assert_eq!(on_time["temporal"]["can_on_gnss_time"], false);
+    for off_ms in [-2500i64, 400, 50] {
+        let name = format!("logger{off_ms:+}ms");
+        let edited = d.dir.path().join(format!("{name}.pcapng"));
+        rewrite_capture(&d.rep.join("drive.pcapng"), &edited, |_, t, _| {
+            t.0 += off_ms * 1_000_000;
+            true
+        });
+        let run = d.dir.path().join(format!("{name}.mcap"));
+        let rec = record_from(&demo_rig(), &[&edited], &run);
+        assert!(
+            rec.status.success(),
+            "{}",
+            String::from_utf8_lossy(&rec.stderr)
+        );
+        let (code, text, v) = check_json(&d, &run, &name);
+        let ahead = v["temporal"]["logger_ahead_of_gnss_ms"].as_f64().unwrap();
+        assert!(
+            (ahead - on_time_ahead - off_ms as f64).abs() < 1e-6,
+            "{name}: {ahead} ms ahead, on time {on_time_ahead}"
+        );
+        if off_ms.abs() < 100 {
+            assert_eq!(code, Some(1), "{name}: {text}");
+            assert_eq!(names(&v), ["gnss_time_offset"], "{name}: {text}");
+            let detail = faults(&v, "gnss_time_offset")[0]["detail"]
+                .as_str()
+                .unwrap();
+            assert!(
+                detail.contains(&format!(
+                    "which the PPS-locked lidar's clock model puts {ahead:.1} ms ahead of GNSS time"
+                )),
+                "{detail}"
+            );
+            assert_eq!(v["temporal"]["can_on_gnss_time"], false);
+            continue;
+        }
+        assert_eq!(code, Some(0), "{name}: {:?}\n{text}", names(&v));
+        assert_eq!(v["temporal"]["can_on_gnss_time"], true);
+        assert!(
+            text.contains(&format!("the logger's clock ran {ahead:.3} ms ahead")),
+            "{text}"
+        );
+        // The CAN times went off with the logger's clock and came back, and then by the
+        // lidar's transport latency too (the drive on time keeps its logger times: its model's
+        // offset is that latency alone): the GNSS time offset moves by it, the other estimates
+        // by a fraction of their sigma, and the faults are the same.
+        assert_eq!(v["faults"], on_time["faults"], "{name}");
+        let sp = |v: &Value, k: &str| v["spatial"][k].as_f64().unwrap();
+        let moved = sp(&v, "gnss_time_offset_ms") - sp(&on_time, "gnss_time_offset_ms");
+        assert!(
+            (moved - on_time_ahead).abs() < 0.3,
+            "{name}: the GNSS time offset moved {moved} ms, the latency is {on_time_ahead} ms"
+        );
+        for (k, sigma) in [
+            ("can_speed_scale", "can_speed_scale_sigma"),
+            ("lever_arm_x_measured_m", "lever_arm_x_sigma_m"),
+        ] {
+            let by = (sp(&v, k) - sp(&on_time, k)).abs() / sp(&on_time, sigma);
+            assert!(by < 0.25, "{name}: {k} moved {by} sigma");
+        }
+    }
 }
 
 /// The capture `src` without the packets of its interfaces of link type `drop` (the interface
@@ -1222,7 +1306,7 @@ fn capture_without(
     out: &std::path::Path,
 ) -> usize {
     let mut dropped = 0;
-    rewrite_capture(src, out, |link, _| {
+    rewrite_capture(src, out, |link, _, _| {
         dropped += usize::from(link == drop);
         link != drop
     });
@@ -1607,7 +1691,7 @@ fn invalid_and_malformed_heading_messages_are_counted_and_not_used() {
     );
     let edited = d.dir.path().join("edited.pcapng");
     let (mut serial, mut injected) = (0usize, false);
-    rewrite_capture(&d.rep.join("drive.pcapng"), &edited, |link, data| {
+    rewrite_capture(&d.rep.join("drive.pcapng"), &edited, |link, _, data| {
         if link == LinkType::USER0 && data.windows(5).any(|x| x == b"GNTHS") {
             serial += 1;
             if serial == 100 && !injected {

@@ -161,6 +161,15 @@ impl ClockSync {
     pub fn pps_locked(&self) -> bool {
         self.pps == Some(PpsStatus::Locked)
     }
+
+    /// The sensor time of a host time: the model inverted (host − sensor = offset + drift ×
+    /// (sensor − reference)). The drift term is taken at the host time less the offset; a
+    /// clock's drift is a few ppm, so that is off by its square, nanoseconds over days.
+    pub fn sensor_of_host(&self, host: i64) -> i64 {
+        let sensor = host.saturating_sub(self.offset_ns);
+        let drift = self.drift_ppm * 1e-6 * sensor.saturating_sub(self.reference_sensor_ns) as f64;
+        sensor.saturating_sub(drift.round() as i64)
+    }
 }
 
 /// A number's text as a JSON number: whole numbers as integers (so that they fit the integer

@@ -112,10 +112,11 @@ pub(super) fn gnss_against_can(
                 span.0,
                 span.1,
                 format!(
-                    "GNSS time stamps are {:.1} ± {:.1} ms (1 sigma) {} the instants they describe, fitted against CAN motion (limit {limit:.0} ms, exceeded by more than 2 sigma)",
+                    "GNSS time stamps are {:.1} ± {:.1} ms (1 sigma) {} the instants they describe, fitted against CAN motion (limit {limit:.0} ms, exceeded by more than 2 sigma){}",
                     d.abs() * 1e3,
                     sd * 1e3,
                     if d > 0.0 { "later than" } else { "earlier than" },
+                    logger_clock(inp.run),
                 ),
             ),
             Decision::Undecided => warnings.push(Warning {
@@ -172,11 +173,14 @@ pub(super) fn gnss_against_can(
     }
     sp.speed_residual_mps = Stats::of(speed_res);
     sp.yaw_rate_residual_rps = Stats::of(yaw_res);
+    // The path's length, as the GNSS distance below is: a car that reverses has a signed
+    // speed, and summed with its sign a drive out and back again read 1.5 m by CAN against
+    // 25.8 m by GNSS.
     sp.distance_can_m = inp
         .run
         .motion
         .windows(2)
-        .map(|w| 0.5 * (w[0].speed + w[1].speed) * secs(w[0].t, w[1].t))
+        .map(|w| 0.5 * (w[0].speed.abs() + w[1].speed.abs()) * secs(w[0].t, w[1].t))
         .sum();
     sp.distance_gnss_m = inp
         .obs
@@ -186,6 +190,21 @@ pub(super) fn gnss_against_can(
         .map(|(o, _)| (o[1].position - o[0].position).norm())
         .sum();
     offset_s
+}
+
+/// What a GNSS time offset fault says of the logger's clock: CAN frames carry it, so a logger
+/// off UTC reads as GNSS time stamps off the motion, unless the run put its logger times on
+/// GNSS time (`Run::logger_times_on_gnss_time`).
+fn logger_clock(run: &crate::reference::run::Run) -> String {
+    match (run.logger_ahead_of_gnss_ns, run.logger_times_on_gnss) {
+        (_, true) => String::new(),
+        (Some(ns), false) => format!(
+            "; CAN frames carry the logger's clock, which the PPS-locked lidar's clock model puts {:.1} ms ahead of GNSS time: a logger off UTC (no NTP or PTP sync) reads as this offset, and within {:.0} ms that cannot be told from the lidar's own clock being off",
+            ns as f64 * 1e-6,
+            crate::reference::run::LOGGER_OFF_NS as f64 * 1e-6
+        ),
+        (None, false) => "; CAN frames carry the logger's clock, and without a PPS-locked lidar the run cannot tell it from GNSS time: a logger off UTC (no NTP or PTP sync) reads as this offset".to_owned(),
+    }
 }
 
 /// Antenna velocities on good epochs, central differences.
@@ -605,6 +624,18 @@ mod tests {
             faults: log.faults,
             warnings,
         }
+    }
+
+    /// A car that drives out 9 m and reverses back: CAN's distance is the path's length, as
+    /// the GNSS track's is, not the signed sum (0 m).
+    #[test]
+    fn the_can_distance_of_a_drive_out_and_back_is_its_path_length() {
+        let drive = Drive::new(0.0, &[(3.0, 1.0, 0.0), (6.0, -1.0, 0.0), (3.0, 1.0, 0.0)]);
+        assert!((drive.length() - 18.0).abs() < 1e-6, "{}", drive.length());
+        let gnss = drive.gnss(Vector2::new(0.6, 0.0), 0.0);
+        let c = check(&drive, &gnss, drive.motion(1.0, 0.0));
+        let can = c.sp.distance_can_m;
+        assert!((can - 18.0).abs() < 0.05, "CAN distance {can} m");
     }
 
     fn names(f: &[Fault]) -> Vec<FaultName> {

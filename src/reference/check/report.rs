@@ -166,7 +166,7 @@ pub struct Spatial {
     pub speed_residual_mps: Stats,
     /// GNSS course rate minus CAN yaw rate, rad/s.
     pub yaw_rate_residual_rps: Stats,
-    /// Distance by CAN speed, m.
+    /// Path length by CAN speed (its magnitude, reversing included), m.
     pub distance_can_m: f64,
     /// Distance along the GNSS antenna track, m.
     pub distance_gnss_m: f64,
@@ -222,6 +222,15 @@ pub struct Temporal {
     pub clock_sync: std::collections::BTreeMap<String, crate::bag::clock_sync::ClockSync>,
     /// Lidar minus GNSS clock offset (host latencies included), ms.
     pub lidar_to_gnss_offset_ms: Option<f64>,
+    /// How far the logger's clock ran ahead of GNSS time by the PPS-locked lidar's clock
+    /// model, ms (its transport latency and timing error included;
+    /// [`crate::reference::run::Run::logger_ahead_of_gnss_ns`]).
+    pub logger_ahead_of_gnss_ms: Option<f64>,
+    /// Whether CAN (and every other time on the logger's clock) was put on GNSS time with that
+    /// model: the logger's clock was off beyond what the lidar's own timing could be
+    /// ([`crate::reference::run::LOGGER_OFF_NS`]).
+    #[serde(default)]
+    pub can_on_gnss_time: bool,
     /// How far the ego moves between GNSS epochs (speed × interval), m.
     pub motion_between_epochs_m: Stats,
     /// Error of interpolating linearly between GNSS epochs, m.
@@ -442,6 +451,22 @@ impl Report {
                 s,
                 "lidar-to-GNSS clock offset {o:.3} ms (host latencies included)"
             );
+        }
+        match (tm.logger_ahead_of_gnss_ms, tm.can_on_gnss_time) {
+            (Some(o), true) => {
+                let _ = writeln!(
+                    s,
+                    "CAN put on GNSS time: the logger's clock ran {o:.3} ms ahead of it (the PPS-locked lidar's clock model, its transport latency included)"
+                );
+            }
+            (Some(o), false) if o.abs() >= 5.0 => {
+                let _ = writeln!(
+                    s,
+                    "the logger's clock ran {o:.3} ms ahead of GNSS time by the PPS-locked lidar's clock model; CAN stays on the logger's clock (within {:.0} ms that cannot be told from the lidar's own clock being off)",
+                    crate::reference::run::LOGGER_OFF_NS as f64 * 1e-6
+                );
+            }
+            _ => {}
         }
         let _ = writeln!(
             s,

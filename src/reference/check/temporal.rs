@@ -37,7 +37,11 @@ pub(super) fn measure(
     th: &Thresholds,
     log: &mut FaultLog,
 ) -> (Temporal, f64) {
-    let mut tm = Temporal::default();
+    let mut tm = Temporal {
+        logger_ahead_of_gnss_ms: run.logger_ahead_of_gnss_ns.map(|n| n as f64 * 1e-6),
+        can_on_gnss_time: run.logger_times_on_gnss,
+        ..Temporal::default()
+    };
     let gnss_times: Vec<UtcNanos> = epochs.iter().map(|e| e.0).collect();
     tm.sources.push(timing(
         log,
