@@ -333,8 +333,9 @@ pub struct Thresholds {
     /// Largest age of RTK corrections, s. Default 5: beyond that RTK engines degrade to float
     /// (the default correction timeout of common receivers).
     pub max_correction_age_s: f64,
-    /// A gap is this many nominal periods without data. Default 3: one lost sample is noise,
-    /// three in a row is a gap.
+    /// A gap is this many samples missing in a row: an interval of more than this many and a
+    /// half nominal periods (k lost samples leave k + 1), so that jitter cannot make one lost
+    /// sample fewer a gap. Default 3: one lost sample is noise, three in a row is a gap.
     pub gap_periods: f64,
     /// Largest 95th percentile of the lidar's clock-model residuals (transport jitter) when it
     /// runs without PPS, µs: its packets are then placed in time by that model. Default 1000:
