@@ -335,8 +335,10 @@ pub struct Thresholds {
     pub max_correction_age_s: f64,
     /// A gap is this many samples missing in a row: an interval of more than this many and a
     /// half nominal periods (k lost samples leave k + 1), so that jitter cannot make one lost
-    /// sample fewer a gap. Default 3: one lost sample is noise, three in a row is a gap.
-    pub gap_periods: f64,
+    /// sample fewer a gap. A whole number, at least 1 (`3` or `3.0`). Default 3: one lost
+    /// sample is noise, three in a row is a gap.
+    #[serde(deserialize_with = "whole_count")]
+    pub gap_periods: u32,
     /// Largest 95th percentile of the lidar's clock-model residuals (transport jitter) when it
     /// runs without PPS, µs: its packets are then placed in time by that model. Default 1000:
     /// at 10 km/h the ego moves 2.8 mm in 1 ms, well inside a 10 cm cell. The GNSS clock
@@ -379,6 +381,19 @@ pub struct Thresholds {
     pub heading_range_m: f64,
 }
 
+/// A count of at least 1 given as a whole number, written as an integer or a float (`3.0`, as
+/// rig files of earlier versions hold it); anything else is refused with the value.
+fn whole_count<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    let v = f64::deserialize(d)?;
+    if v.fract() == 0.0 && (1.0..=f64::from(u32::MAX)).contains(&v) {
+        Ok(v as u32)
+    } else {
+        Err(serde::de::Error::custom(format!(
+            "{v} is not a whole number of at least 1 (samples missing in a row)"
+        )))
+    }
+}
+
 impl Default for Thresholds {
     fn default() -> Self {
         Thresholds {
@@ -386,7 +401,7 @@ impl Default for Thresholds {
             max_sigma_horizontal_m: 0.02,
             max_sigma_vertical_m: 0.04,
             max_correction_age_s: 5.0,
-            gap_periods: 3.0,
+            gap_periods: 3,
             max_clock_residual_p95_us: 1000.0,
             min_grid_cell_m: 0.10,
             grid_cell_accuracy_factor: 10.0,
@@ -591,5 +606,23 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("lidar.model"));
+    }
+
+    /// A gap is a whole number of samples missing in a row: `3` and `3.0` read alike, `2.5`
+    /// and `0` are refused with the value.
+    #[test]
+    fn gap_periods_is_a_whole_count() {
+        let th = |v: &str| {
+            Rig::from_toml(
+                &format!("name = \"x\"\n[thresholds]\ngap_periods = {v}\n"),
+                "t",
+            )
+        };
+        assert_eq!(th("3").unwrap().thresholds.gap_periods, 3);
+        assert_eq!(th("4.0").unwrap().thresholds.gap_periods, 4);
+        for bad in ["2.5", "0", "-1"] {
+            let e = th(bad).unwrap_err().to_string();
+            assert!(e.contains("not a whole number of at least 1"), "{bad}: {e}");
+        }
     }
 }

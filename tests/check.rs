@@ -1221,25 +1221,98 @@ fn rewrite_capture(
 /// stamps every record of its capture off GNSS time: the lidar's own stamps and the fixes'
 /// UTC stay, and the CAN frames, which carry no clock, carry the logger's. The PPS-locked
 /// lidar's clock model tells how far off. Beyond what the lidar's own timing could be off
-/// (100 ms), the run's logger times are put on GNSS time with it and the drive checks
-/// exactly as with the clock on time (a drive of another generator, the logger 2.5 s ahead,
-/// raised jumps at every epoch and a lever arm 2 m off). Within it, a logger 50 ms ahead
-/// cannot be told from a lidar 50 ms late: the GNSS time offset is a fault whose detail names
-/// the logger's clock and by how much.
+/// (100 ms), and with the GNSS receiver's clock model agreeing, the run's logger times are
+/// put on GNSS time with it: the drive checks as with the clock on time (a drive of another
+/// generator, the logger 2.5 s ahead, raised jumps at every epoch and a lever arm 2 m off),
+/// and `compare` pairs and leaves out the same scans (the files keep the logger's clock).
+/// Within 100 ms, a logger 50 ms ahead cannot be told from a lidar 50 ms late; with the GNSS
+/// model 600 ms later than the lidar's, the two disagree: in both the times stay, and the GNSS
+/// time offset fault says which it was.
 #[test]
 fn a_logger_clock_off_gnss_time_is_put_right_or_named() {
     let d = synth_and_record("", 12, true);
+    // A heading limit halfway between the drive's best and worst heading sigma, so that some
+    // stretches are marked and `compare` leaves their scans out.
+    let (_, _, traj) = check_with_trajectory(&d, None);
+    let sigmas: Vec<f64> = csv_rows(&traj).iter().map(|r| r[5]).collect();
+    let (lo, hi) = sigmas
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+    let limit = ((lo + hi) / 2.0 * 1000.0).round() / 1000.0;
+    let rig = d.dir.path().join("tight.toml");
+    std::fs::write(
+        &rig,
+        std::fs::read_to_string(demo_rig())
+            .unwrap()
+            .replace(
+                "max_heading_sigma_deg = 0.2",
+                &format!("max_heading_sigma_deg = {limit}"),
+            )
+            .replace(
+                "\"hilrig-ego.dbc\"",
+                &format!(
+                    "{:?}",
+                    demo_rig()
+                        .with_file_name("hilrig-ego.dbc")
+                        .display()
+                        .to_string()
+                ),
+            ),
+    )
+    .unwrap();
+    let check_json =
+        |d: &SynthRun, run: &std::path::Path, name: &str| check_json_with(d, run, Some(&rig), name);
     let (code, text, on_time) = check_json(&d, &d.run, "on-time");
     assert_eq!(code, Some(0), "{text}");
     let on_time_ahead = on_time["temporal"]["logger_ahead_of_gnss_ms"]
         .as_f64()
         .unwrap_or_else(|| panic!("no PPS-locked lidar clock: {}", on_time["temporal"]));
     assert_eq!(on_time["temporal"]["can_on_gnss_time"], false);
-    for off_ms in [-2500i64, 400, 50] {
-        let name = format!("logger{off_ms:+}ms");
+    assert_eq!(on_time["temporal"]["logger_clock"], "within_lidar_timing");
+    let marks = on_time["marks"].as_array().unwrap().len();
+    assert!(marks > 0, "no marks at a {limit}° limit");
+    let on_time_cmp = resim_and_compare(&d, &d.run, &rig, "on-time");
+    // The stamps of the scans `compare` kept, ns, on the clock of the drive on time.
+    let kept = |c: &Value, off_ns: i64| -> Vec<i64> {
+        c["scans"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["stamp_ns"].as_i64().unwrap() - off_ns)
+            .collect()
+    };
+    let left_out = |c: &Value| -> Vec<(String, u64)> {
+        c["left_out"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|l| {
+                (
+                    l["name"].as_str().unwrap().to_owned(),
+                    l["scans"].as_u64().unwrap(),
+                )
+            })
+            .collect()
+    };
+    assert!(
+        !left_out(&on_time_cmp).is_empty(),
+        "{}",
+        on_time_cmp["left_out"]
+    );
+    let detail = |v: &Value| -> String {
+        faults(v, "gnss_time_offset")[0]["detail"]
+            .as_str()
+            .unwrap()
+            .to_owned()
+    };
+    for (off_ms, gnss_later_ms) in [(-2500i64, 0i64), (400, 0), (50, 0), (400, 600)] {
+        let name = format!("logger{off_ms:+}ms-gnss{gnss_later_ms:+}ms");
         let edited = d.dir.path().join(format!("{name}.pcapng"));
-        rewrite_capture(&d.rep.join("drive.pcapng"), &edited, |_, t, _| {
+        rewrite_capture(&d.rep.join("drive.pcapng"), &edited, |link, t, _| {
             t.0 += off_ms * 1_000_000;
+            if link == hilrig::capture::LinkType::USER0 {
+                t.0 += gnss_later_ms * 1_000_000;
+            }
             true
         });
         let run = d.dir.path().join(format!("{name}.mcap"));
@@ -1255,32 +1328,91 @@ fn a_logger_clock_off_gnss_time_is_put_right_or_named() {
             (ahead - on_time_ahead - off_ms as f64).abs() < 1e-6,
             "{name}: {ahead} ms ahead, on time {on_time_ahead}"
         );
-        if off_ms.abs() < 100 {
+        let says = format!(
+            "the PPS-locked lidar's clock model puts the logger's clock {:.1} ms {} GNSS time",
+            ahead.abs(),
+            if ahead < 0.0 { "behind" } else { "ahead of" }
+        );
+        if off_ms.abs() < 100 || gnss_later_ms > 0 {
             assert_eq!(code, Some(1), "{name}: {text}");
-            assert_eq!(names(&v), ["gnss_time_offset"], "{name}: {text}");
-            let detail = faults(&v, "gnss_time_offset")[0]["detail"]
-                .as_str()
-                .unwrap();
-            assert!(
-                detail.contains(&format!(
-                    "which the PPS-locked lidar's clock model puts {ahead:.1} ms ahead of GNSS time"
-                )),
-                "{detail}"
-            );
             assert_eq!(v["temporal"]["can_on_gnss_time"], false);
+            assert!(
+                names(&v).contains(&"gnss_time_offset".to_owned()),
+                "{name}: {text}"
+            );
+            let (state, why) = if gnss_later_ms > 0 {
+                (
+                    "gnss_model_disagrees",
+                    "CAN stays on the logger's clock: the GNSS receiver's clock model puts it",
+                )
+            } else {
+                (
+                    "within_lidar_timing",
+                    "CAN stays on the logger's clock: within 100 ms",
+                )
+            };
+            assert_eq!(v["temporal"]["logger_clock"], state, "{name}");
+            let detail = detail(&v);
+            assert!(
+                detail.contains(&says) && detail.contains(why),
+                "{name}: {detail}"
+            );
+            if gnss_later_ms == 0 {
+                assert_eq!(names(&v), ["gnss_time_offset"], "{name}: {text}");
+            }
             continue;
         }
         assert_eq!(code, Some(0), "{name}: {:?}\n{text}", names(&v));
         assert_eq!(v["temporal"]["can_on_gnss_time"], true);
+        assert_eq!(v["temporal"]["logger_clock"], "put_on_gnss_time");
         assert!(
-            text.contains(&format!("the logger's clock ran {ahead:.3} ms ahead")),
+            text.contains(&format!("logger clock: {says}"))
+                && text.contains("was put on GNSS time with that model"),
             "{text}"
         );
         // The CAN times went off with the logger's clock and came back, and then by the
         // lidar's transport latency too (the drive on time keeps its logger times: its model's
         // offset is that latency alone): the GNSS time offset moves by it, the other estimates
-        // by a fraction of their sigma, and the faults are the same.
+        // by a fraction of their sigma; the faults, marks, sources and span are the same.
         assert_eq!(v["faults"], on_time["faults"], "{name}");
+        assert_eq!(
+            v["marks"].as_array().unwrap().len(),
+            on_time["marks"].as_array().unwrap().len(),
+            "{name}"
+        );
+        let start_ms = |v: &Value| iso_ns(v["start"].as_str().unwrap()) as f64 * 1e-6;
+        assert!(
+            (start_ms(&v) - start_ms(&on_time)).abs() < 5.0
+                && (v["duration_s"].as_f64().unwrap() - on_time["duration_s"].as_f64().unwrap())
+                    .abs()
+                    < 0.005,
+            "{name}: starts {} for {} s, on time {} for {} s",
+            v["start"],
+            v["duration_s"],
+            on_time["start"],
+            on_time["duration_s"]
+        );
+        let sources = |v: &Value| -> Vec<(String, u64, f64)> {
+            v["temporal"]["sources"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|s| {
+                    (
+                        s["source"].as_str().unwrap().to_owned(),
+                        s["gaps"].as_u64().unwrap(),
+                        s["rate_hz"].as_f64().unwrap(),
+                    )
+                })
+                .collect()
+        };
+        for (a, b) in sources(&v).iter().zip(sources(&on_time).iter()) {
+            assert!(
+                a.0 == b.0 && a.1 == b.1 && (a.2 - b.2).abs() < 0.01 * b.2,
+                "{name}: {a:?} against {b:?} on time"
+            );
+        }
+        assert_eq!(sources(&v).len(), sources(&on_time).len());
         let sp = |v: &Value, k: &str| v["spatial"][k].as_f64().unwrap();
         let moved = sp(&v, "gnss_time_offset_ms") - sp(&on_time, "gnss_time_offset_ms");
         assert!(
@@ -1294,7 +1426,95 @@ fn a_logger_clock_off_gnss_time_is_put_right_or_named() {
             let by = (sp(&v, k) - sp(&on_time, k)).abs() / sp(&on_time, sigma);
             assert!(by < 0.25, "{name}: {k} moved {by} sigma");
         }
+        // Compared with its own re-simulation: every scan paired, the same scans left out
+        // for the same marks (their ends sampled every 100 ms from a start the latency moves:
+        // a scan either side; put off by the logger's offset, 4 or more), the same figures
+        // within the CAN's shift by the latency.
+        let cmp = resim_and_compare(&d, &run, &rig, &name);
+        let (a, b) = (kept(&cmp, off_ms * 1_000_000), kept(&on_time_cmp, 0));
+        let near = |x: i64, ys: &[i64]| ys.iter().any(|y| (x - y).abs() < 1_000);
+        let differ = a.iter().filter(|x| !near(**x, &b)).count()
+            + b.iter().filter(|x| !near(**x, &a)).count();
+        assert!(
+            differ <= 2 * marks,
+            "{name}: {differ} scans kept in one comparison only ({marks} marks)"
+        );
+        eprintln!("{name}: {differ} scans kept in one comparison only ({marks} marks)");
+        let summary = |c: &Value, k: &str| c["summary"][k].as_f64().unwrap();
+        assert!(
+            (summary(&cmp, "scans") - summary(&on_time_cmp, "scans")).abs() <= 1.0,
+            "{name}: {} scans paired, {} on time",
+            cmp["summary"]["scans"],
+            on_time_cmp["summary"]["scans"]
+        );
+        assert_eq!(cmp["summary"]["unpaired_run_scans"], 0, "{name}");
+        let (l, l0) = (left_out(&cmp), left_out(&on_time_cmp));
+        assert!(
+            l.len() == l0.len()
+                && l.iter()
+                    .zip(&l0)
+                    .all(|(x, y)| x.0 == y.0 && x.1.abs_diff(y.1) <= 2),
+            "{name}: left out {l:?}, on time {l0:?}"
+        );
+        for k in ["ocr_mean", "precision_mean", "range_diff_rms_m"] {
+            assert!(
+                (summary(&cmp, k) - summary(&on_time_cmp, k)).abs()
+                    <= 0.02 * summary(&on_time_cmp, k).abs(),
+                "{name}: {k} {} against {} on time",
+                summary(&cmp, k),
+                summary(&on_time_cmp, k)
+            );
+        }
     }
+}
+
+/// `compare`'s JSON of `run` against its re-simulation with the idealized model, checked
+/// with `rig`.
+fn resim_and_compare(
+    d: &SynthRun,
+    run: &std::path::Path,
+    rig: &std::path::Path,
+    name: &str,
+) -> Value {
+    let sim = d.dir.path().join(format!("{name}-sim.mcap"));
+    let json = d.dir.path().join(format!("{name}-compare.json"));
+    let resim = Command::new(hilrig_bin())
+        .arg("resim")
+        .arg(run)
+        .arg("--scene")
+        .arg(d.rep.join("scene.toml"))
+        .arg("--model")
+        .arg(fixture("parking/idealized.toml"))
+        .arg("--no-clouds")
+        .arg("-o")
+        .arg(&sim)
+        .output()
+        .unwrap();
+    assert!(
+        resim.status.success(),
+        "{name}: {}",
+        String::from_utf8_lossy(&resim.stderr)
+    );
+    let cmp = Command::new(hilrig_bin())
+        .arg("compare")
+        .arg(run)
+        .arg(&sim)
+        .arg("--rig")
+        .arg(rig)
+        .arg("--scene")
+        .arg(d.rep.join("scene.toml"))
+        .arg("--no-point-metrics")
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert_eq!(
+        cmp.status.code(),
+        Some(0),
+        "{name}: {}",
+        String::from_utf8_lossy(&cmp.stderr)
+    );
+    serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
 }
 
 /// The capture `src` without the packets of its interfaces of link type `drop` (the interface

@@ -18,7 +18,8 @@ pub struct CheckArgs {
     #[arg(long)]
     json: Option<PathBuf>,
     /// Also write the smoothed ego trajectory as CSV here (every 10 ms: time, rear-axle east and
-    /// north, heading, and their 1-sigma errors).
+    /// north, heading, and their 1-sigma errors). Its times are GNSS time where the run's logger
+    /// clock was put on it (the report says so), else the run's.
     #[arg(long)]
     trajectory: Option<PathBuf>,
 }

@@ -294,8 +294,9 @@ pub fn load_run(
             run: path.to_owned(),
         });
     }
-    // The marks within this part of the run (host times; a mark is at least 100 ms long, and
-    // the sensor's clock is within a millisecond of them).
+    // The marks within this part of the run (on the run's times, as its index: GNSS time where
+    // the run put its logger times on it; a mark is at least 100 ms long, and the sensor's
+    // clock is within a millisecond of them).
     let (part_from, part_to) = (index[0].span.0, index[index.len() - 1].span.1);
     let marked: Vec<Fault> = report
         .marks

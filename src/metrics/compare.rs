@@ -198,6 +198,8 @@ struct Simulating<'a, 's, 'f> {
     trajectory: &'a Trajectory,
     pps_locked: bool,
     left_out: &'a mut [LeftOut],
+    /// The run's times of the scans' logger times (the marks are on them).
+    clock: &'a crate::reference::run::LoggerClock,
     ready: std::collections::VecDeque<Pair>,
     paired: usize,
     error: Option<SimulateError>,
@@ -234,7 +236,7 @@ impl Iterator for Simulating<'_, '_, '_> {
             };
             for (r, s) in batch.into_iter().zip(sims) {
                 self.paired += 1;
-                if !super::pairing::marked(self.left_out, &r) {
+                if !super::pairing::marked(self.left_out, &r, self.clock) {
                     self.ready.push_back((r, s));
                 }
             }
@@ -299,6 +301,7 @@ fn compare_twins(
                 &reference.run.scans,
                 sim_stream.by_ref(),
                 &mut reference.not_usable,
+                &reference.run.logger_clock,
             );
             let tally = measure_all(
                 &mut pairs,
@@ -320,6 +323,7 @@ fn compare_twins(
                 trajectory: &reference.trajectory,
                 pps_locked: frame.pps_locked,
                 left_out: &mut reference.not_usable,
+                clock: &reference.run.logger_clock,
                 ready: std::collections::VecDeque::new(),
                 paired: 0,
                 error: None,

@@ -8,11 +8,15 @@
 //! position of every measured stamp, from the first pass over the run) says which one has no
 //! twin: a simulated stamp still ahead in the run means the measured scan has none; any other
 //! (behind, or not in the run at all) means the simulated one has none.
+//!
+//! The files carry the logger's clock; the run's index and `check`'s marks are on GNSS time
+//! where the run put its logger times on it ([`LoggerClock`]), so the files' times go through
+//! the same mapping before they are looked up.
 
 use super::error::CompareError;
 use super::report::LeftOut;
 use crate::bag::scans::Scan;
-use crate::reference::run::ScanIndex;
+use crate::reference::run::{LoggerClock, ScanIndex};
 use hilrig_stamp::UtcNanos;
 use std::collections::HashMap;
 use std::iter::Peekable;
@@ -31,6 +35,8 @@ pub(super) struct Pairs<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> 
     /// Measured scans taken so far.
     at: usize,
     left_out: &'a mut [LeftOut],
+    /// The run's times of the files' logger times.
+    clock: &'a LoggerClock,
     /// Pairs found (kept or left out).
     pub(super) paired: usize,
     /// The simulation's first and last stamp seen.
@@ -38,9 +44,15 @@ pub(super) struct Pairs<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> 
 }
 
 impl<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Pairs<'a, R, S> {
-    /// Pairs the scans of `real` (whose stamps `index` lists in file order) with those of
-    /// `sim`.
-    pub(super) fn new(real: R, index: &[ScanIndex], sim: S, left_out: &'a mut [LeftOut]) -> Self {
+    /// Pairs the scans of `real` (whose stamps `index` lists in file order, on the run's times
+    /// that `clock` gives) with those of `sim`.
+    pub(super) fn new(
+        real: R,
+        index: &[ScanIndex],
+        sim: S,
+        left_out: &'a mut [LeftOut],
+        clock: &'a LoggerClock,
+    ) -> Self {
         let mut position = HashMap::with_capacity(index.len());
         for (i, s) in index.iter().enumerate() {
             position.entry(s.stamp.0).or_insert(i);
@@ -51,23 +63,25 @@ impl<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Pairs<'a, R, S> {
             position,
             at: 0,
             left_out,
+            clock,
             paired: 0,
             sim_span: None,
         }
     }
 
-    /// The next simulated scan, noting its stamp.
+    /// The next simulated scan, noting its stamp (on the run's times).
     fn next_sim(&mut self) -> Option<Scan> {
         let s = self.sim.next()?;
+        let t = self.clock.gnss_time_of(s.stamp);
         self.sim_span = Some(match self.sim_span {
-            None => (s.stamp, s.stamp),
-            Some((a, _)) => (a, s.stamp),
+            None => (t, t),
+            Some((a, _)) => (a, t),
         });
         Some(s)
     }
 
     /// The error to give when the streams are through: none paired at all, or every pair in a
-    /// marked stretch. `real_span` is the run's first and last scan stamp.
+    /// marked stretch. `real_span` is the run's first and last scan stamp (on its times).
     pub(super) fn finish_error(
         &mut self,
         kept: usize,
@@ -108,9 +122,11 @@ impl<'a, R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Pairs<'a, R, S> {
     }
 }
 
-/// Whether the measured scan touches a mark of `left_out` (each mark it touches counts it).
-pub(super) fn marked(left_out: &mut [LeftOut], r: &Scan) -> bool {
+/// Whether the measured scan touches a mark of `left_out` (each mark it touches counts it);
+/// `clock` puts its times on the marks' (the run's).
+pub(super) fn marked(left_out: &mut [LeftOut], r: &Scan, clock: &LoggerClock) -> bool {
     let (a, b) = r.span();
+    let (a, b) = (clock.gnss_time_of(a), clock.gnss_time_of(b));
     let mut marked = false;
     for l in left_out.iter_mut() {
         let w = l.mark.window();
@@ -138,7 +154,7 @@ impl<R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Iterator for Pairs<'_, 
                 if s.stamp == r.stamp {
                     break self.next_sim();
                 }
-                match self.position.get(&s.stamp.0) {
+                match self.position.get(&self.clock.gnss_time_of(s.stamp).0) {
                     // Its twin is still ahead: this measured scan has none.
                     Some(&p) if p > here => break None,
                     _ => {
@@ -148,7 +164,7 @@ impl<R: Iterator<Item = Scan>, S: Iterator<Item = Scan>> Iterator for Pairs<'_, 
             };
             let Some(s) = twin else { continue };
             self.paired += 1;
-            if marked(self.left_out, &r) {
+            if marked(self.left_out, &r, self.clock) {
                 continue;
             }
             return Some((r, s));
@@ -181,12 +197,20 @@ mod tests {
     }
 
     fn pair(real: &[i64], sim: &[i64]) -> (Vec<i64>, usize) {
+        pair_on(real, sim, &LoggerClock::default(), 0)
+    }
+
+    /// Pairs files whose times are the logger's, `ahead` ns ahead of the run's (whose index
+    /// `clock` puts on GNSS time).
+    fn pair_on(real: &[i64], sim: &[i64], clock: &LoggerClock, ahead: i64) -> (Vec<i64>, usize) {
         let mut left_out: Vec<LeftOut> = Vec::new();
+        let on_run: Vec<i64> = real.iter().map(|&t| t - ahead).collect();
         let mut p = Pairs::new(
             real.iter().map(|&t| scan(t)),
-            &index(real),
+            &index(&on_run),
             sim.iter().map(|&t| scan(t)),
             &mut left_out,
+            clock,
         );
         let got: Vec<i64> = p
             .by_ref()
@@ -209,5 +233,26 @@ mod tests {
         assert_eq!(pair(&[5, 6, 2, 3], &[5, 2, 3]), (vec![5, 2, 3], 3));
         assert_eq!(pair(&[1, 2], &[7, 8]), (vec![], 0));
         assert_eq!(pair(&[], &[1]), (vec![], 0));
+    }
+
+    /// Where the run's times were put on GNSS time (its logger 2.5 s ahead), the files' stamps,
+    /// on the logger's clock, are looked up on the run's: a simulation without the first
+    /// scans still pairs every twin (looked up unmapped, none would be found and every
+    /// simulated scan passed over).
+    #[test]
+    fn twins_are_found_where_the_runs_times_were_put_on_gnss_time() {
+        let ahead = 2_500_000_000;
+        let clock = LoggerClock::put_on_gnss_time_with(
+            crate::bag::clock_sync::ClockSync::of_model(0, ahead as f64, 0.0, [0.0; 3], 100),
+        );
+        let at = |k: &[i64]| -> Vec<i64> { k.iter().map(|k| ahead + k * 100_000_000).collect() };
+        assert_eq!(
+            pair_on(&at(&[1, 2, 3, 4]), &at(&[3, 4]), &clock, ahead),
+            (at(&[3, 4]), 2)
+        );
+        assert_eq!(
+            pair_on(&at(&[1, 2, 3, 4]), &at(&[1, 3]), &clock, ahead),
+            (at(&[1, 3]), 2)
+        );
     }
 }

@@ -16,7 +16,7 @@ use std::path::Path;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Motion {
     /// When the CAN frame arrived: the log time (the logger's clock), on GNSS time where the
-    /// run puts its logger times on it ([`Run::logger_times_on_gnss`]).
+    /// run puts its logger times on it ([`Run::logger_clock`]).
     pub t: UtcNanos,
     /// Forward speed, m/s.
     pub speed: f64,
@@ -77,10 +77,95 @@ pub struct Run {
     /// model, ns (at the lidar's first packet; its transport latency and its own timing error
     /// included).
     pub logger_ahead_of_gnss_ns: Option<i64>,
-    /// Whether the times on the logger's clock were put on GNSS time with that model (see
-    /// `Run::logger_times_on_gnss_time`): the logger's clock was off beyond what the lidar's
-    /// own timing could be.
-    pub logger_times_on_gnss: bool,
+    /// The model the times on the logger's clock were put on GNSS time with, where they were
+    /// (see `Run::logger_times_on_gnss_time`): the logger's clock was off beyond what the
+    /// lidar's own timing could be. Files read beside the run (its scans streamed, a
+    /// re-simulation's) still carry the logger's clock and go through it too.
+    pub logger_clock: LoggerClock,
+}
+
+/// The mapping of a run's logger-clock times onto GNSS time: the PPS-locked lidar's clock
+/// model where the run put its logger times on GNSS time, else none (the times stay).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LoggerClock {
+    /// What the run could tell of the logger's clock, and so what it did.
+    pub state: LoggerClockState,
+    model: Option<ClockSync>,
+}
+
+/// What a run could tell of its logger's clock against GNSS time (CAN frames carry the
+/// logger's clock, fixes GNSS time), and so whether its logger times were put on GNSS time.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LoggerClockState {
+    /// No PPS-locked lidar with a clock model: nothing tells the logger's clock from GNSS time.
+    #[default]
+    Unknown,
+    /// The lidar's clock model puts the logger within [`LOGGER_OFF_NS`] of GNSS time, which
+    /// cannot be told from the lidar's own timing being off: the times stay.
+    WithinLidarTiming,
+    /// Beyond [`LOGGER_OFF_NS`], but the GNSS receiver's clock model does not agree (or the
+    /// recording has none): the times stay.
+    GnssModelDisagrees,
+    /// Beyond [`LOGGER_OFF_NS`], confirmed by the GNSS receiver's clock model: every logger
+    /// time of the run was put on GNSS time with the lidar's model.
+    PutOnGnssTime,
+}
+
+impl LoggerClockState {
+    /// What it says, for a report or a fault: `ahead_ms` is the lidar model's logger offset,
+    /// `gnss_ahead_ms` the GNSS receiver model's (host minus GNSS time, its output latency
+    /// included).
+    pub fn describe(self, ahead_ms: Option<f64>, gnss_ahead_ms: Option<f64>) -> String {
+        let limit = LOGGER_OFF_NS as f64 * 1e-6;
+        let by = ahead_ms.map_or(String::new(), |o| {
+            format!(
+                "the PPS-locked lidar's clock model puts the logger's clock {:.1} ms {} GNSS time (its transport latency included)",
+                o.abs(),
+                if o < 0.0 { "behind" } else { "ahead of" }
+            )
+        });
+        match self {
+            LoggerClockState::Unknown => "without a PPS-locked lidar clock model the run cannot tell the logger's clock from GNSS time: a logger off UTC (no NTP or PTP sync) reads as a GNSS time offset".to_owned(),
+            LoggerClockState::WithinLidarTiming => format!(
+                "{by}; CAN stays on the logger's clock: within {limit:.0} ms a logger off UTC (no NTP or PTP sync) cannot be told from the lidar's own clock being off"
+            ),
+            LoggerClockState::GnssModelDisagrees => format!(
+                "{by}; CAN stays on the logger's clock: {}",
+                gnss_ahead_ms.map_or("the recording has no GNSS clock model to confirm it".to_owned(), |g| format!(
+                    "the GNSS receiver's clock model puts it {g:.1} ms ahead, which is not the lidar's figure plus an output latency of 0-500 ms"
+                ))
+            ),
+            LoggerClockState::PutOnGnssTime => format!(
+                "{by}; every logger time of the run, CAN among them, was put on GNSS time with that model, so a time offset left is the GNSS receiver's or the lidar's own"
+            ),
+        }
+    }
+}
+
+impl LoggerClock {
+    /// A logger clock that a run's times were put on GNSS time from with `model` (the
+    /// PPS-locked lidar's clock model).
+    pub fn put_on_gnss_time_with(model: ClockSync) -> LoggerClock {
+        LoggerClock {
+            state: LoggerClockState::PutOnGnssTime,
+            model: Some(model),
+        }
+    }
+
+    /// Whether the run's logger times were put on GNSS time.
+    pub fn on_gnss(&self) -> bool {
+        self.model.is_some()
+    }
+
+    /// A time of a file on the logger's clock (a scan's stamp, a packet's receive time) as the
+    /// run holds it: on GNSS time where the run's times are, else as it is.
+    pub fn gnss_time_of(&self, logger: UtcNanos) -> UtcNanos {
+        match &self.model {
+            Some(clock) => UtcNanos(clock.sensor_of_host(logger.0)),
+            None => logger,
+        }
+    }
 }
 
 /// How far off GNSS time the PPS-locked lidar's clock model must put the logger's clock before
@@ -287,10 +372,11 @@ impl Collector {
         let last = run.fixes.last().map_or(UtcNanos(0), |f| f.0);
         run.fixes.extend(self.fixes.drain(..).map(|f| (last, f)));
         run.damage = result.err().map(|e| e.to_string());
+        run.logger_times_on_gnss_time();
+        // Sorted once every time is on one clock (a fix without UTC sorts by its host time).
         run.fixes.sort_by_key(|(h, f)| f.time.unwrap_or(*h));
         run.motion.sort_by_key(|m| m.t);
         run.packets.sort_by_key(|p| p.host);
-        run.logger_times_on_gnss_time();
         run
     }
 }
@@ -317,30 +403,30 @@ impl Run {
         if !self.lidar_pps_locked() {
             return;
         }
-        let clock = |source: &str| {
-            self.metadata
-                .get(&crate::bag::clock_sync::record_name(source))
-                .and_then(|v| ClockSync::from_metadata(source, v).ok())
-        };
-        let Some(clock) =
-            clock("lidar")
-                .map(|lidar| (lidar, clock("gnss")))
-                .and_then(|(lidar, gnss)| {
-                    // The model's offset is at its reference, the lidar's first packet.
-                    self.logger_ahead_of_gnss_ns = Some(lidar.offset_ns);
-                    let later = gnss.map(|g| g.offset_ns - lidar.offset_ns);
-                    (lidar.offset_ns.abs() >= LOGGER_OFF_NS
-                        && later.is_some_and(|l| (-5_000_000..=500_000_000).contains(&l)))
-                    .then_some(lidar)
-                })
-        else {
+        let Some(lidar) = self.clock_sync("lidar") else {
             return;
         };
-        self.logger_times_on_gnss = true;
+        // The model's offset is at its reference, the lidar's first packet.
+        self.logger_ahead_of_gnss_ns = Some(lidar.offset_ns);
+        let later = self
+            .clock_sync("gnss")
+            .map(|g| g.offset_ns - lidar.offset_ns);
+        self.logger_clock.state = if lidar.offset_ns.abs() < LOGGER_OFF_NS {
+            LoggerClockState::WithinLidarTiming
+        } else if !later.is_some_and(|l| (-5_000_000..=500_000_000).contains(&l)) {
+            LoggerClockState::GnssModelDisagrees
+        } else {
+            LoggerClockState::PutOnGnssTime
+        };
+        if self.logger_clock.state != LoggerClockState::PutOnGnssTime {
+            return;
+        }
         // Every time of the run on the logger's clock, so that all of them stay comparable:
-        // the lidar's packet stamps and the position packets' log times are their GNSS time
-        // mapped onto the logger's clock by this very model, and come back to it.
-        let on_gnss = |t: &mut UtcNanos| *t = UtcNanos(clock.sensor_of_host(t.0));
+        // the lidar's packet stamps are their GNSS time mapped onto the logger's clock by this
+        // very model and come back to it; the receive times of packets, frames and sentences
+        // come to GNSS time plus their transport latency.
+        let logger = LoggerClock::put_on_gnss_time_with(lidar);
+        let on_gnss = |t: &mut UtcNanos| *t = logger.gnss_time_of(*t);
         for m in &mut self.motion {
             on_gnss(&mut m.t);
         }
@@ -364,6 +450,14 @@ impl Run {
         for (t, _) in &mut self.pps {
             on_gnss(t);
         }
+        self.logger_clock = logger;
+    }
+
+    /// The clock model a source's clock-sync record holds, if it reads.
+    pub fn clock_sync(&self, source: &str) -> Option<ClockSync> {
+        self.metadata
+            .get(&crate::bag::clock_sync::record_name(source))
+            .and_then(|v| ClockSync::from_metadata(source, v).ok())
     }
 
     /// Whether the lidar's packet stamps are GNSS time: the recorder found its PPS locked and

@@ -193,18 +193,16 @@ pub(super) fn gnss_against_can(
 }
 
 /// What a GNSS time offset fault says of the logger's clock: CAN frames carry it, so a logger
-/// off UTC reads as GNSS time stamps off the motion, unless the run put its logger times on
-/// GNSS time (`Run::logger_times_on_gnss_time`).
+/// off UTC reads as GNSS time stamps off the motion; where the run put its logger times on
+/// GNSS time with the lidar's clock model, an offset left is the receiver's or the lidar's.
 fn logger_clock(run: &crate::reference::run::Run) -> String {
-    match (run.logger_ahead_of_gnss_ns, run.logger_times_on_gnss) {
-        (_, true) => String::new(),
-        (Some(ns), false) => format!(
-            "; CAN frames carry the logger's clock, which the PPS-locked lidar's clock model puts {:.1} ms ahead of GNSS time: a logger off UTC (no NTP or PTP sync) reads as this offset, and within {:.0} ms that cannot be told from the lidar's own clock being off",
-            ns as f64 * 1e-6,
-            crate::reference::run::LOGGER_OFF_NS as f64 * 1e-6
-        ),
-        (None, false) => "; CAN frames carry the logger's clock, and without a PPS-locked lidar the run cannot tell it from GNSS time: a logger off UTC (no NTP or PTP sync) reads as this offset".to_owned(),
-    }
+    format!(
+        "; CAN frames carry the logger's clock: {}",
+        run.logger_clock.state.describe(
+            run.logger_ahead_of_gnss_ns.map(|n| n as f64 * 1e-6),
+            run.clock_sync("gnss").map(|g| g.offset_ns as f64 * 1e-6)
+        )
+    )
 }
 
 /// Antenna velocities on good epochs, central differences.

@@ -231,6 +231,9 @@ pub struct Temporal {
     /// ([`crate::reference::run::LOGGER_OFF_NS`]).
     #[serde(default)]
     pub can_on_gnss_time: bool,
+    /// What the run could tell of the logger's clock, and so whether `can_on_gnss_time`.
+    #[serde(default)]
+    pub logger_clock: crate::reference::run::LoggerClockState,
     /// How far the ego moves between GNSS epochs (speed × interval), m.
     pub motion_between_epochs_m: Stats,
     /// Error of interpolating linearly between GNSS epochs, m.
@@ -452,21 +455,16 @@ impl Report {
                 "lidar-to-GNSS clock offset {o:.3} ms (host latencies included)"
             );
         }
-        match (tm.logger_ahead_of_gnss_ms, tm.can_on_gnss_time) {
-            (Some(o), true) => {
-                let _ = writeln!(
-                    s,
-                    "CAN put on GNSS time: the logger's clock ran {o:.3} ms ahead of it (the PPS-locked lidar's clock model, its transport latency included)"
-                );
-            }
-            (Some(o), false) if o.abs() >= 5.0 => {
-                let _ = writeln!(
-                    s,
-                    "the logger's clock ran {o:.3} ms ahead of GNSS time by the PPS-locked lidar's clock model; CAN stays on the logger's clock (within {:.0} ms that cannot be told from the lidar's own clock being off)",
-                    crate::reference::run::LOGGER_OFF_NS as f64 * 1e-6
-                );
-            }
-            _ => {}
+        // Said where it changed the run or where the logger is off by more than a CAN frame
+        // period or two (a model's offset within 5 ms is the lidar's transport latency).
+        if tm.can_on_gnss_time || tm.logger_ahead_of_gnss_ms.is_some_and(|o| o.abs() >= 5.0) {
+            let gnss_ahead_ms = tm.clock_sync.get("gnss").map(|g| g.offset_ns as f64 * 1e-6);
+            let _ = writeln!(
+                s,
+                "logger clock: {}",
+                tm.logger_clock
+                    .describe(tm.logger_ahead_of_gnss_ms, gnss_ahead_ms)
+            );
         }
         let _ = writeln!(
             s,

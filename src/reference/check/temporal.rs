@@ -39,7 +39,8 @@ pub(super) fn measure(
 ) -> (Temporal, f64) {
     let mut tm = Temporal {
         logger_ahead_of_gnss_ms: run.logger_ahead_of_gnss_ns.map(|n| n as f64 * 1e-6),
-        can_on_gnss_time: run.logger_times_on_gnss,
+        can_on_gnss_time: run.logger_clock.on_gnss(),
+        logger_clock: run.logger_clock.state,
         ..Temporal::default()
     };
     let gnss_times: Vec<UtcNanos> = epochs.iter().map(|e| e.0).collect();
@@ -180,13 +181,14 @@ fn pps(
     lidar_time_error_s
 }
 
-/// Rate, period, jitter and gaps of one source; a gap over `gap_periods` periods is a fault.
+/// Rate, period, jitter and gaps of one source; `gap_periods` samples missing in a row are a
+/// gap, a fault.
 fn timing(
     log: &mut FaultLog,
     source: &str,
     gap_name: FaultName,
     times: &[UtcNanos],
-    gap_periods: f64,
+    gap_periods: u32,
 ) -> SourceTiming {
     let Some(period) = median_interval(times) else {
         return SourceTiming {
@@ -202,7 +204,7 @@ fn timing(
     // one every sample has, less half a period of jitter. (An interval over `gap_periods`
     // periods made two lost lidar packets a gap whenever jitter stretched them by a
     // microsecond: 2 of 30 clean drives with the fixture's 0.05 % packet loss failed so.)
-    let limit = (gap_periods + 0.5) * period as f64;
+    let limit = (f64::from(gap_periods) + 0.5) * period as f64;
     let mut gaps = 0;
     for w in times.windows(2) {
         let d = (w[1].0 - w[0].0) as f64;
@@ -213,7 +215,7 @@ fn timing(
                 w[0],
                 w[1],
                 format!(
-                    "{source}: no data for {:.1} ms (about {:.0} samples missing; a gap is {:.0} missing in a row, periods of {:.3} ms)",
+                    "{source}: no data for {:.1} ms (about {:.0} samples missing; a gap is {} missing in a row, periods of {:.3} ms)",
                     d * 1e-6,
                     d / period as f64 - 1.0,
                     gap_periods,
@@ -260,7 +262,7 @@ mod tests {
             ms.push(ms[k] + if k % 2 == 0 { 19 } else { 21 });
         }
         let mut log = FaultLog::new(UtcNanos(T0));
-        let s = timing(&mut log, "can", FaultName::CanGap, &at_ms(&ms), 3.0);
+        let s = timing(&mut log, "can", FaultName::CanGap, &at_ms(&ms), 3);
         assert_eq!(s.count, 101);
         assert!((s.rate_hz - 50.0).abs() < 1e-9, "{}", s.rate_hz);
         assert!((s.period_ms - 21.0).abs() < 1e-9 || (s.period_ms - 19.0).abs() < 1e-9);
@@ -278,7 +280,7 @@ mod tests {
             .map(|k| k * 20)
             .filter(|m| !(1001..1100).contains(m) && *m != 500)
             .collect();
-        let s = timing(&mut log, "gnss", FaultName::GnssGap, &at_ms(&ms), 3.0);
+        let s = timing(&mut log, "gnss", FaultName::GnssGap, &at_ms(&ms), 3);
         assert_eq!(s.gaps, 1, "gaps of 3 or more missing samples of 20 ms");
         assert!((s.period_ms - 20.0).abs() < 1e-9);
         assert!((s.max_interval_ms - 100.0).abs() < 1e-9);
@@ -307,7 +309,7 @@ mod tests {
                 *u += jitter_us;
             }
             let mut log = FaultLog::new(UtcNanos(T0));
-            let s = timing(&mut log, "lidar", FaultName::LidarGap, &at_us(&us), 3.0);
+            let s = timing(&mut log, "lidar", FaultName::LidarGap, &at_us(&us), 3);
             assert_eq!(s.gaps == 1, gap, "{lost} lost, jitter {jitter_us} µs");
         }
     }
