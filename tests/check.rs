@@ -1439,7 +1439,6 @@ fn a_logger_clock_off_gnss_time_is_put_right_or_named() {
             differ <= 2 * marks,
             "{name}: {differ} scans kept in one comparison only ({marks} marks)"
         );
-        eprintln!("{name}: {differ} scans kept in one comparison only ({marks} marks)");
         let summary = |c: &Value, k: &str| c["summary"][k].as_f64().unwrap();
         assert!(
             (summary(&cmp, "scans") - summary(&on_time_cmp, "scans")).abs() <= 1.0,

@@ -9,9 +9,10 @@
 //! twin: a simulated stamp still ahead in the run means the measured scan has none; any other
 //! (behind, or not in the run at all) means the simulated one has none.
 //!
-//! The files carry the logger's clock; the run's index and `check`'s marks are on GNSS time
-//! where the run put its logger times on it ([`LoggerClock`]), so the files' times go through
-//! the same mapping before they are looked up.
+//! The files carry the logger's clock; `check`'s marks are on the trajectory's time, GNSS
+//! time, and so is the run's index where the run put its logger times on it ([`LoggerClock`]):
+//! the files' times go through that mapping before they are looked up. Where it did not, the
+//! logger is within 100 ms of GNSS time, or `check`'s report says why it could not tell.
 
 use super::error::CompareError;
 use super::report::LeftOut;

@@ -133,7 +133,9 @@ impl LoggerClockState {
             LoggerClockState::GnssModelDisagrees => format!(
                 "{by}; CAN stays on the logger's clock: {}",
                 gnss_ahead_ms.map_or("the recording has no GNSS clock model to confirm it".to_owned(), |g| format!(
-                    "the GNSS receiver's clock model puts it {g:.1} ms ahead, which is not the lidar's figure plus an output latency of 0-500 ms"
+                    "the GNSS receiver's clock model puts it {:.1} ms {} GNSS time, which is not the lidar's figure plus an output latency of up to 500 ms",
+                    g.abs(),
+                    if g < 0.0 { "behind" } else { "ahead of" }
                 ))
             ),
             LoggerClockState::PutOnGnssTime => format!(
