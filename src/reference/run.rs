@@ -118,11 +118,18 @@ impl LoggerClockState {
     /// included).
     pub fn describe(self, ahead_ms: Option<f64>, gnss_ahead_ms: Option<f64>) -> String {
         let limit = LOGGER_OFF_NS as f64 * 1e-6;
+        // An offset as "N ms ahead of" or "N ms behind" GNSS time, by its sign.
+        let off = |ms: f64| {
+            format!(
+                "{:.1} ms {}",
+                ms.abs(),
+                if ms < 0.0 { "behind" } else { "ahead of" }
+            )
+        };
         let by = ahead_ms.map_or(String::new(), |o| {
             format!(
-                "the PPS-locked lidar's clock model puts the logger's clock {:.1} ms {} GNSS time (its transport latency included)",
-                o.abs(),
-                if o < 0.0 { "behind" } else { "ahead of" }
+                "the PPS-locked lidar's clock model puts the logger's clock {} GNSS time (its transport latency included)",
+                off(o)
             )
         });
         match self {
@@ -133,9 +140,8 @@ impl LoggerClockState {
             LoggerClockState::GnssModelDisagrees => format!(
                 "{by}; CAN stays on the logger's clock: {}",
                 gnss_ahead_ms.map_or("the recording has no GNSS clock model to confirm it".to_owned(), |g| format!(
-                    "the GNSS receiver's clock model puts it {:.1} ms {} GNSS time, which is not the lidar's figure plus an output latency of up to 500 ms",
-                    g.abs(),
-                    if g < 0.0 { "behind" } else { "ahead of" }
+                    "the GNSS receiver's clock model puts it {} GNSS time, which is not the lidar's figure plus an output latency of up to 500 ms",
+                    off(g)
                 ))
             ),
             LoggerClockState::PutOnGnssTime => format!(
