@@ -2,7 +2,7 @@
 //! flags, azimuth above 36000, non-UDP traffic, VLAN tags. Each gives a clear error with a byte
 //! offset or a counted skip; nothing panics and nothing read before the problem is lost.
 
-mod common;
+use crate::common;
 
 use common::*;
 use hilrig::capture::writer::{ethernet_frame, udp_ethernet_frame, udp_ipv4_packets};

@@ -2,7 +2,7 @@
 //! the PyPI `mcap` reader with CRC validation finds the ROS 2 profile, topics, types and counts,
 //! and `rosbags` decodes every contract message type's CDR to the values written.
 
-mod common;
+use crate::common;
 
 use hilrig::bag::msgs;
 use hilrig::bag::{BagOptions, BagWriter, Compression};

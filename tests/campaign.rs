@@ -4,7 +4,7 @@
 //! Parquet tables read in DuckDB give the JSON's numbers; and a campaign that cannot run says
 //! why before anything runs.
 
-mod common;
+use crate::common;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::ffi::OsStr;

@@ -4,7 +4,7 @@
 //! cantools decodes (multiplexed and Motorola signals included); and a candump log of such frames
 //! goes through decode -> encode -> candump byte-identically.
 
-mod common;
+use crate::common;
 
 use hilrig::can::candump::{format_line, parse_log, LogFrame};
 use hilrig::can::{CanFrame, Database, MessageDef};

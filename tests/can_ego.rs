@@ -1,7 +1,7 @@
 //! The ego mapping of rigs/ego-vw-mqb.toml against the real opendbc VW MQB DBC: frames made
 //! from known vehicle motion come out as SI samples with ISO 8855 signs.
 
-mod common;
+use crate::common;
 
 use hilrig::can::ego::{EgoMapping, EgoSample, EgoTracker, Quantity};
 use hilrig::can::{CanFrame, Database};

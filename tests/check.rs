@@ -5,7 +5,7 @@
 //! The drives are the parking scenario (fixtures/parking) synthesized here with `[faults]`
 //! added to its drive file, recorded with `hilrig record --from`, then checked.
 
-mod common;
+use crate::common;
 
 use common::*;
 use serde_json::Value;

@@ -3,7 +3,7 @@
 //! and simulations that do not belong together, and cells that are bad or too small, are
 //! refused with exit 2 and nothing written.
 
-mod common;
+use crate::common;
 
 use common::*;
 use serde_json::Value;

@@ -1,6 +1,6 @@
 //! `hilrig decode` options beyond the defaults: calibration files and output formats.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 

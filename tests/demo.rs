@@ -4,7 +4,7 @@
 //!
 //! The demo runs once (in a temporary folder) and the tests share it.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

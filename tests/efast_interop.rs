@@ -4,7 +4,7 @@
 //! their confidence half-widths agree within 10 %. A parameter file with an unknown
 //! distribution is refused with exit 2.
 
-mod common;
+use crate::common;
 
 use common::{hilrig_bin, hilrig_ok, interop_script};
 use serde_json::Value;

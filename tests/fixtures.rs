@@ -7,9 +7,8 @@
 //! `tests/room/`; after an intended change of it, `cargo run --example bless_room_fixtures`
 //! rewrites the files (a test never does).
 
-mod common;
-#[path = "room/mod.rs"]
-mod room;
+use crate::common;
+use crate::room;
 
 use hilrig::velodyne::{DataPacket, PositionPacket, PpsStatus, ReturnMode};
 use room::*;

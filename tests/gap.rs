@@ -6,7 +6,7 @@
 //! two-effect cases, the look-alikes) is `benches/gap_hidden.py`; here a selection that runs in
 //! the test suite, with other speeds and seeds than the fixture's, and the bad inputs.
 
-mod common;
+use crate::common;
 
 use common::fixture;
 use common::gap::{

@@ -7,7 +7,7 @@
 //! not hidden, and that the full re-simulation of the validation run moves a metric the effect
 //! changes the right way.
 
-mod common;
+use crate::common;
 
 use common::gap::{
     drive_at, found_only, param, run_hidden, run_hidden_with, seed_of, validation_improved,

@@ -8,7 +8,7 @@
 //! round, and the truth as the reference model: its noise makes the reference's simulations
 //! cast its deterministic part too, the path a task must reproduce as well.
 
-mod common;
+use crate::common;
 
 use common::gap::{drive_at, hidden, seed_of, IDEALIZED};
 use std::path::{Path, PathBuf};

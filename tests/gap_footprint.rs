@@ -19,7 +19,7 @@
 //! timing jitter, CAN noise, survey error); each capture's lidar packets are then measured again
 //! with this model along the drive's true path, through the true scene, before `record`.
 
-mod common;
+use crate::common;
 
 use common::gap::{drive_at, found, hidden_captured, param, seed_of, IDEALIZED};
 use common::{demo_rig, fixture};

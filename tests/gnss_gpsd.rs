@@ -6,7 +6,7 @@
 //! ZED-F9R, every NAV-PVT and every NMEA sentence with a valid checksum is recovered, counted
 //! independently of the framer.
 
-mod common;
+use crate::common;
 
 use hilrig::gnss::{Fix, GnssStream, RtkState};
 use hilrig::stamp::civil::iso8601_millis;

@@ -3,7 +3,7 @@
 //! unplugged USB adapter, simulated by closing the pty and opening a new one behind the same
 //! stable symlink, as /dev/serial/by-id/ names work) is survived without restarting the source.
 
-mod common;
+use crate::common;
 
 use hilrig::gnss::serial::SerialSource;
 use hilrig::gnss::GnssStream;

@@ -5,7 +5,7 @@
 //! file and what is missing, and writes no output; or, where the input is still usable, the
 //! result says how little there was. Never a number that looks like a measurement.
 
-mod common;
+use crate::common;
 
 use common::{demo_rig, fixture, hilrig_bin, record_and_resim, record_from};
 use std::path::{Path, PathBuf};

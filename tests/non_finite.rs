@@ -4,7 +4,7 @@
 //! limit" would pass every run). Each is refused with exit 2, a message naming the key, and
 //! nothing written.
 
-mod common;
+use crate::common;
 
 use common::*;
 use std::path::{Path, PathBuf};

@@ -2,7 +2,7 @@
 //! `hilrig synth` made it, checked for what the scenario promises and for being exactly what the
 //! code makes.
 
-mod common;
+use crate::common;
 
 use common::*;
 use hilrig::can::dbc::Database;

@@ -4,7 +4,7 @@
 //! them to what went in; the lidar and GNSS clock offsets are estimated to 100 µs, and log times
 //! put messages of different sources in their true order.
 
-mod common;
+use crate::common;
 
 use hilrig::capture::writer::udp_ethernet_frame;
 use hilrig::capture::{CanFrame, LinkType, PcapngWriter, UtcNanos};

@@ -3,7 +3,7 @@
 //! opens, with every packet and sentence; SIGINT finishes the file cleanly; after `kill -9` the
 //! `.active` file is salvaged by `hilrig recover` losing at most the last 1.5 s.
 
-mod common;
+use crate::common;
 
 use hilrig::capture::demux::Packet;
 use hilrig::capture::{CaptureReader, Demux};

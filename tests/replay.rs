@@ -3,7 +3,7 @@
 //! paced; a replay recorded again gives the same payloads; --speed, --loop, --start/--end and
 //! SIGINT behave.
 
-mod common;
+use crate::common;
 
 use hilrig::capture::demux::Packet;
 use hilrig::capture::{CaptureReader, Demux, LinkType, PcapngWriter, UtcNanos};

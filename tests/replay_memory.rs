@@ -8,7 +8,7 @@
 //! Peak memory is each replay process's own, from wait4. The multi-GB measurement is
 //! `benches/replay_memory.py`.
 
-mod common;
+use crate::common;
 
 use common::*;
 use hilrig::capture::{CaptureReader, LinkType, PcapWriter};

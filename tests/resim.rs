@@ -4,7 +4,7 @@
 //! the validator estimates from RTK and CAN, to within what that trajectory's own error explains
 //! almost everywhere. Runs that fail `check` are refused unless forced.
 
-mod common;
+use crate::common;
 
 use common::*;
 use hilrig::replay::{load, Payload};

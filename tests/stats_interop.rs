@@ -1,7 +1,7 @@
 //! The statistics against their reference implementations: the area validation metric against
 //! scipy's `wasserstein_distance` (the same quantity: the area between two empirical CDFs).
 
-mod common;
+use crate::common;
 
 use common::interop_script;
 use hilrig::stats::avm::area_validation_metric;

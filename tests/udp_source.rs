@@ -1,7 +1,7 @@
 //! The live UDP source on real loopback sockets (issue 2, item 7): every packet of a capture sent
 //! to the source arrives, byte-identical, in order, with a host receive stamp from the kernel.
 
-mod common;
+use crate::common;
 
 use hilrig::capture::demux::Packet;
 use hilrig::capture::{CaptureReader, Demux};

@@ -4,7 +4,7 @@
 //! no more red cells, fewer than the idealized model, and a smaller area validation metric in
 //! every cell. A simulation of another drive fails the measurement block: not evaluable, exit 2.
 
-mod common;
+use crate::common;
 
 use common::*;
 use serde_json::Value;

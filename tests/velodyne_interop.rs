@@ -23,7 +23,7 @@
 //!    times a firing's delay in its sequence (up to 55 µs) that is up to 0.008° more, growing
 //!    over the sequence. The bound per point is 0.0055° plus that share.
 
-mod common;
+use crate::common;
 
 use common::*;
 use hilrig::decode::lidar::LidarOptions;

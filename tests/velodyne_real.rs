@@ -2,7 +2,7 @@
 //! place): VeloView's frame and point counts, position packets and absolute time, the forced
 //! model for early VLP-16 firmware, and byte-exact re-encoding (issue 2, items 2-5).
 
-mod common;
+use crate::common;
 
 use common::*;
 use hilrig::capture::demux::Packet;

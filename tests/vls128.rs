@@ -2,7 +2,7 @@
 //! the parking scene, single and dual return, is recorded with every packet, passes `check`,
 //! re-simulates packet for packet, and compares with the OCR its own model must reach.
 
-mod common;
+use crate::common;
 
 use common::*;
 use hilrig::bag::scans::ScanStream;
