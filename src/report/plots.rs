@@ -493,6 +493,7 @@ pub(crate) mod tests {
                 .collect(),
             damage: None,
             heading_source: None,
+            travel: Default::default(),
         }
     }
 

@@ -339,7 +339,19 @@ impl Streams<'_> {
             let si_to = |m: &hilrig_can::ego::SignalMap, si: f64| m.unit.from_si(si / m.scale);
             if let Some(i) = index(&speed_map.signal) {
                 let v_read = v * faults.can_speed_scale;
-                values.push((i, si_to(speed_map, noisy(v_read, cs.speed_sigma_mps, crng))));
+                // Backing up: a signed signal carries the sign; a magnitude with a sign flag
+                // sets the flag; a magnitude alone (most cars, and this project's DBC) reads the
+                // same as driving forward.
+                let flag = speed_map.sign_signal.as_deref().and_then(index);
+                let x = if v_read < 0.0 && (flag.is_some() || !can_be_negative(&msg.signals[i])) {
+                    -v_read
+                } else {
+                    v_read
+                };
+                if let Some(f) = flag {
+                    values.push((f, if v_read < 0.0 { 1.0 } else { 0.0 }));
+                }
+                values.push((i, si_to(speed_map, noisy(x, cs.speed_sigma_mps, crng))));
             }
             if let Some(m) = ego_map.yaw_rate.as_ref().filter(|m| m.message == msg.name) {
                 if let Some(i) = index(&m.signal) {
@@ -353,7 +365,7 @@ impl Streams<'_> {
             {
                 if let Some(i) = index(&m.signal) {
                     // Bicycle model: wheel angle atan(L κ), steering ratio 15, wheelbase 2.7 m.
-                    let kappa = if v > 0.1 { w / v } else { 0.0 };
+                    let kappa = if v.abs() > 0.1 { w / v } else { 0.0 };
                     values.push((i, si_to(m, (2.7 * kappa).atan() * 15.0)));
                 }
             }
@@ -410,4 +422,12 @@ pub(super) fn nmea_lat_lon(lat: f64, lon: f64) -> String {
         f(lon, 3),
         if lon >= 0.0 { 'E' } else { 'W' }
     )
+}
+/// Whether a DBC signal can carry a negative value: a signed or floating-point one, or an
+/// unsigned one whose offset or factor reaches below zero.
+fn can_be_negative(s: &hilrig_can::dbc::SignalDef) -> bool {
+    match s.repr {
+        hilrig_can::dbc::Repr::Unsigned => s.offset < 0.0 || s.factor < 0.0,
+        _ => true,
+    }
 }

@@ -30,6 +30,7 @@
 
 mod budget;
 mod consistency;
+mod direction;
 mod faults;
 mod heading;
 mod names;
@@ -39,12 +40,14 @@ mod spatial;
 mod temporal;
 #[cfg(test)]
 mod test_drive;
+mod travel;
 
 pub use names::FaultName;
 pub use report::{
     Accuracy, Fault, Report, RtkEpoch, Segment, SigmaWindow, SourceTiming, Spatial, Stats,
     Temporal, Verdict, Warning,
 };
+pub use travel::{DirectionFrom, Travel, TravelStretch};
 
 use super::noise::yaw_rate_noise;
 use super::run::Run;
@@ -95,6 +98,7 @@ fn unusable(run: &Run, why: String, spatial: Spatial) -> Report {
         segments: Vec::new(),
         damage: run.damage.clone(),
         heading_source: None,
+        travel: Travel::default(),
     }
 }
 
@@ -158,6 +162,7 @@ fn without_trajectory(
         warnings: Vec::new(),
         damage: run.damage.clone(),
         heading_source: None,
+        travel: Travel::default(),
     }
 }
 
@@ -279,20 +284,23 @@ fn check_into(
         .as_ref()
         .map_or(Vector2::zeros(), |g| Vector2::new(g.antenna.x, g.antenna.y));
     let obs = observations(&epochs, &enu);
-    let motion: Vec<(UtcNanos, f64, f64)> = run
-        .motion
-        .iter()
-        .map(|m| (m.t, m.speed, m.yaw_rate))
-        .collect();
-    let settings = noise_settings(&obs, &motion, lever);
-    let fixed: Vec<bool> = epochs
-        .iter()
-        .map(|(_, f)| f.rtk == RtkState::Fixed)
-        .collect();
     // The rig's heading source, when it has one (see heading.rs).
     let heading_cfg = rig.gnss.as_ref().and_then(|g| g.heading.as_ref());
     let heading_reports = heading_cfg.map(|c| heading::reports(run, c));
     let heading_obs = heading_reports.as_ref().map_or(&[][..], |r| &r.obs[..]);
+    let mut motion: Vec<(UtcNanos, f64, f64)> = run
+        .motion
+        .iter()
+        .map(|m| (m.t, m.speed, m.yaw_rate))
+        .collect();
+    // The noise models from the speed as sent (a standstill is where its mean is zero), then
+    // the stretches backed up, where the speed is sent as a magnitude (told from the track).
+    let settings = noise_settings(&obs, &motion, lever);
+    let travel = direction::signed(&obs, &mut motion, heading_obs, start);
+    let fixed: Vec<bool> = epochs
+        .iter()
+        .map(|(_, f)| f.rtk == RtkState::Fixed)
+        .collect();
     // A calibrated mounting (the rig states how well `yaw_offset_deg` is known) starts the
     // source's offset from that calibration; otherwise the drive alone decides it.
     let settings = Settings {
@@ -396,6 +404,7 @@ fn check_into(
         segments,
         damage: run.damage.clone(),
         heading_source,
+        travel,
     }
 }
 

@@ -318,6 +318,9 @@ pub struct Report {
     /// The rig's heading source, when it has one and it reported: what was used and how it
     /// fits the track.
     pub heading_source: Option<HeadingReport>,
+    /// Which way the car travelled, and the stretches it backed up.
+    #[serde(default)]
+    pub travel: super::travel::Travel,
 }
 
 impl Fault {
@@ -385,6 +388,7 @@ impl Report {
             a.grid_cell_m
         );
         let _ = writeln!(s, "{}", heading_text(self.heading_source.as_ref()));
+        let _ = writeln!(s, "{}", self.travel.text());
         let sp = &self.spatial;
         let _ = writeln!(
             s,

@@ -120,6 +120,37 @@ fn as_driven(
         .collect()
 }
 
+impl Driven {
+    /// This drive followed by `back`, a leg driven forwards from where this one ends, turned
+    /// round: the car backs along `back`'s path, so its heading is that path's direction turned
+    /// by 180° (continuous with this drive's last heading) and its speed is negative; the yaw
+    /// rate is the path direction's, as it is for the body. `back` starts 10 ms after this drive
+    /// ends, with its own standing first.
+    fn then_backing(mut self, back: Driven) -> Result<Driven, String> {
+        let (Some(last), Some(first)) = (
+            self.ego.samples().last().copied(),
+            back.ego.samples().first().copied(),
+        ) else {
+            return Ok(self);
+        };
+        let shift = last.t.0 + 10_000_000 - first.t.0;
+        let turned = first.yaw + std::f64::consts::PI;
+        let turns = ((last.yaw - turned) / std::f64::consts::TAU).round() * std::f64::consts::TAU;
+        let mut poses = self.ego.samples().to_vec();
+        poses.extend(back.ego.samples().iter().map(|p| PoseSample {
+            t: UtcNanos(p.t.0 + shift),
+            yaw: p.yaw + std::f64::consts::PI + turns,
+            ..*p
+        }));
+        self.motion
+            .extend(back.motion.iter().map(|&(v, w)| (-v, w)));
+        self.ego = Trajectory::new(poses).map_err(|e| e.to_string())?;
+        self.span = self.ego.span();
+        self.beyond_car.extend(back.beyond_car);
+        Ok(self)
+    }
+}
+
 impl DriveFile {
     /// Every number of the path, the walkers, the yield and the variation is finite: TOML reads
     /// `nan` and `inf`, and one of them in a waypoint would make a path of NaN, which no check
@@ -173,6 +204,18 @@ impl DriveFile {
                 ("yield_to.clearance_m".into(), y.clearance_m),
             ]);
         }
+        if let Some(r) = &p.reverse {
+            for (i, w) in r.waypoints.iter().enumerate() {
+                fields.extend([
+                    (format!("path.reverse.waypoints[{i}][0]"), w[0]),
+                    (format!("path.reverse.waypoints[{i}][1]"), w[1]),
+                ]);
+            }
+            fields.extend([
+                ("path.reverse.speed_mps".into(), r.speed_mps),
+                ("path.reverse.pause_s".into(), r.pause_s),
+            ]);
+        }
         match fields.iter().find(|(_, x)| !x.is_finite()) {
             Some((name, x)) => Err(bad(format!("{name} = {x}: must be a finite number"))),
             None => Ok(()),
@@ -188,26 +231,135 @@ impl DriveFile {
     /// limit by a little; that stays in [`Driven::beyond_car`] for `synth` to report.
     pub fn drivable(&self) -> Result<(), DriveError> {
         use rand::SeedableRng;
+        let undrivable = |name: String, exceeded: Vec<Exceedance>, waypoints: &[[f64; 2]]| {
+            if exceeded.is_empty() {
+                Ok(())
+            } else {
+                Err(DriveError::Undrivable {
+                    name,
+                    exceeded,
+                    waypoints: waypoints.to_vec(),
+                })
+            }
+        };
         // Without variation nothing is drawn: the generator only has to exist.
-        let planned = self.drive(&mut rand_chacha::ChaCha8Rng::seed_from_u64(0), false)?;
-        let exceeded: Vec<Exceedance> = planned.beyond_car;
-        if exceeded.is_empty() {
-            Ok(())
-        } else {
-            Err(DriveError::Undrivable {
-                name: self.name.clone(),
-                exceeded,
-                waypoints: self.path.waypoints.clone(),
-            })
+        let rng = &mut rand_chacha::ChaCha8Rng::seed_from_u64(0);
+        let forward = self.forward_leg();
+        let planned = forward.drive_leg(rng, false)?;
+        undrivable(self.name.clone(), planned.beyond_car, &self.path.waypoints)?;
+        if let Some(leg) = self.reverse_leg(planned.ego.samples().last())? {
+            let back = leg.drive_leg(rng, false)?;
+            undrivable(
+                format!(
+                    "{}, backing up (waypoint 0 is where the path ends, 1 and 2 one and two metres straight back, then path.reverse.waypoints)",
+                    self.name
+                ),
+                back.beyond_car,
+                &leg.path.waypoints,
+            )?;
         }
+        Ok(())
     }
 
-    /// Drives the path once, with human variation drawn from `rng` (none when `vary` is false).
+    /// The drive up to its last waypoint: the whole drive without a reversing leg; with one,
+    /// ending on arrival (the standing before backing up is the leg's).
+    fn forward_leg(&self) -> DriveFile {
+        let mut f = self.clone();
+        if f.path.reverse.take().is_some() {
+            f.path.lead_out_s = 0.0;
+        }
+        f
+    }
+
+    /// The reversing leg as a drive of its own, from the forward leg's last pose `end`: driven
+    /// forwards along its path, and then turned round by [`Driven::then_backing`]. `None`
+    /// without one.
+    fn reverse_leg(&self, end: Option<&PoseSample>) -> Result<Option<DriveFile>, DriveError> {
+        let (Some(r), Some(end)) = (&self.path.reverse, end) else {
+            return Ok(None);
+        };
+        let bad = |what: String| DriveError::Invalid {
+            name: self.name.clone(),
+            what,
+        };
+        if r.waypoints.is_empty() {
+            return Err(bad(
+                "path.reverse.waypoints is empty: backing up needs at least one point".into(),
+            ));
+        }
+        if !(r.speed_mps > 0.0 && r.pause_s >= 0.0) {
+            return Err(bad(format!(
+                "path.reverse.speed_mps = {}, pause_s = {}: the speed must be positive, the pause 0 or more",
+                r.speed_mps, r.pause_s
+            )));
+        }
+        // Two points straight behind: the spline's first stretch is then straight, and the car
+        // starts backing in the direction it stands (a car does not turn standing).
+        let at = Vector2::new(end.position.x, end.position.y);
+        let back = -Vector2::new(end.yaw.cos(), end.yaw.sin());
+        let (b1, b2) = (at + back, at + back * 2.0);
+        let mut waypoints = vec![[at.x, at.y], [b1.x, b1.y], [b2.x, b2.y]];
+        waypoints.extend_from_slice(&r.waypoints);
+        let mut leg = self.clone();
+        leg.path = crate::sim::drive::PathSpec {
+            waypoints,
+            cruise_speed_mps: r.speed_mps,
+            start_speed_mps: 0.0,
+            lead_in_s: r.pause_s,
+            reverse: None,
+            ..self.path.clone()
+        };
+        leg.walkers.clear();
+        leg.yield_to = None;
+        // The human variation of the path is the forward leg's (where it ends varies, and the
+        // leg starts there); a lateral wave on the leg would turn its start off the heading
+        // the car stands in.
+        leg.variation.lateral_m = 0.0;
+        Ok(Some(leg))
+    }
+
+    /// Drives the path once, with human variation drawn from `rng` (none when `vary` is false),
+    /// and backs up after it where the path says so.
+    pub fn drive(&self, rng: &mut impl Rng, vary: bool) -> Result<Driven, DriveError> {
+        let forward = self.forward_leg().drive_leg(rng, vary)?;
+        let mut driven = match self.reverse_leg(forward.ego.samples().last())? {
+            Some(leg) => {
+                let back = leg.drive_leg(rng, vary)?;
+                forward
+                    .then_backing(back)
+                    .map_err(|e| DriveError::Invalid {
+                        name: self.name.clone(),
+                        what: e,
+                    })?
+            }
+            None => forward,
+        };
+        // Walkers are only needed while the ego drives (and a second either side).
+        let span = driven.span;
+        for (_, w) in &mut driven.walkers {
+            let keep: Vec<PoseSample> = w
+                .samples()
+                .iter()
+                .filter(|p| {
+                    p.t.0 >= span.0 .0 - 1_000_000_000 && p.t.0 <= span.1 .0 + 1_000_000_000
+                })
+                .copied()
+                .collect();
+            *w = Trajectory::new(keep).map_err(|e| DriveError::Invalid {
+                name: self.name.clone(),
+                what: e.to_string(),
+            })?;
+        }
+        Ok(driven)
+    }
+
+    /// Drives one leg's path forwards, with human variation drawn from `rng` (none when `vary`
+    /// is false); its walkers for the whole hour it allows.
     #[allow(
         clippy::too_many_lines,
         reason = "one time-stepping loop whose state (speed, position, yield phase, variation) every step shares"
     )]
-    pub fn drive(&self, rng: &mut impl Rng, vary: bool) -> Result<Driven, DriveError> {
+    fn drive_leg(&self, rng: &mut impl Rng, vary: bool) -> Result<Driven, DriveError> {
         let bad = |what: String| DriveError::Invalid {
             name: self.name.clone(),
             what,
@@ -423,18 +575,6 @@ impl DriveFile {
         }
         let ego = Trajectory::new(poses).map_err(|e| bad(e.to_string()))?;
         let span = ego.span();
-        // Walkers are only needed while the ego drives (and a second either side).
-        for (_, w) in &mut walkers {
-            let keep: Vec<PoseSample> = w
-                .samples()
-                .iter()
-                .filter(|p| {
-                    p.t.0 >= span.0 .0 - 1_000_000_000 && p.t.0 <= span.1 .0 + 1_000_000_000
-                })
-                .copied()
-                .collect();
-            *w = Trajectory::new(keep).map_err(|e| bad(e.to_string()))?;
-        }
         let ns = |x: f64| UtcNanos(start.0 + (x * 1e9).round() as i64);
         Ok(Driven {
             ego,
@@ -661,6 +801,72 @@ stop_at_m = 4.0
             .unwrap_err()
             .to_string();
         assert!(e.contains("path.cruise_speed_mps = inf"), "{e}");
+    }
+
+    /// Backing into a slot after driving past it: the car stops at the path's end, stands, and
+    /// backs up with a negative speed, its heading continuous through the turn-around (the
+    /// body does not turn round: its heading is the path's direction turned by 180° while it
+    /// backs) and its position too; it ends at the last point, at rest, standing the lead-out.
+    /// A leg too tight for a car is refused, naming the leg.
+    #[test]
+    fn backs_up_after_the_path_with_a_negative_speed_and_a_continuous_heading() {
+        let mut d = plain("[[-10.0, 0.0], [0.0, 0.0], [8.0, 0.0]]", 2.0);
+        d.path.reverse = Some(crate::sim::drive::ReverseLeg {
+            waypoints: vec![[4.0, 1.0], [2.0, 4.0], [1.8, 6.0]],
+            speed_mps: 1.0,
+            pause_s: 1.0,
+        });
+        d.drivable().unwrap();
+        let r = d
+            .drive(&mut rand_chacha::ChaCha8Rng::seed_from_u64(3), false)
+            .unwrap();
+        let poses = r.ego.samples();
+        assert_eq!(poses.len(), r.motion.len());
+        let mut backing = 0.0;
+        for (w, m) in poses.windows(2).zip(&r.motion) {
+            let dt = (w[1].t.0 - w[0].t.0) as f64 * 1e-9;
+            assert!(dt > 0.0);
+            let step = (w[1].position - w[0].position).xy();
+            assert!(
+                step.norm() <= 2.1 * dt + 1e-6,
+                "a jump of {} m",
+                step.norm()
+            );
+            assert!(
+                (w[1].yaw - w[0].yaw).abs() < 0.02,
+                "the heading jumps by {} rad at {:?}",
+                w[1].yaw - w[0].yaw,
+                w[0].t
+            );
+            // The motion is along the heading, signed by the speed.
+            let along = step.dot(&Vector2::new(w[0].yaw.cos(), w[0].yaw.sin()));
+            if m.0.abs() > 0.2 {
+                assert_eq!(along.signum(), m.0.signum(), "at {:?}: {m:?}", w[0].t);
+            }
+            if m.0 < 0.0 {
+                backing += dt;
+            }
+        }
+        assert!(backing > 5.0, "backed up for {backing} s");
+        let last = poses.last().unwrap();
+        assert!(
+            (last.position.xy() - Vector2::new(1.8, 6.0)).norm() < 0.05,
+            "{:?}",
+            last.position
+        );
+        assert_eq!(r.motion.last().unwrap().0, 0.0);
+        // Backing into the slot turned the car about 90° to the left of its aisle heading
+        // (its nose points away from the slot): a heading near -90°, as the path's direction
+        // turned round.
+        assert!(
+            (last.yaw.to_degrees() + 90.0).abs() < 25.0,
+            "{}",
+            last.yaw.to_degrees()
+        );
+
+        d.path.reverse.as_mut().unwrap().waypoints = vec![[7.0, 0.0], [6.5, 2.0], [7.0, 2.5]];
+        let e = d.drivable().unwrap_err().to_string();
+        assert!(e.contains("backing up"), "{e}");
     }
 
     #[test]

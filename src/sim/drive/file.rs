@@ -34,6 +34,30 @@ pub struct PathSpec {
     /// Standing after arriving, s.
     #[serde(default = "one")]
     pub lead_out_s: f64,
+    /// A leg backed up after stopping at the last waypoint (a parking manoeuvre: past the slot,
+    /// then back into it). Without it the drive ends at the last waypoint.
+    #[serde(default)]
+    pub reverse: Option<ReverseLeg>,
+}
+
+/// A leg driven backwards. The car stops at the path's last waypoint, stands, backs two metres
+/// straight (it stands in the direction it arrived) and then through `waypoints`, its rear
+/// leading: its heading is the path's direction turned by 180°, its speed negative. The CAN
+/// speed carries the sign only where the rig's DBC signal can (a signed signal, or a magnitude
+/// with a `sign_signal`); a magnitude alone reads the same backing up as driving forward, as
+/// on most cars.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReverseLeg {
+    /// Points the rear-axle centre passes backing up, after the two straight metres, local
+    /// frame, metres.
+    pub waypoints: Vec<[f64; 2]>,
+    /// Speed backing up, m/s.
+    #[serde(default = "one")]
+    pub speed_mps: f64,
+    /// Standing at the turn-around point before backing up, s.
+    #[serde(default = "one")]
+    pub pause_s: f64,
 }
 
 /// A walker crossing on a straight line.

@@ -22,6 +22,16 @@
 //! stop_at_m = 8.0                     # arc length of the stop line
 //! ```
 //!
+//! A parking manoeuvre backs up after the last waypoint (`[path.reverse]`, see
+//! [`ReverseLeg`]):
+//!
+//! ```toml
+//! [path.reverse]
+//! waypoints = [[5.0, 3.5], [4.0, 6.0]]  # after two metres straight back from the path's end
+//! speed_mps = 1.0
+//! pause_s = 1.0                         # standing at the turn-around point
+//! ```
+//!
 //! The sensor, GNSS, CAN and survey error sections are documented on their structs.
 //!
 //! Three files, each read for a different reason: `file.rs` is the format as a user writes it
@@ -38,6 +48,6 @@ mod path;
 pub use driven::Driven;
 pub use file::{
     beyond_text, parse_utc, AgeFault, CanStream, DriveError, DriveFile, Faults, FreeClock,
-    GnssStream, HeadingStream, JumpFault, LidarStream, PathSpec, RtkFault, SigmaFault, Survey,
-    Variation, WalkerSpec, Window, YieldSpec,
+    GnssStream, HeadingStream, JumpFault, LidarStream, PathSpec, ReverseLeg, RtkFault, SigmaFault,
+    Survey, Variation, WalkerSpec, Window, YieldSpec,
 };

@@ -1,0 +1,72 @@
+//! Which way the car travelled, as the check report says it (see `direction.rs` for how it is
+//! told): a file of its own so that the report's types need not reach into the telling.
+
+use serde::{Deserialize, Serialize};
+
+/// Which way the car travelled: where CAN sends the speed as a magnitude, the check tells the
+/// stretches backed up from the track (see `direction.rs`), and the smoother takes their speed
+/// as negative.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Travel {
+    /// What the direction of the first stretch came from (the others follow from it).
+    pub direction_from: DirectionFrom,
+    /// The stretches the car backed up.
+    pub reversing: Vec<TravelStretch>,
+}
+
+/// What told the car's direction of travel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DirectionFrom {
+    /// The car did not move far enough to tell (or the report predates the field).
+    #[default]
+    NoMotion,
+    /// The CAN speed's own sign.
+    CanSpeedSign,
+    /// The rig's heading source, at the first stretch the car moved.
+    HeadingSource,
+    /// Nothing: the speed is a magnitude and the rig has no heading source, so the first
+    /// stretch is taken as forward. A drive that starts backing up then reads as the car
+    /// turned round.
+    AssumedForwardAtStart,
+}
+
+/// A stretch of the run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TravelStretch {
+    /// Start, UTC.
+    pub from: String,
+    /// End, UTC.
+    pub to: String,
+    /// Start, s after the run's start.
+    pub from_s: f64,
+    /// End, s after the run's start.
+    pub to_s: f64,
+}
+
+impl Travel {
+    /// The report's line on the direction of travel.
+    pub(super) fn text(&self) -> String {
+        let backed = if self.reversing.is_empty() {
+            "no stretch backed up".to_owned()
+        } else {
+            let w: Vec<String> = self
+                .reversing
+                .iter()
+                .map(|r| format!("{:.1}-{:.1} s", r.from_s, r.to_s))
+                .collect();
+            format!("backed up {}", w.join(", "))
+        };
+        let from = match self.direction_from {
+            DirectionFrom::NoMotion => "the car hardly moved",
+            DirectionFrom::CanSpeedSign => "from the CAN speed's sign",
+            DirectionFrom::HeadingSource => {
+                "told from the track: CAN speed is a magnitude; the heading source gave the start"
+            }
+            DirectionFrom::AssumedForwardAtStart => {
+                "told from the track, the first stretch taken as forward: CAN speed is a magnitude and the rig has no heading source"
+            }
+        };
+        format!("direction of travel: {backed} ({from})")
+    }
+}
