@@ -238,8 +238,8 @@ fn reference_noise_alone_adds_no_effect() {
 /// gets the smallest size the runs would have shown, searched by injecting it into them; then
 /// the same drive synthesized with a hidden mount yaw at twice that size is found, at half of
 /// it missed. At 8 m/s, a speed the fixture does not drive.
-/// (Named to sort first: the test harness starts tests in the order of their names, and this
-/// one, three studies long, started last and ran alone for a minute of the suite.)
+/// (Named to sort first of its file: the test harness starts tests in the order of their
+/// names, and this one, three studies long, had started last and run alone for a minute.)
 #[test]
 fn a_detection_limit_is_printed_for_what_was_not_found_and_twice_it_is_found_half_missed() {
     let seed = seed_of("detection limits");

@@ -1,10 +1,11 @@
 //! The integration tests, as one test binary: each file of `tests/` is a module of it.
 //!
-//! One binary instead of one per file, for two reasons measured on the 2-core CI machine. Every
-//! separate test binary is compiled and linked against the whole library and its dependencies,
-//! which made linking a large share of the test build. And `cargo test` runs test binaries one
-//! after another: a binary whose last test runs alone (a gap study, a campaign waiting on its
-//! cluster) left the second core idle, while in one binary the test harness keeps both busy.
+//! One binary instead of one per file, for the 2-core CI machine: each separate test binary was
+//! linked against the whole library and its dependencies (34 links), and `cargo test` runs test
+//! binaries one after another, so a binary whose last test ran alone left the second core idle
+//! (the eFAST file: 81 s wall for 69 CPU-seconds). In one binary the harness keeps both cores
+//! busy to the end. Tests that share something outside the process take a lock for it
+//! (`common::vcan0`, one Ray cluster at a time in `common::ray`).
 //! Run one file's tests with `cargo test --test integration gap_footprint::`.
 
 mod common;

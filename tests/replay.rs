@@ -589,6 +589,7 @@ fn can_frames_go_out_on_a_can_interface() {
     let frames: Vec<CanFrame> = (0..20u32)
         .map(|i| CanFrame::new(0x100 + i, i % 2 == 1, &[i as u8; 8]).unwrap())
         .collect();
+    let _vcan0 = common::vcan0();
     let dir = tempfile::tempdir().unwrap();
     let cap = can_capture(dir.path(), &frames);
     let rt = tokio::runtime::Builder::new_current_thread()

@@ -545,3 +545,13 @@ pub fn snapped_pcap(capture: &[u8], snap: usize) -> (Vec<u8>, u64) {
     assert!(whole > 0, "some frames fit");
     (pcap, cut)
 }
+
+/// `vcan0` is one interface for the whole test process (the tests are one binary): a test that
+/// sends on it and asserts on exactly the frames it receives holds this meanwhile, so that no
+/// other test's frames arrive in between.
+pub fn vcan0() -> std::sync::MutexGuard<'static, ()> {
+    static VCAN0: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    VCAN0
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}

@@ -17,11 +17,22 @@ pub struct Cluster {
     temp: tempfile::TempDir,
     /// HOST:PORT of its head.
     pub address: String,
+    /// One cluster at a time in the test process: the tests are one binary, and two clusters
+    /// started together contend for Ray's fixed default ports (the client server's 10001
+    /// among them) and for two cores between some twenty processes.
+    _alone: std::sync::MutexGuard<'static, ()>,
 }
+
+/// Held by the cluster that runs.
+static ONE_CLUSTER: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 impl Cluster {
     /// Starts a head and two worker nodes of one CPU each.
     pub fn start() -> Cluster {
+        // A test that failed while holding it leaves it poisoned; its cluster is gone all the same.
+        let alone = ONE_CLUSTER
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         let temp = tempfile::Builder::new()
             .prefix("ray")
             .tempdir_in("/tmp")
@@ -54,7 +65,11 @@ impl Cluster {
             &temp.path().display().to_string(),
             "--disable-usage-stats",
         ]);
-        let cluster = Cluster { temp, address };
+        let cluster = Cluster {
+            temp,
+            address,
+            _alone: alone,
+        };
         for _ in 0..2 {
             start(&["--address", &cluster.address, "--num-cpus", "1"]);
         }

@@ -12,7 +12,8 @@
 //!   one. Without one the first stretch is taken as forward and the report says so: a drive that
 //!   starts by backing up out of a slot reads, without a heading source, as the same drive
 //!   forwards with the car turned round. Nothing in GNSS and a magnitude of speed tells the two
-//!   apart.
+//!   apart, short of the lever arm's sideways swing in turns, which is left to the lever-arm
+//!   check (taken the wrong way, the antenna measures behind the rear axle).
 //! - A stretch is backed up when its antenna moved against that heading. The sum of each
 //!   epoch's displacement along the heading telescopes, so the GNSS noise enters once, not per
 //!   epoch. The stretch's end then gives the heading again (its track's direction, turned round
@@ -32,9 +33,12 @@ const ANCHOR_M: f64 = 2.0;
 /// A stretch whose antenna moved less than this is too short to say which way it went, m (the
 /// GNSS noise is a centimetre or two).
 const DECIDABLE_M: f64 = 0.3;
+/// What a GNSS step may exceed the CAN speed's distance by (noise, latency), m.
+const STEP_SLACK_M: f64 = 0.2;
 /// The share of the stretch's path along (or against) the heading that decides it: the
-/// antenna, ahead of the rear axle, moves sideways in a turn (by a fifth of the speed at the
-/// tightest turn and a 1.5 m lever arm), never by half of it.
+/// antenna, ahead of the rear axle, moves sideways in a turn (by the lever arm over the radius:
+/// 0.3 of its speed for 1.5 m on a 5 m radius, 0.7 on a car's tightest 2.2 m), and GNSS noise
+/// lengthens the path of a stretch crept at walking pace.
 const DECISIVE: f64 = 0.5;
 
 /// Signs `motion`'s speeds (time, speed, yaw rate) in the stretches the car backed up, where
@@ -65,6 +69,7 @@ pub(super) fn signed(
         return Travel {
             direction_from: DirectionFrom::CanSpeedSign,
             reversing,
+            undecided: Vec::new(),
         };
     }
     let turned = yaw_integral(motion);
@@ -73,10 +78,16 @@ pub(super) fn signed(
         let k = times.partition_point(|&x| x < t).min(times.len() - 1);
         turned[k]
     };
+    let speeds: Vec<f64> = motion.iter().map(|m| m.1.abs()).collect();
+    let speed_at = |t: UtcNanos| {
+        let k = times.partition_point(|&x| x < t).min(times.len() - 1);
+        speeds[k]
+    };
     let mut direction_from = DirectionFrom::NoMotion;
     // The vehicle's heading at one instant: (time, rad from east).
     let mut anchor: Option<(UtcNanos, f64)> = None;
     let mut reversing = Vec::new();
+    let mut undecided = Vec::new();
     for (a, b) in moving {
         let (ta, tb) = (motion[a].0, motion[b].0);
         let i0 = obs.partition_point(|o| o.t < ta);
@@ -87,6 +98,7 @@ pub(super) fn signed(
             .map(|w| (w[1].position - w[0].position).norm())
             .sum();
         if track.len() < 3 || path < DECIDABLE_M {
+            undecided.push(stretch(ta, tb));
             continue;
         }
         let anchor_now = match anchor {
@@ -103,8 +115,15 @@ pub(super) fn signed(
             },
         };
         let heading_at = |t: UtcNanos| anchor_now.1 + turned_at(t) - turned_at(anchor_now.0);
+        // A step of the antenna that the CAN speed cannot explain (a jump, a float epoch) is
+        // left out: it would count its whole length one way.
         let along: f64 = track
             .windows(2)
+            .filter(|w| {
+                let dt = (w[1].t.0 - w[0].t.0) as f64 * 1e-9;
+                let v = speed_at(w[0].t).max(speed_at(w[1].t));
+                (w[1].position - w[0].position).norm() <= 1.5 * v * dt + STEP_SLACK_M
+            })
             .map(|w| {
                 let mid = UtcNanos(w[0].t.0 + (w[1].t.0 - w[0].t.0) / 2);
                 let h = heading_at(mid);
@@ -112,6 +131,9 @@ pub(super) fn signed(
             })
             .sum();
         let backed = along < -DECISIVE * path;
+        if along.abs() <= DECISIVE * path {
+            undecided.push(stretch(ta, tb));
+        }
         if backed {
             for m in &mut motion[a..=b] {
                 m.1 = -m.1;
@@ -128,6 +150,7 @@ pub(super) fn signed(
     Travel {
         direction_from,
         reversing,
+        undecided,
     }
 }
 

@@ -201,12 +201,15 @@ fn run_span(run: &Run, epochs: &[(UtcNanos, &hilrig_gnss::Fix)]) -> (UtcNanos, U
 /// the CAN yaw rate, the yaw jerk and the GNSS error as the drive's own data show them.
 fn noise_settings(
     obs: &[GnssObs],
+    sent: &[(UtcNanos, f64, f64)],
     motion: &[(UtcNanos, f64, f64)],
     lever: Vector2<f64>,
 ) -> Settings {
     // The yaw-rate sensor's noise as the drive shows it while standing (the default where the
-    // vehicle never stands), never below 0.5 mrad/s: a quiet sensor still has a bias.
-    let measured = yaw_rate_noise(motion);
+    // vehicle never stands), never below 0.5 mrad/s: a quiet sensor still has a bias. A stand is
+    // found on the speed as sent; the fits below smooth the drive, on the motion signed for
+    // the stretches backed up.
+    let measured = yaw_rate_noise(sent);
     let settings = Settings {
         lever,
         yaw_rate_sigma: measured.map_or(Settings::default().yaw_rate_sigma, |s| s.max(5e-4)),
@@ -293,10 +296,11 @@ fn check_into(
         .iter()
         .map(|m| (m.t, m.speed, m.yaw_rate))
         .collect();
-    // The noise models from the speed as sent (a standstill is where its mean is zero), then
-    // the stretches backed up, where the speed is sent as a magnitude (told from the track).
-    let settings = noise_settings(&obs, &motion, lever);
+    // The stretches backed up, where the speed is sent as a magnitude (told from the track),
+    // before any smoother sees the motion.
+    let sent = motion.clone();
     let travel = direction::signed(&obs, &mut motion, heading_obs, start);
+    let settings = noise_settings(&obs, &sent, &motion, lever);
     let fixed: Vec<bool> = epochs
         .iter()
         .map(|(_, f)| f.rtk == RtkState::Fixed)

@@ -12,13 +12,18 @@ pub struct Travel {
     pub direction_from: DirectionFrom,
     /// The stretches the car backed up.
     pub reversing: Vec<TravelStretch>,
+    /// Stretches the car moved in whose direction the track could not tell (too short, too
+    /// few fixes, or a track neither along nor against the heading): taken as forward.
+    #[serde(default)]
+    pub undecided: Vec<TravelStretch>,
 }
 
 /// What told the car's direction of travel.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum DirectionFrom {
-    /// The car did not move far enough to tell (or the report predates the field).
+    /// Not told: the car did not move far enough, the run has no trajectory, or the report
+    /// predates the field.
     #[default]
     NoMotion,
     /// The CAN speed's own sign.
@@ -58,7 +63,7 @@ impl Travel {
             format!("backed up {}", w.join(", "))
         };
         let from = match self.direction_from {
-            DirectionFrom::NoMotion => "the car hardly moved",
+            DirectionFrom::NoMotion => "not told: the car did not move far enough",
             DirectionFrom::CanSpeedSign => "from the CAN speed's sign",
             DirectionFrom::HeadingSource => {
                 "told from the track: CAN speed is a magnitude; the heading source gave the start"
@@ -67,6 +72,16 @@ impl Travel {
                 "told from the track, the first stretch taken as forward: CAN speed is a magnitude and the rig has no heading source"
             }
         };
-        format!("direction of travel: {backed} ({from})")
+        let undecided = if self.undecided.is_empty() {
+            String::new()
+        } else {
+            let w: Vec<String> = self
+                .undecided
+                .iter()
+                .map(|r| format!("{:.1}-{:.1} s", r.from_s, r.to_s))
+                .collect();
+            format!("; not told, taken as forward: {}", w.join(", "))
+        };
+        format!("direction of travel: {backed}{undecided} ({from})")
     }
 }

@@ -20,7 +20,7 @@ use rand_distr::{Distribution, Normal};
 pub struct Driven {
     /// Rear-axle pose in the local frame.
     pub ego: Trajectory,
-    /// Speed (m/s) and yaw rate (rad/s) per ego sample.
+    /// Speed (m/s, negative while backing up) and yaw rate (rad/s) per ego sample.
     pub motion: Vec<(f64, f64)>,
     /// Walkers' trajectories by actor name.
     pub walkers: Vec<(String, Trajectory)>,
@@ -30,6 +30,11 @@ pub struct Driven {
     pub span: (UtcNanos, UtcNanos),
     /// The limits of a car this repetition exceeds as driven (see [`DriveFile::drivable`]).
     pub beyond_car: Vec<Exceedance>,
+    /// The same of the leg backed up, with that leg's waypoints (the path's end, two points
+    /// straight behind it, then `path.reverse.waypoints`), which its exceedances count from.
+    pub beyond_car_backing: Vec<Exceedance>,
+    /// The leg backed up's waypoints, as [`Driven::beyond_car_backing`] counts them.
+    pub backing_waypoints: Vec<[f64; 2]>,
 }
 
 /// Catmull-Rom points per stretch between two waypoints.
@@ -118,37 +123,6 @@ fn as_driven(
             }
         })
         .collect()
-}
-
-impl Driven {
-    /// This drive followed by `back`, a leg driven forwards from where this one ends, turned
-    /// round: the car backs along `back`'s path, so its heading is that path's direction turned
-    /// by 180° (continuous with this drive's last heading) and its speed is negative; the yaw
-    /// rate is the path direction's, as it is for the body. `back` starts 10 ms after this drive
-    /// ends, with its own standing first.
-    fn then_backing(mut self, back: Driven) -> Result<Driven, String> {
-        let (Some(last), Some(first)) = (
-            self.ego.samples().last().copied(),
-            back.ego.samples().first().copied(),
-        ) else {
-            return Ok(self);
-        };
-        let shift = last.t.0 + 10_000_000 - first.t.0;
-        let turned = first.yaw + std::f64::consts::PI;
-        let turns = ((last.yaw - turned) / std::f64::consts::TAU).round() * std::f64::consts::TAU;
-        let mut poses = self.ego.samples().to_vec();
-        poses.extend(back.ego.samples().iter().map(|p| PoseSample {
-            t: UtcNanos(p.t.0 + shift),
-            yaw: p.yaw + std::f64::consts::PI + turns,
-            ..*p
-        }));
-        self.motion
-            .extend(back.motion.iter().map(|&(v, w)| (-v, w)));
-        self.ego = Trajectory::new(poses).map_err(|e| e.to_string())?;
-        self.span = self.ego.span();
-        self.beyond_car.extend(back.beyond_car);
-        Ok(self)
-    }
 }
 
 impl DriveFile {
@@ -242,6 +216,7 @@ impl DriveFile {
                 })
             }
         };
+        self.finite()?;
         // Without variation nothing is drawn: the generator only has to exist.
         let rng = &mut rand_chacha::ChaCha8Rng::seed_from_u64(0);
         let forward = self.forward_leg();
@@ -261,76 +236,24 @@ impl DriveFile {
         Ok(())
     }
 
-    /// The drive up to its last waypoint: the whole drive without a reversing leg; with one,
-    /// ending on arrival (the standing before backing up is the leg's).
-    fn forward_leg(&self) -> DriveFile {
-        let mut f = self.clone();
-        if f.path.reverse.take().is_some() {
-            f.path.lead_out_s = 0.0;
-        }
-        f
-    }
-
-    /// The reversing leg as a drive of its own, from the forward leg's last pose `end`: driven
-    /// forwards along its path, and then turned round by [`Driven::then_backing`]. `None`
-    /// without one.
-    fn reverse_leg(&self, end: Option<&PoseSample>) -> Result<Option<DriveFile>, DriveError> {
-        let (Some(r), Some(end)) = (&self.path.reverse, end) else {
-            return Ok(None);
-        };
-        let bad = |what: String| DriveError::Invalid {
-            name: self.name.clone(),
-            what,
-        };
-        if r.waypoints.is_empty() {
-            return Err(bad(
-                "path.reverse.waypoints is empty: backing up needs at least one point".into(),
-            ));
-        }
-        if !(r.speed_mps > 0.0 && r.pause_s >= 0.0) {
-            return Err(bad(format!(
-                "path.reverse.speed_mps = {}, pause_s = {}: the speed must be positive, the pause 0 or more",
-                r.speed_mps, r.pause_s
-            )));
-        }
-        // Two points straight behind: the spline's first stretch is then straight, and the car
-        // starts backing in the direction it stands (a car does not turn standing).
-        let at = Vector2::new(end.position.x, end.position.y);
-        let back = -Vector2::new(end.yaw.cos(), end.yaw.sin());
-        let (b1, b2) = (at + back, at + back * 2.0);
-        let mut waypoints = vec![[at.x, at.y], [b1.x, b1.y], [b2.x, b2.y]];
-        waypoints.extend_from_slice(&r.waypoints);
-        let mut leg = self.clone();
-        leg.path = crate::sim::drive::PathSpec {
-            waypoints,
-            cruise_speed_mps: r.speed_mps,
-            start_speed_mps: 0.0,
-            lead_in_s: r.pause_s,
-            reverse: None,
-            ..self.path.clone()
-        };
-        leg.walkers.clear();
-        leg.yield_to = None;
-        // The human variation of the path is the forward leg's (where it ends varies, and the
-        // leg starts there); a lateral wave on the leg would turn its start off the heading
-        // the car stands in.
-        leg.variation.lateral_m = 0.0;
-        Ok(Some(leg))
-    }
-
     /// Drives the path once, with human variation drawn from `rng` (none when `vary` is false),
     /// and backs up after it where the path says so.
     pub fn drive(&self, rng: &mut impl Rng, vary: bool) -> Result<Driven, DriveError> {
+        // The whole file first: each leg checks only its own path, which for the reversing leg
+        // holds its waypoints under the names of a path of its own.
+        self.finite()?;
         let forward = self.forward_leg().drive_leg(rng, vary)?;
         let mut driven = match self.reverse_leg(forward.ego.samples().last())? {
             Some(leg) => {
                 let back = leg.drive_leg(rng, vary)?;
-                forward
+                let mut d = forward
                     .then_backing(back)
                     .map_err(|e| DriveError::Invalid {
                         name: self.name.clone(),
                         what: e,
-                    })?
+                    })?;
+                d.backing_waypoints = leg.path.waypoints;
+                d
             }
             None => forward,
         };
@@ -583,6 +506,8 @@ impl DriveFile {
             yield_stop: stop.map(|(a, b)| (ns(a), ns(b))),
             span,
             beyond_car,
+            beyond_car_backing: Vec::new(),
+            backing_waypoints: Vec::new(),
         })
     }
 }
@@ -855,9 +780,9 @@ stop_at_m = 4.0
             last.position
         );
         assert_eq!(r.motion.last().unwrap().0, 0.0);
-        // Backing into the slot turned the car about 90° to the left of its aisle heading
-        // (its nose points away from the slot): a heading near -90°, as the path's direction
-        // turned round.
+        // Backing into the slot turned the car's nose about 90° to the right of its aisle
+        // heading (it points away from the slot): a heading near -90°, the path's direction
+        // (north, into the slot) turned round.
         assert!(
             (last.yaw.to_degrees() + 90.0).abs() < 25.0,
             "{}",

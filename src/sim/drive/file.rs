@@ -40,8 +40,8 @@ pub struct PathSpec {
     pub reverse: Option<ReverseLeg>,
 }
 
-/// A leg driven backwards. The car stops at the path's last waypoint, stands, backs two metres
-/// straight (it stands in the direction it arrived) and then through `waypoints`, its rear
+/// A leg driven backwards. The car stops at the path's last waypoint, stands, backs straight
+/// for the first metre (it stands in the direction it arrived) and then through `waypoints`, its rear
 /// leading: its heading is the path's direction turned by 180°, its speed negative. The CAN
 /// speed carries the sign only where the rig's DBC signal can (a signed signal, or a magnitude
 /// with a `sign_signal`); a magnitude alone reads the same backing up as driving forward, as
@@ -49,8 +49,8 @@ pub struct PathSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ReverseLeg {
-    /// Points the rear-axle centre passes backing up, after the two straight metres, local
-    /// frame, metres.
+    /// Points the rear-axle centre passes backing up, after two points one and two metres
+    /// straight behind the path's end, local frame, metres.
     pub waypoints: Vec<[f64; 2]>,
     /// Speed backing up, m/s.
     #[serde(default = "one")]

@@ -27,7 +27,7 @@
 //!
 //! ```toml
 //! [path.reverse]
-//! waypoints = [[5.0, 3.5], [4.0, 6.0]]  # after two metres straight back from the path's end
+//! waypoints = [[5.0, 3.5], [4.0, 6.0]]  # after backing straight from the path's end
 //! speed_mps = 1.0
 //! pause_s = 1.0                         # standing at the turn-around point
 //! ```
@@ -39,8 +39,10 @@
 //! planned path is made of (the spline through the waypoints and the steering that ramps its
 //! curvature), and `driven.rs` the driver that turns a drive file into one repetition's
 //! trajectory ([`Driven`]). The format's documentation then reads without the driver's loops, and the
-//! geometry without either.
+//! geometry without either. `backing.rs` splits a drive that backs up into its two legs and
+//! turns the second round.
 
+mod backing;
 mod driven;
 mod file;
 mod path;
