@@ -52,15 +52,17 @@ pub struct TravelStretch {
 impl Travel {
     /// The report's line on the direction of travel.
     pub(super) fn text(&self) -> String {
+        // Stretches as "from-to s", comma-separated.
+        let spans = |v: &[TravelStretch]| {
+            v.iter()
+                .map(|r| format!("{:.1}-{:.1} s", r.from_s, r.to_s))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
         let backed = if self.reversing.is_empty() {
             "no stretch backed up".to_owned()
         } else {
-            let w: Vec<String> = self
-                .reversing
-                .iter()
-                .map(|r| format!("{:.1}-{:.1} s", r.from_s, r.to_s))
-                .collect();
-            format!("backed up {}", w.join(", "))
+            format!("backed up {}", spans(&self.reversing))
         };
         let from = match self.direction_from {
             DirectionFrom::NoMotion => "not told: the car did not move far enough",
@@ -75,12 +77,7 @@ impl Travel {
         let undecided = if self.undecided.is_empty() {
             String::new()
         } else {
-            let w: Vec<String> = self
-                .undecided
-                .iter()
-                .map(|r| format!("{:.1}-{:.1} s", r.from_s, r.to_s))
-                .collect();
-            format!("; not told, taken as forward: {}", w.join(", "))
+            format!("; not told, taken as forward: {}", spans(&self.undecided))
         };
         format!("direction of travel: {backed}{undecided} ({from})")
     }
