@@ -280,7 +280,8 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
             .map(|e| beyond_text(std::slice::from_ref(e), &job.drive.path.waypoints))
             .chain(driven.beyond_car_backing.iter().map(|e| {
                 format!(
-                    "backing up (waypoint 0 is where the path ends, 1 and 2 straight behind it, then path.reverse.waypoints), {}",
+                    "{}, {}",
+                    crate::sim::drive::BACKING_UP,
                     beyond_text(std::slice::from_ref(e), &driven.backing_waypoints)
                 )
             }))

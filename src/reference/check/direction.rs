@@ -72,17 +72,17 @@ pub(super) fn signed(
             undecided: Vec::new(),
         };
     }
+    // (time, yaw turned since the first sample, speed as sent) per sample: the motion itself is
+    // signed as the stretches are decided.
     let turned = yaw_integral(motion);
-    let times: Vec<UtcNanos> = motion.iter().map(|m| m.0).collect();
-    let turned_at = |t: UtcNanos| {
-        let k = times.partition_point(|&x| x < t).min(times.len() - 1);
-        turned[k]
-    };
-    let speeds: Vec<f64> = motion.iter().map(|m| m.1.abs()).collect();
-    let speed_at = |t: UtcNanos| {
-        let k = times.partition_point(|&x| x < t).min(times.len() - 1);
-        speeds[k]
-    };
+    let sent: Vec<(UtcNanos, f64, f64)> = motion
+        .iter()
+        .zip(&turned)
+        .map(|(m, &y)| (m.0, y, m.1))
+        .collect();
+    let at = |t: UtcNanos| sent[sent.partition_point(|x| x.0 < t).min(sent.len() - 1)];
+    let turned_at = |t: UtcNanos| at(t).1;
+    let speed_at = |t: UtcNanos| at(t).2;
     let mut direction_from = DirectionFrom::NoMotion;
     // The vehicle's heading at one instant: (time, rad from east).
     let mut anchor: Option<(UtcNanos, f64)> = None;
@@ -130,22 +130,21 @@ pub(super) fn signed(
                 (w[1].position - w[0].position).dot(&Vector2::new(h.cos(), h.sin()))
             })
             .sum();
-        let backed = along < -DECISIVE * path;
         if along.abs() <= DECISIVE * path {
             undecided.push(stretch(ta, tb));
+            anchor = Some(anchor_now);
+            continue;
         }
-        if backed {
+        let (t, course_end) = course(track, true);
+        if along < 0.0 {
             for m in &mut motion[a..=b] {
                 m.1 = -m.1;
             }
             reversing.push(stretch(ta, tb));
-        }
-        anchor = Some(if along.abs() > DECISIVE * path {
-            let (t, c) = course(track, true);
-            (t, if backed { c + std::f64::consts::PI } else { c })
+            anchor = Some((t, course_end + std::f64::consts::PI));
         } else {
-            anchor_now
-        });
+            anchor = Some((t, course_end));
+        }
     }
     Travel {
         direction_from,

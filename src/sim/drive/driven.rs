@@ -225,10 +225,7 @@ impl DriveFile {
         if let Some(leg) = self.reverse_leg(planned.ego.samples().last())? {
             let back = leg.drive_leg(rng, false)?;
             undrivable(
-                format!(
-                    "{}, backing up (waypoint 0 is where the path ends, 1 and 2 one and two metres straight back, then path.reverse.waypoints)",
-                    self.name
-                ),
+                format!("{}, {}", self.name, super::file::BACKING_UP),
                 back.beyond_car,
                 &leg.path.waypoints,
             )?;

@@ -40,6 +40,9 @@ pub struct PathSpec {
     pub reverse: Option<ReverseLeg>,
 }
 
+/// How a report names the reversing leg, and what its waypoints count from.
+pub const BACKING_UP: &str = "backing up (waypoint 0 is where the path ends, 1 and 2 one and two metres straight behind it, then path.reverse.waypoints)";
+
 /// A leg driven backwards. The car stops at the path's last waypoint, stands, backs straight
 /// for the first metre (it stands in the direction it arrived) and then through `waypoints`, its rear
 /// leading: its heading is the path's direction turned by 180°, its speed negative. The CAN

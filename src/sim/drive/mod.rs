@@ -51,5 +51,5 @@ pub use driven::Driven;
 pub use file::{
     beyond_text, parse_utc, AgeFault, CanStream, DriveError, DriveFile, Faults, FreeClock,
     GnssStream, HeadingStream, JumpFault, LidarStream, PathSpec, ReverseLeg, RtkFault, SigmaFault,
-    Survey, Variation, WalkerSpec, Window, YieldSpec,
+    Survey, Variation, WalkerSpec, Window, YieldSpec, BACKING_UP,
 };
