@@ -2196,7 +2196,7 @@ fn backing_into_the_slot(t: String) -> String {
 #[test]
 fn a_drive_that_backs_into_its_slot_passes_naming_the_stretch_backed_up() {
     for (source, seed, from) in [
-        (None, 41, "assumed_forward_at_start"),
+        (None, 41, "lever_arm_swing"),
         (Some("THS"), 42, "heading_source"),
     ] {
         let rigs = tempfile::tempdir().unwrap();
@@ -2224,19 +2224,8 @@ fn a_drive_that_backs_into_its_slot_passes_naming_the_stretch_backed_up() {
         println!("{}", serde_json::to_string_pretty(&v["travel"]).unwrap());
         assert_eq!(code, Some(0), "{source:?}: faults {:?}", v["faults"]);
         assert_eq!(v["travel"]["direction_from"], from);
-        // The truth's stretch backed up: where the rear axle moves against its heading.
         let truth = Truth::read(&d);
-        let back: Vec<f64> = truth
-            .0
-            .windows(2)
-            .filter(|w| {
-                let h = w[0][4].to_radians();
-                let along = (w[1][1] - w[0][1]) * h.cos() + (w[1][2] - w[0][2]) * h.sin();
-                along / (w[1][0] - w[0][0]) < -MOVING
-            })
-            .map(|w| w[0][0])
-            .collect();
-        let (b0, b1) = (back[0], back[back.len() - 1]);
+        let (b0, b1) = backed_up(&truth);
         let stretches = v["travel"]["reversing"].as_array().unwrap();
         assert_eq!(stretches.len(), 1, "{stretches:?}");
         let at = |k: &str| iso_ns(stretches[0][k].as_str().unwrap()) as f64 * 1e-9;
@@ -2246,18 +2235,7 @@ fn a_drive_that_backs_into_its_slot_passes_naming_the_stretch_backed_up() {
             at("from"),
             at("to")
         );
-        // The smoothed heading against the truth at every sample (trajectory.csv: t, x, y,
-        // yaw_deg, sigma_xy, sigma_yaw): within 3 sigma (or 0.03°) throughout.
-        let rows = csv_rows(&traj);
-        let (mut n, mut worst) = (0, 0.0f64);
-        for r in &rows {
-            let Some((_, yaw)) = truth.at(r[0]) else {
-                continue;
-            };
-            let e = (r[3] - yaw + 180.0).rem_euclid(360.0) - 180.0;
-            worst = worst.max(e.abs() / r[5].max(0.01));
-            n += 1;
-        }
+        let (worst, n) = heading_error_sigmas(&truth, &traj);
         println!("{source:?}: heading error up to {worst:.2} sigma over {n} samples");
         assert!(n > 100);
         assert!(
@@ -2265,6 +2243,121 @@ fn a_drive_that_backs_into_its_slot_passes_naming_the_stretch_backed_up() {
             "{source:?}: heading error up to {worst:.2} sigma"
         );
     }
+}
+
+/// A recording that starts with the car standing and then backs up, turning into its slot
+/// (the reverse park's recording from just before it backs up), its CAN speed a magnitude and
+/// no heading source: the antenna's sideways swing in the turn tells that the car backed up,
+/// not drove forwards turned round. The drive passes, the stretch is named, and the smoothed
+/// heading follows the truth. Taken as forward (before the swing was tested), the same
+/// recording read as the car turned round, with a lever-arm fault.
+#[test]
+fn a_recording_that_starts_backing_up_is_told_by_the_antenna_s_swing_in_the_turn() {
+    let d = synth_and_record_edited(backing_into_the_slot, "", 43, true);
+    let truth = Truth::read(&d);
+    let (b0, b1) = backed_up(&truth);
+    let run = d.dir.path().join("from-the-stop.mcap");
+    recording_from(&d.run, &run, ((b0 - 0.7) * 1e9) as u64);
+    let d = SynthRun { run, ..d };
+    let (code, v, traj) = check_with_trajectory(&d, None);
+    println!("{}", serde_json::to_string_pretty(&v["travel"]).unwrap());
+    assert_eq!(code, Some(0), "faults {:?}", v["faults"]);
+    assert_eq!(v["travel"]["direction_from"], "lever_arm_swing");
+    let stretches = v["travel"]["reversing"].as_array().unwrap();
+    assert_eq!(stretches.len(), 1, "{stretches:?}");
+    let at = |k: &str| iso_ns(stretches[0][k].as_str().unwrap()) as f64 * 1e-9;
+    assert!(
+        (at("from") - b0).abs() < 0.3 && (at("to") - b1).abs() < 0.3,
+        "backed up {:.2}-{:.2} s, the truth {b0:.2}-{b1:.2}",
+        at("from"),
+        at("to")
+    );
+    let (worst, n) = heading_error_sigmas(&truth, &traj);
+    println!("heading error up to {worst:.2} sigma over {n} samples");
+    assert!(n > 100);
+    assert!(worst <= 3.0, "heading error up to {worst:.2} sigma");
+}
+
+/// `src` from log time `from_ns` on, into `dst`: its schemas, channels, attachments (the rig
+/// file, the DBC) and metadata, and the messages logged from then on; a recording started
+/// there.
+fn recording_from(src: &std::path::Path, dst: &std::path::Path, from_ns: u64) {
+    use mcap::records::Record;
+    let bytes = std::fs::read(src).unwrap();
+    let file = std::io::BufWriter::new(std::fs::File::create(dst).unwrap());
+    let mut w = mcap::WriteOptions::new()
+        .profile("ros2")
+        .create(file)
+        .unwrap();
+    let mut kept = 0;
+    for r in mcap::read::ChunkFlattener::new(&bytes).unwrap() {
+        match r.unwrap() {
+            Record::Schema { header, data } => {
+                w.add_schema_with_id(header.id, &header.name, &header.encoding, &data)
+                    .unwrap();
+            }
+            Record::Channel(c) => {
+                w.add_channel_with_id(
+                    c.id,
+                    c.schema_id,
+                    &c.topic,
+                    &c.message_encoding,
+                    &c.metadata,
+                )
+                .unwrap();
+            }
+            Record::Message { header, data } if header.log_time >= from_ns => {
+                w.write_to_known_channel(&header, &data).unwrap();
+                kept += 1;
+            }
+            Record::Attachment { header, data, .. } => w
+                .attach(&mcap::Attachment {
+                    log_time: header.log_time,
+                    create_time: header.create_time,
+                    name: header.name,
+                    media_type: header.media_type,
+                    data,
+                })
+                .unwrap(),
+            Record::Metadata(m) => w.write_metadata(&m).unwrap(),
+            _ => {}
+        }
+    }
+    w.finish().unwrap();
+    assert!(kept > 1000, "{kept} messages from {from_ns} ns on");
+}
+
+/// The truth's stretch backed up, first and last instant (s): where the rear axle moves
+/// against its heading.
+fn backed_up(truth: &Truth) -> (f64, f64) {
+    let back: Vec<f64> = truth
+        .0
+        .windows(2)
+        .filter(|w| {
+            let h = w[0][4].to_radians();
+            let along = (w[1][1] - w[0][1]) * h.cos() + (w[1][2] - w[0][2]) * h.sin();
+            along / (w[1][0] - w[0][0]) < -MOVING
+        })
+        .map(|w| w[0][0])
+        .collect();
+    (back[0], back[back.len() - 1])
+}
+
+/// The smoothed heading against the truth at every sample of `trajectory.csv` (t, x, y,
+/// yaw_deg, sigma_xy, sigma_yaw): the worst error in sigmas (or in 0.01° where the sigma is
+/// smaller), and the number of samples compared.
+fn heading_error_sigmas(truth: &Truth, traj: &std::path::Path) -> (f64, usize) {
+    let rows = csv_rows(traj);
+    let (mut n, mut worst) = (0, 0.0f64);
+    for r in &rows {
+        let Some((_, yaw)) = truth.at(r[0]) else {
+            continue;
+        };
+        let e = (r[3] - yaw + 180.0).rem_euclid(360.0) - 180.0;
+        worst = worst.max(e.abs() / r[5].max(0.01));
+        n += 1;
+    }
+    (worst, n)
 }
 
 /// The speed (m/s) above which the truth moves.

@@ -9,17 +9,18 @@
 //! - A car does not turn while it stands, so its heading carries across a stop. The yaw rate
 //!   carries it along a stretch.
 //! - The heading at the start of the drive comes from the rig's heading source where it has
-//!   one. Without one the first stretch is taken as forward and the report says so: a drive that
-//!   starts by backing up out of a slot reads, without a heading source, as the same drive
-//!   forwards with the car turned round. Nothing in GNSS and a magnitude of speed tells the two
-//!   apart, short of the lever arm's sideways swing in turns, which is left to the lever-arm
-//!   check (taken the wrong way, the antenna measures behind the rear axle).
+//!   one. Without one the first stretch is taken as forward: a drive that starts by backing up
+//!   out of a slot reads, so far, as the same drive forwards with the car turned round. Nothing
+//!   in GNSS and a magnitude of speed tells the two apart but the antenna's sideways swing in
+//!   turns (`swing.rs`), which then confirms every stretch's direction or turns all of them
+//!   round. Where the drive has no turn to tell it, the report says the start was assumed.
 //! - A stretch is backed up when its antenna moved against that heading. The sum of each
 //!   epoch's displacement along the heading telescopes, so the GNSS noise enters once, not per
 //!   epoch. The stretch's end then gives the heading again (its track's direction, turned round
 //!   when it backed up), so that the yaw rate's bias does not add up over a long drive.
 
 use super::faults::{iso, secs_ms};
+use super::swing::{self, Swing};
 use super::travel::{DirectionFrom, Travel, TravelStretch};
 use crate::reference::trajectory::{GnssObs, HeadingObs};
 use hilrig_stamp::UtcNanos;
@@ -48,6 +49,7 @@ pub(super) fn signed(
     obs: &[GnssObs],
     motion: &mut [(UtcNanos, f64, f64)],
     heading: &[HeadingObs],
+    lever: Vector2<f64>,
     start: UtcNanos,
 ) -> Travel {
     let stretch = |a: UtcNanos, b: UtcNanos| TravelStretch {
@@ -86,8 +88,8 @@ pub(super) fn signed(
     let mut direction_from = DirectionFrom::NoMotion;
     // The vehicle's heading at one instant: (time, rad from east).
     let mut anchor: Option<(UtcNanos, f64)> = None;
-    let mut reversing = Vec::new();
-    let mut undecided = Vec::new();
+    // Each stretch as the track decided it: backed up or not, `None` where it could not tell.
+    let mut decided: Vec<((usize, usize), Option<bool>)> = Vec::new();
     for (a, b) in moving {
         let (ta, tb) = (motion[a].0, motion[b].0);
         let i0 = obs.partition_point(|o| o.t < ta);
@@ -98,7 +100,7 @@ pub(super) fn signed(
             .map(|w| (w[1].position - w[0].position).norm())
             .sum();
         if track.len() < 3 || path < DECIDABLE_M {
-            undecided.push(stretch(ta, tb));
+            decided.push(((a, b), None));
             continue;
         }
         let anchor_now = match anchor {
@@ -131,19 +133,51 @@ pub(super) fn signed(
             })
             .sum();
         if along.abs() <= DECISIVE * path {
-            undecided.push(stretch(ta, tb));
+            decided.push(((a, b), None));
             anchor = Some(anchor_now);
             continue;
         }
         let (t, course_end) = course(track, true);
-        if along < 0.0 {
-            for m in &mut motion[a..=b] {
-                m.1 = -m.1;
+        let backed = along < 0.0;
+        decided.push(((a, b), Some(backed)));
+        anchor = Some((
+            t,
+            course_end + if backed { std::f64::consts::PI } else { 0.0 },
+        ));
+    }
+    // Without a heading source the first stretch was taken as forward, and every later one
+    // follows from it: the antenna's swing in turns says whether all of them are the other way.
+    if direction_from == DirectionFrom::AssumedForwardAtStart {
+        let mut trial = motion.to_vec();
+        let mut told = Vec::new();
+        for &((a, b), backed) in &decided {
+            if let Some(backed) = backed {
+                told.push((a, b));
+                if backed {
+                    trial[a..=b].iter_mut().for_each(|m| m.1 = -m.1);
+                }
             }
-            reversing.push(stretch(ta, tb));
-            anchor = Some((t, course_end + std::f64::consts::PI));
-        } else {
-            anchor = Some((t, course_end));
+        }
+        match swing::test(obs, &trial, &turned, &told, lever) {
+            Swing::AsDecided => direction_from = DirectionFrom::LeverArmSwing,
+            Swing::TurnedRound => {
+                direction_from = DirectionFrom::LeverArmSwing;
+                for d in &mut decided {
+                    d.1 = d.1.map(|backed| !backed);
+                }
+            }
+            Swing::NotTold => {}
+        }
+    }
+    let (mut reversing, mut undecided) = (Vec::new(), Vec::new());
+    for ((a, b), backed) in decided {
+        match backed {
+            Some(true) => {
+                motion[a..=b].iter_mut().for_each(|m| m.1 = -m.1);
+                reversing.push(stretch(motion[a].0, motion[b].0));
+            }
+            Some(false) => {}
+            None => undecided.push(stretch(motion[a].0, motion[b].0)),
         }
     }
     Travel {
@@ -214,10 +248,12 @@ mod tests {
     use super::*;
 
     const T0: i64 = 1_000_000_000_000;
+    /// The test drives' antenna, 1.5 m ahead of the rear axle.
+    const LEVER: Vector2<f64> = Vector2::new(1.5, 0.0);
 
     /// A car 20 Hz GNSS, 50 Hz CAN: forward east for `fwd` s at 2 m/s, stands 1 s, then backs
-    /// up for `back` s at 1 m/s turning left (its heading grows by `yaw_rate`), the CAN speed a
-    /// magnitude. The antenna 1.5 m ahead of the rear axle.
+    /// up for `back` s at 1 m/s, straight for 1.5 s and then turning left (its heading grows by
+    /// `yaw_rate`), the CAN speed a magnitude. The antenna 1.5 m ahead of the rear axle.
     fn drive(fwd: f64, back: f64, yaw_rate: f64) -> (Vec<GnssObs>, Vec<(UtcNanos, f64, f64)>) {
         let mut motion = Vec::new();
         let mut obs = Vec::new();
@@ -230,6 +266,8 @@ mod tests {
                 (2.0, 0.0)
             } else if t < fwd + 1.0 {
                 (0.0, 0.0)
+            } else if t < fwd + 2.5 {
+                (-1.0, 0.0)
             } else {
                 (-1.0, yaw_rate)
             };
@@ -251,12 +289,12 @@ mod tests {
     }
 
     /// Forward, a stop, backing up in a turn: the second stretch is signed negative and named,
-    /// the first stays, and the report says the first was taken as forward.
+    /// the first stays, and the report says the turn's swing confirmed it.
     #[test]
     fn a_leg_backed_up_after_a_stop_is_signed_and_named() {
         let (obs, mut motion) = drive(5.0, 4.0, 0.3);
-        let travel = signed(&obs, &mut motion, &[], UtcNanos(T0));
-        assert_eq!(travel.direction_from, DirectionFrom::AssumedForwardAtStart);
+        let travel = signed(&obs, &mut motion, &[], LEVER, UtcNanos(T0));
+        assert_eq!(travel.direction_from, DirectionFrom::LeverArmSwing);
         assert_eq!(travel.reversing.len(), 1, "{travel:?}");
         let r = &travel.reversing[0];
         assert!(
@@ -279,7 +317,7 @@ mod tests {
     fn forward_only_and_signed_speeds_are_left_alone() {
         let (obs, mut motion) = drive(5.0, 0.0, 0.0);
         let before = motion.clone();
-        let travel = signed(&obs, &mut motion, &[], UtcNanos(T0));
+        let travel = signed(&obs, &mut motion, &[], LEVER, UtcNanos(T0));
         assert!(travel.reversing.is_empty(), "{travel:?}");
         assert_eq!(motion, before);
 
@@ -290,14 +328,15 @@ mod tests {
             }
         }
         let before = motion.clone();
-        let travel = signed(&obs, &mut motion, &[], UtcNanos(T0));
+        let travel = signed(&obs, &mut motion, &[], LEVER, UtcNanos(T0));
         assert_eq!(travel.direction_from, DirectionFrom::CanSpeedSign);
         assert_eq!(travel.reversing.len(), 1, "{travel:?}");
         assert_eq!(motion, before);
     }
 
-    /// A drive that starts backing up: with a heading source the first stretch is known to be
-    /// backed up; without one it is taken as forward, and the report says it was assumed.
+    /// A drive that starts backing up straight: with a heading source the first stretch is
+    /// known to be backed up; without one it is taken as forward, and the report says it was
+    /// assumed. Backing up in a turn, the antenna's swing tells it without a heading source.
     #[test]
     fn a_start_backing_up_is_told_by_the_heading_source_only() {
         let (obs, motion) = drive(0.0, 4.0, 0.0);
@@ -307,13 +346,19 @@ mod tests {
             sigma: 0.001,
         }];
         let mut with = motion.clone();
-        let travel = signed(&obs, &mut with, &heading, UtcNanos(T0));
+        let travel = signed(&obs, &mut with, &heading, LEVER, UtcNanos(T0));
         assert_eq!(travel.direction_from, DirectionFrom::HeadingSource);
         assert_eq!(travel.reversing.len(), 1, "{travel:?}");
         let mut without = motion.clone();
-        let travel = signed(&obs, &mut without, &[], UtcNanos(T0));
+        let travel = signed(&obs, &mut without, &[], LEVER, UtcNanos(T0));
         assert_eq!(travel.direction_from, DirectionFrom::AssumedForwardAtStart);
         assert!(travel.reversing.is_empty());
         assert_eq!(without, motion);
+
+        let (obs, mut motion) = drive(0.0, 4.0, 0.3);
+        let travel = signed(&obs, &mut motion, &[], LEVER, UtcNanos(T0));
+        assert_eq!(travel.direction_from, DirectionFrom::LeverArmSwing);
+        assert_eq!(travel.reversing.len(), 1, "{travel:?}");
+        assert!(motion.iter().all(|m| m.1 <= 0.0), "{motion:?}");
     }
 }

@@ -37,6 +37,7 @@ mod names;
 pub mod report;
 mod sources;
 mod spatial;
+mod swing;
 mod temporal;
 #[cfg(test)]
 mod test_drive;
@@ -299,7 +300,7 @@ fn check_into(
     // The stretches backed up, where the speed is sent as a magnitude (told from the track),
     // before any smoother sees the motion.
     let sent = motion.clone();
-    let travel = direction::signed(&obs, &mut motion, heading_obs, start);
+    let travel = direction::signed(&obs, &mut motion, heading_obs, lever, start);
     let settings = noise_settings(&obs, &sent, &motion, lever);
     let fixed: Vec<bool> = epochs
         .iter()

@@ -30,9 +30,13 @@ pub enum DirectionFrom {
     CanSpeedSign,
     /// The rig's heading source, at the first stretch the car moved.
     HeadingSource,
-    /// Nothing: the speed is a magnitude and the rig has no heading source, so the first
-    /// stretch is taken as forward. A drive that starts backing up then reads as the car
-    /// turned round.
+    /// The antenna's sideways swing in turns, against the rig's lever arm: the speed is a
+    /// magnitude and the rig has no heading source, but the drive turned enough to tell which
+    /// way the car went.
+    LeverArmSwing,
+    /// Nothing: the speed is a magnitude, the rig has no heading source and the drive has no
+    /// turn that tells the way, so the first stretch is taken as forward. A drive that starts
+    /// backing up then reads as the car turned round.
     AssumedForwardAtStart,
 }
 
@@ -70,8 +74,11 @@ impl Travel {
             DirectionFrom::HeadingSource => {
                 "told from the track: CAN speed is a magnitude; the heading source gave the start"
             }
+            DirectionFrom::LeverArmSwing => {
+                "told from the track: CAN speed is a magnitude and the rig has no heading source; the antenna's swing in turns gave the start"
+            }
             DirectionFrom::AssumedForwardAtStart => {
-                "told from the track, the first stretch taken as forward: CAN speed is a magnitude and the rig has no heading source"
+                "told from the track, the first stretch taken as forward: CAN speed is a magnitude, the rig has no heading source and no turn told the way"
             }
         };
         let undecided = if self.undecided.is_empty() {
