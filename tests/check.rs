@@ -2224,6 +2224,9 @@ fn a_drive_that_backs_into_its_slot_passes_naming_the_stretch_backed_up() {
         println!("{}", serde_json::to_string_pretty(&v["travel"]).unwrap());
         assert_eq!(code, Some(0), "{source:?}: faults {:?}", v["faults"]);
         assert_eq!(v["travel"]["direction_from"], from);
+        if source.is_none() {
+            assert_eq!(v["travel"]["lever_swing"]["outcome"], "confirmed");
+        }
         let truth = Truth::read(&d);
         let (b0, b1) = backed_up(&truth);
         let stretches = v["travel"]["reversing"].as_array().unwrap();
@@ -2256,6 +2259,36 @@ fn a_recording_that_starts_backing_up_is_told_by_the_antenna_s_swing_in_the_turn
     let d = synth_and_record_edited(backing_into_the_slot, "", 43, true);
     let truth = Truth::read(&d);
     let (b0, b1) = backed_up(&truth);
+    // The whole drive (forward, then backing into the slot) checked with a rig file whose
+    // antenna is on the wrong side of the rear axle: the swing then fits only with the drive
+    // turned round. That is a drive that could be (it backs up 25 m at parking speed), so it
+    // cannot be refused, but it must not pass unremarked: the report names the lever arm.
+    let rigs = tempfile::tempdir().unwrap();
+    let wrong = rigs.path().join("antenna-behind.toml");
+    let demo = std::fs::read_to_string(demo_rig()).unwrap();
+    let dbc = demo_rig().parent().unwrap().join("hilrig-ego.dbc");
+    let text = demo
+        .replace(
+            "dbc = \"hilrig-ego.dbc\"",
+            &format!("dbc = {:?}", dbc.display().to_string()),
+        )
+        .replace("antenna = { x = 0.60,", "antenna = { x = -0.60,");
+    assert!(text.contains("x = -0.60,"));
+    std::fs::write(&wrong, text).unwrap();
+    let (_, w, _) = check_with_trajectory(&d, Some(&wrong));
+    println!("antenna behind: {}", w["travel"]);
+    let names = |k: &str| -> Vec<String> {
+        w[k].as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x["name"].as_str().unwrap().to_owned())
+            .collect()
+    };
+    assert!(
+        names("warnings").contains(&"lever_arm".to_owned())
+            || names("faults").contains(&"lever_arm".to_owned()),
+        "{w}"
+    );
     let run = d.dir.path().join("from-the-stop.mcap");
     recording_from(&d.run, &run, ((b0 - 0.7) * 1e9) as u64);
     let d = SynthRun { run, ..d };
@@ -2263,6 +2296,21 @@ fn a_recording_that_starts_backing_up_is_told_by_the_antenna_s_swing_in_the_turn
     println!("{}", serde_json::to_string_pretty(&v["travel"]).unwrap());
     assert_eq!(code, Some(0), "faults {:?}", v["faults"]);
     assert_eq!(v["travel"]["direction_from"], "lever_arm_swing");
+    let swing = &v["travel"]["lever_swing"];
+    assert_eq!(swing["outcome"], "turned_round", "{swing}");
+    let share = swing["lever_share"].as_f64().unwrap();
+    assert!((share + 1.0).abs() < 0.3, "{swing}");
+    // The turn-round rests on the sign of the rig's lever arm, and the report says so.
+    assert!(
+        v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w["name"] == "lever_arm"
+                && w["detail"].as_str().unwrap().contains("backing up")),
+        "{}",
+        v["warnings"]
+    );
     let stretches = v["travel"]["reversing"].as_array().unwrap();
     assert_eq!(stretches.len(), 1, "{stretches:?}");
     let at = |k: &str| iso_ns(stretches[0][k].as_str().unwrap()) as f64 * 1e-9;

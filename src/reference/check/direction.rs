@@ -20,8 +20,10 @@
 //!   when it backed up), so that the yaw rate's bias does not add up over a long drive.
 
 use super::faults::{iso, secs_ms};
+use super::names::FaultName;
+use super::report::Warning;
 use super::swing::{self, Swing};
-use super::travel::{DirectionFrom, Travel, TravelStretch};
+use super::travel::{DirectionFrom, LeverSwing, SwingOutcome, Travel, TravelStretch};
 use crate::reference::trajectory::{GnssObs, HeadingObs};
 use hilrig_stamp::UtcNanos;
 use nalgebra::Vector2;
@@ -34,6 +36,10 @@ const ANCHOR_M: f64 = 2.0;
 /// A stretch whose antenna moved less than this is too short to say which way it went, m (the
 /// GNSS noise is a centimetre or two).
 const DECIDABLE_M: f64 = 0.3;
+/// The farthest a car is taken to back up in one drive, m, and the fastest, m/s: the antenna's
+/// swing may turn a drive round only within these.
+const MAX_BACKING_M: f64 = 100.0;
+const MAX_BACKING_MPS: f64 = 5.0;
 /// What a GNSS step may exceed the CAN speed's distance by (noise, latency), m.
 const STEP_SLACK_M: f64 = 0.2;
 /// The share of the stretch's path along (or against) the heading that decides it: the
@@ -72,6 +78,7 @@ pub(super) fn signed(
             direction_from: DirectionFrom::CanSpeedSign,
             reversing,
             undecided: Vec::new(),
+            lever_swing: None,
         };
     }
     // (time, yaw turned since the first sample, speed as sent) per sample: the motion itself is
@@ -88,8 +95,9 @@ pub(super) fn signed(
     let mut direction_from = DirectionFrom::NoMotion;
     // The vehicle's heading at one instant: (time, rad from east).
     let mut anchor: Option<(UtcNanos, f64)> = None;
-    // Each stretch as the track decided it: backed up or not, `None` where it could not tell.
-    let mut decided: Vec<((usize, usize), Option<bool>)> = Vec::new();
+    // Each stretch as the track decided it: backed up or not, `None` where it could not tell;
+    // and the antenna's path along it, m.
+    let mut decided: Vec<((usize, usize), Option<bool>, f64)> = Vec::new();
     for (a, b) in moving {
         let (ta, tb) = (motion[a].0, motion[b].0);
         let i0 = obs.partition_point(|o| o.t < ta);
@@ -100,7 +108,7 @@ pub(super) fn signed(
             .map(|w| (w[1].position - w[0].position).norm())
             .sum();
         if track.len() < 3 || path < DECIDABLE_M {
-            decided.push(((a, b), None));
+            decided.push(((a, b), None, path));
             continue;
         }
         let anchor_now = match anchor {
@@ -133,13 +141,13 @@ pub(super) fn signed(
             })
             .sum();
         if along.abs() <= DECISIVE * path {
-            decided.push(((a, b), None));
+            decided.push(((a, b), None, path));
             anchor = Some(anchor_now);
             continue;
         }
         let (t, course_end) = course(track, true);
         let backed = along < 0.0;
-        decided.push(((a, b), Some(backed)));
+        decided.push(((a, b), Some(backed), path));
         anchor = Some((
             t,
             course_end + if backed { std::f64::consts::PI } else { 0.0 },
@@ -147,10 +155,11 @@ pub(super) fn signed(
     }
     // Without a heading source the first stretch was taken as forward, and every later one
     // follows from it: the antenna's swing in turns says whether all of them are the other way.
+    let mut lever_swing = None;
     if direction_from == DirectionFrom::AssumedForwardAtStart {
         let mut trial = motion.to_vec();
         let mut told = Vec::new();
-        for &((a, b), backed) in &decided {
+        for &((a, b), backed, _) in &decided {
             if let Some(backed) = backed {
                 told.push((a, b));
                 if backed {
@@ -158,19 +167,44 @@ pub(super) fn signed(
                 }
             }
         }
-        match swing::test(obs, &trial, &turned, &told, lever) {
-            Swing::AsDecided => direction_from = DirectionFrom::LeverArmSwing,
+        let (swing, evidence) = swing::test(obs, &trial, &turned, &told, lever);
+        let outcome = match swing {
+            Swing::AsDecided => SwingOutcome::Confirmed,
+            Swing::NotTold => SwingOutcome::NotTold,
             Swing::TurnedRound => {
-                direction_from = DirectionFrom::LeverArmSwing;
-                for d in &mut decided {
-                    d.1 = d.1.map(|backed| !backed);
+                // Turned round, the stretches taken as forward were backed up: a car backs up
+                // slowly and not far. A swing that says a whole drive went backwards at speed
+                // says rather that the rig's lever arm has the wrong sign (the lever-arm check
+                // then names it).
+                let (far, fast) = decided.iter().filter(|d| d.1 == Some(false)).fold(
+                    (0.0f64, 0.0f64),
+                    |(far, fast), &((a, b), _, path)| {
+                        let top = motion[a..=b].iter().map(|m| m.1.abs()).fold(0.0, f64::max);
+                        (far + path, fast.max(top))
+                    },
+                );
+                if far > MAX_BACKING_M || fast > MAX_BACKING_MPS {
+                    SwingOutcome::Implausible
+                } else {
+                    for d in &mut decided {
+                        d.1 = d.1.map(|backed| !backed);
+                    }
+                    SwingOutcome::TurnedRound
                 }
             }
-            Swing::NotTold => {}
+        };
+        if matches!(outcome, SwingOutcome::Confirmed | SwingOutcome::TurnedRound) {
+            direction_from = DirectionFrom::LeverArmSwing;
         }
+        lever_swing = evidence.map(|e| LeverSwing {
+            lever_share: e.lever_share,
+            margin: e.margin,
+            segments: e.segments,
+            outcome,
+        });
     }
     let (mut reversing, mut undecided) = (Vec::new(), Vec::new());
-    for ((a, b), backed) in decided {
+    for ((a, b), backed, _) in decided {
         match backed {
             Some(true) => {
                 motion[a..=b].iter_mut().for_each(|m| m.1 = -m.1);
@@ -184,7 +218,30 @@ pub(super) fn signed(
         direction_from,
         reversing,
         undecided,
+        lever_swing,
     }
+}
+
+/// The warning a drive turned round by the antenna's swing needs: the turn-round rests on the
+/// sign of the rig's lever arm (`lever_x`, m ahead of the reference point), and a drive that
+/// starts forwards with the antenna behind the reference point, where the rig says ahead,
+/// shows the same track.
+pub(super) fn swing_warning(travel: &Travel, lever_x: f64) -> Option<Warning> {
+    let s = travel.lever_swing.as_ref()?;
+    let detail = match s.outcome {
+        SwingOutcome::TurnedRound => format!(
+            "the drive was taken to start backing up: the antenna's swing in turns fits the rig's lever arm ({lever_x:.2} m ahead of the reference point) only so; a drive that started forwards with the antenna {lever_x:.2} m behind it would show the same track: if it started forwards, the rig file's antenna is wrong"
+        ),
+        SwingOutcome::Implausible => format!(
+            "the antenna's swing in turns fits a lever arm of {:+.2} times the rig's ({lever_x:.2} m): the rig file's antenna may be on the wrong side of the reference point",
+            s.lever_share
+        ),
+        SwingOutcome::Confirmed | SwingOutcome::NotTold => return None,
+    };
+    Some(Warning {
+        name: FaultName::LeverArm,
+        detail,
+    })
 }
 
 /// The stretches in which the car moves: index ranges of `motion`, inclusive.

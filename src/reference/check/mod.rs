@@ -48,7 +48,7 @@ pub use report::{
     Accuracy, Fault, Report, RtkEpoch, Segment, SigmaWindow, SourceTiming, Spatial, Stats,
     Temporal, Verdict, Warning,
 };
-pub use travel::{DirectionFrom, Travel, TravelStretch};
+pub use travel::{DirectionFrom, LeverSwing, SwingOutcome, Travel, TravelStretch};
 
 use super::noise::yaw_rate_noise;
 use super::run::Run;
@@ -346,6 +346,7 @@ fn check_into(
         span: (start, end),
     };
     let mut warnings = Vec::new();
+    warnings.extend(direction::swing_warning(&travel, lever.x));
     let offset_s = consistency::gnss_against_can(&inputs, &traj, &mut sp, &mut log, &mut warnings);
     sp.scene_accuracy_m = scene.map(|s| {
         s.file

@@ -16,11 +16,19 @@
 //! earlier ones, against the centimetre or two of RTK noise.
 //!
 //! So both ways are tried on the stretches the track decided: with each, the CAN speed and yaw
-//! rate predict where the antenna goes over each half metre (up to one unknown heading per
-//! stretch), and the way whose predictions leave the smaller sideways residuals wins, when it
+//! rate predict where the antenna goes over each half metre (up to one unknown heading per 10 m
+//! piece), and the way whose predictions leave the smaller sideways residuals wins, when it
 //! wins by far more than the noise. Without steering (or without a lever arm) the two predict
 //! the same track and nothing is decided: the first stretch stays taken as forward, as the
 //! report says.
+//!
+//! What else moves the antenna sideways must not decide it. A GNSS time offset against CAN
+//! moves the apparent lever arm by speed x offset and tyre slip by the square of the speed, so
+//! only half metres crept at up to 4 m/s count (cars back up slowly). A float epoch or a jump
+//! starts the next half metre afresh. A yaw-rate bias turns the integrated heading steadily, so
+//! it is taken out where the car stood to measure it, and each 10 m piece has its own heading.
+//! And the swing must be about the rig's lever arm, either way: the share of it the track
+//! shows is reported, and a share near zero (timing, slip) tells nothing.
 
 use crate::reference::trajectory::GnssObs;
 use hilrig_stamp::UtcNanos;
@@ -29,10 +37,28 @@ use nalgebra::{Rotation2, Vector2};
 /// The length of track over which one direction of the antenna is measured, m: long enough
 /// that RTK noise (1-2 cm) is small against its swing, short enough to see a turn's swing.
 const SEGMENT_M: f64 = 0.5;
+/// Segments per piece of track that gets a heading of its own (10 m): a bias of the yaw rate
+/// turns the integrated heading steadily, and over a long stretch that drift would pass for
+/// swing.
+const SEGMENTS_PER_PIECE: usize = 20;
+/// Only segments crept at most this fast count, m/s. Cars back up slowly; faster, what looks
+/// like swing also comes from elsewhere: a GNSS time offset against CAN moves the antenna's
+/// apparent lever arm by speed x offset (60 ms at 10 m/s is 0.6 m), tyre slip grows with the
+/// square of the speed.
+const SLOW_MPS: f64 = 4.0;
+/// The worst position sigma of an epoch that counts, m (RTK fixed; a float epoch's 0.3 m would
+/// decide alone).
+const FIXED_SIGMA_M: f64 = 0.05;
 /// How far one way must explain the swing better than the other, in squared residual sigmas
-/// (a chi-square of one degree of freedom: 25 is five sigma). A turn of a few metres gives
-/// hundreds; a straight drive gives none either way.
+/// (a chi-square of one degree of freedom: 25 is five sigma).
 const DECISIVE: f64 = 25.0;
+/// The least share of the rig's lever arm the track must show, either way: the swing seen is
+/// the lever arm the antenna really has, as a share of the rig's (+1 as decided, -1 turned
+/// round). A share near zero is no evidence either way, only timing or slip.
+const LEVER_SHARE: f64 = 0.5;
+/// The least lever arm along the car, m, for the swing to tell anything: an antenna nearer
+/// the reference point swings less than timing errors move it.
+const LEAST_LEVER_M: f64 = 0.25;
 /// The least sideways residual sigma taken, m: synthesized tracks can be cleaner than any
 /// receiver, and the decision must not rest on a sigma of zero.
 const SIGMA_FLOOR_M: f64 = 0.005;
@@ -44,8 +70,20 @@ pub(super) enum Swing {
     AsDecided,
     /// They fit only turned round: each was travelled the other way.
     TurnedRound,
-    /// The track does not tell (no turns, no lever arm, too little track).
+    /// The track does not tell (no steering, no lever arm, too little track, or a swing that
+    /// fits neither way).
     NotTold,
+}
+
+/// The evidence behind a [`Swing`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Evidence {
+    /// The lever arm the track shows, as a share of the rig's: +1 as decided, -1 turned round.
+    pub lever_share: f64,
+    /// How much better the winning way fits, in squared residual sigmas.
+    pub margin: f64,
+    /// Half-metre segments that counted.
+    pub segments: usize,
 }
 
 /// Tests the stretches `decided` (index ranges of `motion`, inclusive) with `motion`'s speeds
@@ -58,102 +96,183 @@ pub(super) fn test(
     turned: &[f64],
     decided: &[(usize, usize)],
     lever: Vector2<f64>,
-) -> Swing {
-    if lever.norm() < 0.05 {
-        return Swing::NotTold;
+) -> (Swing, Option<Evidence>) {
+    if lever.x.abs() < LEAST_LEVER_M || motion.len() < 2 {
+        return (Swing::NotTold, None);
     }
-    let (mut sse_as, mut sse_turned, mut n, mut free) = (0.0, 0.0, 0usize, 0usize);
+    let turned = unbiased(motion, turned);
+    let (mut sse_as, mut sse_turned, mut apart, mut n, mut free) = (0.0, 0.0, 0.0, 0usize, 0);
     for &(a, b) in decided {
         let (ta, tb) = (motion[a].0, motion[b].0);
         let track = &obs[obs.partition_point(|o| o.t < ta)..obs.partition_point(|o| o.t <= tb)];
-        let segments = segments(track);
-        if segments.len() < 3 {
-            continue;
-        }
         let window = &motion[a..=b];
         let yaw = &turned[a..=b];
-        for (sign, sse) in [(1.0, &mut sse_as), (-1.0, &mut sse_turned)] {
-            let pairs: Vec<(Vector2<f64>, Vector2<f64>)> = segments
+        let ways = [1.0, -1.0].map(|sign| Integral::new(window, yaw, sign, lever));
+        for piece in segments(track, window).chunks(SEGMENTS_PER_PIECE) {
+            if piece.len() < 3 {
+                continue;
+            }
+            let [r_as, r_turned] = [&ways[0], &ways[1]].map(|way| {
+                let pairs: Vec<(Vector2<f64>, Vector2<f64>)> = piece
+                    .iter()
+                    .map(|&(p, q)| (q.position - p.position, way.between(p.t, q.t)))
+                    .collect();
+                sideways(&pairs)
+            });
+            sse_as += r_as.iter().map(|r| r * r).sum::<f64>();
+            sse_turned += r_turned.iter().map(|r| r * r).sum::<f64>();
+            apart += r_as
                 .iter()
-                .map(|&(p, q)| {
-                    let predicted = travelled(window, yaw, p.t, q.t, sign, lever);
-                    (q.position - p.position, predicted)
-                })
-                .collect();
-            *sse += sideways_sse(&pairs);
+                .zip(&r_turned)
+                .map(|(x, y)| (x - y).powi(2))
+                .sum::<f64>();
+            n += piece.len();
+            free += 1;
         }
-        n += segments.len();
-        free += 1;
     }
-    if n < free + 3 {
-        return Swing::NotTold;
+    if n < free + 3 || apart <= 0.0 {
+        return (Swing::NotTold, None);
     }
     let sigma2 = (sse_as.min(sse_turned) / (n - free) as f64).max(SIGMA_FLOOR_M.powi(2));
-    let margin = (sse_turned - sse_as) / sigma2;
+    let evidence = Evidence {
+        lever_share: (sse_turned - sse_as) / apart,
+        margin: (sse_turned - sse_as).abs() / sigma2,
+        segments: n,
+    };
     tracing::debug!(
         segments = n,
-        stretches = free,
+        pieces = free,
         sse_as,
         sse_turned,
-        margin,
-        "the antenna's swing: how much better the stretches fit as decided than turned round"
+        apart,
+        ?evidence,
+        "the antenna's swing"
     );
-    if margin > DECISIVE {
+    let swing = if evidence.margin <= DECISIVE {
+        Swing::NotTold
+    } else if evidence.lever_share >= LEVER_SHARE {
         Swing::AsDecided
-    } else if margin < -DECISIVE {
+    } else if evidence.lever_share <= -LEVER_SHARE {
         Swing::TurnedRound
     } else {
         Swing::NotTold
-    }
+    };
+    (swing, Some(evidence))
 }
 
-/// `track` cut into consecutive pieces of at least [`SEGMENT_M`]: (first, last) epoch.
-fn segments(track: &[GnssObs]) -> Vec<(GnssObs, GnssObs)> {
-    let mut out = Vec::new();
-    let Some(mut from) = track.first().copied() else {
-        return out;
+/// `turned` without the yaw rate's bias, where the car stood long enough to measure it (the
+/// mean yaw rate over a second or more of standing): a bias would turn the integrated heading
+/// steadily.
+fn unbiased(motion: &[(UtcNanos, f64, f64)], turned: &[f64]) -> Vec<f64> {
+    let standing: Vec<f64> = motion
+        .iter()
+        .filter(|m| m.1.abs() < 0.01)
+        .map(|m| m.2)
+        .collect();
+    let span_s = (motion[motion.len() - 1].0 .0 - motion[0].0 .0) as f64 * 1e-9;
+    let standing_s = standing.len() as f64 * span_s / (motion.len() - 1) as f64;
+    let bias = if standing_s >= 1.0 {
+        standing.iter().sum::<f64>() / standing.len() as f64
+    } else {
+        0.0
     };
-    for o in &track[1..] {
-        if (o.position - from.position).norm() >= SEGMENT_M {
-            out.push((from, *o));
-            from = *o;
+    motion
+        .iter()
+        .zip(turned)
+        .map(|(m, y)| y - bias * (m.0 .0 - motion[0].0 .0) as f64 * 1e-9)
+        .collect()
+}
+
+/// `track` cut into consecutive pieces of at least [`SEGMENT_M`]: (first, last) epoch. A piece
+/// starts afresh after an epoch that is not RTK fixed or a step that the CAN speed cannot
+/// explain (a jump); pieces crept faster than [`SLOW_MPS`] are left out.
+fn segments(track: &[GnssObs], motion: &[(UtcNanos, f64, f64)]) -> Vec<(GnssObs, GnssObs)> {
+    let speed_at = |t: UtcNanos| {
+        let k = motion.partition_point(|m| m.0 < t).min(motion.len() - 1);
+        motion[k].1.abs()
+    };
+    let fixed = |o: &GnssObs| o.sigma.x.max(o.sigma.y) <= FIXED_SIGMA_M;
+    let mut out = Vec::new();
+    let mut from: Option<GnssObs> = None;
+    let mut last: Option<GnssObs> = None;
+    for o in track {
+        let explained = last.is_none_or(|l| {
+            let dt = (o.t.0 - l.t.0) as f64 * 1e-9;
+            let v = speed_at(l.t).max(speed_at(o.t));
+            (o.position - l.position).norm() <= 1.5 * v * dt + 0.2
+        });
+        last = Some(*o);
+        if !fixed(o) || !explained {
+            from = fixed(o).then_some(*o);
+            continue;
+        }
+        let Some(f) = from else {
+            from = Some(*o);
+            continue;
+        };
+        if (o.position - f.position).norm() >= SEGMENT_M {
+            let dt = (o.t.0 - f.t.0) as f64 * 1e-9;
+            if (o.position - f.position).norm() <= SLOW_MPS * dt {
+                out.push((f, *o));
+            }
+            from = Some(*o);
         }
     }
     out
 }
 
-/// Where the antenna goes from `t0` to `t1` by the CAN motion, in the frame of the heading at
-/// the first motion sample (`yaw` turned since then at every sample): the integral of the
-/// antenna's velocity on the vehicle, (speed - yaw rate * lever y, yaw rate * lever x), turned
-/// by the yaw at each instant. `sign` -1 takes every speed the other way.
-fn travelled(
-    motion: &[(UtcNanos, f64, f64)],
-    yaw: &[f64],
-    t0: UtcNanos,
-    t1: UtcNanos,
-    sign: f64,
-    lever: Vector2<f64>,
-) -> Vector2<f64> {
-    let mut sum = Vector2::zeros();
-    for (w, y) in motion.windows(2).zip(yaw.windows(2)) {
-        let from = w[0].0 .0.max(t0.0);
-        let to = w[1].0 .0.min(t1.0);
-        if to <= from {
-            continue;
-        }
-        let dt = (to - from) as f64 * 1e-9;
-        let speed = sign * 0.5 * (w[0].1 + w[1].1);
-        let rate = 0.5 * (w[0].2 + w[1].2);
-        let body = Vector2::new(speed - rate * lever.y, rate * lever.x);
-        sum += Rotation2::new(0.5 * (y[0] + y[1])) * body * dt;
-    }
-    sum
+/// Where the antenna goes by the CAN motion, in the frame of the heading at the first motion
+/// sample (`yaw` turned since then at every sample): the integral of the antenna's velocity on
+/// the vehicle, (speed - yaw rate * lever y, yaw rate * lever x), turned by the yaw at each
+/// instant, summed once so that any span of it is a difference. `sign` -1 takes every speed
+/// the other way.
+struct Integral {
+    t: Vec<i64>,
+    sum: Vec<Vector2<f64>>,
 }
 
-/// The sum of squared sideways residuals of measured displacements against predicted ones
-/// (measured, predicted), after the one rotation that fits them best (the stretch's unknown
-/// heading), m².
-fn sideways_sse(pairs: &[(Vector2<f64>, Vector2<f64>)]) -> f64 {
+impl Integral {
+    fn new(motion: &[(UtcNanos, f64, f64)], yaw: &[f64], sign: f64, lever: Vector2<f64>) -> Self {
+        let mut sum = Vec::with_capacity(motion.len());
+        let mut acc = Vector2::zeros();
+        sum.push(acc);
+        for (w, y) in motion.windows(2).zip(yaw.windows(2)) {
+            let dt = (w[1].0 .0 - w[0].0 .0) as f64 * 1e-9;
+            let speed = sign * 0.5 * (w[0].1 + w[1].1);
+            let rate = 0.5 * (w[0].2 + w[1].2);
+            let body = Vector2::new(speed - rate * lever.y, rate * lever.x);
+            acc += Rotation2::new(0.5 * (y[0] + y[1])) * body * dt;
+            sum.push(acc);
+        }
+        Integral {
+            t: motion.iter().map(|m| m.0 .0).collect(),
+            sum,
+        }
+    }
+
+    /// The integral at `t`, linear within a sample interval, held beyond the ends.
+    fn at(&self, t: UtcNanos) -> Vector2<f64> {
+        let k = self.t.partition_point(|&x| x < t.0);
+        if k == 0 {
+            return self.sum[0];
+        }
+        if k == self.t.len() {
+            return self.sum[k - 1];
+        }
+        let w = (t.0 - self.t[k - 1]) as f64 / (self.t[k] - self.t[k - 1]).max(1) as f64;
+        self.sum[k - 1] + (self.sum[k] - self.sum[k - 1]) * w
+    }
+
+    /// Where the antenna goes from `t0` to `t1`.
+    fn between(&self, t0: UtcNanos, t1: UtcNanos) -> Vector2<f64> {
+        self.at(t1) - self.at(t0)
+    }
+}
+
+/// The sideways residual (m) of each measured displacement against its predicted direction
+/// (pairs of measured, predicted), after the one rotation that fits them best (the piece's
+/// unknown heading).
+fn sideways(pairs: &[(Vector2<f64>, Vector2<f64>)]) -> Vec<f64> {
     let unit = |v: Vector2<f64>| v.try_normalize(1e-9).unwrap_or_else(Vector2::zeros);
     // The rotation of the predicted directions onto the measured displacements.
     let (c, s) = pairs.iter().fold((0.0, 0.0), |(c, s), (m, p)| {
@@ -163,8 +282,8 @@ fn sideways_sse(pairs: &[(Vector2<f64>, Vector2<f64>)]) -> f64 {
     let turn = Rotation2::new(s.atan2(c));
     pairs
         .iter()
-        .map(|(m, p)| (turn * unit(*p)).perp(m).powi(2))
-        .sum()
+        .map(|(m, p)| (turn * unit(*p)).perp(m))
+        .collect()
 }
 
 #[cfg(test)]
@@ -205,25 +324,41 @@ mod tests {
     }
 
     /// Backing up into a turn, taken as forward, fits only turned round; forwards fits as
-    /// decided; a straight drive or an antenna on the reference point does not tell. (In a
-    /// turn of constant curvature the antenna runs on a circle either way, turned about its
-    /// centre: only a change of curvature tells.)
+    /// decided. Nothing is told by a straight drive, an antenna near the reference point, a
+    /// rig whose lever arm the antenna does not have (the swing fits neither way), or a drive
+    /// too fast for the swing to be told from timing. (In a turn of constant curvature the
+    /// antenna runs on a circle either way, turned about its centre: only a change of
+    /// curvature tells.)
     #[test]
     fn the_swing_tells_the_way_in_turns_only() {
         let lever = Vector2::new(0.6, 0.1);
-        for (speed, rate, at, want) in [
-            (-1.0, 0.25, lever, Swing::TurnedRound),
-            (1.5, -0.3, lever, Swing::AsDecided),
-            (-1.0, 0.0, lever, Swing::NotTold),
-            (-1.0, 0.25, Vector2::zeros(), Swing::NotTold),
+        let none = Vector2::zeros();
+        for (speed, rate, truth, rig, want) in [
+            (-1.0, 0.25, lever, lever, Swing::TurnedRound),
+            (1.5, -0.3, lever, lever, Swing::AsDecided),
+            (-1.0, 0.0, lever, lever, Swing::NotTold),
+            (-1.0, 0.25, none, none, Swing::NotTold),
+            (
+                -1.0,
+                0.25,
+                Vector2::new(0.1, 0.0),
+                Vector2::new(0.1, 0.0),
+                Swing::NotTold,
+            ),
+            (-1.0, 0.25, none, lever, Swing::NotTold),
+            (8.0, 0.25, lever, lever, Swing::NotTold),
         ] {
-            let (obs, motion, turned) = drive(speed, rate, at);
+            let (obs, motion, turned) = drive(speed, rate, truth);
             let all = [(0, motion.len() - 1)];
+            let (got, evidence) = test(&obs, &motion, &turned, &all, rig);
             assert_eq!(
-                test(&obs, &motion, &turned, &all, at),
-                want,
-                "speed {speed}, yaw rate {rate}, lever {at:?}"
+                got, want,
+                "speed {speed}, yaw rate {rate}, lever {truth:?}, rig {rig:?}: {evidence:?}"
             );
+            if want != Swing::NotTold {
+                let share = evidence.unwrap().lever_share;
+                assert!((share.abs() - 1.0).abs() < 0.2, "{evidence:?}");
+            }
         }
     }
 }

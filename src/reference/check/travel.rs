@@ -16,6 +16,41 @@ pub struct Travel {
     /// few fixes, or a track neither along nor against the heading): taken as forward.
     #[serde(default)]
     pub undecided: Vec<TravelStretch>,
+    /// What the antenna's swing in turns showed, where the speed is a magnitude and the rig has
+    /// no heading source (`swing.rs`); absent where it was not tried or too little track
+    /// counted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lever_swing: Option<LeverSwing>,
+}
+
+/// What the antenna's swing in turns showed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LeverSwing {
+    /// The lever arm the track shows, as a share of the rig's: +1 with the first stretch
+    /// taken as forward, -1 with it backed up; near 0 neither.
+    pub lever_share: f64,
+    /// How much better the better way fits, in squared residual sigmas.
+    pub margin: f64,
+    /// Half-metre segments of track that counted (RTK fixed, crept at most 4 m/s).
+    pub segments: usize,
+    /// What was made of it.
+    pub outcome: SwingOutcome,
+}
+
+/// What the check made of the antenna's swing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SwingOutcome {
+    /// The stretches fit as the track decided them, the first one forward.
+    Confirmed,
+    /// They fit only turned round: the drive started backing up.
+    TurnedRound,
+    /// Neither way fits by far enough, or the swing is a fraction of the rig's lever arm.
+    NotTold,
+    /// Turned round they would fit, but the drive would then back up too far or too fast
+    /// (beyond 100 m or 5 m/s): more likely the rig's lever arm has the wrong sign. The first
+    /// stretch stays taken as forward; the lever-arm check says the rest.
+    Implausible,
 }
 
 /// What told the car's direction of travel.
@@ -86,6 +121,16 @@ impl Travel {
         } else {
             format!("; not told, taken as forward: {}", spans(&self.undecided))
         };
-        format!("direction of travel: {backed}{undecided} ({from})")
+        let swing = match &self.lever_swing {
+            Some(s) if s.outcome == SwingOutcome::TurnedRound => {
+                "; the drive started backing up".to_owned()
+            }
+            Some(s) if s.outcome == SwingOutcome::Implausible => format!(
+                "; turned round, the swing in turns would fit (lever arm {:+.2} of the rig's), but the drive would back up too far or too fast: check the rig's lever arm",
+                s.lever_share
+            ),
+            _ => String::new(),
+        };
+        format!("direction of travel: {backed}{undecided} ({from}){swing}")
     }
 }
