@@ -1801,14 +1801,18 @@ fn runs_without_gnss_fixes_or_ego_motion_fail_naming_the_topic() {
 }
 
 /// The demo rig with a heading source (`[gnss.heading]`: a dual-antenna THS whose baseline
-/// lies across the car, 90° off its axis, 0.05° at 20 Hz), written into `dir`.
-fn heading_rig(dir: &std::path::Path, source: &str) -> std::path::PathBuf {
-    let demo = std::fs::read_to_string(demo_rig()).unwrap();
+/// The demo rig's text with its DBC at an absolute path, for a rig file written elsewhere.
+fn demo_rig_text() -> String {
     let dbc = demo_rig().parent().unwrap().join("hilrig-ego.dbc");
-    let text = demo.replace(
+    std::fs::read_to_string(demo_rig()).unwrap().replace(
         "dbc = \"hilrig-ego.dbc\"",
         &format!("dbc = {:?}", dbc.display().to_string()),
-    );
+    )
+}
+
+/// lies across the car, 90° off its axis, 0.05° at 20 Hz), written into `dir`.
+fn heading_rig(dir: &std::path::Path, source: &str) -> std::path::PathBuf {
+    let text = demo_rig_text();
     let path = dir.join("heading-rig.toml");
     std::fs::write(
         &path,
@@ -2228,23 +2232,8 @@ fn a_drive_that_backs_into_its_slot_passes_naming_the_stretch_backed_up() {
             assert_eq!(v["travel"]["lever_swing"]["outcome"], "confirmed");
         }
         let truth = Truth::read(&d);
-        let (b0, b1) = backed_up(&truth);
-        let stretches = v["travel"]["reversing"].as_array().unwrap();
-        assert_eq!(stretches.len(), 1, "{stretches:?}");
-        let at = |k: &str| iso_ns(stretches[0][k].as_str().unwrap()) as f64 * 1e-9;
-        assert!(
-            (at("from") - b0).abs() < 0.3 && (at("to") - b1).abs() < 0.3,
-            "{source:?}: backed up {:.2}-{:.2} s, the truth {b0:.2}-{b1:.2}",
-            at("from"),
-            at("to")
-        );
-        let (worst, n) = heading_error_sigmas(&truth, &traj);
-        println!("{source:?}: heading error up to {worst:.2} sigma over {n} samples");
-        assert!(n > 100);
-        assert!(
-            worst <= 3.0,
-            "{source:?}: heading error up to {worst:.2} sigma"
-        );
+        backed_up_once_as_the_truth(&v, &truth, &format!("{source:?}"));
+        heading_follows_the_truth(&truth, &traj, &format!("{source:?}"));
     }
 }
 
@@ -2258,21 +2247,14 @@ fn a_drive_that_backs_into_its_slot_passes_naming_the_stretch_backed_up() {
 fn a_recording_that_starts_backing_up_is_told_by_the_antenna_s_swing_in_the_turn() {
     let d = synth_and_record_edited(backing_into_the_slot, "", 43, true);
     let truth = Truth::read(&d);
-    let (b0, b1) = backed_up(&truth);
+    let (b0, _) = backed_up(&truth);
     // The whole drive (forward, then backing into the slot) checked with a rig file whose
     // antenna is on the wrong side of the rear axle: the swing then fits only with the drive
     // turned round. That is a drive that could be (it backs up 25 m at parking speed), so it
     // cannot be refused, but it must not pass unremarked: the report names the lever arm.
     let rigs = tempfile::tempdir().unwrap();
     let wrong = rigs.path().join("antenna-behind.toml");
-    let demo = std::fs::read_to_string(demo_rig()).unwrap();
-    let dbc = demo_rig().parent().unwrap().join("hilrig-ego.dbc");
-    let text = demo
-        .replace(
-            "dbc = \"hilrig-ego.dbc\"",
-            &format!("dbc = {:?}", dbc.display().to_string()),
-        )
-        .replace("antenna = { x = 0.60,", "antenna = { x = -0.60,");
+    let text = demo_rig_text().replace("antenna = { x = 0.60,", "antenna = { x = -0.60,");
     assert!(text.contains("x = -0.60,"));
     std::fs::write(&wrong, text).unwrap();
     let (_, w, _) = check_with_trajectory(&d, Some(&wrong));
@@ -2311,19 +2293,30 @@ fn a_recording_that_starts_backing_up_is_told_by_the_antenna_s_swing_in_the_turn
         "{}",
         v["warnings"]
     );
+    backed_up_once_as_the_truth(&v, &truth, "from the stop");
+    heading_follows_the_truth(&truth, &traj, "from the stop");
+}
+
+/// The check report `v` names one stretch backed up, within 0.3 s of where the truth backs up.
+fn backed_up_once_as_the_truth(v: &Value, truth: &Truth, case: &str) {
+    let (b0, b1) = backed_up(truth);
     let stretches = v["travel"]["reversing"].as_array().unwrap();
-    assert_eq!(stretches.len(), 1, "{stretches:?}");
+    assert_eq!(stretches.len(), 1, "{case}: {stretches:?}");
     let at = |k: &str| iso_ns(stretches[0][k].as_str().unwrap()) as f64 * 1e-9;
     assert!(
         (at("from") - b0).abs() < 0.3 && (at("to") - b1).abs() < 0.3,
-        "backed up {:.2}-{:.2} s, the truth {b0:.2}-{b1:.2}",
+        "{case}: backed up {:.2}-{:.2} s, the truth {b0:.2}-{b1:.2}",
         at("from"),
         at("to")
     );
-    let (worst, n) = heading_error_sigmas(&truth, &traj);
-    println!("heading error up to {worst:.2} sigma over {n} samples");
+}
+
+/// The smoothed heading of `traj` stays within 3 sigma of the truth over more than 100 samples.
+fn heading_follows_the_truth(truth: &Truth, traj: &std::path::Path, case: &str) {
+    let (worst, n) = heading_error_sigmas(truth, traj);
+    println!("{case}: heading error up to {worst:.2} sigma over {n} samples");
     assert!(n > 100);
-    assert!(worst <= 3.0, "heading error up to {worst:.2} sigma");
+    assert!(worst <= 3.0, "{case}: heading error up to {worst:.2} sigma");
 }
 
 /// `src` from log time `from_ns` on, into `dst`: its schemas, channels, attachments (the rig
