@@ -56,18 +56,20 @@ fn reference_points(capture: &std::path::Path, forced: &[&std::ffi::OsStr]) -> V
         "velodyne-decoder failed on {}",
         capture.display()
     );
-    let text = std::fs::read_to_string(out.path()).unwrap();
-    text.lines()
-        .filter(|l| !l.is_empty())
-        .map(|l| {
-            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
+    // Eight little-endian float64 per point (the helper's doc).
+    let bytes = std::fs::read(out.path()).unwrap();
+    assert_eq!(bytes.len() % 64, 0, "{}: a partial row", capture.display());
+    bytes
+        .chunks_exact(64)
+        .map(|row| {
+            let f = |i: usize| f64::from_le_bytes(row[8 * i..8 * i + 8].try_into().unwrap());
             Ref {
-                x: f[0],
-                y: f[1],
-                z: f[2],
-                intensity: f[3] as u8,
-                ring: f[4] as u8,
-                return_type: f[5] as u8,
+                x: f(0),
+                y: f(1),
+                z: f(2),
+                intensity: f(3) as u8,
+                ring: f(4) as u8,
+                return_type: f(5) as u8,
             }
         })
         .collect()
