@@ -138,19 +138,25 @@ fn remeasure(src: &Path, dst: &Path, w_mrad: f64, scene: &Scene, truth: &Traject
                     let d = f.direction;
                     let u = d.cross(&Vector3::z()).normalize();
                     let v = u.cross(&d);
-                    let hits: Vec<SubHit> = offsets
+                    let dirs: Vec<Vector3<f64>> = offsets
                         .iter()
-                        .filter_map(|&(a, b)| {
-                            let sd = (d + u * a + v * b).normalize();
-                            scene
-                                .cast(&f.origin, &sd, 0.0, 200.0, actors)
-                                .map(|h| SubHit {
-                                    surface: h.material.surface.0,
-                                    range: h.range,
-                                    power: h.material.reflectivity * (-h.normal.dot(&sd)).max(0.0)
-                                        / (h.range * h.range),
-                                    reflectivity: h.material.reflectivity,
-                                })
+                        .map(|&(a, b)| (d + u * a + v * b).normalize())
+                        .collect();
+                    // The sub-rays in one traversal: bit for bit what `Scene::cast` finds for
+                    // each (its doc), in a third less time.
+                    let mut cast = vec![None; dirs.len()];
+                    scene.cast_bundle(&f.origin, &dirs, 0.0, 200.0, actors, &mut cast);
+                    let hits: Vec<SubHit> = dirs
+                        .iter()
+                        .zip(cast)
+                        .filter_map(|(sd, h)| {
+                            h.map(|h| SubHit {
+                                surface: h.material.surface.0,
+                                range: h.range,
+                                power: h.material.reflectivity * (-h.normal.dot(sd)).max(0.0)
+                                    / (h.range * h.range),
+                                reflectivity: h.material.reflectivity,
+                            })
                         })
                         .collect();
                     let channel = nearest_sizeable(&hits, SIZEABLE)
