@@ -12,6 +12,69 @@ use serde_json::Value;
 
 use std::process::Command;
 
+/// [`common::synth_and_record_edited`] without lidar returns (`[lidar] returns = false`): `check`
+/// reads the lidar packets' times, not what they measured, and casting the returns was about
+/// half of these tests' time. The tests that compare a run call the common one.
+fn synth_and_record_edited(
+    edit: impl Fn(String) -> String,
+    extra: &str,
+    seed: u64,
+    errors: bool,
+) -> SynthRun {
+    common::synth_and_record_edited(
+        |t| {
+            let t = edit(t);
+            assert!(t.contains("\n[lidar]\n"), "{t}");
+            t.replacen("\n[lidar]\n", "\n[lidar]\nreturns = false\n", 1)
+        },
+        extra,
+        seed,
+        errors,
+    )
+}
+
+/// [`synth_and_record_edited`] of the parking drive as it is.
+fn synth_and_record(extra: &str, seed: u64, errors: bool) -> SynthRun {
+    synth_and_record_edited(|t| t, extra, seed, errors)
+}
+
+/// A drive synthesized without returns is the same drive: with the same seed, every lidar data
+/// packet has the same stamp, header and block azimuths as with returns, and every channel is
+/// empty (with returns, most packets hold some).
+#[test]
+fn a_drive_synthesized_without_returns_has_the_same_packets_with_empty_channels() {
+    use hilrig::velodyne::DataPacket;
+    let (with, without) = (
+        common::synth_and_record("", 5, true),
+        synth_and_record("", 5, true),
+    );
+    let packets = |d: &SynthRun| lidar_data(&d.rep.join("drive.pcapng"));
+    let (a, b) = (packets(&with), packets(&without));
+    assert!(a.len() > 10_000, "{} packets", a.len());
+    assert_eq!(a.len(), b.len());
+    let mut with_returns = 0;
+    for (x, y) in a.iter().zip(&b) {
+        let (p, q) = (
+            DataPacket::decode(x).unwrap(),
+            DataPacket::decode(y).unwrap(),
+        );
+        assert_eq!(
+            (p.timestamp_us, p.return_mode, p.product),
+            (q.timestamp_us, q.return_mode, q.product)
+        );
+        for (bp, bq) in p.blocks.iter().zip(&q.blocks) {
+            assert_eq!((bp.flag, bp.azimuth), (bq.flag, bq.azimuth));
+            assert!(bq.channels.iter().all(|c| c.distance == 0));
+        }
+        with_returns += usize::from(
+            p.blocks
+                .iter()
+                .any(|b| b.channels.iter().any(|c| c.distance > 0)),
+        );
+    }
+    assert!(with_returns > a.len() / 2, "{with_returns} of {}", a.len());
+}
+
 /// Synthesizes the parking drive with `faults` (TOML lines of a `[faults]` table), records it
 /// and checks it; returns the check's exit code and JSON report.
 fn drive_and_check(faults: &str) -> (i32, Value) {
@@ -932,7 +995,8 @@ fn damaged_recordings_give_a_report_not_a_panic() {
 /// segment.
 #[test]
 fn stretches_with_an_uncertain_heading_are_marked_not_usable_without_a_fault() {
-    let d = synth_and_record_edited(|t| t, "", 21, true);
+    // With returns: the run is compared with its re-simulation below.
+    let d = common::synth_and_record_edited(|t| t, "", 21, true);
     let rig_text = std::fs::read_to_string(demo_rig()).unwrap();
     let dbc = demo_rig().with_file_name("hilrig-ego.dbc");
     // The limit halfway between the drive's best and worst heading sigma at the default rig.
@@ -1230,7 +1294,8 @@ fn rewrite_capture(
 /// time offset fault says which it was.
 #[test]
 fn a_logger_clock_off_gnss_time_is_put_right_or_named() {
-    let d = synth_and_record("", 12, true);
+    // With returns: `compare` pairs the scans below.
+    let d = common::synth_and_record("", 12, true);
     // A heading limit halfway between the drive's best and worst heading sigma, so that some
     // stretches are marked and `compare` leaves their scans out.
     let (_, _, traj) = check_with_trajectory(&d, None);

@@ -253,6 +253,9 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
         .map(|k| {
             let sk = spin.packet(k, sensor_clock);
             let mut stats = SimStats::default();
+            if !ls.returns {
+                return (sk.packet.encode().to_vec(), stats, sk.packet.timestamp_us);
+            }
             let pkt = sim.simulate(
                 &sk.packet,
                 sk.time,

@@ -143,6 +143,12 @@ pub struct LidarStream {
     /// One position packet per this many data packets.
     #[serde(default = "d_position_every")]
     pub position_every: u32,
+    /// Whether the data packets carry returns, cast through the scene (the default). Without
+    /// them, each packet has its stamp, its blocks' azimuths and its header, and every channel
+    /// is empty: what a study of the reference data alone needs (`check` reads the packets'
+    /// times, not their returns), synthesized without casting a ray.
+    #[serde(default = "yes")]
+    pub returns: bool,
 }
 
 /// GNSS stream errors and settings.
@@ -238,6 +244,7 @@ macro_rules! defaults {
     ($($name:ident: $t:ty = $v:expr;)*) => { $(fn $name() -> $t { $v })* };
 }
 defaults! {
+    yes: bool = true;
     one: f64 = 1.0;
     d_acc: f64 = 0.8;
     d_dec: f64 = 1.0;
