@@ -283,12 +283,13 @@ fn a_campaign_from_a_bucket_killed_mid_run_here_resumed_on_ray_gives_the_same_fi
     }
     let total = TASKS;
 
-    // Killed once 7 tasks are done (records, checks, the first re-simulations).
-    run_until_killed(&file, &out, 7);
+    // Killed once 5 tasks are done (records, checks, the first re-simulation).
+    run_until_killed(&file, &out, 5);
     let first = finished(&out);
     // The next run, here, skips every finished task (and runs none of them again); it too is
-    // killed, after five tasks more.
-    let second = run_until_killed(&file, &out, first.len() + 5);
+    // killed, after three tasks more: re-simulations and comparisons are left for Ray, whose
+    // worker node is lost while it runs one.
+    let second = run_until_killed(&file, &out, first.len() + 3);
     assert!(
         tasks_reported(&second, "current").is_superset(&first),
         "{second}"
@@ -298,7 +299,7 @@ fn a_campaign_from_a_bucket_killed_mid_run_here_resumed_on_ray_gives_the_same_fi
         "{second}"
     );
     let before = finished(&out);
-    assert!(before.is_superset(&first) && before.len() >= first.len() + 5);
+    assert!(before.is_superset(&first) && before.len() >= first.len() + 3);
     assert!(before.len() < total, "everything finished before the kill");
 
     // The third run, on a Ray cluster that loses a worker node while it runs tasks, skips every

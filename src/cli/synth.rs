@@ -74,7 +74,7 @@ pub fn run(args: SynthArgs) -> Result<ExitCode> {
         let dir = args.output.join(format!("rep-{rep:02}"));
         let s = synth_rep(&job, rep, &dir)?;
         bar.suspend(|| eprintln!(
-            "{}: {:.1} s, {} lidar packets ({} lost), {} position, {} NMEA, {} CAN, returns {:.0} %, waited {:.1} s for the walker",
+            "{}: {:.1} s, {} lidar packets ({} lost), {} position, {} NMEA, {} CAN, {}, waited {:.1} s for the walker",
             dir.join(&s.capture).display(),
             s.duration_s,
             s.lidar_packets,
@@ -82,7 +82,9 @@ pub fn run(args: SynthArgs) -> Result<ExitCode> {
             s.position_packets,
             s.sentences,
             s.can_frames,
-            s.return_share * 100.0,
+            s.return_share.map_or("returns not cast ([lidar] returns = false)".to_owned(), |r| {
+                format!("returns {:.0} %", r * 100.0)
+            }),
             s.yield_stop_s
         ));
         for w in &s.beyond_car {

@@ -146,8 +146,10 @@ pub struct RepSummary {
     pub duration_s: f64,
     /// Seconds the ego waited for the walker.
     pub yield_stop_s: f64,
-    /// Firings with a return / all firings.
-    pub return_share: f64,
+    /// Firings with a return / all firings; none when the drive casts no returns
+    /// (`[lidar] returns = false`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub return_share: Option<f64>,
     /// The limits of a car this repetition goes beyond as driven, each where it does so most:
     /// the change of curvature where the driver model steers faster than a car can, and any
     /// limit the human variation drawn for it takes a drive that is within them as planned
@@ -351,7 +353,7 @@ pub fn synth_rep(job: &SynthJob, rep: u32, dir: &Path) -> Result<RepSummary, Syn
             summary.position_packets += 1;
         }
     }
-    summary.return_share = returns as f64 / firings.max(1) as f64;
+    summary.return_share = ls.returns.then(|| returns as f64 / firings.max(1) as f64);
 
     let streams = Streams {
         driven: &driven,

@@ -410,6 +410,16 @@ impl Scenario {
 
     fn run_pipeline(&self, values: &[f64], seed: u64, work: &Path) -> Result<f64, StepError> {
         let docs = self.documents(values)?;
+        if !docs.drive.lidar.returns {
+            // An evaluation compares returns: a drive that casts none would score a model
+            // against empty clouds.
+            return Err(step(
+                "synth",
+                std::io::Error::other(
+                    "the drive file sets [lidar] returns = false: an evaluation compares the lidar's returns",
+                ),
+            ));
+        }
         let dir = |d: Doc| {
             self.paths[d as usize]
                 .parent()
