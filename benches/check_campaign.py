@@ -43,6 +43,10 @@
    it to 0.03-0.04°, 1 sigma; there the rig must state a calibrated mounting,
    --calibrated-mounting).
 
+The drives are synthesized without lidar returns (`[lidar] returns = false`: every packet with
+its stamp, header and azimuths, its channels empty): `check` reads the packets' times only. A
+run kept with --keep therefore has empty clouds.
+
 usage: python3 benches/check_campaign.py [CLEAN_DRIVES] [SEEDS_PER_FAULT] [FIRST_CLEAN_SEED]
            [--gnss-sigma M] [--gnss-correlation S] [--gnss-rate HZ] [--can-rate HZ]
            [--yaw-rate-noise RAD/S] [--sigma-limits DEG,DEG,...] [--heading SOURCE]
