@@ -300,7 +300,9 @@ pub struct UbxEpochs {
 
 /// The UTC of a UBX epoch: on the receiver's millisecond grid (see NAV-PVT below).
 fn on_ms_grid(t: UtcNanos) -> UtcNanos {
-    UtcNanos(t.0.saturating_add(500_000).div_euclid(1_000_000) * 1_000_000)
+    // The nearest millisecond, halves up, without an overflow at either end of the range.
+    let ms = t.0.div_euclid(1_000_000) + i64::from(t.0.rem_euclid(1_000_000) >= 500_000);
+    UtcNanos(ms.saturating_mul(1_000_000))
 }
 
 impl UbxEpochs {
@@ -526,7 +528,8 @@ mod tests {
     use crate::framer::ubx_frame;
 
     /// Found by cargo-fuzz: a NAV-PVT dated in the year 65535 overflowed the rounding to the
-    /// millisecond grid.
+    /// millisecond grid. Such a date is beyond what a time can hold: the fix comes out
+    /// without one (it used to carry the range's end, 2262).
     #[test]
     fn pvt_at_the_end_of_time_does_not_overflow() {
         let mut p = [0u8; 92];
@@ -545,6 +548,35 @@ mod tests {
         s.push(&ubx_frame(1, 7, &p), &mut out);
         s.finish(&mut out);
         assert_eq!(out.len(), 1);
-        assert!(out[0].time.is_some());
+        assert!(out[0].time.is_none());
+        // A date within the range keeps its time, on the millisecond grid.
+        p[4..6].copy_from_slice(&2026u16.to_le_bytes());
+        let mut s = GnssStream::default();
+        let mut out = Vec::new();
+        s.push(&ubx_frame(1, 7, &p), &mut out);
+        s.finish(&mut out);
+        let t = out[0].time.expect("a time");
+        assert_eq!(t.0.rem_euclid(1_000_000), 0);
+    }
+
+    /// Found by cargo-fuzz (the attitude target, 2026-12-08): a NAV-PVAT dated in the year 0
+    /// saturated to the start of the range, and the rounding to the millisecond grid then
+    /// overflowed. The fuzzer's input, as its target frames it.
+    #[test]
+    fn pvat_at_the_start_of_time_does_not_overflow() {
+        let mut payload = vec![255u8, 255, 0, 0, 0, 255, 15, 0, 4, 6];
+        payload.extend([0u8; 52]);
+        payload.push(41);
+        payload.extend([0u8; 11]);
+        payload.extend([26u8, 61, 33, 58, 33, 26, 126, 47, 255, 15]);
+        payload.extend([0u8; 6]);
+        payload.extend([61u8, 61, 33, 33, 126, 61, 33, 126, 61, 33, 33, 126]);
+        payload.extend([0u8; 7]);
+        payload.extend([107u8, 58, 33, 26, 39, 36, 10]);
+        let mut s = GnssStream::for_gpsd_log().with_attitude();
+        let mut out = Vec::new();
+        s.push(&ubx_frame(0x01, 0x17, &payload), &mut out);
+        s.finish(&mut out);
+        assert!(out.iter().all(|f| f.time.is_none()), "{out:?}");
     }
 }

@@ -60,13 +60,14 @@ pub fn parse_hms(value: &str) -> Option<i64> {
 }
 
 /// An instant from a civil date and nanoseconds of the day; `None` when the date does not
-/// exist.
+/// exist or lies beyond what [`UtcNanos`] holds (1677-09-21 to 2262-04-11). A receiver's year
+/// 0 or 65535 is damage, not a time: saturated to the end of the range it once passed for one,
+/// and the rounding to a receiver's millisecond grid then overflowed (found by cargo-fuzz).
 pub fn utc_from_civil(y: i64, m: u32, d: u32, nanos_of_day: i64) -> Option<UtcNanos> {
-    Some(UtcNanos(
-        days_from_civil(y, m, d)?
-            .saturating_mul(NANOS_PER_DAY)
-            .saturating_add(nanos_of_day),
-    ))
+    days_from_civil(y, m, d)?
+        .checked_mul(NANOS_PER_DAY)?
+        .checked_add(nanos_of_day)
+        .map(UtcNanos)
 }
 
 /// ISO 8601 with milliseconds and `Z`, as gpsd and most tools print UTC (milliseconds
@@ -100,6 +101,16 @@ mod tests {
             assert_eq!(days_from_civil(y, m, d), None, "{y}-{m}-{d}");
         }
         assert_eq!(iso8601_millis(UtcNanos(-1)), "1969-12-31T23:59:59.999Z");
+        // Beyond what the nanosecond count holds: no instant, not the end of the range.
+        assert_eq!(utc_from_civil(0, 1, 1, 0), None);
+        assert_eq!(utc_from_civil(65_535, 12, 31, 0), None);
+        assert_eq!(utc_from_civil(2262, 4, 12, 0), None);
+        assert_eq!(
+            utc_from_civil(2262, 4, 11, 0),
+            Some(UtcNanos(106_751 * NANOS_PER_DAY))
+        );
+        assert_eq!(utc_from_civil(1677, 9, 21, 0), None);
+        assert!(utc_from_civil(1677, 9, 22, 0).is_some());
         assert_eq!(
             iso8601_millis(UtcNanos(1_355_263_592_123_000_000)),
             "2012-12-11T22:06:32.123Z"
