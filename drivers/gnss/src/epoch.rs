@@ -527,6 +527,14 @@ mod tests {
     use super::*;
     use crate::framer::ubx_frame;
 
+    /// The fixes `stream` makes of `bytes`, to the end of the stream.
+    fn fixes(mut stream: GnssStream, bytes: &[u8]) -> Vec<Fix> {
+        let mut out = Vec::new();
+        stream.push(bytes, &mut out);
+        stream.finish(&mut out);
+        out
+    }
+
     /// Found by cargo-fuzz: a NAV-PVT dated in the year 65535 overflowed the rounding to the
     /// millisecond grid. Such a date is beyond what a time can hold: the fix comes out
     /// without one (it used to carry the range's end, 2262).
@@ -543,18 +551,12 @@ mod tests {
         p[16..20].copy_from_slice(&999_999_999i32.to_le_bytes());
         p[20] = 3;
         p[21] = 1;
-        let mut s = GnssStream::default();
-        let mut out = Vec::new();
-        s.push(&ubx_frame(1, 7, &p), &mut out);
-        s.finish(&mut out);
+        let out = fixes(GnssStream::default(), &ubx_frame(1, 7, &p));
         assert_eq!(out.len(), 1);
         assert!(out[0].time.is_none());
         // A date within the range keeps its time, on the millisecond grid.
         p[4..6].copy_from_slice(&2026u16.to_le_bytes());
-        let mut s = GnssStream::default();
-        let mut out = Vec::new();
-        s.push(&ubx_frame(1, 7, &p), &mut out);
-        s.finish(&mut out);
+        let out = fixes(GnssStream::default(), &ubx_frame(1, 7, &p));
         let t = out[0].time.expect("a time");
         assert_eq!(t.0.rem_euclid(1_000_000), 0);
     }
@@ -573,10 +575,10 @@ mod tests {
         payload.extend([61u8, 61, 33, 33, 126, 61, 33, 126, 61, 33, 33, 126]);
         payload.extend([0u8; 7]);
         payload.extend([107u8, 58, 33, 26, 39, 36, 10]);
-        let mut s = GnssStream::for_gpsd_log().with_attitude();
-        let mut out = Vec::new();
-        s.push(&ubx_frame(0x01, 0x17, &payload), &mut out);
-        s.finish(&mut out);
+        let out = fixes(
+            GnssStream::for_gpsd_log().with_attitude(),
+            &ubx_frame(0x01, 0x17, &payload),
+        );
         assert!(out.iter().all(|f| f.time.is_none()), "{out:?}");
     }
 }
